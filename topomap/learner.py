@@ -50,7 +50,7 @@ class MapLearner:
     reg_covar : float
         Added to every variance, relative to the data's mean feature variance.
     n_init : int
-        K-means restarts.
+        K-means restarts (k-means++ initialisations; the best inertia wins).
     random_state : int
         Seed of K-means (the only random part of the method).
     callbacks : sequence of callables
@@ -73,7 +73,7 @@ class MapLearner:
 
     def __init__(self, n_clusters: int = 20, n_states: int = 30, *, clusters=None,
                  metric="euclidean", criterion="entropy", stopping=None,
-                 covariance_type: str = "diag", reg_covar: float = 1e-3, n_init: int = 10,
+                 covariance_type: str = "diag", reg_covar: float = 1e-3, n_init: int = 3,
                  random_state: int = 0, callbacks=()):
         self.n_clusters = n_clusters
         self.n_states = n_states

@@ -46,18 +46,16 @@ _TIE_DECIMALS = 9
 
 
 def _xlogx(c: np.ndarray) -> np.ndarray:
+    """``c * log2(c)`` with ``0 log 0 = 0``."""
     c = np.asarray(c, dtype=np.float64)
-    out = np.zeros_like(c)
-    pos = c > 0
-    out[pos] = c[pos] * np.log2(c[pos])
-    return out
+    return c * np.log2(np.maximum(c, 1.0)) if np.all(c == np.round(c)) else np.where(
+        c > 0, c * np.log2(np.where(c > 0, c, 1.0)), 0.0)
 
 
 def weighted_entropy(counts: np.ndarray) -> np.ndarray:
     """``n * H`` in bits for each row of a count matrix (``n`` = row sum, ``H`` = row entropy)."""
     counts = np.atleast_2d(counts)
-    n = counts.sum(axis=1)
-    return _xlogx(n) - _xlogx(counts).sum(axis=1)
+    return _xlogx(counts.sum(axis=1)) - _xlogx(counts).sum(axis=1)
 
 
 def merge_cost(counts: np.ndarray, i: int) -> np.ndarray:
@@ -79,9 +77,8 @@ class EntropyCriterion:
     def propose(self, counts: np.ndarray):
         """Return ``(side, gain)`` -- ``side[g]`` is True for the groups of the second half -- or
         ``None`` when the state has fewer than two groups."""
-        counts = np.asarray(counts, dtype=np.float64)
-        G = counts.shape[0]
-        if G < 2:
+        counts = np.asarray(counts)
+        if counts.shape[0] < 2:
             return None
         side = merge_groups(counts)
         halves = np.stack([counts[~side].sum(axis=0), counts[side].sum(axis=0)])
@@ -92,35 +89,53 @@ class EntropyCriterion:
         return "EntropyCriterion()"
 
 
+#: pairwise merge costs are computed in one broadcast when groups^2 * columns stays below this
+_BROADCAST_LIMIT = 2_000_000
+
+
 def merge_groups(counts: np.ndarray) -> np.ndarray:
-    """Agglomerate the rows of ``counts`` into two clusters by least weighted-entropy increase.
+    """Agglomerate the rows of an integer count matrix into two clusters, each time merging the
+    pair whose union increases the weighted entropy ``n H`` least (ties: smallest indices).
 
     Returns a boolean array: False for the rows in the cluster holding row 0, True for the others.
     """
-    G = counts.shape[0]
-    work = counts.astype(np.float64).copy()
-    cost = np.full((G, G), np.inf)
-    for i in range(G - 1):
-        cost[i, i + 1:] = np.round(merge_cost(work, i)[i + 1:], _TIE_DECIMALS)
-    owner = np.arange(G)  # cluster representative of every row
-    alive = np.ones(G, dtype=bool)
+    work = np.asarray(counts, dtype=np.int64).copy()
+    if np.any(work < 0):
+        raise ValueError("counts must be non-negative")
+    G, K = work.shape
+    # c log2 c for every integer a count can reach: merged counts stay integers
+    table = _xlogx(np.arange(2 * int(work.sum()) + 1))  # 2x: a row is also paired with itself
+    n = work.sum(axis=1)
+    W = table[n] - table[work].sum(axis=1)
+
+    def row_cost(a):
+        return np.round(table[n[a] + n] - table[work[a] + work].sum(axis=1) - W[a] - W,
+                        _TIE_DECIMALS)
+
+    if G * G * K <= _BROADCAST_LIMIT:
+        pair = (table[n[:, None] + n[None, :]] - table[work[:, None, :] + work[None, :, :]].sum(-1)
+                - W[:, None] - W[None, :])
+        cost = np.round(pair, _TIE_DECIMALS)
+    else:
+        cost = np.stack([row_cost(a) for a in range(G)])
+    cost[np.tril_indices(G)] = np.inf  # only cost[a, b] with a < b is used
+    owner = np.arange(G)
     for _ in range(G - 2):
-        flat = int(np.argmin(cost))
-        a, b = divmod(flat, G)  # a < b always: only the upper triangle is finite
+        a, b = divmod(int(np.argmin(cost)), G)
         work[a] += work[b]
         work[b] = 0
-        alive[b] = False
+        n[a] += n[b]
+        n[b] = 0
+        W[a] = table[n[a]] - table[work[a]].sum()
         owner[owner == b] = a
         cost[b, :] = np.inf
         cost[:, b] = np.inf
-        row = np.round(merge_cost(work, a), _TIE_DECIMALS)
-        row[~alive] = np.inf
-        row[a] = np.inf
-        # keep the matrix upper-triangular: cost[min, max]
+        row = row_cost(a)
+        dead = owner != np.arange(G)
+        row[dead] = np.inf
         cost[a, a + 1:] = row[a + 1:]
         cost[:a, a] = row[:a]
-    first = owner[0]
-    return owner != first
+    return owner != owner[0]
 
 
 class TargetStates:

@@ -1,0 +1,91 @@
+import numpy as np
+import pytest
+
+from topomap import Trajectory, load_trajectory, save_trajectory
+
+
+def make(T=20, seed=0):
+    rng = np.random.default_rng(seed)
+    return Trajectory(
+        observations=rng.normal(size=(T, 3)), actions=rng.integers(0, 4, T),
+        gds=np.where(np.arange(T) % 7 == 0, 1, -1), places=rng.integers(0, 5, T),
+        positions=rng.uniform(size=(T, 2)), lengths=[T - 5, 5],
+        action_names=["a", "b", "c", "d"], gds_names=["g0", "g1"],
+    )
+
+
+@pytest.mark.parametrize("suffix", [".npz", ".csv"])
+def test_roundtrip(tmp_path, suffix):
+    t = make()
+    path = save_trajectory(t, tmp_path / f"run{suffix}")
+    r = load_trajectory(path)
+    assert np.array_equal(r.observations, t.observations)  # repr() keeps floats exact in CSV
+    for key in ("actions", "gds", "places", "positions", "lengths"):
+        assert np.array_equal(getattr(r, key), getattr(t, key)), key
+    if suffix == ".npz":
+        assert r.action_names == t.action_names and r.gds_names == t.gds_names
+
+
+def test_minimal_csv_by_hand(tmp_path):
+    p = tmp_path / "log.csv"
+    p.write_text("o0,o1,action\n0.5,1,0\n0.25,2,1\n1,3,1\n")
+    t = load_trajectory(p)
+    assert t.observations.tolist() == [[0.5, 1], [0.25, 2], [1, 3]]
+    assert t.actions.tolist() == [0, 1, 1] and t.gds is None and t.lengths is None
+
+
+@pytest.mark.parametrize("text, match", [
+    ("o0,action\n1,0\nx,1\n", "line 3, column 'o0': 'x' is not a number"),
+    ("o0,action\n1,0\n2\n", "line 3: 1 fields"),
+    ("o0,speed\n1,0\n", "unknown column"),
+    ("o0,o1\n1,0\n", "no 'action' column"),
+    ("o0,action\n1,0.5\n", "actions must hold integers"),
+    ("o0,action\n", "no data rows"),
+    ("", "is empty"),
+    ("o0,action,x\n1,0,1\n", "both 'x' and 'y'"),
+])
+def test_malformed_csv(tmp_path, text, match):
+    p = tmp_path / "bad.csv"
+    p.write_text(text)
+    with pytest.raises(ValueError, match=match):
+        load_trajectory(p)
+
+
+def test_malformed_npz(tmp_path):
+    p = tmp_path / "bad.npz"
+    p.write_bytes(b"not a zip file")
+    with pytest.raises(ValueError, match="bad.npz"):
+        load_trajectory(p)
+    np.savez(tmp_path / "noact.npz", observations=np.zeros((4, 2)))
+    with pytest.raises(ValueError, match="lacks the array.*actions"):
+        load_trajectory(tmp_path / "noact.npz")
+    np.savez(tmp_path / "obj.npz", observations=np.array([{"a": 1}], dtype=object),
+             actions=np.zeros(1))
+    with pytest.raises(ValueError, match="obj.npz"):
+        load_trajectory(tmp_path / "obj.npz")
+    np.savez(tmp_path / "len.npz", observations=np.zeros((4, 2)), actions=np.zeros(3, int))
+    with pytest.raises(ValueError, match="actions has 3 entries"):
+        load_trajectory(tmp_path / "len.npz")
+
+
+def test_missing_and_unknown_files(tmp_path):
+    with pytest.raises(ValueError, match="does not exist"):
+        load_trajectory(tmp_path / "nope.npz")
+    (tmp_path / "x.txt").write_text("1")
+    with pytest.raises(ValueError, match="must end in .npz or .csv"):
+        load_trajectory(tmp_path / "x.txt")
+
+
+def test_failed_save_leaves_no_file(tmp_path):
+    t = make()
+    t.observations = np.array(["not", "numbers"], dtype=object)  # breaks while writing
+    with pytest.raises(Exception):
+        save_trajectory(t, tmp_path / "out.csv")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_names_must_cover_ids():
+    with pytest.raises(ValueError, match="only 2 action_names"):
+        Trajectory(np.zeros((3, 1)), [0, 1, 2], action_names=["a", "b"])
+    with pytest.raises(ValueError, match="positions must have shape"):
+        Trajectory(np.zeros((3, 1)), [0, 1, 1], positions=np.zeros((3, 3)))
