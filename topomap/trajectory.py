@@ -182,6 +182,9 @@ def _atomic_write(path: Path, write) -> None:
     os.close(fd)
     try:
         write(Path(tmp))
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600; give the usual permissions
         os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
@@ -204,8 +207,6 @@ def save_trajectory(traj: Trajectory, path) -> Path:
                 np.savez_compressed(fh, **arrays)
 
     elif suffix == ".csv":
-        if traj.action_names is not None or traj.gds_names is not None:
-            pass  # names are not representable in CSV; they are dropped (documented)
         D = traj.observations.shape[1]
         header = [f"o{i}" for i in range(D)] + ["action"]
         cols = [traj.observations, traj.actions[:, None]]
@@ -224,14 +225,12 @@ def save_trajectory(traj: Trajectory, path) -> Path:
         int_cols = {"action", "gds", "place", "episode"}
 
         def write(tmp):
+            table = np.hstack([np.asarray(c, dtype=np.float64) for c in cols])
             with open(tmp, "w", newline="") as fh:
                 w = csv.writer(fh)
                 w.writerow(header)
-                table = np.hstack([np.asarray(c, dtype=object) for c in cols])
-                for row in table:
-                    w.writerow(
-                        [int(v) if h in int_cols else repr(float(v)) for h, v in zip(header, row)]
-                    )
+                for row in table.tolist():
+                    w.writerow([int(v) if h in int_cols else repr(v) for h, v in zip(header, row)])
 
     else:
         raise ValueError(f"trajectory file {path} must end in .npz or .csv, not {suffix!r}")
