@@ -1,0 +1,163 @@
+"""The Hydra app: config composition, the CLI end to end, and its error messages."""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import networkx as nx
+import numpy as np
+import pytest
+from hydra import compose, initialize_config_module
+from hydra.errors import ConfigCompositionException
+from omegaconf.errors import ValidationError
+
+from topomap import TopologicalMap, load_trajectory
+from topomap.experiment import FIGURE_FILES, OUTPUT_FILES, run
+from topomap.registry import Registry
+
+CONF = Path(__file__).resolve().parents[1] / "conf"
+GROUPS = ["env", "noise", "explorer", "metric", "clusters", "split", "stop", "data"]
+
+
+def make_cfg(overrides=()):
+    with initialize_config_module(version_base="1.3", config_module="topomap.conf"):
+        return compose(config_name="config", overrides=list(overrides))
+
+
+def options(group):
+    return sorted(p.stem for p in (CONF / group).glob("*.yaml"))
+
+
+def test_default_config_is_the_papers_experiment():
+    cfg = make_cfg()
+    assert cfg.env.name == "office" and cfg.env.layout == "paper"
+    assert cfg.data.n_steps == 2000 and cfg.clusters.ns == 20 and cfg.stop.n_states == 30
+    assert cfg.seed == 0
+    preset = make_cfg(["experiment=pricai2002"])
+    for key in ("env", "noise", "explorer", "metric", "clusters", "split", "stop", "data", "seed"):
+        assert preset[key] == cfg[key], key
+
+
+@pytest.mark.parametrize("group, option", [(g, o) for g in GROUPS for o in options(g)])
+def test_every_group_option_composes_and_builds(group, option):
+    overrides = [f"{group}={option}"]
+    if (group, option) == ("data", "file"):
+        overrides.append("data.path=x.npz")
+    cfg = make_cfg(overrides)
+    assert cfg[group].name == option
+    if group != "data":
+        registry = Registry.load(entry_points_group=None)
+        params = dict(cfg[group])
+        if group == "stop":
+            registry.make(group, params).check(22)
+        else:
+            registry.make(group, params)
+
+
+def test_every_registered_builtin_has_a_yaml_option():
+    registry = Registry.load(entry_points_group=None)
+    for kind, name, _, provider in registry.items():
+        assert name in options(kind), (kind, name)
+
+
+@pytest.mark.parametrize("override, message", [
+    ("clusters.ns=abc", "could not be converted to Integer"),
+    ("clusters.nss=3", "Key 'nss' not in"),
+    ("stop.n_states=1.5", "could not be converted to Integer"),
+    ("env.view_rnage=2", "Key 'view_rnage' not in"),
+])
+def test_typed_config_rejects_bad_values(override, message):
+    with pytest.raises(ConfigCompositionException) as info:
+        make_cfg([override])
+    assert message in str(info.value.__cause__ or info.value)
+
+
+def test_composed_config_stays_typed():
+    cfg = make_cfg()
+    with pytest.raises(ValidationError):
+        cfg.clusters.ns = "abc"
+
+
+def small(overrides=()):
+    data = [] if "data=file" in overrides else ["data.n_steps=300"]
+    return make_cfg([*data, "clusters.ns=8", "stop.n_states=12", "output.progress=false",
+                     *overrides])
+
+
+def test_run_in_process_writes_every_output(tmp_path):
+    results = run(small(), tmp_path)
+    for name in [*OUTPUT_FILES, *FIGURE_FILES]:
+        assert (tmp_path / name).is_file(), name
+    m = TopologicalMap.load(tmp_path / "map.json")
+    assert m.n_states == 12 == results["n_states"]["final"]
+    assert results["n_states"]["phase1"] == 8 + 2  # ns symbols + 2 GDS
+    traj = load_trajectory(tmp_path / "trajectory.npz")
+    assert len(traj) == 300 and traj.places is not None and traj.positions.shape == (300, 2)
+    states = np.loadtxt(tmp_path / "states.csv", delimiter=",", skiprows=1, dtype=int)
+    assert states.shape == (300, 4) and np.array_equal(states[:, 0], np.arange(300))
+    assert np.array_equal(states[:, 3], traj.places)
+    assert np.array_equal(np.bincount(states[:, 2], minlength=12), m.state_counts_)
+    metrics = json.loads((tmp_path / "metrics.json").read_text())
+    for stage in ("phase1", "final"):
+        assert set(metrics["ground_truth"][stage]) >= {"ari", "nmi", "purity", "compound_states"}
+        assert set(metrics["entropies"][stage]) >= {"H_o", "H_u", "H_x"}
+    assert len(metrics["split_history"]) == 2 and metrics["config"]["clusters"]["ns"] == 8
+    assert metrics["versions"]["numpy"] == np.__version__
+    G = nx.read_graphml(tmp_path / "map.graphml")
+    assert G.number_of_nodes() == 12
+    for png in FIGURE_FILES:
+        assert (tmp_path / png).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_same_config_and_seed_same_map_bytes(tmp_path):
+    run(small(), tmp_path / "a")
+    run(small(), tmp_path / "b")
+    run(small(["seed=1"]), tmp_path / "c")
+    a, b, c = ((tmp_path / d / "map.json").read_bytes() for d in "abc")
+    assert a == b and a != c
+
+
+def test_data_file_learns_from_a_recording_without_simulating(tmp_path):
+    run(small(), tmp_path / "sim")
+    cfg = small(["data=file", f"data.path={tmp_path / 'sim' / 'trajectory.npz'}"])
+    results = run(cfg, tmp_path / "file")
+    sim = json.loads((tmp_path / "sim" / "metrics.json").read_text())
+    assert results["ground_truth"]["final"] == sim["ground_truth"]["final"]
+    assert (tmp_path / "file" / "map.json").read_bytes() == (tmp_path / "sim" / "map.json").read_bytes()
+
+
+def test_bad_settings_fail_before_any_output(tmp_path):
+    with pytest.raises(ValueError, match="stop.n_states=5 is below the 10 states"):
+        run(small(["stop.n_states=5"]), tmp_path / "a")
+    with pytest.raises(ValueError, match="does not exist"):
+        run(small(["data=file", "data.path=nope.npz"]), tmp_path / "b")
+    with pytest.raises(ValueError, match="clusters=fixed: clusters.ns must be a positive integer"):
+        run(small(["clusters.ns=0"]), tmp_path / "c")
+    assert not any(tmp_path.iterdir())
+
+
+def cli(args, cwd):
+    return subprocess.run([sys.executable, "-m", "topomap", *args], cwd=cwd, capture_output=True,
+                          text=True, timeout=300)
+
+
+def test_cli_end_to_end(tmp_path):
+    r = cli(["data.n_steps=250", "clusters.ns=8", "stop.n_states=11"], tmp_path)
+    assert r.returncode == 0, r.stderr
+    (run_dir,) = (tmp_path / "outputs" / "runs").glob("*/*")
+    for name in [*OUTPUT_FILES, *FIGURE_FILES]:
+        assert (run_dir / name).stat().st_size > 0, name
+    assert "11 states" in r.stdout and "ARI" in r.stdout and str(run_dir.name) in r.stdout
+    assert json.loads((run_dir / "metrics.json").read_text())["config"]["data"]["n_steps"] == 250
+
+
+def test_cli_errors_are_one_clear_line(tmp_path):
+    r = cli(["clusters.ns=abc"], tmp_path)
+    assert r.returncode == 1 and "could not be converted to Integer" in r.stderr
+    r = cli(["data=file", "data.path=missing.csv"], tmp_path)
+    assert r.returncode == 1
+    assert "topomap: error: trajectory file missing.csv does not exist" in r.stderr
+    assert "Traceback" not in r.stderr
+    r = cli(["split=nope"], tmp_path)
+    assert r.returncode == 1 and "Could not find 'split/nope'" in r.stderr

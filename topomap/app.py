@@ -1,0 +1,92 @@
+"""The ``topomap`` command: Hydra composes ``conf/`` and :func:`topomap.experiment.run` does the work.
+
+    topomap                                   # the paper's experiment, outputs in outputs/runs/...
+    topomap clusters.ns=15 stop.n_states=40
+    topomap data=file data.path=my_log.npz
+    topomap -m clusters.ns=10,20,30 stop.n_states=25,30,40
+    topomap --list-plugins                    # every component by kind, with its plugin
+"""
+
+from __future__ import annotations
+
+import logging
+import re
+import sys
+
+import hydra
+from hydra.core.hydra_config import HydraConfig
+from omegaconf import DictConfig
+
+from . import schema  # noqa: F401  (stores the structured configs before Hydra composes)
+from .experiment import run
+from .registry import Registry
+
+log = logging.getLogger("topomap")
+
+_PLUGINS_ARG = re.compile(r"^\+?\+?plugins=\[?(?P<list>[^\]]*)\]?$")
+
+
+def _plugins_from_argv(argv) -> list[str]:
+    """Plugin modules named on the command line (``plugins=[a,b]``), needed before composition so
+    that their components' typed configs can be selected in the same command."""
+    for arg in argv:
+        m = _PLUGINS_ARG.match(arg)
+        if m:
+            return [p.strip().strip("'\"") for p in m.group("list").split(",") if p.strip()]
+    return []
+
+
+def list_plugins(registry: Registry, file=sys.stdout) -> None:
+    """Print every registered component by kind, with the plugin that provides it."""
+    last = None
+    for kind, name, comp, provider in registry.items():
+        if kind != last:
+            print(f"{kind}:", file=file)
+            last = kind
+        print(f"  {name:<16} {provider:<24} {comp.description}", file=file)
+    for err in registry.errors:
+        print(f"error: {err}", file=file)
+
+
+@hydra.main(version_base="1.3", config_path="conf", config_name="config")
+def _hydra_main(cfg: DictConfig):
+    out = HydraConfig.get().runtime.output_dir
+    try:
+        results = run(cfg, out, registry=_REGISTRY if not cfg.plugins else None)
+    except ValueError as exc:
+        log.error("%s", exc)
+        if HydraConfig.get().mode.name == "MULTIRUN":
+            raise
+        sys.exit(f"topomap: error: {exc}")
+    gt = results.get("ground_truth", {}).get("final", {})
+    line = f"{results['n_states']['final']} states"
+    if gt:
+        g0 = results["ground_truth"]["phase1"]
+        line += (f" | ARI {g0['ari']:.3f} -> {gt['ari']:.3f}, purity {g0['purity']:.3f} -> "
+                 f"{gt['purity']:.3f}, compound states {g0['compound_states']} -> "
+                 f"{gt['compound_states']}")
+    print(f"topomap: {line}\ntopomap: outputs in {out}")
+    return gt.get("ari")
+
+
+_REGISTRY: Registry | None = None
+
+
+def main(argv=None) -> None:
+    """Console entry point."""
+    global _REGISTRY
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if argv and argv[0] in ("--list-plugins", "plugins"):
+        list_plugins(Registry.load(argv[1:]))
+        return
+    try:
+        _REGISTRY = Registry.load(_plugins_from_argv(argv))
+        _REGISTRY.store_configs()
+    except ValueError as exc:
+        sys.exit(f"topomap: error: {exc}")
+    sys.argv = [sys.argv[0]] + argv
+    _hydra_main()
+
+
+if __name__ == "__main__":
+    main()

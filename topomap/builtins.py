@@ -1,0 +1,41 @@
+"""topomap's own components, registered through the same hook as any plugin's."""
+
+from __future__ import annotations
+
+from . import clustering, explorers, noise, schema, splitting
+from .envs.office import OfficeWorld
+from .hookspecs import Component, hookimpl
+
+
+@hookimpl
+def topomap_register_components():
+    C = Component
+    return [
+        C("env", "office", OfficeWorld, schema.OfficeEnvConf,
+          "the paper's office: 25 objects of 15 types, panoramic size sensor, 17 actions"),
+        C("noise", "none", noise.NoNoise, schema.NoNoiseConf, "noise-free observations"),
+        C("noise", "gaussian", noise.GaussianNoise, schema.GaussianNoiseConf,
+          "additive Gaussian noise (sigma), clipped at 0"),
+        C("noise", "dropout", noise.DropoutNoise, schema.DropoutNoiseConf,
+          "missed detections: each entry zeroed with probability p"),
+        C("noise", "multiplicative", noise.MultiplicativeNoise, schema.MultiplicativeNoiseConf,
+          "log-normal gain per entry (sigma)"),
+        C("explorer", "random", explorers.RandomExplorer, schema.RandomExplorerConf,
+          "uniform choice among executable actions (the paper's)"),
+        C("metric", "euclidean", clustering.Euclidean, schema.EuclideanConf,
+          "Euclidean distance (the paper's)"),
+        C("metric", "standardized", clustering.Standardized, schema.StandardizedConf,
+          "Euclidean after scaling every feature to unit variance"),
+        C("metric", "cosine", clustering.Cosine, schema.CosineConf,
+          "cosine distance (observations scaled to unit length)"),
+        C("clusters", "fixed", clustering.FixedClusters, schema.FixedClustersConf,
+          "a fixed number ns of K-means clusters (the paper's)"),
+        C("clusters", "bic", clustering.BICClusters, schema.BICClustersConf,
+          "ns in [min_ns, max_ns] with the lowest Gaussian-mixture BIC"),
+        C("split", "entropy", splitting.EntropyCriterion, schema.EntropySplitConf,
+          "bottom-up merge and entropy gain of H(u) + H(x'|u) (the paper's)"),
+        C("stop", "n_states", splitting.TargetStates, schema.TargetStatesConf,
+          "split until the map has n_states states (the paper's)"),
+        C("stop", "min_gain", splitting.MinGain, schema.MinGainConf,
+          "split while the best gain is at least min_gain (bits)"),
+    ]
