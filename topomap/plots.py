@@ -95,24 +95,23 @@ def plot_split(fig, traj, learner, world=None, state=None):
         raise ValueError(f"output.compound_state={state} is not a phase-1 state (0..{m0.n_states - 1})")
     sel = learner.labels_phase1_ == state
     after = np.unique(learner.labels_[sel])
-    axes = fig.subplots(2, 2)
-    for ax in axes[0]:
+    grid = fig.add_gridspec(2, 6, height_ratios=[3, 2])
+    top = [fig.add_subplot(grid[0, :3]), fig.add_subplot(grid[0, 3:])]
+    for ax in top:
         _room(ax, world, traj.positions)
     P = _jitter(traj.positions)
-    axes[0, 0].scatter(P[sel, 0], P[sel, 1], s=8, c="tab:blue", zorder=3)
-    axes[0, 0].set_title(f"state {state} before splitting ({sel.sum()} steps)", fontsize=9)
+    top[0].scatter(P[sel, 0], P[sel, 1], s=8, c="tab:blue", zorder=3)
+    top[0].set_title(f"state {state} after clustering ({sel.sum()} steps)", fontsize=9)
     cols = _colours(max(len(after), 2))
     for k, s in enumerate(after):
         pick = sel & (learner.labels_ == s)
-        axes[0, 1].scatter(P[pick, 0], P[pick, 1], s=8, color=cols[k], zorder=3,
-                           label=f"{m1.state_label(s)} ({pick.sum()})")
-    axes[0, 1].legend(fontsize=6, loc="upper right")
-    axes[0, 1].set_title(f"after splitting: states {', '.join(map(str, after))}", fontsize=9)
-    _table(axes[1, 0], m0, state, f"P(x'|x={state}, u) before")
-    if len(after) >= 2:
-        _table(axes[1, 1], m1, after[0], f"P(x'|x={after[0]}, u) after")
-    else:
-        axes[1, 1].axis("off")
+        top[1].scatter(P[pick, 0], P[pick, 1], s=8, color=cols[k], zorder=3,
+                       label=f"{m1.state_label(s)} ({pick.sum()})")
+    top[1].legend(fontsize=6, loc="upper right")
+    top[1].set_title(f"after splitting: states {', '.join(map(str, after))}", fontsize=9)
+    _table(fig.add_subplot(grid[1, :2]), m0, state, f"P(x'|x={state}, u) before")
+    for k, s in enumerate(after[:2]):
+        _table(fig.add_subplot(grid[1, 2 + 2 * k:4 + 2 * k]), m1, s, f"P(x'|x={s}, u) after")
     return True
 
 
@@ -172,7 +171,7 @@ def write_figures(out: Path, traj, learner, world=None, *, min_prob=0.8, compoun
                     f"after splitting: {learner.map_.n_states} states")
         _save(fig, out / "fig_states.png")
         written.append("fig_states.png")
-        fig = plt.figure(figsize=(11, 9))
+        fig = plt.figure(figsize=(13, 7.5))
         if plot_split(fig, traj, learner, world, compound_state):
             _save(fig, out / "fig_split.png")
             written.append("fig_split.png")
