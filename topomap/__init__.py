@@ -5,9 +5,10 @@ Data under Partially Observable Environment" (PRICAI 2002): K-means symbols as i
 greedy entropy-based splitting of perceptually aliased states.
 """
 
+from .hookspecs import hookimpl
 from .learner import MapLearner
 from .map import TopologicalMap
 from .trajectory import Trajectory, load_trajectory, save_trajectory
 
-__all__ = ["MapLearner", "TopologicalMap", "Trajectory", "load_trajectory", "save_trajectory"]
+__all__ = ["hookimpl", "MapLearner", "TopologicalMap", "Trajectory", "load_trajectory", "save_trajectory"]
 __version__ = "0.1.0"

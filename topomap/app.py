@@ -36,6 +36,20 @@ def _plugins_from_argv(argv) -> list[str]:
     return []
 
 
+def with_plugin_searchpath(argv, paths) -> list[str]:
+    """Append plugins' config folders to ``hydra.searchpath`` (merging a user's own override)."""
+    if not paths:
+        return list(argv)
+    argv = list(argv)
+    for i, arg in enumerate(argv):
+        m = re.match(r"^(\+?hydra\.searchpath)=\[(?P<list>.*)\]$", arg)
+        if m:
+            user = [p.strip() for p in m.group("list").split(",") if p.strip()]
+            argv[i] = f"{m.group(1)}=[{','.join(user + [p for p in paths if p not in user])}]"
+            return argv
+    return argv + [f"hydra.searchpath=[{','.join(paths)}]"]
+
+
 def list_plugins(registry: Registry, file=sys.stdout) -> None:
     """Print every registered component by kind, with the plugin that provides it."""
     last = None
@@ -84,7 +98,7 @@ def main(argv=None) -> None:
         _REGISTRY.store_configs()
     except ValueError as exc:
         sys.exit(f"topomap: error: {exc}")
-    sys.argv = [sys.argv[0]] + argv
+    sys.argv = [sys.argv[0]] + with_plugin_searchpath(argv, _REGISTRY.config_paths())
     _hydra_main()
 
 

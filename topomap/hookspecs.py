@@ -84,6 +84,18 @@ class TopomapSpecs:
         """
 
     @hookspec
+    def topomap_config_path(self) -> str:
+        """Return a Hydra search-path entry holding this plugin's config-group YAML files.
+
+        For example ``"pkg://my_plugin.conf"`` (a package with an ``__init__.py`` whose folders
+        ``<kind>/<name>.yaml`` hold the options) or ``"file:///abs/path/conf"``.  Called once at
+        start-up; the entries are appended to ``hydra.searchpath``.  A YAML option that has typed
+        parameters extends the schema topomap stores for the component
+        (``defaults: [<name>_schema, _self_]``).  Without this hook a component's config dataclass
+        alone is the option ``<kind>/<name>``.
+        """
+
+    @hookspec
     def topomap_world_actions(self, world: str, params: dict) -> list:
         """Return extra actions for the world named ``world`` (``[]`` or ``None`` for none).
 

@@ -63,7 +63,7 @@ class Registry:
         self.pm = pm
         self.errors: list[PluginError] = list(errors)
         self._components: dict[str, dict[str, tuple[Component, str]]] = {k: {} for k in KINDS}
-        for impl in pm.hook.topomap_register_components.get_hookimpls()[::-1]:
+        for impl in pm.hook.topomap_register_components.get_hookimpls():  # registration order
             provider = pm.get_name(impl.plugin) or repr(impl.plugin)
             try:
                 returned = impl.function() or []
@@ -164,14 +164,31 @@ class Registry:
         from hydra.core.config_store import ConfigStore
 
         cs = ConfigStore.instance()
+        with_yaml = {self.pm.get_name(impl.plugin)
+                     for impl in self.pm.hook.topomap_config_path.get_hookimpls()}
         for kind, name, comp, provider in self.items():
             if provider == "topomap.builtins" or comp.config is None:
                 continue
             if not is_dataclass(comp.config) or "name" not in {f.name for f in fields(comp.config)}:
                 raise ValueError(f"{kind} component {name!r} of plugin {provider!r}: config must be "
                                  "a dataclass with a 'name' field")
-            cs.store(group=kind, name=name, node=comp.config, provider=provider)
             cs.store(group=kind, name=f"{name}_schema", node=comp.config, provider=provider)
+            if provider not in with_yaml:
+                cs.store(group=kind, name=name, node=comp.config, provider=provider)
+
+    def config_paths(self) -> list[str]:
+        """Hydra search-path entries of plugins that ship config-group YAML files."""
+        paths = []
+        for impl in self.pm.hook.topomap_config_path.get_hookimpls():
+            try:
+                path = impl.function()
+            except Exception as exc:
+                provider = self.pm.get_name(impl.plugin)
+                self.errors.append(PluginError(provider, _module_of(impl.plugin), repr(exc)))
+                continue
+            if path and path not in paths:
+                paths.append(str(path))
+        return paths
 
 
 def _module_of(plugin) -> str:
