@@ -223,3 +223,21 @@ def test_progress_hook_sees_every_split_and_records_metrics(tmp_path):
     n = len(results["split_history"])
     assert saved["events"] == ["phase1"] + ["split"] * n + ["done"]
     assert saved["gains"] == [h["gain"] for h in results["split_history"]]
+
+
+def test_pip_installed_plugin_is_found_through_its_entry_point(tmp_path, recording):
+    target = tmp_path / "site"
+    pip = subprocess.run([sys.executable, "-m", "pip", "install", "-q", "--no-deps", "--target",
+                          str(target), str(PLUGINS / "topomap-gtest")],
+                         capture_output=True, text=True, timeout=600)
+    assert pip.returncode == 0, pip.stderr
+    assert (target / "topomap_gtest" / "conf" / "split" / "gtest.yaml").is_file()
+    r = cli(["--list-plugins"], tmp_path, pythonpath=[target])
+    assert any(l.split()[:2] == ["gtest", "gtest"] for l in r.stdout.splitlines()), r.stdout
+    # no plugins= entry: the entry point and the shipped YAML do it all
+    r = cli(["data=file", f"data.path={recording}", "clusters.ns=10", "stop.n_states=11",
+             "split=gtest"], tmp_path, pythonpath=[target])
+    assert r.returncode == 0, r.stderr
+    assert [h["state"] for h in history(tmp_path)] == [6]
+    cfg = json.loads((run_dir(tmp_path) / "metrics.json").read_text())["config"]
+    assert cfg["split"] == {"name": "gtest", "alpha": 0.01}  # the YAML's default
