@@ -1,0 +1,50 @@
+"""The paper's experiment (office world, T=2000, ns=20 -> 30 states) over several seeds.
+
+    python benchmarks/bench_paper.py --seeds 10
+
+Prints, per seed and as medians, ARI / purity / compound states against the ground-truth places
+after phase 1 and after splitting, and the wall time of one run (simulation + learning, no files).
+Extra arguments are Hydra overrides, e.g. ``noise=dropout`` or ``env.view_range=5``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import tempfile
+import time
+
+from hydra import compose, initialize_config_module
+
+from topomap.experiment import build_learner, make_trajectory
+from topomap.metrics import evaluate
+from topomap.registry import Registry
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seeds", type=int, default=10)
+    ap.add_argument("overrides", nargs="*")
+    args = ap.parse_args()
+    registry = Registry.load()
+    rows = []
+    with initialize_config_module(version_base="1.3", config_module="topomap.conf"):
+        for seed in range(args.seeds):
+            cfg = compose(config_name="config", overrides=[f"seed={seed}", *args.overrides])
+            t0 = time.perf_counter()
+            traj, _ = make_trajectory(cfg, registry)
+            learner = build_learner(cfg, registry).fit_trajectory(traj)
+            dt = time.perf_counter() - t0
+            a, b = evaluate(learner.labels_phase1_, traj.places), evaluate(learner.labels_, traj.places)
+            rows.append((a["ari"], b["ari"], a["purity"], b["purity"], a["compound_states"],
+                         b["compound_states"], dt))
+            print(f"seed {seed}: ARI {a['ari']:.3f} -> {b['ari']:.3f}  purity {a['purity']:.3f} -> "
+                  f"{b['purity']:.3f}  compound states {a['compound_states']} -> "
+                  f"{b['compound_states']}  ({dt:.2f} s)", flush=True)
+    med = [statistics.median(c) for c in zip(*rows)]
+    print(f"median of {len(rows)}: ARI {med[0]:.3f} -> {med[1]:.3f}  purity {med[2]:.3f} -> "
+          f"{med[3]:.3f}  compound states {med[4]:g} -> {med[5]:g}  ({med[6]:.2f} s per run)")
+
+
+if __name__ == "__main__":
+    main()
