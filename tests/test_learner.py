@@ -143,6 +143,22 @@ def test_target_state_count_is_reached_and_stop_rules_are_swappable():
     assert learner.stop_reason_ == "stopping rule"
 
 
+def test_reevaluating_only_neighbours_of_a_split_changes_nothing(monkeypatch):
+    rng = np.random.default_rng(3)
+    succ = rng.integers(0, 40, size=(40, 5))
+    symbol = rng.integers(0, 12, 40)
+    u = rng.integers(0, 5, 3000)
+    p = np.zeros(3000, dtype=int)
+    for t in range(1, 3000):
+        p[t] = succ[p[t - 1], u[t - 1]]
+    X = np.eye(12)[symbol[p]] + rng.normal(0, 0.01, (3000, 12))
+    fast = MapLearner(n_clusters=12, n_states=40).fit(X, u, lengths=[1000, 2000])
+    monkeypatch.setattr(MapLearner, "_recompute_all", True)
+    full = MapLearner(n_clusters=12, n_states=40).fit(X, u, lengths=[1000, 2000])
+    assert full.split_history_ == fast.split_history_
+    assert np.array_equal(full.labels_, fast.labels_)
+
+
 # ---------------------------------------------------------------- phase-1 components
 def blobs(n=60, seed=0):
     rng = np.random.default_rng(seed)
