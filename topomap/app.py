@@ -12,6 +12,7 @@ from __future__ import annotations
 import logging
 import re
 import sys
+from pathlib import Path
 
 import hydra
 from hydra.core.hydra_config import HydraConfig
@@ -64,14 +65,24 @@ def list_plugins(registry: Registry, file=sys.stdout) -> None:
 
 @hydra.main(version_base="1.3", config_path="conf", config_name="config")
 def _hydra_main(cfg: DictConfig):
-    out = HydraConfig.get().runtime.output_dir
-    try:
-        results = run(cfg, out, registry=_REGISTRY if not cfg.plugins else None)
-    except ValueError as exc:
-        log.error("%s", exc)
-        if HydraConfig.get().mode.name == "MULTIRUN":
-            raise
-        sys.exit(f"topomap: error: {exc}")
+    hc = HydraConfig.get()
+    out = hc.runtime.output_dir
+    registry = _REGISTRY if not cfg.plugins else None
+    if hc.mode.name == "MULTIRUN":
+        # one job of a sweep: trajectories are shared through the sweep folder, and a failure is
+        # written to the job's status.json (the sweep report lists it) instead of ending the sweep
+        from .sweep import run_job
+
+        sweep_dir = Path(hc.runtime.cwd, hc.sweep.dir)  # absolute, even with hydra.job.chdir
+        results = run_job(cfg, out, sweep_dir=sweep_dir, registry=registry)
+        if results is None:
+            return None
+    else:
+        try:
+            results = run(cfg, out, registry=registry)
+        except ValueError as exc:
+            log.error("%s", exc)
+            sys.exit(f"topomap: error: {exc}")
     gt = results.get("ground_truth", {}).get("final", {})
     line = f"{results['n_states']['final']} states"
     if gt:

@@ -1,0 +1,298 @@
+"""Sweeps (``topomap -m``): shared trajectories, held-out score, the sweep report, launchers."""
+
+import csv
+import json
+import math
+import re
+import subprocess
+import sys
+from itertools import product
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hydra import compose, initialize_config_module
+from omegaconf import OmegaConf
+
+from topomap import TopologicalMap, load_trajectory
+from topomap.experiment import make_heldout, make_trajectory, run, trajectory_key
+from topomap.registry import Registry
+from topomap.sweep import METRICS, SweepReport, main as report_main, run_job, write_report
+
+PNG = b"\x89PNG\r\n\x1a\n"
+SMALL = ["data.n_steps=200", "data.heldout_steps=150", "output.figures=false",
+         "output.progress=false"]
+# ns + 2 GDS states after phase 1: (ns=8, n_states=9) cannot run, the other three can
+SWEEP = [*SMALL, "clusters.ns=6,8", "stop.n_states=9,12"]
+GRID = [(ns, n) for ns, n in product((6, 8), (9, 12))]
+
+
+def make_cfg(overrides=(), hydra=False):
+    with initialize_config_module(version_base="1.3", config_module="topomap.conf"):
+        return compose(config_name="config", overrides=list(overrides), return_hydra_config=hydra)
+
+
+def cli(args, cwd):
+    proc = subprocess.Popen([sys.executable, "-m", "topomap", *args], cwd=cwd, text=True,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    out, err = proc.communicate(timeout=300)
+    return subprocess.CompletedProcess(proc.args, proc.returncode, out, err), proc.pid
+
+
+def the_sweep_dir(cwd) -> Path:
+    (d,) = (Path(cwd) / "outputs" / "sweeps").glob("*/*")
+    return d
+
+
+def read_summary(sweep_dir):
+    with open(sweep_dir / "summary.csv", newline="") as fh:
+        return list(csv.DictReader(fh))
+
+
+def by_setting(rows):
+    return {(int(r["clusters.ns"]), int(r["stop.n_states"])): r for r in rows}
+
+
+def status(job_dir):
+    return json.loads((job_dir / "status.json").read_text())
+
+
+@pytest.fixture(scope="module")
+def basic(tmp_path_factory):
+    cwd = tmp_path_factory.mktemp("basic")
+    result, pid = cli(["-m", *SWEEP], cwd)
+    assert result.returncode == 0, result.stderr
+    return result, pid, the_sweep_dir(cwd)
+
+
+# ---------------------------------------------------------------- the basic launcher
+def test_sweep_report_has_one_row_per_job_with_its_metrics(basic):
+    result, pid, sweep = basic
+    assert sweep.parents[1].name == "sweeps" and sweep.parents[2].name == "outputs"
+    assert re.fullmatch(r"\d\d-\d\d-\d\d-\d{6}", sweep.name)  # sub-second time stamp
+    rows = read_summary(sweep)
+    assert len(rows) == 4
+    header = list(rows[0])
+    assert header[:4] == ["job", "clusters.ns", "stop.n_states", "status"]
+    assert "data.n_steps" not in header  # given once, not swept
+    assert set(METRICS) <= set(header) and {"error", "output_dir"} <= set(header)
+    table = by_setting(rows)
+    assert sorted(table) == GRID
+    for (ns, n), row in table.items():
+        job = sweep / row["output_dir"]
+        assert status(job)["pid"] == pid  # the basic launcher runs every job in its own process
+        if (ns, n) == (8, 9):
+            assert row["status"] == "failed" and status(job)["status"] == "failed"
+            assert "stop.n_states=9 is below the 10 states" in row["error"]
+            assert row["ari"] == row["heldout_loglik"] == "" and not (job / "map.json").exists()
+            continue
+        m = json.loads((job / "metrics.json").read_text())
+        assert row["status"] == "completed" and row["error"] == ""
+        assert int(row["n_states"]) == m["n_states"]["final"] == n
+        for col in ("ari", "nmi", "purity"):
+            assert float(row[col]) == m["ground_truth"]["final"][col]
+        assert float(row["ari_phase1"]) == m["ground_truth"]["phase1"]["ari"]
+        for col in ("H_o", "H_u", "H_x"):
+            assert float(row[col]) == m["entropies"]["final"][col]
+        assert float(row["heldout_loglik"]) == m["heldout_loglik"]
+        assert math.isfinite(m["heldout_loglik"]) and m["heldout_steps"] == 150
+        assert float(row["fit_time"]) == pytest.approx(m["timings"]["phase1"] + m["timings"]["phase2"])
+    assert "sweep of 4 jobs, 3 completed, 1 failed" in result.stdout
+    fig = sweep / "summary_ari.png"
+    assert fig.read_bytes()[:8] == PNG
+    import matplotlib.image
+
+    h, w = matplotlib.image.imread(fig).shape[:2]
+    assert h > 100 and w > 100
+
+
+def test_sweep_jobs_learn_from_one_shared_trajectory(basic, tmp_path):
+    _, _, sweep = basic
+    cache = sweep / ".cache"
+    (train,) = cache.glob("trajectory-*.npz")
+    (held,) = cache.glob("heldout-*.npz")
+    cached = load_trajectory(train)
+    rows = by_setting(read_summary(sweep))
+    for setting, row in rows.items():
+        if row["status"] != "completed":
+            continue
+        traj = load_trajectory(sweep / row["output_dir"] / "trajectory.npz")
+        assert np.array_equal(traj.observations, cached.observations)
+        assert np.array_equal(traj.actions, cached.actions)
+    held_traj = load_trajectory(held)
+    assert len(held_traj) == 150 and not np.array_equal(held_traj.observations[:150],
+                                                        cached.observations[:150])
+    # a single run simulates afresh: the same trajectory and the same map, byte for byte
+    cfg = make_cfg([*SMALL, "clusters.ns=6", "stop.n_states=12"])
+    results = run(cfg, tmp_path / "single")
+    job = sweep / rows[6, 12]["output_dir"]
+    assert (tmp_path / "single" / "map.json").read_bytes() == (job / "map.json").read_bytes()
+    assert results["heldout_loglik"] == json.loads((job / "metrics.json").read_text())["heldout_loglik"]
+
+
+# ---------------------------------------------------------------- other launchers
+def test_joblib_two_workers_give_the_same_report_and_maps(basic, tmp_path):
+    pytest.importorskip("hydra_plugins.hydra_joblib_launcher")
+    _, _, sweep0 = basic
+    result, pid = cli(["-m", *SWEEP, "hydra/launcher=joblib", "hydra.launcher.n_jobs=2"], tmp_path)
+    assert result.returncode == 0, result.stderr
+    assert "Joblib.Parallel(n_jobs=2" in result.stdout + result.stderr
+    sweep = the_sweep_dir(tmp_path)
+    rows, rows0 = by_setting(read_summary(sweep)), by_setting(read_summary(sweep0))
+    assert sorted(rows) == GRID
+    same = ["status", "n_states", "ari", "nmi", "purity", "compound_states", "H_u", "H_x",
+            "heldout_loglik", "error"]
+    pids = set()
+    for setting, row in rows.items():
+        assert [row[c] for c in same] == [rows0[setting][c] for c in same], setting
+        job, job0 = sweep / row["output_dir"], sweep0 / rows0[setting]["output_dir"]
+        pids.add(status(job)["pid"])
+        if row["status"] == "completed":
+            assert (job / "map.json").read_bytes() == (job0 / "map.json").read_bytes()
+    assert rows[8, 9]["status"] == "failed" and "is below the 10 states" in rows[8, 9]["error"]
+    assert pid not in pids and 1 <= len(pids) <= 2  # jobs ran in (at most 2) worker processes
+    assert len(list((sweep / ".cache").glob("trajectory-*.npz"))) == 1
+    assert (sweep / "summary_ari.png").read_bytes()[:8] == PNG
+
+
+def test_submitit_local_gives_the_same_maps_and_a_line_for_one_swept_key(basic, tmp_path):
+    pytest.importorskip("hydra_plugins.hydra_submitit_launcher")
+    _, _, sweep0 = basic
+    result, pid = cli(["-m", *SMALL, "clusters.ns=8", "stop.n_states=9,12",
+                       "hydra/launcher=submitit_local"], tmp_path)
+    assert result.returncode == 0, result.stderr
+    sweep = the_sweep_dir(tmp_path)
+    assert (sweep / ".submitit").is_dir()
+    rows = read_summary(sweep)
+    assert [r["stop.n_states"] for r in rows] == ["9", "12"] and "clusters.ns" not in rows[0]
+    failed, done = rows
+    assert failed["status"] == "failed" and "is below the 10 states" in failed["error"]
+    assert done["status"] == "completed" and int(done["n_states"]) == 12
+    job0 = sweep0 / by_setting(read_summary(sweep0))[8, 12]["output_dir"]
+    job = sweep / done["output_dir"]
+    assert (job / "map.json").read_bytes() == (job0 / "map.json").read_bytes()
+    assert status(job)["pid"] != pid
+    assert (sweep / "summary_ari.png").read_bytes()[:8] == PNG
+
+
+# ---------------------------------------------------------------- the report on its own
+def test_report_lists_crashed_and_unfinished_jobs(tmp_path, monkeypatch):
+    def job_dir(num, overrides):
+        d = tmp_path / str(num)
+        (d / ".hydra").mkdir(parents=True)
+        (d / ".hydra" / "overrides.yaml").write_text(OmegaConf.to_yaml(overrides))
+        return d
+
+    cfg = make_cfg([*SMALL, "clusters.ns=6", "stop.n_states=10"])
+    assert run_job(cfg, job_dir(0, ["stop.n_states=10"]), sweep_dir=tmp_path) is not None
+
+    def crash(*args, **kwargs):
+        raise RuntimeError("disk on fire")
+
+    monkeypatch.setattr("topomap.sweep.run", crash)
+    assert run_job(cfg, job_dir(1, ["stop.n_states=11"]), sweep_dir=tmp_path) is None
+    st = status(tmp_path / "1")
+    assert st["status"] == "failed" and st["error"] == "RuntimeError: disk on fire"
+    assert "Traceback" in st["traceback"]
+    job_dir(2, ["stop.n_states=12"])  # started, never finished
+    report = write_report(tmp_path, metric="nmi")
+    assert report.keys == ["stop.n_states"]
+    assert [(r["stop.n_states"], r["status"]) for r in report.rows] == [
+        ("10", "completed"), ("11", "failed"), ("12", "incomplete")]
+    assert report.rows[1]["error"] == "RuntimeError: disk on fire"
+    assert report.best["job"] == 0 and report.figure.name == "summary_nmi.png"
+    m = json.loads((tmp_path / "0" / "metrics.json").read_text())
+    assert report.rows[0]["nmi"] == m["ground_truth"]["final"]["nmi"]
+
+
+def test_report_callback_options_and_command(basic, capsys):
+    _, _, sweep = basic
+    config = OmegaConf.create({"hydra": {"sweep": {"dir": str(sweep)},
+                                         "overrides": {"task": SWEEP}}})
+    with pytest.raises(SystemExit, match="1 of 4 jobs did not complete"):
+        SweepReport(strict=True).on_multirun_end(config=config)
+    SweepReport(metric="heldout_loglik").on_multirun_end(config=config)  # no exit
+    assert (sweep / "summary_heldout_loglik.png").read_bytes()[:8] == PNG
+    with pytest.raises(ValueError, match="not a summary column"):
+        SweepReport(metric="accuracy")
+    assert report_main([str(sweep), "--metric", "purity"]) == 0
+    assert "best purity" in capsys.readouterr().out
+    assert (sweep / "summary_purity.png").read_bytes()[:8] == PNG
+    assert len(read_summary(sweep)) == 4
+
+
+# ---------------------------------------------------------------- trajectories and held-out data
+def test_only_world_settings_change_the_cached_trajectory(tmp_path):
+    base = make_cfg(SMALL)
+    key = trajectory_key(OmegaConf.to_container(base, resolve=True))
+
+    def k(overrides, kind="train"):
+        return trajectory_key(OmegaConf.to_container(make_cfg([*SMALL, *overrides]), resolve=True),
+                              kind)
+
+    assert k(["clusters.ns=9", "stop.n_states=15", "metric=cosine"]) == key
+    assert k(["data.heldout_steps=99"]) == key
+    assert k(["data.heldout_steps=99"], "heldout") != k([], "heldout")
+    for world in (["seed=1"], ["noise.sigma=0.02"], ["data.n_steps=201"], ["env.view_range=2.0"]):
+        assert k(world) != key, world
+    cache = tmp_path / "cache"
+    for i, extra in enumerate([["stop.n_states=12"], ["stop.n_states=13"], ["noise.sigma=0.02"]]):
+        run(make_cfg([*SMALL, "clusters.ns=8", *extra]), tmp_path / str(i), cache_dir=cache)
+    assert len(list(cache.glob("trajectory-*.npz"))) == 2
+    assert len(list(cache.glob("heldout-*.npz"))) == 2
+
+
+def test_heldout_loglik_scores_a_second_walk_through_the_same_world(tmp_path):
+    cfg = make_cfg([*SMALL, "clusters.ns=8", "stop.n_states=12"])
+    results = run(cfg, tmp_path / "a")
+    container = OmegaConf.to_container(cfg, resolve=True)
+    registry = Registry.load()
+    held = make_heldout(container, registry)
+    train, _ = make_trajectory(container, registry)
+    assert len(held) == 150 and held.observations.shape[1] == train.observations.shape[1]
+    assert not np.array_equal(held.places[:50], train.places[:50])
+    m = TopologicalMap.load(tmp_path / "a" / "map.json")
+    expected = m.score(held.observations, held.actions, gds=held.gds, lengths=held.lengths)
+    assert results["heldout_loglik"] == pytest.approx(expected, rel=1e-12)
+    assert results["heldout_loglik"] != pytest.approx(
+        m.score(train.observations, train.actions, gds=train.gds), rel=1e-6)
+
+    none = run(make_cfg([*SMALL, "clusters.ns=8", "stop.n_states=12", "data.heldout_steps=0"]),
+               tmp_path / "b")
+    assert none["heldout_loglik"] is None and none["heldout_steps"] == 0
+    assert json.loads((tmp_path / "b" / "metrics.json").read_text())["heldout_loglik"] is None
+
+
+def test_heldout_file_for_recorded_data(tmp_path):
+    run(make_cfg([*SMALL, "clusters.ns=8", "stop.n_states=12"]), tmp_path / "sim")
+    rec = str(tmp_path / "sim" / "trajectory.npz")
+    file_cfg = ["data=file", f"data.path={rec}", "clusters.ns=8", "stop.n_states=12",
+                "output.figures=false", "output.progress=false"]
+    assert run(make_cfg(file_cfg), tmp_path / "a")["heldout_loglik"] is None
+    scored = run(make_cfg([*file_cfg, f"data.heldout_path={rec}"]), tmp_path / "b")
+    m = TopologicalMap.load(tmp_path / "b" / "map.json")
+    t = load_trajectory(rec)
+    assert scored["heldout_loglik"] == pytest.approx(m.score(t.observations, t.actions, gds=t.gds))
+    with pytest.raises(ValueError, match="does not exist"):
+        run(make_cfg([*file_cfg, "data.heldout_path=nope.npz"]), tmp_path / "c")
+    assert not (tmp_path / "c").exists()
+
+
+# ---------------------------------------------------------------- shipped configs
+def test_sweep_preset_and_slurm_example_compose():
+    cfg = make_cfg(["experiment=sweep_pricai2002"], hydra=True)
+    assert cfg.hydra.mode.name == "MULTIRUN"
+    params = cfg.hydra.sweeper.params
+    ns = [int(v) for v in str(params["clusters.ns"]).split(",")]
+    n_states = [int(v) for v in str(params["stop.n_states"]).split(",")]
+    assert (min(ns), max(ns), min(n_states), max(n_states)) == (10, 40, 20, 50)
+    paper = make_cfg(["experiment=pricai2002"])
+    for key in ("env", "noise", "explorer", "data", "seed", "clusters", "stop"):
+        assert cfg[key] == paper[key], key
+    assert cfg.hydra.callbacks.sweep_report._target_ == "topomap.sweep.SweepReport"
+
+    pytest.importorskip("hydra_plugins.hydra_submitit_launcher")
+    slurm = make_cfg(["hydra/launcher=slurm", "hydra.launcher.partition=short"], hydra=True)
+    launcher = slurm.hydra.launcher
+    assert launcher._target_.endswith("submitit_launcher.SlurmLauncher")
+    assert launcher.partition == "short" and launcher.timeout_min > 0 and launcher.mem_gb > 0
