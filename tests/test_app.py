@@ -31,7 +31,7 @@ def options(group):
 
 def test_default_config_is_the_papers_experiment():
     cfg = make_cfg()
-    assert cfg.env.name == "office" and cfg.env.layout == "paper"
+    assert cfg.env.component == "office" and cfg.env.layout == "paper"
     assert cfg.data.n_steps == 2000 and cfg.clusters.ns == 20 and cfg.stop.n_states == 30
     assert cfg.seed == 0
     preset = make_cfg(["experiment=pricai2002"])
@@ -45,7 +45,7 @@ def test_every_group_option_composes_and_builds(group, option):
     if (group, option) == ("data", "file"):
         overrides.append("data.path=x.npz")
     cfg = make_cfg(overrides)
-    assert cfg[group].name == option
+    assert cfg[group].component == option
     if group != "data":
         registry = Registry.load(entry_points_group=None)
         params = dict(cfg[group])

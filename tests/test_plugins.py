@@ -226,9 +226,12 @@ def test_progress_hook_sees_every_split_and_records_metrics(tmp_path):
 
 
 def test_pip_installed_plugin_is_found_through_its_entry_point(tmp_path, recording):
+    import shutil
+
     target = tmp_path / "site"
+    src = shutil.copytree(PLUGINS / "topomap-gtest", tmp_path / "src")  # pip builds in the source
     pip = subprocess.run([sys.executable, "-m", "pip", "install", "-q", "--no-deps", "--target",
-                          str(target), str(PLUGINS / "topomap-gtest")],
+                          str(target), str(src)],
                          capture_output=True, text=True, timeout=600)
     assert pip.returncode == 0, pip.stderr
     assert (target / "topomap_gtest" / "conf" / "split" / "gtest.yaml").is_file()
@@ -240,4 +243,4 @@ def test_pip_installed_plugin_is_found_through_its_entry_point(tmp_path, recordi
     assert r.returncode == 0, r.stderr
     assert [h["state"] for h in history(tmp_path)] == [6]
     cfg = json.loads((run_dir(tmp_path) / "metrics.json").read_text())["config"]
-    assert cfg["split"] == {"name": "gtest", "alpha": 0.01}  # the YAML's default
+    assert cfg["split"] == {"component": "gtest", "alpha": 0.01}  # the YAML's default

@@ -3,7 +3,10 @@
 from __future__ import annotations
 
 from . import clustering, explorers, noise, schema, splitting
+from .envs.gridroom import GridRoom
+from .envs.minigrid_env import MiniGridWorld
 from .envs.office import OfficeWorld
+from .envs.random_graph import RandomGraphWorld
 from .hookspecs import Component, hookimpl
 
 
@@ -13,6 +16,12 @@ def topomap_register_components():
     return [
         C("env", "office", OfficeWorld, schema.OfficeEnvConf,
           "the paper's office: 25 objects of 15 types, panoramic size sensor, 17 actions"),
+        C("env", "gridroom", GridRoom, schema.GridRoomEnvConf,
+          "a room of cells showing a few symbols (heavy aliasing), 4 moves"),
+        C("env", "random_graph", RandomGraphWorld, schema.RandomGraphEnvConf,
+          "random strongly connected digraph, places emit fewer symbols than places"),
+        C("env", "minigrid", lambda name, **kw: MiniGridWorld(env_id=name, **kw), schema.MiniGridEnvConf,
+          "a MiniGrid environment (optional minigrid package), left/right/forward"),
         C("noise", "none", noise.NoNoise, schema.NoNoiseConf, "noise-free observations"),
         C("noise", "gaussian", noise.GaussianNoise, schema.GaussianNoiseConf,
           "additive Gaussian noise (sigma), clipped at 0"),

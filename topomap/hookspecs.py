@@ -49,9 +49,10 @@ class Component:
     name : str
         The name users write: ``topomap split=<name>``.
     factory : callable
-        Called with the config's fields (all but ``name``) as keyword arguments; returns the object.
+        Called with the config's fields (all but ``component``) as keyword arguments; returns the
+        object.
     config : dataclass type, optional
-        Typed parameters: a dataclass with a ``name: str = "<name>"`` field and one field per
+        Typed parameters: a dataclass with a ``component: str = "<name>"`` field and one field per
         factory argument, each with a default.  topomap stores it in Hydra's ConfigStore as
         ``<kind>/<name>`` so ``topomap <kind>=<name> <kind>.<field>=...`` is type-checked.  A plugin
         that also ships ``<kind>/<name>.yaml`` may leave it out.

@@ -144,11 +144,11 @@ class Registry:
         return self._components[kind][name][1]
 
     def make(self, kind: str, params, **extra):
-        """Build a component from its config (a mapping with ``name`` and the parameters)."""
+        """Build a component from its config (a mapping with ``component`` and the parameters)."""
         params = dict(params)
-        name = params.pop("name", None)
+        name = params.pop("component", None)
         if name is None:
-            raise ValueError(f"{kind} config has no 'name' field")
+            raise ValueError(f"{kind} config has no 'component' field naming the component")
         comp = self.get(kind, name)
         params.update(extra)
         try:
@@ -169,9 +169,9 @@ class Registry:
         for kind, name, comp, provider in self.items():
             if provider == "topomap.builtins" or comp.config is None:
                 continue
-            if not is_dataclass(comp.config) or "name" not in {f.name for f in fields(comp.config)}:
+            if not is_dataclass(comp.config) or "component" not in {f.name for f in fields(comp.config)}:
                 raise ValueError(f"{kind} component {name!r} of plugin {provider!r}: config must be "
-                                 "a dataclass with a 'name' field")
+                                 "a dataclass with a 'component' field")
             cs.store(group=kind, name=f"{name}_schema", node=comp.config, provider=provider)
             if provider not in with_yaml:
                 cs.store(group=kind, name=name, node=comp.config, provider=provider)

@@ -1,6 +1,7 @@
 """Typed (structured) configs for the Hydra app.
 
-Every component has a dataclass whose fields are its parameters; it is stored in Hydra's
+Every component has a dataclass whose fields are its parameters plus ``component``, the
+registered name that selects it; it is stored in Hydra's
 ConfigStore as ``<kind>/<name>_schema`` and the YAML file ``conf/<kind>/<name>.yaml`` extends it, so
 ``topomap clusters.ns=abc`` or a misspelt key fails at once with a message naming the key.
 Importing this module registers the schemas (``conf/__init__.py`` does, so Hydra's compose API
@@ -20,7 +21,7 @@ from omegaconf import MISSING
 class OfficeEnvConf:
     """The paper's office (Section 4.1); see :class:`topomap.envs.office.OfficeWorld`."""
 
-    name: str = "office"
+    component: str = "office"
     layout: str = "paper"
     n_objects: int = 25
     n_types: int = 15
@@ -37,58 +38,93 @@ class OfficeEnvConf:
 
 
 @dataclass
+class GridRoomEnvConf:
+    """A room of cells showing a few symbols; see :class:`topomap.envs.gridroom.GridRoom`."""
+
+    component: str = "gridroom"
+    width: int = 8
+    height: int = 6
+    n_symbols: int = 4
+    obs_dim: int = 0
+    seed: int = 0
+
+
+@dataclass
+class RandomGraphEnvConf:
+    """A random strongly connected digraph; see :class:`topomap.envs.random_graph.RandomGraphWorld`."""
+
+    component: str = "random_graph"
+    n_places: int = 30
+    out_degree: int = 4
+    n_symbols: int = 20
+    obs_dim: int = 0
+    layout: str = "spring"
+    seed: int = 0
+
+
+@dataclass
+class MiniGridEnvConf:
+    """A MiniGrid environment; see :class:`topomap.envs.minigrid_env.MiniGridWorld`."""
+
+    component: str = "minigrid"
+    #: the MiniGrid environment id (``topomap env=minigrid env.name=MiniGrid-FourRooms-v0``)
+    name: str = "MiniGrid-Empty-8x8-v0"
+    seed: int = 0
+
+
+@dataclass
 class NoNoiseConf:
-    name: str = "none"
+    component: str = "none"
 
 
 @dataclass
 class GaussianNoiseConf:
-    name: str = "gaussian"
+    component: str = "gaussian"
     sigma: float = 0.01
 
 
 @dataclass
 class DropoutNoiseConf:
-    name: str = "dropout"
+    component: str = "dropout"
     p: float = 0.1
 
 
 @dataclass
 class MultiplicativeNoiseConf:
-    name: str = "multiplicative"
+    component: str = "multiplicative"
     sigma: float = 0.1
 
 
 @dataclass
 class RandomExplorerConf:
-    name: str = "random"
+    component: str = "random"
 
 
 # ---------------------------------------------------------------- learner pieces
 @dataclass
 class EuclideanConf:
-    name: str = "euclidean"
+    component: str = "euclidean"
 
 
 @dataclass
 class StandardizedConf:
-    name: str = "standardized"
+    component: str = "standardized"
 
 
 @dataclass
 class CosineConf:
-    name: str = "cosine"
+    component: str = "cosine"
 
 
 @dataclass
 class FixedClustersConf:
-    name: str = "fixed"
+    component: str = "fixed"
     ns: int = 20
 
 
 @dataclass
 class BICClustersConf:
-    name: str = "bic"
+    component: str = "bic"
     min_ns: int = 5
     max_ns: int = 40
     step: int = 1
@@ -98,18 +134,18 @@ class BICClustersConf:
 
 @dataclass
 class EntropySplitConf:
-    name: str = "entropy"
+    component: str = "entropy"
 
 
 @dataclass
 class TargetStatesConf:
-    name: str = "n_states"
+    component: str = "n_states"
     n_states: int = 30
 
 
 @dataclass
 class MinGainConf:
-    name: str = "min_gain"
+    component: str = "min_gain"
     min_gain: float = 0.05
     max_states: Optional[int] = None
 
@@ -119,16 +155,20 @@ class MinGainConf:
 class SimulateDataConf:
     """Simulate the configured world for ``n_steps`` steps."""
 
-    name: str = "simulate"
+    component: str = "simulate"
     n_steps: int = 2000
+    #: length of the held-out walk the map is scored on (null: n_steps; 0: none)
+    heldout_steps: Optional[int] = None
 
 
 @dataclass
 class FileDataConf:
     """Learn from a recorded trajectory (``.npz`` or ``.csv``); no simulation."""
 
-    name: str = "file"
+    component: str = "file"
     path: str = MISSING
+    #: a second recording of the same world the map is scored on (null: no held-out score)
+    heldout_path: Optional[str] = None
 
 
 @dataclass
@@ -169,6 +209,9 @@ class Config:
 #: (group, option name, schema) of every built-in option; conf/<group>/<name>.yaml extends each
 BUILTIN_SCHEMAS = [
     ("env", "office", OfficeEnvConf),
+    ("env", "gridroom", GridRoomEnvConf),
+    ("env", "random_graph", RandomGraphEnvConf),
+    ("env", "minigrid", MiniGridEnvConf),
     ("noise", "none", NoNoiseConf),
     ("noise", "gaussian", GaussianNoiseConf),
     ("noise", "dropout", DropoutNoiseConf),

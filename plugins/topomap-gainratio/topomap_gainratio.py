@@ -16,7 +16,7 @@ from topomap.hookspecs import Component
 
 @dataclass
 class GainRatioConf:
-    name: str = "gain_ratio"
+    component: str = "gain_ratio"
     ratio: float = 0.25
     max_states: Optional[int] = None
 

@@ -1,5 +1,7 @@
 """Simulated environments that produce :class:`~topomap.trajectory.Trajectory` data."""
 
+from .gridroom import GridRoom
+from .minigrid_env import MiniGridWorld
 from .office import (
     Action,
     ApproachType,
@@ -12,6 +14,7 @@ from .office import (
     paper_layout,
     random_layout,
 )
+from .random_graph import RandomGraphWorld
 
 __all__ = [
     "Action",
@@ -19,9 +22,12 @@ __all__ = [
     "FollowWall",
     "GoTo",
     "GoToWall",
+    "GridRoom",
+    "MiniGridWorld",
     "OfficeLayout",
     "OfficeWorld",
     "Pose",
+    "RandomGraphWorld",
     "paper_layout",
     "random_layout",
 ]

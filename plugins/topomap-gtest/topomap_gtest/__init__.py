@@ -22,7 +22,7 @@ from topomap.splitting import EntropyCriterion
 
 @dataclass
 class GTestConf:
-    name: str = "gtest"
+    component: str = "gtest"
     alpha: float = 0.01
 
 
