@@ -55,6 +55,15 @@ def test_every_group_option_composes_and_builds(group, option):
             registry.make(group, params)
 
 
+@pytest.mark.parametrize("preset", options("experiment"))
+def test_every_experiment_preset_composes(preset):
+    cfg = make_cfg([f"experiment={preset}"])
+    registry = Registry.load(entry_points_group=None)
+    for kind in ("clusters", "split", "stop", "noise", "explorer", "metric"):
+        registry.make(kind, cfg[kind])
+    assert registry.get("env", cfg.env.component)
+
+
 def test_every_registered_builtin_has_a_yaml_option():
     registry = Registry.load(entry_points_group=None)
     for kind, name, _, provider in registry.items():
