@@ -150,7 +150,7 @@ def make_trajectory(cfg, registry: Registry, *, progress: bool = False, cache_di
     if data["component"] == "file":
         return load_trajectory(data["path"]), None
     if data["component"] != "simulate":
-        raise ValueError(f"data={data['name']!r} is unknown; choose simulate or file")
+        raise ValueError(f"data={data['component']!r} is unknown; choose simulate or file")
     world = _make_world(cfg, registry)
     explorer = registry.make("explorer", cfg["explorer"])
     noise = registry.make("noise", cfg["noise"])
