@@ -170,3 +170,13 @@ def test_cli_errors_are_one_clear_line(tmp_path):
     assert "Traceback" not in r.stderr
     r = cli(["split=nope"], tmp_path)
     assert r.returncode == 1 and "Could not find 'split/nope'" in r.stderr
+
+
+def test_every_config_folder_is_packaged():
+    import tomllib
+
+    meta = tomllib.loads((CONF.parent / "pyproject.toml").read_text())
+    packages = set(meta["tool"]["setuptools"]["packages"])
+    for folder in [p for p in CONF.rglob("*") if p.is_dir() and p.name != "__pycache__"]:
+        name = "topomap.conf." + ".".join(folder.relative_to(CONF).parts)
+        assert name in packages, f"{name} is missing from [tool.setuptools] packages"
