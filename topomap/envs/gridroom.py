@@ -63,6 +63,25 @@ def check_choice(a, mask: np.ndarray, t: int) -> int:
     return int(a)
 
 
+def walk(successors: np.ndarray, n_steps: int, explorer, rng: np.random.Generator):
+    """Random walk on a transition table (``successors[p, a]``, -1 where ``a`` is not executable).
+
+    Starts at a place drawn with ``rng``; asks ``explorer.choose(mask, rng)`` once per step; the
+    last step's action is chosen but not executed.  Returns ``(places, actions)``.
+    """
+    masks = successors >= 0
+    places = np.empty(n_steps, dtype=np.int64)
+    actions = np.empty(n_steps, dtype=np.int64)
+    p = int(rng.integers(successors.shape[0]))
+    for t in range(n_steps):
+        places[t] = p
+        mask = masks[p].copy()
+        a = check_choice(explorer.choose(mask, rng), mask, t)
+        actions[t] = a
+        p = int(successors[p, a])
+    return places, actions
+
+
 def symbol_embedding(n_symbols: int, obs_dim: int, rng: np.random.Generator) -> np.ndarray:
     """Observation vector of every symbol, ``(n_symbols, D)``, all entries in ``[0, 1]``.
 
@@ -165,17 +184,7 @@ class GridRoom:
         chosen but not executed.  Returns a :class:`Trajectory` with ``places`` (cell ids),
         ``positions`` (cell centres) and noise-free ``observations``.
         """
-        T = check_simulate_args(n_steps, explorer)
-        places = np.empty(T, dtype=np.int64)
-        actions = np.empty(T, dtype=np.int64)
-        masks = self.successors >= 0
-        p = int(rng.integers(self.n_places))
-        for t in range(T):
-            places[t] = p
-            mask = masks[p].copy()
-            a = check_choice(explorer.choose(mask, rng), mask, t)
-            actions[t] = a
-            p = int(self.successors[p, a])
+        places, actions = walk(self.successors, check_simulate_args(n_steps, explorer), explorer, rng)
         meta = {
             "world": "gridroom", "width": self.width, "height": self.height,
             "n_symbols": self.n_symbols, "obs_dim": self.obs_dim, "seed": self.seed,

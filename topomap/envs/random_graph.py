@@ -26,10 +26,10 @@ from topomap.trajectory import Trajectory
 from .gridroom import (
     _positive_int,
     assign_symbols,
-    check_choice,
     check_no_extra_actions,
     check_simulate_args,
     symbol_embedding,
+    walk,
 )
 
 __all__ = ["RandomGraphWorld", "random_strong_digraph"]
@@ -149,16 +149,7 @@ class RandomGraphWorld:
         ``explorer.choose(mask, rng)`` is called once per step (all actions executable); the last
         step's action is chosen but not executed.
         """
-        T = check_simulate_args(n_steps, explorer)
-        places = np.empty(T, dtype=np.int64)
-        actions = np.empty(T, dtype=np.int64)
-        p = int(rng.integers(self.n_places))
-        for t in range(T):
-            places[t] = p
-            mask = np.ones(self.out_degree, dtype=bool)
-            a = check_choice(explorer.choose(mask, rng), mask, t)
-            actions[t] = a
-            p = int(self.successors[p, a])
+        places, actions = walk(self.successors, check_simulate_args(n_steps, explorer), explorer, rng)
         meta = {
             "world": "random_graph", "n_places": self.n_places, "out_degree": self.out_degree,
             "n_symbols": self.n_symbols, "obs_dim": self.obs_dim, "layout": self.layout,
