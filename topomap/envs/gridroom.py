@@ -63,12 +63,16 @@ def check_choice(a, mask: np.ndarray, t: int) -> int:
     return int(a)
 
 
-def walk(successors: np.ndarray, n_steps: int, explorer, rng: np.random.Generator):
-    """Random walk on a transition table (``successors[p, a]``, -1 where ``a`` is not executable).
+def walk(world, n_steps, explorer, rng: np.random.Generator, meta: dict) -> Trajectory:
+    """Random walk on a table-driven world and its noise-free :class:`Trajectory`.
 
-    Starts at a place drawn with ``rng``; asks ``explorer.choose(mask, rng)`` once per step; the
-    last step's action is chosen but not executed.  Returns ``(places, actions)``.
+    ``world`` has ``successors[p, a]`` (-1 where ``a`` is not executable), ``place_symbols``,
+    ``embedding``, ``place_positions`` and ``action_names``.  The walk starts at a place drawn with
+    ``rng`` and asks ``explorer.choose(mask, rng)`` once per step; the last step's action is
+    chosen but not executed.
     """
+    n_steps = check_simulate_args(n_steps, explorer)
+    successors = world.successors
     masks = successors >= 0
     places = np.empty(n_steps, dtype=np.int64)
     actions = np.empty(n_steps, dtype=np.int64)
@@ -79,7 +83,11 @@ def walk(successors: np.ndarray, n_steps: int, explorer, rng: np.random.Generato
         a = check_choice(explorer.choose(mask, rng), mask, t)
         actions[t] = a
         p = int(successors[p, a])
-    return places, actions
+    return Trajectory(
+        observations=world.embedding[world.place_symbols[places]], actions=actions,
+        places=places, positions=world.place_positions[places],
+        action_names=list(world.action_names), meta=meta,
+    )
 
 
 def symbol_embedding(n_symbols: int, obs_dim: int, rng: np.random.Generator) -> np.ndarray:
@@ -184,17 +192,12 @@ class GridRoom:
         chosen but not executed.  Returns a :class:`Trajectory` with ``places`` (cell ids),
         ``positions`` (cell centres) and noise-free ``observations``.
         """
-        places, actions = walk(self.successors, check_simulate_args(n_steps, explorer), explorer, rng)
         meta = {
             "world": "gridroom", "width": self.width, "height": self.height,
             "n_symbols": self.n_symbols, "obs_dim": self.obs_dim, "seed": self.seed,
             "place_symbols": self.place_symbols.tolist(),
         }
-        return Trajectory(
-            observations=self.embedding[self.place_symbols[places]], actions=actions,
-            places=places, positions=self.place_positions[places],
-            action_names=list(self.action_names), meta=meta,
-        )
+        return walk(self, n_steps, explorer, rng, meta)
 
     def plot_room(self, ax, labels: bool = False):
         """Draw the cells, tinted by symbol, and the walls.  ``labels`` writes each cell's symbol.

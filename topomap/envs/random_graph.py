@@ -27,7 +27,6 @@ from .gridroom import (
     _positive_int,
     assign_symbols,
     check_no_extra_actions,
-    check_simulate_args,
     symbol_embedding,
     walk,
 )
@@ -149,18 +148,13 @@ class RandomGraphWorld:
         ``explorer.choose(mask, rng)`` is called once per step (all actions executable); the last
         step's action is chosen but not executed.
         """
-        places, actions = walk(self.successors, check_simulate_args(n_steps, explorer), explorer, rng)
         meta = {
             "world": "random_graph", "n_places": self.n_places, "out_degree": self.out_degree,
             "n_symbols": self.n_symbols, "obs_dim": self.obs_dim, "layout": self.layout,
             "seed": self.seed, "place_symbols": self.place_symbols.tolist(),
             "successors": self.successors.tolist(),
         }
-        return Trajectory(
-            observations=self.embedding[self.place_symbols[places]], actions=actions,
-            places=places, positions=self.place_positions[places],
-            action_names=list(self.action_names), meta=meta,
-        )
+        return walk(self, n_steps, explorer, rng, meta)
 
     def plot_room(self, ax, labels: bool = False):
         """Draw the place graph: faint arcs, places tinted by symbol (ids with ``labels``).
