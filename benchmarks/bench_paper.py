@@ -11,14 +11,14 @@ from __future__ import annotations
 
 import argparse
 import statistics
-import tempfile
 import time
 
-from hydra import compose, initialize_config_module
+from omegaconf import OmegaConf
 
-from topomap.experiment import build_learner, make_trajectory
-from topomap.metrics import evaluate
-from topomap.registry import Registry
+from topomap.app.cli import compose
+from topomap.app.experiment import load_data, make_learner
+from topomap.app.registry import Registry
+from topomap.core.metrics import evaluate
 
 
 def main():
@@ -28,19 +28,20 @@ def main():
     args = ap.parse_args()
     registry = Registry.load()
     rows = []
-    with initialize_config_module(version_base="1.3", config_module="topomap.conf"):
-        for seed in range(args.seeds):
-            cfg = compose(config_name="config", overrides=[f"seed={seed}", *args.overrides])
-            t0 = time.perf_counter()
-            traj, _ = make_trajectory(cfg, registry)
-            learner = build_learner(cfg, registry).fit_trajectory(traj)
-            dt = time.perf_counter() - t0
-            a, b = evaluate(learner.labels_phase1_, traj.places), evaluate(learner.labels_, traj.places)
-            rows.append((a["ari"], b["ari"], a["purity"], b["purity"], a["compound_states"],
-                         b["compound_states"], dt))
-            print(f"seed {seed}: ARI {a['ari']:.3f} -> {b['ari']:.3f}  purity {a['purity']:.3f} -> "
-                  f"{b['purity']:.3f}  compound states {a['compound_states']} -> "
-                  f"{b['compound_states']}  ({dt:.2f} s)", flush=True)
+    for seed in range(args.seeds):
+        overrides = [f"seed={seed}", "data.heldout_steps=0", *args.overrides]
+        cfg = OmegaConf.to_container(compose(overrides, registry), resolve=True)
+        t0 = time.perf_counter()
+        parts = registry.build(cfg)
+        (traj, _), _ = load_data(cfg, parts, registry)
+        learner = make_learner(cfg, parts).fit_trajectory(traj)
+        dt = time.perf_counter() - t0
+        a, b = evaluate(learner.labels_phase1_, traj.places), evaluate(learner.labels_, traj.places)
+        rows.append((a["ari"], b["ari"], a["purity"], b["purity"], a["compound_states"],
+                     b["compound_states"], dt))
+        print(f"seed {seed}: ARI {a['ari']:.3f} -> {b['ari']:.3f}  purity {a['purity']:.3f} -> "
+              f"{b['purity']:.3f}  compound states {a['compound_states']} -> "
+              f"{b['compound_states']}  ({dt:.2f} s)", flush=True)
     med = [statistics.median(c) for c in zip(*rows)]
     print(f"median of {len(rows)}: ARI {med[0]:.3f} -> {med[1]:.3f}  purity {med[2]:.3f} -> "
           f"{med[3]:.3f}  compound states {med[4]:g} -> {med[5]:g}  ({med[6]:.2f} s per run)")

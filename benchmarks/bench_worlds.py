@@ -27,10 +27,10 @@ import time
 import numpy as np
 
 from topomap import MapLearner
-from topomap.envs import GridRoom, MiniGridWorld, RandomGraphWorld
-from topomap.explorers import RandomExplorer
-from topomap.metrics import adjusted_rand, compound_states, nmi
-from topomap.noise import GaussianNoise
+from topomap.worlds import GridRoom, MiniGridWorld, RandomGraphWorld
+from topomap.worlds.explorers import RandomExplorer
+from topomap.core.metrics import adjusted_rand, compound_states, nmi
+from topomap.worlds.noise import GaussianNoise
 
 
 def _symbolic(world):

@@ -8,28 +8,25 @@ from pathlib import Path
 import networkx as nx
 import numpy as np
 import pytest
-from hydra import compose, initialize_config_module
 from hydra.errors import ConfigCompositionException
+from omegaconf import MISSING
 from omegaconf.errors import ValidationError
 
 from topomap import TopologicalMap, load_trajectory
-from topomap.experiment import FIGURE_FILES, OUTPUT_FILES, run
-from topomap.registry import Registry
+from topomap.app.experiment import run
+from topomap.app.outputs import FIGURE_FILES, OUTPUT_FILES
+from topomap.app.registry import Registry
 
 CONF = Path(__file__).resolve().parents[1] / "conf"
-GROUPS = ["env", "noise", "explorer", "metric", "clusters", "split", "stop", "data"]
-
-
-def make_cfg(overrides=()):
-    with initialize_config_module(version_base="1.3", config_module="topomap.conf"):
-        return compose(config_name="config", overrides=list(overrides))
+PLUGINS = Path(__file__).resolve().parents[1] / "plugins"
+BUILTINS = [(kind, name) for kind, name, _, _ in Registry.load(entry_points_group=None).items()]
 
 
 def options(group):
     return sorted(p.stem for p in (CONF / group).glob("*.yaml"))
 
 
-def test_default_config_is_the_papers_experiment():
+def test_default_config_is_the_papers_experiment(make_cfg):
     cfg = make_cfg()
     assert cfg.env.component == "office" and cfg.env.layout == "paper"
     assert cfg.data.n_steps == 2000 and cfg.clusters.ns == 20 and cfg.stop.n_states == 30
@@ -39,24 +36,24 @@ def test_default_config_is_the_papers_experiment():
         assert preset[key] == cfg[key], key
 
 
-@pytest.mark.parametrize("group, option", [(g, o) for g in GROUPS for o in options(g)])
-def test_every_group_option_composes_and_builds(group, option):
+@pytest.mark.parametrize("group, option", BUILTINS)
+def test_every_component_is_an_option_that_composes_and_builds(group, option, make_cfg):
     overrides = [f"{group}={option}"]
     if (group, option) == ("data", "file"):
         overrides.append("data.path=x.npz")
     cfg = make_cfg(overrides)
     assert cfg[group].component == option
-    if group != "data":
-        registry = Registry.load(entry_points_group=None)
-        params = dict(cfg[group])
-        if group == "stop":
-            registry.make(group, params).check(22)
-        else:
-            registry.make(group, params)
+    registry = Registry.load(entry_points_group=None)
+    params = dict(cfg[group])
+    if group == "env" and option == "minigrid":
+        pytest.importorskip("minigrid")
+    built = registry.make(group, params)
+    if group == "stop":
+        built.check(22)
 
 
 @pytest.mark.parametrize("preset", options("experiment"))
-def test_every_experiment_preset_composes(preset):
+def test_every_experiment_preset_composes(preset, make_cfg):
     cfg = make_cfg([f"experiment={preset}"])
     registry = Registry.load(entry_points_group=None)
     for kind in ("clusters", "split", "stop", "noise", "explorer", "metric"):
@@ -64,10 +61,63 @@ def test_every_experiment_preset_composes(preset):
     assert registry.get("env", cfg.env.component)
 
 
-def test_every_registered_builtin_has_a_yaml_option():
-    registry = Registry.load(entry_points_group=None)
-    for kind, name, _, provider in registry.items():
-        assert name in options(kind), (kind, name)
+def _signature_defaults(factory):
+    import inspect
+
+    from topomap.app.config import RUNTIME_ARGS
+
+    return {p.name: (MISSING if p.default is p.empty else p.default)
+            for p in inspect.signature(factory).parameters.values()
+            if p.name not in RUNTIME_ARGS and p.kind not in (p.VAR_POSITIONAL, p.VAR_KEYWORD)}
+
+
+def test_every_config_field_matches_its_factory_signature():
+    """Built-ins (derived configs) and the example plugins (one derived, two hand-written):
+    the config's fields are exactly the factory's parameters, with the same defaults."""
+    from topomap.app.config import fields_of, schema_of
+
+    plugins = [str(PLUGINS / "topomap-gainratio" / "topomap_gainratio.py"),
+               str(PLUGINS / "topomap-gtest" / "topomap_gtest" / "__init__.py")]
+    registry = Registry.load(plugins, entry_points_group=None)
+    assert not registry.errors
+    kinds = set()
+    for kind, name, comp, _ in registry.items():
+        fields = fields_of(schema_of(comp))
+        assert fields.pop("component") == name
+        expected = _signature_defaults(comp.factory)
+        if "seed" in expected:  # a component's seed follows the run's seed
+            assert fields.pop("seed") == "${seed}" and expected.pop("seed") is not MISSING
+        assert fields == expected, (kind, name)
+        kinds.add(kind)
+    from topomap.app.hookspecs import KINDS
+
+    assert kinds == set(KINDS)
+
+
+def test_a_hand_written_config_that_disagrees_with_the_factory_is_caught():
+    """The check above can fail: a config whose default drifted from the constructor's."""
+    from dataclasses import dataclass
+
+    from topomap.app.config import fields_of, schema_of
+    from topomap.app.hookspecs import Component
+    from topomap.core.clustering import FixedClusters
+
+    @dataclass
+    class Drifted:
+        component: str = "fixed"
+        ns: int = 25  # FixedClusters says 20
+
+    fields = fields_of(schema_of(Component("clusters", "fixed", FixedClusters, Drifted)))
+    fields.pop("component")
+    assert fields != _signature_defaults(FixedClusters)
+
+
+def test_learner_config_is_the_learner_signature(make_cfg):
+    from topomap import MapLearner
+
+    cfg = make_cfg()
+    params = MapLearner().get_params()
+    assert dict(cfg.learner) == {k: params[k] for k in ("covariance_type", "reg_covar", "n_init")}
 
 
 @pytest.mark.parametrize("override, message", [
@@ -76,26 +126,26 @@ def test_every_registered_builtin_has_a_yaml_option():
     ("stop.n_states=1.5", "could not be converted to Integer"),
     ("env.view_rnage=2", "Key 'view_rnage' not in"),
 ])
-def test_typed_config_rejects_bad_values(override, message):
+def test_typed_config_rejects_bad_values(override, message, make_cfg):
     with pytest.raises(ConfigCompositionException) as info:
         make_cfg([override])
     assert message in str(info.value.__cause__ or info.value)
 
 
-def test_composed_config_stays_typed():
+def test_composed_config_stays_typed(make_cfg):
     cfg = make_cfg()
     with pytest.raises(ValidationError):
         cfg.clusters.ns = "abc"
 
 
-def small(overrides=()):
+def small(make_cfg, overrides=()):
     data = [] if "data=file" in overrides else ["data.n_steps=300"]
     return make_cfg([*data, "clusters.ns=8", "stop.n_states=12", "output.progress=false",
                      *overrides])
 
 
-def test_run_in_process_writes_every_output(tmp_path):
-    results = run(small(), tmp_path)
+def test_run_in_process_writes_every_output(tmp_path, make_cfg):
+    results = run(small(make_cfg), tmp_path)
     for name in [*OUTPUT_FILES, *FIGURE_FILES]:
         assert (tmp_path / name).is_file(), name
     m = TopologicalMap.load(tmp_path / "map.json")
@@ -119,30 +169,30 @@ def test_run_in_process_writes_every_output(tmp_path):
         assert (tmp_path / png).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
-def test_same_config_and_seed_same_map_bytes(tmp_path):
-    run(small(), tmp_path / "a")
-    run(small(), tmp_path / "b")
-    run(small(["seed=1"]), tmp_path / "c")
+def test_same_config_and_seed_same_map_bytes(tmp_path, make_cfg):
+    run(small(make_cfg), tmp_path / "a")
+    run(small(make_cfg), tmp_path / "b")
+    run(small(make_cfg, ["seed=1"]), tmp_path / "c")
     a, b, c = ((tmp_path / d / "map.json").read_bytes() for d in "abc")
     assert a == b and a != c
 
 
-def test_data_file_learns_from_a_recording_without_simulating(tmp_path):
-    run(small(), tmp_path / "sim")
-    cfg = small(["data=file", f"data.path={tmp_path / 'sim' / 'trajectory.npz'}"])
+def test_data_file_learns_from_a_recording_without_simulating(tmp_path, make_cfg):
+    run(small(make_cfg), tmp_path / "sim")
+    cfg = small(make_cfg, ["data=file", f"data.path={tmp_path / 'sim' / 'trajectory.npz'}"])
     results = run(cfg, tmp_path / "file")
     sim = json.loads((tmp_path / "sim" / "metrics.json").read_text())
     assert results["ground_truth"]["final"] == sim["ground_truth"]["final"]
     assert (tmp_path / "file" / "map.json").read_bytes() == (tmp_path / "sim" / "map.json").read_bytes()
 
 
-def test_bad_settings_fail_before_any_output(tmp_path):
+def test_bad_settings_fail_before_any_output(tmp_path, make_cfg):
     with pytest.raises(ValueError, match="stop.n_states=5 is below the 10 states"):
-        run(small(["stop.n_states=5"]), tmp_path / "a")
+        run(small(make_cfg, ["stop.n_states=5"]), tmp_path / "a")
     with pytest.raises(ValueError, match="does not exist"):
-        run(small(["data=file", "data.path=nope.npz"]), tmp_path / "b")
+        run(small(make_cfg, ["data=file", "data.path=nope.npz"]), tmp_path / "b")
     with pytest.raises(ValueError, match="clusters=fixed: clusters.ns must be a positive integer"):
-        run(small(["clusters.ns=0"]), tmp_path / "c")
+        run(small(make_cfg, ["clusters.ns=0"]), tmp_path / "c")
     assert not any(tmp_path.iterdir())
 
 

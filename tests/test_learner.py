@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 
 from topomap import MapLearner, TopologicalMap
-from topomap.clustering import BICClusters, Cosine, FixedClusters, Standardized
-from topomap.metrics import adjusted_rand, compound_states, evaluate, purity
-from topomap.splitting import EntropyCriterion, MinGain, TargetStates, merge_groups
+from topomap.core.clustering import BICClusters, Cosine, FixedClusters, Standardized
+from topomap.core.metrics import adjusted_rand, compound_states, evaluate, purity
+from topomap.core.splitting import EntropyCriterion, MinGain, TargetStates, merge_groups
 
 from worlds import ring
 
@@ -170,8 +170,9 @@ def blobs(n=60, seed=0):
 def test_bic_policy_finds_three_blobs():
     X, truth = blobs()
     policy = BICClusters(min_ns=1, max_ns=6)
-    assert policy.choose(X, 0) == 3
-    assert min(policy.bic_, key=policy.bic_.get) == 3
+    ns, details = policy.choose(X, 0)
+    assert ns == 3 and min(details["bic"], key=details["bic"].get) == 3
+    assert sorted(details["bic"]) == [1, 2, 3, 4, 5, 6]
 
 
 def test_cosine_metric_groups_scaled_copies():
@@ -194,8 +195,11 @@ def test_standardized_metric_scales_features():
 def test_fixed_policy_and_learner_with_bic():
     X, truth = blobs()
     u = np.zeros(len(X), dtype=int)
-    learner = MapLearner(clusters=BICClusters(1, 6), n_states=3).fit(X, u)
-    assert learner.n_clusters_ == 3
+    policy = BICClusters(1, 6)
+    before = vars(policy).copy()
+    learner = MapLearner(clusters=policy, n_states=3).fit(X, u)
+    assert learner.n_clusters_ == 3 and sorted(learner.cluster_choice_["bic"]) == list(range(1, 7))
+    assert vars(policy) == before  # fitting never changes a parameter
     assert FixedClusters(4).choose(X, 0) == 4
 
 
@@ -277,3 +281,18 @@ def test_bad_settings_are_named():
         TargetStates(0)
     with pytest.raises(ValueError, match="stop.min_gain"):
         MinGain(-1)
+
+
+def test_learner_is_a_scikit_learn_estimator():
+    from sklearn.base import clone
+
+    X, u, places = ring(n_steps=300)
+    learner = MapLearner(n_clusters=5, n_states=6, reg_covar=1e-2, random_state=3)
+    params = learner.get_params()
+    assert params["n_clusters"] == 5 and params["reg_covar"] == 1e-2
+    twin = clone(learner).set_params(n_states=6)
+    learner.fit(X, u)
+    assert learner.get_params() == params  # fit never changes the parameters
+    assert learner.n_features_in_ == X.shape[1]
+    assert np.array_equal(twin.fit(X, u).labels_, learner.labels_)
+    assert clone(learner).get_params()["n_states"] == 6 and not hasattr(clone(learner), "labels_")

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from topomap.noise import DropoutNoise, GaussianNoise, MultiplicativeNoise, NoNoise
+from topomap.worlds.noise import DropoutNoise, GaussianNoise, MultiplicativeNoise, NoNoise
 
 MODELS = [NoNoise(), GaussianNoise(0.05), DropoutNoise(0.2), MultiplicativeNoise(0.2)]
 

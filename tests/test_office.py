@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from topomap.envs.office import (
+from topomap.worlds.office import (
     Action,
     ApproachType,
     FollowWall,
@@ -17,8 +17,8 @@ from topomap.envs.office import (
     paper_layout,
     random_layout,
 )
-from topomap.explorers import RandomExplorer
-from topomap.trajectory import Trajectory
+from topomap.worlds.explorers import RandomExplorer
+from topomap.core.trajectory import Trajectory
 
 T = 2000
 
@@ -26,7 +26,7 @@ T = 2000
 @pytest.fixture(scope="module")
 def world():
     # dock=False: the robot stays where each action ended, so the stop rules can be checked
-    return OfficeWorld(dock=False)
+    return OfficeWorld(dock=False, view_range=10.0)  # a long view: every place is reached
 
 
 @pytest.fixture(scope="module")
@@ -172,7 +172,7 @@ def test_aliasing_is_real_but_places_differ(world):
 
 
 def test_docking_puts_every_step_at_its_place_standing_point():
-    w = OfficeWorld()  # dock=True, the default
+    w = OfficeWorld(view_range=10.0)  # dock=True, the default
     tr = w.simulate(400, RandomExplorer(), np.random.default_rng(4))
     stand = np.array([w.standing_point(p) for p in range(w.n_places)])
     assert np.allclose(tr.positions[1:], stand[tr.places[1:]])
@@ -195,6 +195,7 @@ def tiny_world(**kw):
         centers=[(5.0, 5.0), (8.0, 5.0)], radii=[1.0, 0.3], gds=[1],
     )
     kw.setdefault("dock", False)
+    kw.setdefault("view_range", 10.0)
     return OfficeWorld.from_layout(lay, **kw)
 
 
@@ -245,7 +246,7 @@ def test_wall_following_stops_at_the_next_wall_object(world):
 
 
 def test_action_cap(world):
-    w = OfficeWorld(max_action_steps=2, step_size=0.25, dock=False)
+    w = OfficeWorld(max_action_steps=2, step_size=0.25, dock=False, view_range=10.0)
     stop = w.step(w.pose_at(2.5, 8.0), 15, np.random.default_rng(0))
     assert stop.end_reason == "cap" and stop.path_length == pytest.approx(0.5)
 
@@ -261,7 +262,7 @@ class GoToCentre(Action):
 
 
 def test_extra_actions_are_appended_and_used():
-    w = OfficeWorld(extra_actions=[GoToCentre()])
+    w = OfficeWorld(extra_actions=[GoToCentre()], view_range=10.0)
     assert w.n_actions == 18 and w.action_names[-1] == "go to centre"
     tr = w.simulate(400, RandomExplorer(), np.random.default_rng(0))
     assert (tr.actions == 17).sum() > 5

@@ -12,17 +12,21 @@ import numpy as np
 import pytest
 
 from topomap import Trajectory, save_trajectory
-from topomap.hookspecs import TopomapSpecs
-from topomap.registry import Registry
+from topomap.app.hookspecs import TopomapSpecs
+from topomap.app.registry import Registry
 
 ROOT = Path(__file__).resolve().parents[1]
 PLUGINS = ROOT / "plugins"
 TURNBACK = PLUGINS / "topomap-turnback" / "topomap_turnback.py"
 
 
-def cli(args, cwd, pythonpath=()):
+def cli(args, cwd, pythonpath=(), autoload=False):
+    """Run ``topomap args`` in ``cwd``; ``autoload`` lets it load installed (entry-point) plugins."""
     env = dict(os.environ)
     env["PYTHONPATH"] = os.pathsep.join([*map(str, pythonpath), env.get("PYTHONPATH", "")])
+    env.pop("TOPOMAP_DISABLE_PLUGIN_AUTOLOAD", None)
+    if not autoload:
+        env["TOPOMAP_DISABLE_PLUGIN_AUTOLOAD"] = "1"
     return subprocess.run([sys.executable, "-m", "topomap", *args], cwd=cwd, env=env,
                           capture_output=True, text=True, timeout=300)
 
@@ -108,12 +112,13 @@ def test_stopping_rule_plugin_from_an_entry_point_changes_the_state_count(tmp_pa
     for ratio, expected in [(0.5, 11), (0.25, 12)]:
         cwd = tmp_path / str(ratio)
         cwd.mkdir()
-        r = cli([*base, "stop=gain_ratio", f"stop.ratio={ratio}"], cwd, pythonpath=[site])
+        r = cli([*base, "stop=gain_ratio", f"stop.ratio={ratio}"], cwd, pythonpath=[site],
+                autoload=True)
         assert r.returncode == 0, r.stderr
         m = json.loads((run_dir(cwd) / "metrics.json").read_text())
         assert m["n_states"]["final"] == expected
         assert m["providers"]["stop"] == "gain_ratio"
-    r = cli(["--list-plugins"], tmp_path, pythonpath=[site])
+    r = cli(["--list-plugins"], tmp_path, pythonpath=[site], autoload=True)
     assert r.returncode == 0
     line = next(l for l in r.stdout.splitlines() if l.strip().startswith("gain_ratio"))
     assert "gain_ratio" in line.split()[1]  # provider column: the entry point's name
@@ -128,6 +133,32 @@ def test_action_plugin_from_a_file_adds_an_action(tmp_path):
         actions = f["actions"]
     assert names[-1] == "turn back" and len(names) == 18
     assert (actions == 17).any()
+
+
+def test_autoload_switch_keeps_installed_action_plugins_out(tmp_path):
+    """An installed action plugin adds its action to the office world; with
+    TOPOMAP_DISABLE_PLUGIN_AUTOLOAD=1 the paper's run keeps its 17 actions."""
+    site = tmp_path / "site"
+    fake_install(site, "topomap_turnback", {"turnback": "topomap_turnback"}, TURNBACK)
+    small = ["data.n_steps=200", "data.heldout_steps=0", "clusters.ns=8", "stop.n_states=12",
+             "output.figures=false"]
+    for autoload, n_actions in [(True, 18), (False, 17)]:
+        cwd = tmp_path / str(autoload)
+        cwd.mkdir()
+        r = cli(small, cwd, pythonpath=[site], autoload=autoload)
+        assert r.returncode == 0, r.stderr
+        with np.load(run_dir(cwd) / "trajectory.npz", allow_pickle=False) as f:
+            assert len(f["action_names"]) == n_actions
+
+
+def test_cached_trajectory_key_names_the_loaded_plugins(make_cfg):
+    from omegaconf import OmegaConf
+
+    from topomap.app.data import trajectory_key
+
+    cfg = OmegaConf.to_container(make_cfg(), resolve=True)
+    assert trajectory_key(cfg, plugins=["turnback"]) != trajectory_key(cfg)
+    assert trajectory_key(cfg, plugins=["turnback"]) == trajectory_key(cfg, plugins=["turnback"])
 
 
 def test_list_plugins_shows_every_kind_and_provider(tmp_path):
@@ -147,8 +178,8 @@ def write_plugin(path: Path, body: str) -> Path:
 
 COMPONENT = """
 from topomap import hookimpl
-from topomap.hookspecs import Component
-from topomap.splitting import EntropyCriterion
+from topomap.app.hookspecs import Component
+from topomap.core.splitting import EntropyCriterion
 
 @hookimpl
 def topomap_register_components():
@@ -183,7 +214,7 @@ def test_a_broken_entry_point_is_reported_by_name(tmp_path):
     site = tmp_path / "site"
     fake_install(site, "brokenplug", {"brokenplug": "brokenplug_mod"},
                  write_plugin(tmp_path / "brokenplug_mod.py", "import nonexistent_dependency\n"))
-    r = cli(["--list-plugins"], tmp_path, pythonpath=[site])
+    r = cli(["--list-plugins"], tmp_path, pythonpath=[site], autoload=True)
     assert r.returncode == 0
     assert "plugin 'brokenplug' (module brokenplug_mod) failed to load" in r.stdout
     assert "entropy" in r.stdout  # the built-ins are still there
@@ -204,10 +235,10 @@ def test_every_hook_is_documented():
             assert param in doc, (name, param)
 
 
-def test_progress_hook_sees_every_split_and_records_metrics(tmp_path):
+def test_progress_hook_sees_every_split_and_records_metrics(tmp_path, make_cfg):
     from test_app import small
 
-    from topomap.experiment import run
+    from topomap.app.experiment import run
 
     plug = write_plugin(tmp_path / "recorder.py", """
         from topomap import hookimpl
@@ -218,7 +249,7 @@ def test_progress_hook_sees_every_split_and_records_metrics(tmp_path):
             if event == "split":
                 info["metrics"].setdefault("gains", []).append(info["record"]["gain"])
         """)
-    results = run(small([f"plugins=[{plug}]"]), tmp_path / "out")
+    results = run(small(make_cfg, [f"plugins=[{plug}]"]), tmp_path / "out")
     saved = json.loads((tmp_path / "out" / "metrics.json").read_text())["plugin_metrics"]
     n = len(results["split_history"])
     assert saved["events"] == ["phase1"] + ["split"] * n + ["done"]
@@ -235,11 +266,11 @@ def test_pip_installed_plugin_is_found_through_its_entry_point(tmp_path, recordi
                          capture_output=True, text=True, timeout=600)
     assert pip.returncode == 0, pip.stderr
     assert (target / "topomap_gtest" / "conf" / "split" / "gtest.yaml").is_file()
-    r = cli(["--list-plugins"], tmp_path, pythonpath=[target])
+    r = cli(["--list-plugins"], tmp_path, pythonpath=[target], autoload=True)
     assert any(l.split()[:2] == ["gtest", "gtest"] for l in r.stdout.splitlines()), r.stdout
     # no plugins= entry: the entry point and the shipped YAML do it all
     r = cli(["data=file", f"data.path={recording}", "clusters.ns=10", "stop.n_states=11",
-             "split=gtest"], tmp_path, pythonpath=[target])
+             "split=gtest"], tmp_path, pythonpath=[target], autoload=True)
     assert r.returncode == 0, r.stderr
     assert [h["state"] for h in history(tmp_path)] == [6]
     cfg = json.loads((run_dir(tmp_path) / "metrics.json").read_text())["config"]

@@ -11,13 +11,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hydra import compose, initialize_config_module
 from omegaconf import OmegaConf
 
 from topomap import TopologicalMap, load_trajectory
-from topomap.experiment import make_heldout, make_trajectory, run, trajectory_key
-from topomap.registry import Registry
-from topomap.sweep import METRICS, SweepReport, main as report_main, run_job, write_report
+from topomap.app.data import trajectory_key
+from topomap.app.experiment import load_data, run
+from topomap.app.registry import Registry
+from topomap.app.sweep import METRICS, SweepReport, main as report_main, write_report
+from topomap.app.experiment import run_job
 
 PNG = b"\x89PNG\r\n\x1a\n"
 SMALL = ["data.n_steps=200", "data.heldout_steps=150", "output.figures=false",
@@ -27,9 +28,6 @@ SWEEP = [*SMALL, "clusters.ns=6,8", "stop.n_states=9,12"]
 GRID = [(ns, n) for ns, n in product((6, 8), (9, 12))]
 
 
-def make_cfg(overrides=(), hydra=False):
-    with initialize_config_module(version_base="1.3", config_module="topomap.conf"):
-        return compose(config_name="config", overrides=list(overrides), return_hydra_config=hydra)
 
 
 def cli(args, cwd):
@@ -106,7 +104,7 @@ def test_sweep_report_has_one_row_per_job_with_its_metrics(basic):
     assert h > 100 and w > 100
 
 
-def test_sweep_jobs_learn_from_one_shared_trajectory(basic, tmp_path):
+def test_sweep_jobs_learn_from_one_shared_trajectory(basic, tmp_path, make_cfg):
     _, _, sweep = basic
     cache = sweep / ".cache"
     (train,) = cache.glob("trajectory-*.npz")
@@ -176,7 +174,7 @@ def test_submitit_local_gives_the_same_maps_and_a_line_for_one_swept_key(basic, 
 
 
 # ---------------------------------------------------------------- the report on its own
-def test_report_lists_crashed_and_unfinished_jobs(tmp_path, monkeypatch):
+def test_report_lists_crashed_and_unfinished_jobs(tmp_path, monkeypatch, make_cfg):
     def job_dir(num, overrides):
         d = tmp_path / str(num)
         (d / ".hydra").mkdir(parents=True)
@@ -189,7 +187,7 @@ def test_report_lists_crashed_and_unfinished_jobs(tmp_path, monkeypatch):
     def crash(*args, **kwargs):
         raise RuntimeError("disk on fire")
 
-    monkeypatch.setattr("topomap.sweep.run", crash)
+    monkeypatch.setattr("topomap.app.experiment.run", crash)
     assert run_job(cfg, job_dir(1, ["stop.n_states=11"]), sweep_dir=tmp_path) is None
     st = status(tmp_path / "1")
     assert st["status"] == "failed" and st["error"] == "RuntimeError: disk on fire"
@@ -222,7 +220,7 @@ def test_report_callback_options_and_command(basic, capsys):
 
 
 # ---------------------------------------------------------------- trajectories and held-out data
-def test_only_world_settings_change_the_cached_trajectory(tmp_path):
+def test_only_world_settings_change_the_cached_trajectory(tmp_path, make_cfg):
     base = make_cfg(SMALL)
     key = trajectory_key(OmegaConf.to_container(base, resolve=True))
 
@@ -242,13 +240,12 @@ def test_only_world_settings_change_the_cached_trajectory(tmp_path):
     assert len(list(cache.glob("heldout-*.npz"))) == 2
 
 
-def test_heldout_loglik_scores_a_second_walk_through_the_same_world(tmp_path):
+def test_heldout_loglik_scores_a_second_walk_through_the_same_world(tmp_path, make_cfg):
     cfg = make_cfg([*SMALL, "clusters.ns=8", "stop.n_states=12"])
     results = run(cfg, tmp_path / "a")
     container = OmegaConf.to_container(cfg, resolve=True)
     registry = Registry.load()
-    held = make_heldout(container, registry)
-    train, _ = make_trajectory(container, registry)
+    (train, held), _ = load_data(container, registry.build(container), registry)
     assert len(held) == 150 and held.observations.shape[1] == train.observations.shape[1]
     assert not np.array_equal(held.places[:50], train.places[:50])
     m = TopologicalMap.load(tmp_path / "a" / "map.json")
@@ -263,7 +260,7 @@ def test_heldout_loglik_scores_a_second_walk_through_the_same_world(tmp_path):
     assert json.loads((tmp_path / "b" / "metrics.json").read_text())["heldout_loglik"] is None
 
 
-def test_heldout_file_for_recorded_data(tmp_path):
+def test_heldout_file_for_recorded_data(tmp_path, make_cfg):
     run(make_cfg([*SMALL, "clusters.ns=8", "stop.n_states=12"]), tmp_path / "sim")
     rec = str(tmp_path / "sim" / "trajectory.npz")
     file_cfg = ["data=file", f"data.path={rec}", "clusters.ns=8", "stop.n_states=12",
@@ -279,7 +276,7 @@ def test_heldout_file_for_recorded_data(tmp_path):
 
 
 # ---------------------------------------------------------------- shipped configs
-def test_sweep_preset_and_slurm_example_compose():
+def test_sweep_preset_and_slurm_example_compose(make_cfg):
     cfg = make_cfg(["experiment=sweep_pricai2002"], hydra=True)
     assert cfg.hydra.mode.name == "MULTIRUN"
     params = cfg.hydra.sweeper.params
@@ -289,7 +286,7 @@ def test_sweep_preset_and_slurm_example_compose():
     paper = make_cfg(["experiment=pricai2002"])
     for key in ("env", "noise", "explorer", "data", "seed", "clusters", "stop"):
         assert cfg[key] == paper[key], key
-    assert cfg.hydra.callbacks.sweep_report._target_ == "topomap.sweep.SweepReport"
+    assert cfg.hydra.callbacks.sweep_report._target_ == "topomap.app.sweep.SweepReport"
 
     pytest.importorskip("hydra_plugins.hydra_submitit_launcher")
     slurm = make_cfg(["hydra/launcher=slurm", "hydra.launcher.partition=short"], hydra=True)

@@ -7,19 +7,19 @@ import sys
 import networkx as nx
 import numpy as np
 import pytest
-from hydra import compose, initialize_config_module
 
-from topomap.envs.gridroom import MOVES, GridRoom
-from topomap.envs.minigrid_env import (
+from topomap.worlds.gridroom import MOVES, GridRoom
+from topomap.worlds.minigrid import (
     CHECKED_ENVS,
     MiniGridWorld,
     MissingDependencyError,
     encode_view,
 )
-from topomap.envs.random_graph import RandomGraphWorld, random_strong_digraph
-from topomap.experiment import FIGURE_FILES, OUTPUT_FILES, run
-from topomap.explorers import RandomExplorer
-from topomap.trajectory import Trajectory
+from topomap.worlds.random_graph import RandomGraphWorld, random_strong_digraph
+from topomap.app.experiment import run
+from topomap.app.outputs import FIGURE_FILES, OUTPUT_FILES
+from topomap.worlds.explorers import RandomExplorer
+from topomap.core.trajectory import Trajectory
 
 
 def walk(world, n, seed=0):
@@ -334,9 +334,6 @@ def test_minigrid_refuses_extra_actions_and_names_the_missing_package(monkeypatc
 # ------------------------------------------------------------------ the app, end to end
 
 
-def make_cfg(overrides):
-    with initialize_config_module(version_base="1.3", config_module="topomap.conf"):
-        return compose(config_name="config", overrides=list(overrides))
 
 
 @pytest.mark.parametrize("overrides, n_places", [
@@ -346,7 +343,7 @@ def make_cfg(overrides):
     pytest.param(["env=minigrid", "env.name=MiniGrid-Empty-5x5-v0", "clusters.ns=10",
                   "stop.n_states=20"], None, marks=needs_minigrid),
 ])
-def test_every_world_runs_end_to_end(tmp_path, overrides, n_places):
+def test_every_world_runs_end_to_end(tmp_path, overrides, n_places, make_cfg):
     cfg = make_cfg(["data.n_steps=400", "output.progress=false", *overrides])
     results = run(cfg, tmp_path)
     for name in [*OUTPUT_FILES, *FIGURE_FILES]:

@@ -3,12 +3,33 @@
 Implements Yairi, Togami & Hori, "Learning Topological Maps from Sequential Observation and Action
 Data under Partially Observable Environment" (PRICAI 2002): K-means symbols as initial states, then
 greedy entropy-based splitting of perceptually aliased states.
+
+The package has three floors, each importing only the ones below it:
+
+* :mod:`topomap.core` -- the learning core (numpy and scikit-learn only);
+* :mod:`topomap.worlds` -- simulated worlds, sensor noise and explorers, producing trajectories;
+* :mod:`topomap.app` -- the ``topomap`` command: Hydra configs, plugins, experiments, sweeps.
+
+``import topomap`` loads the core only.
 """
 
-from .hookspecs import hookimpl
-from .learner import MapLearner
-from .map import TopologicalMap
-from .trajectory import Trajectory, load_trajectory, save_trajectory
+import sys as _sys
 
-__all__ = ["hookimpl", "MapLearner", "TopologicalMap", "Trajectory", "load_trajectory", "save_trajectory"]
+from .core import MapLearner, TopologicalMap, Trajectory, load_trajectory, save_trajectory
+from .core import metrics
+
+# ``import topomap.metrics`` keeps working: the module lives in the core
+_sys.modules[f"{__name__}.metrics"] = metrics
+
+__all__ = ["MapLearner", "TopologicalMap", "Trajectory", "load_trajectory", "save_trajectory",
+           "metrics", "hookimpl"]
 __version__ = "0.1.0"
+
+
+def __getattr__(name):
+    """``topomap.hookimpl`` (the plugin marker) is loaded on first use, with pluggy."""
+    if name == "hookimpl":
+        from .app.hookspecs import hookimpl
+
+        return hookimpl
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

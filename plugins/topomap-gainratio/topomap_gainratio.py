@@ -11,7 +11,7 @@ from dataclasses import dataclass
 from typing import Optional
 
 from topomap import hookimpl
-from topomap.hookspecs import Component
+from topomap.app.hookspecs import Component
 
 
 @dataclass

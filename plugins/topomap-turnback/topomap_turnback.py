@@ -6,7 +6,7 @@ file path: ``topomap 'plugins=[path/to/topomap_turnback.py]'``.
 """
 
 from topomap import hookimpl
-from topomap.envs.office import Action, GoTo
+from topomap.worlds.office import Action, GoTo
 
 
 class TurnBack(Action):

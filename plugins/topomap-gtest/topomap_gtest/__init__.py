@@ -10,20 +10,12 @@ not split at all; among the others the largest ``-log10 p`` wins.
     topomap split=gtest split.alpha=0.01
 """
 
-from dataclasses import dataclass
-
 import numpy as np
 from scipy.stats import chi2
 
 from topomap import hookimpl
-from topomap.hookspecs import Component
-from topomap.splitting import EntropyCriterion
-
-
-@dataclass
-class GTestConf:
-    component: str = "gtest"
-    alpha: float = 0.01
+from topomap.app.hookspecs import Component
+from topomap.core.splitting import EntropyCriterion
 
 
 class GTestCriterion:
@@ -58,8 +50,9 @@ class GTestCriterion:
 
 @hookimpl
 def topomap_register_components():
-    return [Component("split", "gtest", GTestCriterion, GTestConf,
-                      "G-test between the two halves; split only if p < alpha")]
+    # no config class: `split.alpha` is typed from GTestCriterion's signature
+    return [Component("split", "gtest", GTestCriterion,
+                      description="G-test between the two halves; split only if p < alpha")]
 
 
 @hookimpl

@@ -1,7 +1,7 @@
 import numpy as np
 
-from topomap.envs.office import OfficeWorld
-from topomap.explorers import RandomExplorer
+from topomap.worlds.office import OfficeWorld
+from topomap.worlds.explorers import RandomExplorer
 from topomap_turnback import TurnBack, topomap_world_actions
 
 
@@ -12,7 +12,7 @@ def test_hook_adds_the_action_to_the_office_only():
 
 
 def test_turn_back_returns_to_the_previous_place_when_nothing_is_in_the_way():
-    w = OfficeWorld(extra_actions=[TurnBack()])
+    w = OfficeWorld(extra_actions=[TurnBack()], view_range=10.0)
     assert w.action_names[-1] == "turn back"
     traj = w.simulate(600, RandomExplorer(), np.random.default_rng(0))
     a = w.action_names.index("turn back")

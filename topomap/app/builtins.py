@@ -1,0 +1,56 @@
+"""topomap's own components, registered through the same hook as any plugin's.
+
+This list is the only place a built-in is declared: its class (whose signature is its typed config,
+see :mod:`topomap.app.config`), the name users write, and a line for ``topomap --list-plugins``.
+"""
+
+from __future__ import annotations
+
+from ..core import clustering, splitting
+from ..worlds import explorers, noise
+from ..worlds.gridroom import GridRoom
+from ..worlds.minigrid import MiniGridWorld
+from ..worlds.office import OfficeWorld
+from ..worlds.random_graph import RandomGraphWorld
+from . import data
+from .hookspecs import Component, hookimpl
+
+
+def _c(kind, name, factory, description):
+    return Component(kind, name, factory, description=description)
+
+
+@hookimpl
+def topomap_register_components():
+    return [
+        _c("env", "office", OfficeWorld,
+           "the paper's office: 25 objects of 15 types, panoramic size sensor, 17 actions"),
+        _c("env", "gridroom", GridRoom, "a room of cells showing a few symbols (heavy aliasing), 4 moves"),
+        _c("env", "random_graph", RandomGraphWorld,
+           "random strongly connected digraph, places emit fewer symbols than places"),
+        _c("env", "minigrid", MiniGridWorld,
+           "a MiniGrid environment (optional minigrid package), left/right/forward"),
+        _c("noise", "none", noise.NoNoise, "noise-free observations"),
+        _c("noise", "gaussian", noise.GaussianNoise, "additive Gaussian noise (sigma), clipped at 0"),
+        _c("noise", "dropout", noise.DropoutNoise,
+           "missed detections: each entry zeroed with probability p"),
+        _c("noise", "multiplicative", noise.MultiplicativeNoise, "log-normal gain per entry (sigma)"),
+        _c("explorer", "random", explorers.RandomExplorer,
+           "uniform choice among executable actions (the paper's)"),
+        _c("metric", "euclidean", clustering.Euclidean, "Euclidean distance (the paper's)"),
+        _c("metric", "standardized", clustering.Standardized,
+           "Euclidean after scaling every feature to unit variance"),
+        _c("metric", "cosine", clustering.Cosine, "cosine distance (observations scaled to unit length)"),
+        _c("clusters", "fixed", clustering.FixedClusters,
+           "a fixed number ns of K-means clusters (the paper's)"),
+        _c("clusters", "bic", clustering.BICClusters,
+           "ns in [min_ns, max_ns] with the lowest Gaussian-mixture BIC"),
+        _c("split", "entropy", splitting.EntropyCriterion,
+           "bottom-up merge and entropy gain of H(u) + H(x'|u) (the paper's)"),
+        _c("stop", "n_states", splitting.TargetStates,
+           "split until the map has n_states states (the paper's)"),
+        _c("stop", "min_gain", splitting.MinGain,
+           "split while the best gain is at least min_gain (bits)"),
+        _c("data", "simulate", data.Simulate, "simulate the configured world for n_steps steps"),
+        _c("data", "file", data.FromFile, "learn from a recorded trajectory (.npz or .csv)"),
+    ]

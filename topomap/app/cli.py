@@ -1,0 +1,133 @@
+"""The ``topomap`` command: Hydra composes ``conf/`` and :func:`topomap.app.experiment.run` does the work.
+
+    topomap                                   # the paper's experiment, outputs in outputs/runs/...
+    topomap clusters.ns=15 stop.n_states=40
+    topomap data=file data.path=my_log.npz
+    topomap -m clusters.ns=10,20,30 stop.n_states=25,30,40
+    topomap --list-plugins                    # every component by kind, with its plugin
+
+The line from the command to the work: :func:`main` reads the plugins named on the command line
+(with Hydra's own parsers), loads the :class:`~topomap.app.registry.Registry` once, stores every
+component's typed config, and hands the registry to the task Hydra runs for each job.
+"""
+
+from __future__ import annotations
+
+import logging
+import sys
+from pathlib import Path
+
+from .config import store_configs
+from .experiment import run, run_job
+from .registry import Registry
+
+log = logging.getLogger("topomap")
+
+__all__ = ["main", "plugins_named", "compose", "list_plugins"]
+
+CONFIG_MODULE = "topomap.conf"
+
+
+def plugins_named(argv) -> list[str]:
+    """The plugin modules a command line names (``plugins=[a,b]``), read with Hydra's parsers:
+    their components' configs must be stored before Hydra composes."""
+    from hydra._internal.utils import get_args_parser
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+
+    args, _ = get_args_parser().parse_known_args(list(argv))
+    try:
+        overrides = OverridesParser.create().parse_overrides(args.overrides)
+    except Exception:  # a syntax error: Hydra reports it when it parses the same line
+        return []
+    for override in overrides:
+        if override.key_or_group.lstrip("+~") != "plugins":
+            continue
+        if override.is_sweep_override():
+            raise ValueError("plugins cannot be swept; list every plugin in one plugins=[...]")
+        value = override.value()
+        return [str(v) for v in (value if isinstance(value, list) else [value]) if v]
+    return []
+
+
+def compose(overrides=(), registry: Registry | None = None, *, return_hydra_config=False):
+    """The composed config of ``topomap <overrides>`` (Hydra's compose API; for notebooks and
+    tests).  The registry's component configs are stored first."""
+    from hydra import compose as hydra_compose
+    from hydra import initialize_config_module
+
+    store_configs(registry or Registry.load())
+    with initialize_config_module(version_base="1.3", config_module=CONFIG_MODULE):
+        return hydra_compose(config_name="config", overrides=list(overrides),
+                             return_hydra_config=return_hydra_config)
+
+
+def list_plugins(registry: Registry, file=None) -> None:
+    """Print every registered component by kind, with the plugin that provides it."""
+    file = sys.stdout if file is None else file
+    last = None
+    for kind, name, comp, provider in registry.items():
+        if kind != last:
+            print(f"{kind}:", file=file)
+            last = kind
+        print(f"  {name:<16} {provider:<24} {comp.description}", file=file)
+    for err in registry.errors:
+        print(f"error: {err}", file=file)
+
+
+def _summary(results: dict, out) -> None:
+    gt = results.get("ground_truth", {}).get("final", {})
+    line = f"{results['n_states']['final']} states"
+    if gt:
+        g0 = results["ground_truth"]["phase1"]
+        line += (f" | ARI {g0['ari']:.3f} -> {gt['ari']:.3f}, purity {g0['purity']:.3f} -> "
+                 f"{gt['purity']:.3f}, compound states {g0['compound_states']} -> "
+                 f"{gt['compound_states']}")
+    print(f"topomap: {line}\ntopomap: outputs in {out}")
+
+
+def _task(cfg, registry: Registry):
+    """One run (or one job of a sweep) of the composed config ``cfg``."""
+    from hydra.core.hydra_config import HydraConfig
+
+    hc = HydraConfig.get()
+    out = hc.runtime.output_dir
+    if hc.mode.name == "MULTIRUN":
+        # trajectories are shared through the sweep folder, and a failure is written to the job's
+        # status.json (the sweep report lists it) instead of ending the sweep
+        sweep_dir = Path(hc.runtime.cwd, hc.sweep.dir)  # absolute, even with hydra.job.chdir
+        results = run_job(cfg, out, sweep_dir=sweep_dir, registry=registry)
+        if results is None:
+            return None
+    else:
+        try:
+            results = run(cfg, out, registry=registry)
+        except ValueError as exc:
+            log.error("%s", exc)
+            sys.exit(f"topomap: error: {exc}")
+    _summary(results, out)
+    return results.get("ground_truth", {}).get("final", {}).get("ari")
+
+
+def main() -> None:
+    """Console entry point."""
+    import hydra
+
+    argv = sys.argv[1:]
+    if argv and argv[0] in ("--list-plugins", "plugins"):
+        list_plugins(Registry.load(argv[1:]))
+        return
+    try:
+        registry = Registry.load(plugins_named(argv))
+        store_configs(registry)
+    except ValueError as exc:
+        sys.exit(f"topomap: error: {exc}")
+
+    @hydra.main(version_base="1.3", config_path=f"pkg://{CONFIG_MODULE}", config_name="config")
+    def topomap(cfg):
+        return _task(cfg, registry)
+
+    topomap()
+
+
+if __name__ == "__main__":
+    main()

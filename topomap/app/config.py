@@ -1,0 +1,207 @@
+"""Typed configs, derived from the components themselves.
+
+A component's config is its factory's signature: every parameter becomes a field with the
+parameter's annotation and default (a parameter without a default is required, ``???``), plus
+``component``, the registered name that selects it.  So ``topomap clusters.ns=abc`` or a misspelt
+key fails at once, and a config can never drift from the constructor it feeds.  Two conventions:
+a parameter named ``seed`` defaults to the run's ``${seed}``, and the arguments the app supplies
+itself (:data:`RUNTIME_ARGS`) are not config fields.
+
+:func:`store_configs` puts every component's config into Hydra's ConfigStore as ``<kind>/<name>``
+(with the values of a plugin's own YAML file for it, if it ships one) and the top-level schema as
+``topomap_schema``; ``conf/config.yaml`` composes them.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import inspect
+import re
+import typing
+from dataclasses import MISSING as _NO_DEFAULT
+from dataclasses import dataclass, field, make_dataclass
+from importlib import resources
+from pathlib import Path
+from typing import Any, Optional
+
+from omegaconf import II, MISSING, OmegaConf
+
+from ..core.learner import MapLearner
+
+__all__ = ["Config", "LearnerConf", "OutputConf", "RUNTIME_ARGS", "schema_of", "learner_schema",
+           "store_configs", "read_yaml_options"]
+
+#: factory arguments the app passes itself; never config fields
+RUNTIME_ARGS = frozenset({"extra_actions"})
+#: MapLearner arguments that are components or run settings, not ``learner.*`` fields
+_LEARNER_COMPONENT_ARGS = frozenset({"n_clusters", "n_states", "clusters", "metric", "criterion",
+                                     "stopping", "random_state", "callbacks"})
+_PRIMITIVES = (int, float, bool, str)
+
+
+def _config_type(annotation, default):
+    """The OmegaConf field type for a parameter: its annotation where OmegaConf can check it, else
+    the type of its default (``str | OfficeLayout`` with default ``"paper"`` gives ``str``)."""
+    args = [a for a in typing.get_args(annotation) if a is not type(None)]
+    optional = type(None) in typing.get_args(annotation)
+    if annotation in _PRIMITIVES:
+        return annotation
+    if optional and len(args) == 1 and args[0] in _PRIMITIVES:
+        return Optional[args[0]]
+    origin = typing.get_origin(annotation)
+    if origin in (list, tuple) and all(a in _PRIMITIVES for a in typing.get_args(annotation)[:1]):
+        return list[typing.get_args(annotation)[0]] if typing.get_args(annotation) else list
+    if isinstance(default, _PRIMITIVES):
+        return Optional[type(default)] if optional else type(default)
+    return Any
+
+
+def _field(name: str, typ, default):
+    if default is inspect.Parameter.empty:
+        return (name, typ, field(default=MISSING))
+    if name == "seed":
+        return (name, typ, field(default=II("seed")))
+    if isinstance(default, (list, tuple, dict)):
+        return (name, typ, field(default_factory=lambda d=default: type(d)(d)))
+    return (name, typ, field(default=default))
+
+
+def _parameters(factory):
+    """``(name, annotation, default)`` of the factory's configurable parameters."""
+    target = factory.__init__ if inspect.isclass(factory) else factory
+    try:
+        hints = typing.get_type_hints(target)
+    except Exception:  # unresolvable annotations: fall back to the defaults' types
+        hints = {}
+    out = []
+    for p in inspect.signature(factory).parameters.values():
+        if p.name in RUNTIME_ARGS or p.kind in (p.VAR_POSITIONAL, p.VAR_KEYWORD):
+            continue
+        out.append((p.name, hints.get(p.name, Any), p.default))
+    return out
+
+
+def schema_of(component) -> type:
+    """The typed config dataclass of a registered component (derived unless it brings one)."""
+    if component.config is not None:
+        if not (dataclasses.is_dataclass(component.config)
+                and "component" in {f.name for f in dataclasses.fields(component.config)}):
+            raise ValueError(f"{component.kind} component {component.name!r}: config must be a "
+                             "dataclass with a 'component' field (or left out, to be derived)")
+        return component.config
+    fields = [("component", str, field(default=component.name))]
+    fields += [_field(n, _config_type(a, d), d) for n, a, d in _parameters(component.factory)]
+    cls_name = "".join(w.title() for w in f"{component.kind}_{component.name}".split("_"))
+    return make_dataclass(f"{cls_name}Conf", fields)
+
+
+def learner_schema() -> type:
+    """``learner.*``: the :class:`MapLearner` arguments that are not components."""
+    fields = [_field(n, _config_type(a, d), d) for n, a, d in _parameters(MapLearner)
+              if n not in _LEARNER_COMPONENT_ARGS]
+    return make_dataclass("LearnerConf", fields)
+
+
+#: ``learner.*``, derived from :class:`MapLearner`
+LearnerConf = learner_schema()
+
+
+@dataclass
+class OutputConf:
+    #: arcs drawn and exported to GraphML when P(x'|x,u) exceeds this (the paper: 0.8)
+    min_prob: float = 0.8
+    #: write PNG figures
+    figures: bool = True
+    #: the phase-1 state shown before/after its split (None: the first state that was split)
+    compound_state: Optional[int] = None
+    #: show progress bars on the terminal
+    progress: bool = True
+
+
+@dataclass
+class Config:
+    """The top level of a run's config; each component group holds a ``<kind>/<name>`` config."""
+
+    seed: int = 0
+    plugins: list[str] = field(default_factory=list)
+    env: Any = MISSING
+    noise: Any = MISSING
+    explorer: Any = MISSING
+    metric: Any = MISSING
+    clusters: Any = MISSING
+    split: Any = MISSING
+    stop: Any = MISSING
+    data: Any = MISSING
+    learner: LearnerConf = field(default_factory=LearnerConf)
+    output: OutputConf = field(default_factory=OutputConf)
+
+
+# ------------------------------------------------------------------------------ plugin YAML files
+_PACKAGE_HEADER = re.compile(r"^#\s*@package\s+(\S+)", re.MULTILINE)
+
+
+def _yaml_folder(path: str):
+    """A Traversable for ``pkg://package.sub`` or ``file:///abs/dir`` (or a plain path)."""
+    if path.startswith("pkg://"):
+        return resources.files(path[len("pkg://"):].replace("/", "."))
+    return Path(path[len("file://"):] if path.startswith("file://") else path)
+
+
+def read_yaml_options(path: str) -> list[tuple[str, str, str, str | None]]:
+    """``(group, option, text, package)`` of every ``<group>/<option>.yaml`` below ``path``."""
+    out = []
+
+    def walk(folder, group):
+        for item in sorted(folder.iterdir(), key=lambda i: i.name):
+            if item.is_dir() and not item.name.startswith(("_", ".")):
+                walk(item, f"{group}/{item.name}" if group else item.name)
+            elif item.name.endswith(".yaml") and group:
+                text = item.read_text()
+                header = _PACKAGE_HEADER.search(text)
+                out.append((group, item.name[:-5], text, header.group(1) if header else None))
+
+    walk(_yaml_folder(path), "")
+    return out
+
+
+def _merge_yaml(schema, text: str, name: str):
+    """A component's typed config with the values of its YAML file (which may name the legacy
+    ``<name>_schema`` in its defaults list; that entry is implied)."""
+    values = OmegaConf.create(text) or OmegaConf.create({})
+    defaults = [d for d in values.pop("defaults", []) if d not in (f"{name}_schema", "_self_")]
+    if defaults:
+        raise ValueError(f"config option {name}.yaml: a component's YAML file may only set values "
+                         f"(its defaults list names {list(defaults)})")
+    return OmegaConf.merge(OmegaConf.structured(schema), values)
+
+
+def store_configs(registry) -> None:
+    """Put the top-level schema and every component's config into Hydra's ConfigStore."""
+    from hydra.core.config_store import ConfigStore
+
+    cs = ConfigStore.instance()
+    cs.store(name="topomap_schema", node=Config)
+    files = {}
+    for path, provider in registry.config_paths():
+        for group, option, text, package in read_yaml_options(path):
+            files[(group, option)] = (text, package, provider)
+    for kind, name, comp, provider in registry.items():
+        text = files.pop((kind, name), (None,))[0]
+        node = schema_of(comp) if text is None else _merge_yaml(schema_of(comp), text, name)
+        cs.store(group=kind, name=name, node=node, provider=provider)
+    for (group, option), (text, package, provider) in files.items():
+        cs.store(group=group, name=option, node=OmegaConf.create(text), package=package,
+                 provider=provider)
+
+
+def fields_of(schema) -> dict:
+    """``{field: default}`` of a config dataclass (``MISSING`` for required ones)."""
+    out = {}
+    for f in dataclasses.fields(schema):
+        if f.default is not _NO_DEFAULT:
+            out[f.name] = f.default
+        elif f.default_factory is not _NO_DEFAULT:
+            out[f.name] = f.default_factory()
+        else:
+            out[f.name] = MISSING
+    return out

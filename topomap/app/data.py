@@ -1,0 +1,153 @@
+"""Data components: where a run's trajectories come from, and the cache a sweep shares them in.
+
+A data component has ``simulates`` (whether it needs the world, noise and explorer),
+``train(parts, seed, progress)`` -> the :class:`~topomap.Trajectory` learned from, and
+``heldout(parts, seed)`` -> the one the map is scored on (or None).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import logging
+from pathlib import Path
+
+import numpy as np
+
+from ..core.trajectory import Trajectory, load_trajectory, save_trajectory
+
+log = logging.getLogger("topomap")
+
+__all__ = ["Simulate", "FromFile", "trajectory_key", "TrajectoryCache", "seed_streams"]
+
+
+def seed_streams(seed: int):
+    """Independent generators for the simulation, the sensor noise and the held-out walk."""
+    ss = np.random.SeedSequence(int(seed))
+    return [np.random.default_rng(s) for s in ss.spawn(3)]
+
+
+def _non_negative_int(name: str, value, allow_none: bool = False):
+    if value is None and allow_none:
+        return None
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
+        raise ValueError(f"data.{name} must be a non-negative integer"
+                         f"{' or null' if allow_none else ''}, got {value!r}")
+    return int(value)
+
+
+class Simulate:
+    """Simulate the configured world for ``n_steps`` steps (``env``, ``noise``, ``explorer``).
+
+    Parameters
+    ----------
+    n_steps : int
+        Length of the walk learned from.
+    heldout_steps : int or None
+        Length of a second, held-out walk through the same world that the map is scored on
+        (None: ``n_steps``; 0: none).  It uses the seed's third random stream, so it never
+        overlaps the training walk.
+    """
+
+    simulates = True
+
+    def __init__(self, n_steps: int = 2000, heldout_steps: int | None = None):
+        self.n_steps = _non_negative_int("n_steps", n_steps)
+        if self.n_steps < 1:
+            raise ValueError(f"data.n_steps must be a positive integer, got {n_steps!r}")
+        hold = _non_negative_int("heldout_steps", heldout_steps, allow_none=True)
+        self.heldout_steps = self.n_steps if hold is None else hold
+
+    def train(self, parts, seed: int, progress=None) -> Trajectory:
+        rng_sim, rng_noise, _ = seed_streams(seed)
+        explorer = parts.explorer if progress is None else progress.ticking(parts.explorer, self.n_steps)
+        traj = parts.world.simulate(self.n_steps, explorer, rng_sim)
+        traj.observations = parts.noise.apply(traj.observations, rng_noise)
+        return traj
+
+    def heldout(self, parts, seed: int) -> Trajectory | None:
+        if self.heldout_steps == 0:
+            return None
+        rng_sim, rng_noise = seed_streams(seed)[2].spawn(2)
+        traj = parts.world.simulate(self.heldout_steps, parts.explorer, rng_sim)
+        traj.observations = parts.noise.apply(traj.observations, rng_noise)
+        return traj
+
+
+class FromFile:
+    """Learn from a recorded trajectory (``.npz`` or ``.csv``); no simulation.
+
+    Parameters
+    ----------
+    path : str
+        The recording (see the README's trajectory file formats).
+    heldout_path : str or None
+        A second recording of the same world that the map is scored on.
+    """
+
+    simulates = False
+
+    def __init__(self, path: str, heldout_path: str | None = None):
+        self.path = path
+        self.heldout_path = None if heldout_path in (None, "") else heldout_path
+
+    def train(self, parts, seed: int, progress=None) -> Trajectory:
+        return load_trajectory(self.path)
+
+    def heldout(self, parts, seed: int) -> Trajectory | None:
+        return None if self.heldout_path is None else load_trajectory(self.heldout_path)
+
+
+def trajectory_key(cfg, kind: str = "train", plugins=()) -> str:
+    """A hash of every setting that determines a simulated trajectory.
+
+    ``kind`` is ``"train"`` (the trajectory learned from) or ``"heldout"`` (the one scored);
+    ``plugins`` the loaded plugins (a plugin may add actions to the world).  Two configs with the
+    same key simulate the same trajectory, whatever their learner settings.
+    """
+    data = dict(cfg["data"])
+    if kind == "train":
+        data.pop("heldout_steps", None)
+    elif kind == "heldout":
+        hold = data.get("heldout_steps")
+        data["heldout_steps"] = data.get("n_steps") if hold is None else hold
+    else:
+        raise ValueError(f"kind must be 'train' or 'heldout', not {kind!r}")
+    payload = {"kind": kind, "data": data, "seed": cfg["seed"],
+               "plugins": sorted({str(p) for p in cfg.get("plugins") or ()} | set(plugins)),
+               **{k: dict(cfg[k]) for k in ("env", "noise", "explorer")}}
+    text = json.dumps(payload, sort_keys=True, default=str)
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+class TrajectoryCache:
+    """A folder of simulated trajectories shared by the jobs of a sweep.
+
+    :meth:`get` loads ``<folder>/<name>.npz`` or builds and stores it (a build that returns None,
+    "no trajectory", is not stored), holding a lock file
+    (``filelock.SoftFileLock``, which works on a cluster's shared file system) so that parallel
+    jobs build each trajectory once; the file itself is written atomically.
+    """
+
+    def __init__(self, folder, timeout: float = 3600.0):
+        self.folder = Path(folder)
+        self.timeout = float(timeout)
+
+    def get(self, name: str, build) -> Trajectory | None:
+        from filelock import SoftFileLock, Timeout
+
+        path = self.folder / f"{name}.npz"
+        self.folder.mkdir(parents=True, exist_ok=True)
+        try:
+            with SoftFileLock(str(path.with_suffix(".lock")), timeout=self.timeout):
+                if path.is_file():
+                    log.info("trajectory %s: reused from %s", name, path)
+                    return load_trajectory(path)
+                traj = build()
+                if traj is not None:
+                    save_trajectory(traj, path)
+                return traj
+        except Timeout:
+            raise ValueError(f"waited {self.timeout:.0f} s for {path} (lock "
+                             f"{path.with_suffix('.lock')}); if no job is building it, delete "
+                             "the lock file") from None

@@ -1,0 +1,179 @@
+"""One experiment from a config: build the components, get the data, learn, evaluate, write.
+
+:func:`run` is plain Python (a config mapping in, a results dict out); the ``topomap`` command
+(:mod:`topomap.app.cli`) composes the config with Hydra and calls it, once per job of a sweep
+through :func:`run_job`.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import socket
+import sys
+import time
+import traceback
+from pathlib import Path
+
+from ..core.learner import MapLearner
+from .data import TrajectoryCache, trajectory_key
+from .evaluate import evaluate
+from .outputs import versions, write_json, write_outputs
+from .registry import Parts, Registry
+
+log = logging.getLogger("topomap")
+
+__all__ = ["run", "run_job", "make_learner", "load_data", "Progress", "STATUS_FILE", "CACHE_DIR"]
+
+#: a sweep job's status file (``completed`` or ``failed`` with the error)
+STATUS_FILE = "status.json"
+#: the folder of a sweep where its jobs share simulated trajectories
+CACHE_DIR = ".cache"
+
+
+def run(cfg, output_dir, *, registry: Registry | None = None, cache_dir=None) -> dict:
+    """Run one experiment described by ``cfg`` and write its outputs into ``output_dir``.
+
+    Every component is built before any data is simulated, so a bad setting fails first; every
+    file is written atomically.  Returns the metrics dict.  ``cache_dir``: where simulated
+    trajectories are shared between runs (the jobs of a sweep).
+    """
+    cfg = _as_dict(cfg)
+    registry = registry or Registry.load(cfg.get("plugins") or ())
+    for err in registry.errors:
+        log.warning("%s", err)
+    parts = registry.build(cfg)
+    plugin_metrics: dict = {}
+    with Progress(cfg["output"].get("progress", True) and sys.stderr.isatty()) as progress:
+        learner = make_learner(cfg, parts, [progress.on_event, registry.learner_events(plugin_metrics)])
+        (traj, heldout), t_data = load_data(cfg, parts, registry, cache_dir, progress)
+        learner.fit_trajectory(traj)
+    t0 = time.perf_counter()
+    results = evaluate(learner, traj, heldout)
+    t_data["evaluate"] = time.perf_counter() - t0
+    results.update({
+        "split_history": learner.split_history_, "entropy_trace": learner.entropies_,
+        "stop_reason": learner.stop_reason_, "timings": {**t_data, **learner.timings_},
+        "versions": versions(), "config": cfg, "plugin_metrics": plugin_metrics,
+        "providers": {k: registry.provider(k, cfg[k]["component"])
+                      for k in ("clusters", "metric", "split", "stop")},
+    })
+    write_outputs(Path(output_dir), traj, learner, results, cfg, parts.world)
+    return results
+
+
+def make_learner(cfg, parts: Parts, callbacks=()) -> MapLearner:
+    """A :class:`MapLearner` with the run's components and ``learner.*`` settings."""
+    return MapLearner(clusters=parts.clusters, metric=parts.metric, criterion=parts.split,
+                      stopping=parts.stop, random_state=int(cfg["seed"]), callbacks=callbacks,
+                      **cfg["learner"])
+
+
+def load_data(cfg, parts: Parts, registry: Registry, cache_dir=None, progress=None):
+    """``((trajectory, heldout), timings)`` from the data component; simulated trajectories are
+    shared through ``cache_dir`` when one is given (see :class:`TrajectoryCache`)."""
+    seed, data = int(cfg["seed"]), parts.data
+    plugins = registry.plugin_names()
+
+    def get(kind, build):
+        if cache_dir is None or not data.simulates:
+            return build()
+        key = trajectory_key(cfg, kind, plugins)
+        return TrajectoryCache(cache_dir).get(f"{'trajectory' if kind == 'train' else kind}-{key}",
+                                              build)
+
+    t0 = time.perf_counter()
+    traj = get("train", lambda: data.train(parts, seed, progress))
+    t1 = time.perf_counter()
+    heldout = get("heldout", lambda: data.heldout(parts, seed))
+    t2 = time.perf_counter()
+    log.info("trajectory: %d steps, %d features, %d actions", len(traj),
+             traj.observations.shape[1], traj.n_actions)
+    return (traj, heldout), {"data": t1 - t0, "heldout": t2 - t1}
+
+
+class Progress:
+    """Progress bars on a terminal (tqdm) and the learner's log lines."""
+
+    def __init__(self, enabled: bool):
+        self.enabled = bool(enabled)
+        self._bars = []
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        for bar in self._bars:
+            bar.close()
+
+    def _bar(self, total, desc):
+        from tqdm.auto import tqdm
+
+        bar = tqdm(total=total, desc=desc, disable=not self.enabled, leave=False, file=sys.stderr,
+                   dynamic_ncols=True)
+        self._bars.append(bar)
+        return bar
+
+    def ticking(self, explorer, total: int):
+        """``explorer``, ticking a "simulating" bar once per chosen action."""
+        return _TickingExplorer(explorer, self._bar(total, "simulating"))
+
+    def on_event(self, event, info) -> None:
+        """A learner callback: log phase 1, tick a "splitting" bar per split."""
+        if event == "phase1":
+            n = info["learner"].n_clusters_
+            e = info["entropies"]
+            log.info("phase 1: %d symbols + %d GDS states, H(o|x)=%.3f H(u|x)=%.3f H(x'|x,u)=%.3f",
+                     n, info["map"].n_states - n, e["H_o"], e["H_u"], e["H_x"])
+            self.splitting = self._bar(None, "splitting")
+        elif event == "split":
+            self.splitting.update(1)
+            r = info["record"]
+            log.debug("split %d: state %d -> %d (gain %.4f)", r["iteration"], r["state"],
+                      r["new_state"], r["gain"])
+
+
+class _TickingExplorer:
+    def __init__(self, explorer, bar):
+        self.explorer, self.bar = explorer, bar
+
+    def choose(self, executable, rng):
+        self.bar.update(1)
+        return self.explorer.choose(executable, rng)
+
+
+def _as_dict(cfg) -> dict:
+    from omegaconf import OmegaConf
+
+    return OmegaConf.to_container(cfg, resolve=True) if OmegaConf.is_config(cfg) else dict(cfg)
+
+
+# ---------------------------------------------------------------------------------- sweep jobs
+def run_job(cfg, output_dir, *, sweep_dir, registry=None) -> dict | None:
+    """Run one job of a sweep into ``output_dir``; return its results, or None if it failed.
+
+    Trajectories are shared through ``<sweep_dir>/.cache``.  Any exception is logged and written to
+    ``output_dir/status.json`` (``{"status": "failed", "error": ..., "traceback": ...}``) rather than
+    raised, so the other jobs and the sweep report are not lost.  ``status.json`` also holds the
+    job's wall time, process id and host.
+    """
+    out = Path(output_dir)
+    t0 = time.perf_counter()
+    try:
+        results = run(cfg, out, registry=registry, cache_dir=Path(sweep_dir) / CACHE_DIR)
+    except Exception as exc:
+        error = f"{type(exc).__name__}: {exc}"
+        if isinstance(exc, ValueError):
+            log.error("job failed: %s", exc)
+        else:
+            log.exception("job failed: %s", error)
+        _write_status(out, {"status": "failed", "error": error,
+                            "traceback": traceback.format_exc(),
+                            "job_time": time.perf_counter() - t0})
+        return None
+    _write_status(out, {"status": "completed", "error": None, "job_time": time.perf_counter() - t0})
+    return results
+
+
+def _write_status(out: Path, status: dict) -> None:
+    write_json(out / STATUS_FILE, {**status, "pid": os.getpid(), "host": socket.gethostname()})

@@ -1,0 +1,86 @@
+"""The files a run writes into its output folder."""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+from importlib.metadata import PackageNotFoundError, version
+from pathlib import Path
+
+import numpy as np
+
+from ..core.files import atomic_write
+from ..core.trajectory import save_trajectory
+
+__all__ = ["OUTPUT_FILES", "FIGURE_FILES", "write_outputs", "versions", "write_json"]
+
+#: files every run writes, with what they hold (figures only with ``output.figures``)
+OUTPUT_FILES = {
+    "trajectory.npz": "the observations and actions learned from (plus GDS, ground truth)",
+    "map.json": "the learned map (states, observation models, counts, split history)",
+    "map.graphml": "the map as a graph: arcs where P(x'|x,u) > output.min_prob",
+    "states.csv": "step, state after phase 1, final state (and ground-truth place)",
+    "metrics.json": "entropies, ARI/NMI/purity/compound states, splits, timings, versions, config",
+}
+FIGURE_FILES = {
+    "fig_states.png": "observation points coloured by state (the paper's Fig. 4, right)",
+    "fig_split.png": "a compound state before and after its split, with transition tables (Figs. 5-6)",
+    "fig_map.png": "the learned map at the states' mean positions, arcs where P > min_prob (Fig. 7)",
+    "fig_entropy.png": "H(u|x), H(x'|x,u) and their sum after each split",
+}
+
+
+def versions() -> dict:
+    """Python's and every relevant package's version, for the record."""
+    out = {"python": sys.version.split()[0]}
+    for pkg in ("topomap", "numpy", "scikit-learn", "networkx", "hydra-core", "omegaconf",
+                "pluggy", "matplotlib"):
+        try:
+            out[pkg] = version(pkg)
+        except PackageNotFoundError:
+            out[pkg] = None
+    return out
+
+
+def _json_default(obj):
+    if isinstance(obj, np.integer):
+        return int(obj)
+    if isinstance(obj, np.floating):
+        return float(obj)
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    raise TypeError(f"{type(obj).__name__} is not JSON serialisable")
+
+
+def write_json(path, obj) -> None:
+    """Write ``obj`` as indented JSON with sorted keys, atomically."""
+    text = json.dumps(obj, indent=1, sort_keys=True, default=_json_default)
+    atomic_write(path, lambda tmp: Path(tmp).write_text(text + "\n"))
+
+
+def write_outputs(out: Path, traj, learner, results, cfg, world=None) -> None:
+    """Write every output file of a run into ``out`` (each atomically; metrics.json last)."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    t0 = time.perf_counter()
+    save_trajectory(traj, out / "trajectory.npz")
+    m = learner.map_
+    m.save(out / "map.json")
+    m.to_graphml(out / "map.graphml", min_prob=cfg["output"]["min_prob"])
+    cols = [np.arange(len(traj)), learner.labels_phase1_, learner.labels_]
+    header = "step,state_phase1,state"
+    if traj.places is not None:
+        cols.append(traj.places)
+        header += ",place"
+    table = np.column_stack(cols)
+    atomic_write(out / "states.csv",
+                 lambda tmp: np.savetxt(tmp, table, fmt="%d", delimiter=",", header=header,
+                                        comments=""))
+    if cfg["output"]["figures"]:
+        from . import plots
+
+        plots.write_figures(out, traj, learner, world, min_prob=cfg["output"]["min_prob"],
+                            compound_state=cfg["output"].get("compound_state"))
+    results["timings"]["outputs"] = time.perf_counter() - t0
+    write_json(out / "metrics.json", results)

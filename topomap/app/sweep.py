@@ -1,0 +1,476 @@
+"""The sweep report: the table that compares the jobs of ``topomap -m ...``.
+
+Every job of a sweep (any Hydra launcher: the basic one, ``joblib``, ``submitit_local`` or
+``submitit_slurm``) runs :func:`topomap.app.experiment.run_job`, which learns from the trajectory
+cached in ``<sweep dir>/.cache/`` and writes ``status.json`` into its folder: ``completed``, or
+``failed`` with the error (the job then returns normally, so the sweep goes on and Hydra still ends
+it with the report).
+
+When the multirun ends, the :class:`SweepReport` callback (registered in ``conf/config.yaml`` as
+``hydra.callbacks.sweep_report``) reads every job's folder and writes into the sweep folder
+
+* ``summary.csv``: one row per job (swept values, status, states, ARI/NMI/purity, entropies,
+  held-out log-likelihood, times, error), and
+* ``summary_<metric>.png``: the metric over the swept values (a heat map for two swept keys, a
+  line for one; no figure otherwise).
+
+The report can be rebuilt at any time, e.g. for another metric or after an interrupted sweep::
+
+    python -m topomap.app.sweep outputs/sweeps/2026-01-01/12-00-00-000000 --metric heldout_loglik
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import io
+import json
+import logging
+import math
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from hydra.experimental.callback import Callback
+
+from ..core.files import atomic_write
+from .experiment import CACHE_DIR, STATUS_FILE
+
+log = logging.getLogger("topomap")
+
+__all__ = ["SweepReport", "write_report", "read_jobs", "swept_keys", "METRICS", "SUMMARY_FILE"]
+
+SUMMARY_FILE = "summary.csv"
+
+#: numeric summary columns: (label, which value is best: "max", "min" or None)
+METRICS = {
+    "n_states_phase1": ("states after phase 1", None),
+    "n_states": ("final states", None),
+    "ari": ("final ARI", "max"),
+    "nmi": ("final NMI", "max"),
+    "purity": ("final purity", "max"),
+    "compound_states": ("final compound states", "min"),
+    "ari_phase1": ("phase-1 ARI", "max"),
+    "nmi_phase1": ("phase-1 NMI", "max"),
+    "purity_phase1": ("phase-1 purity", "max"),
+    "H_o": ("H(o|x) [bits]", None),
+    "H_u": ("H(u|x) [bits]", "min"),
+    "H_x": ("H(x'|x,u) [bits]", "min"),
+    "heldout_loglik": ("held-out log-likelihood per step", "max"),
+    "fit_time": ("fit time [s]", "min"),
+    "data_time": ("data time [s]", "min"),
+    "job_time": ("job time [s]", "min"),
+}
+
+
+# ---------------------------------------------------------------------------------- reading a sweep
+@dataclass
+class Job:
+    """What one job folder of a sweep holds."""
+
+    num: int
+    path: Path
+    overrides: dict[str, str]
+    status: str
+    error: str | None = None
+    metrics: dict = field(default_factory=dict)
+    job_time: float | None = None
+
+
+def _key_value(override: str) -> tuple[str, str]:
+    key, _, value = str(override).partition("=")
+    return key.lstrip("+~"), value
+
+
+def _job_num(path: Path, fallback: int) -> int:
+    from omegaconf import OmegaConf
+
+    try:
+        return int(OmegaConf.load(path / ".hydra" / "hydra.yaml").hydra.job.num)
+    except Exception:
+        try:
+            return int(path.name)
+        except ValueError:
+            return fallback
+
+
+def read_jobs(sweep_dir) -> list[Job]:
+    """Every job folder under ``sweep_dir`` (found by its ``.hydra/overrides.yaml``), by job number.
+
+    A job's status is that of its ``status.json``; without one it is ``completed`` if it wrote
+    ``metrics.json`` and ``incomplete`` otherwise (still running, killed or lost).
+    """
+    from omegaconf import OmegaConf
+
+    sweep_dir = Path(sweep_dir)
+    jobs = []
+    for i, ov_file in enumerate(sorted(sweep_dir.rglob(".hydra/overrides.yaml"))):
+        path = ov_file.parent.parent
+        if CACHE_DIR in path.relative_to(sweep_dir).parts:
+            continue
+        overrides = dict(_key_value(o) for o in OmegaConf.to_container(OmegaConf.load(ov_file)))
+        status = {}
+        if (path / STATUS_FILE).is_file():
+            status = json.loads((path / STATUS_FILE).read_text())
+        metrics = {}
+        if (path / "metrics.json").is_file():
+            metrics = json.loads((path / "metrics.json").read_text())
+        state = status.get("status") or ("completed" if metrics else "incomplete")
+        if state == "completed" and not metrics:
+            state, status["error"] = "incomplete", "metrics.json is missing"
+        jobs.append(Job(num=_job_num(path, i), path=path, overrides=overrides, status=state,
+                        error=status.get("error"), metrics=metrics, job_time=status.get("job_time")))
+    return sorted(jobs, key=lambda j: j.num)
+
+
+def _sweep_overrides(multirun_cfg) -> list[str]:
+    """The task overrides of a multirun config and its sweeper's ``params``, as ``key=value``."""
+    from omegaconf import OmegaConf
+
+    if multirun_cfg is None:
+        return []
+    task = OmegaConf.select(multirun_cfg, "hydra.overrides.task", default=None)
+    params = OmegaConf.select(multirun_cfg, "hydra.sweeper.params", default=None)
+    out = [str(o) for o in (OmegaConf.to_container(task) if task is not None else [])]
+    if params is not None:
+        out += [f"{k}={v}" for k, v in OmegaConf.to_container(params).items()]
+    return out
+
+
+def swept_keys(multirun_cfg=None, jobs=()) -> list[str]:
+    """The keys a sweep varies: the sweep overrides of ``multirun_cfg`` (``a=1,2``,
+    ``range(...)``, ``choice(...)``, sweeper ``params``) plus every key whose value differs
+    between ``jobs``; ordered as in the first job's overrides."""
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+
+    keys: list[str] = []
+    parser = OverridesParser.create()
+    for text in _sweep_overrides(multirun_cfg):
+        try:
+            (override,) = parser.parse_overrides([text])
+        except Exception:  # a sweeper-specific syntax: the job values below still find it
+            continue
+        if override.is_sweep_override() and override.key_or_group not in keys:
+            keys.append(override.key_or_group)
+    for job in jobs:
+        for key, value in job.overrides.items():
+            if key not in keys and any(j.overrides.get(key) != value for j in jobs):
+                keys.append(key)
+    order = list(jobs[0].overrides) if jobs else []
+    return sorted(keys, key=lambda k: (order.index(k) if k in order else len(order), keys.index(k)))
+
+
+def _row(job: Job, keys, sweep_dir: Path) -> dict[str, Any]:
+    m = job.metrics
+    gt = m.get("ground_truth") or {}
+    fin, p1 = gt.get("final") or {}, gt.get("phase1") or {}
+    ent = (m.get("entropies") or {}).get("final") or {}
+    t = m.get("timings") or {}
+    n = m.get("n_states") or {}
+    fit = t.get("phase1", 0.0) + t.get("phase2", 0.0) if "phase1" in t else None
+    row = {"job": job.num, **{k: job.overrides.get(k, "") for k in keys}, "status": job.status,
+           "n_states_phase1": n.get("phase1"), "n_states": n.get("final"),
+           "ari": fin.get("ari"), "nmi": fin.get("nmi"), "purity": fin.get("purity"),
+           "compound_states": fin.get("compound_states"),
+           "ari_phase1": p1.get("ari"), "nmi_phase1": p1.get("nmi"),
+           "purity_phase1": p1.get("purity"),
+           "H_o": ent.get("H_o"), "H_u": ent.get("H_u"), "H_x": ent.get("H_x"),
+           "heldout_loglik": m.get("heldout_loglik"), "fit_time": fit,
+           "data_time": t.get("data"), "job_time": job.job_time,
+           "error": " ".join(str(job.error).split()) if job.error else "",
+           "output_dir": job.path.relative_to(sweep_dir).as_posix()}
+    return row
+
+
+# ---------------------------------------------------------------------------------- the report
+@dataclass
+class Report:
+    """What :func:`write_report` wrote and found."""
+
+    summary: Path
+    figure: Path | None
+    keys: list[str]
+    rows: list[dict]
+    metric: str
+    best: dict | None
+
+    @property
+    def failed(self) -> list[dict]:
+        """Rows of jobs that did not complete (``failed`` or ``incomplete``)."""
+        return [r for r in self.rows if r["status"] != "completed"]
+
+
+def _number(value) -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        return math.nan
+    return v
+
+
+def _mean(values) -> float:
+    """Mean of the finite values (NaN if none): cells a sweep visits more than once."""
+    vals = [v for v in values if not math.isnan(v)]
+    return sum(vals) / len(vals) if vals else math.nan
+
+
+def _axis(rows, key) -> list[str]:
+    values = list(dict.fromkeys(str(r[key]) for r in rows))
+    if all(not math.isnan(_number(v)) for v in values):
+        values.sort(key=_number)
+    return values
+
+
+def _fmt(v) -> str:
+    if v is None or (isinstance(v, float) and math.isnan(v)):
+        return ""
+    if isinstance(v, float):
+        return repr(v)
+    return str(v)
+
+
+def _short(v: float) -> str:
+    return f"{v:.3f}" if abs(v) < 10 else f"{v:.2f}" if abs(v) < 100 else f"{v:.4g}"
+
+
+def _best(rows, metric) -> dict | None:
+    better = METRICS[metric][1]
+    done = [r for r in rows if r["status"] == "completed" and not math.isnan(_number(r[metric]))]
+    if not better or not done:
+        return None
+    if better == "max":  # ties: the lowest job number
+        return max(done, key=lambda r: (_number(r[metric]), -r["job"]))
+    return min(done, key=lambda r: (_number(r[metric]), r["job"]))
+
+
+def write_report(sweep_dir, *, metric: str = "ari", figure: bool = True,
+                 multirun_cfg=None) -> Report:
+    """Write ``summary.csv`` (and ``summary_<metric>.png``) for the sweep in ``sweep_dir``.
+
+    ``multirun_cfg`` (the multirun config; by default ``sweep_dir/multirun.yaml``) names the swept
+    keys.  Returns a :class:`Report`.
+    """
+    if metric not in METRICS:
+        raise ValueError(f"metric={metric!r} is not a summary column; choose one of "
+                         f"{', '.join(METRICS)}")
+    sweep_dir = Path(sweep_dir)
+    if multirun_cfg is None and (sweep_dir / "multirun.yaml").is_file():
+        from omegaconf import OmegaConf
+
+        multirun_cfg = OmegaConf.load(sweep_dir / "multirun.yaml")
+    jobs = read_jobs(sweep_dir)
+    keys = swept_keys(multirun_cfg, jobs)
+    rows = [_row(j, keys, sweep_dir) for j in jobs]
+    columns = ["job", *keys, "status", *METRICS, "error", "output_dir"]
+    buf = io.StringIO()
+    writer = csv.writer(buf, lineterminator="\n")
+    writer.writerow(columns)
+    for r in rows:
+        writer.writerow([_fmt(r[c]) for c in columns])
+    summary = sweep_dir / SUMMARY_FILE
+    atomic_write(summary, lambda tmp: Path(tmp).write_text(buf.getvalue()))
+    best = _best(rows, metric)
+    fig_path = None
+    if figure and rows and 1 <= len(keys) <= 2:
+        if all(math.isnan(_number(r[metric])) for r in rows):
+            log.warning("sweep report: no job has a value for %s; no figure", metric)
+        else:
+            fig_path = sweep_dir / f"summary_{metric}.png"
+            _plot(fig_path, rows, keys, metric, best)
+    elif figure and rows:
+        log.info("sweep report: %d swept keys, so no figure (one or two make a line or a heat map)",
+                 len(keys))
+    return Report(summary=summary, figure=fig_path, keys=keys, rows=rows, metric=metric, best=best)
+
+
+def _plot(path: Path, rows, keys, metric, best) -> None:
+    """``summary_<metric>.png``: a line over one swept key, a heat map over two."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    label = METRICS[metric][0]
+    counts = {st: sum(r["status"] == st for r in rows) for st in ("failed", "incomplete")}
+    note = ", ".join([f"{len(rows)} jobs", *(f"{n} {st}" for st, n in counts.items() if n)])
+    if len(keys) == 1:
+        n = len(_axis(rows, keys[0]))
+        fig = Figure(figsize=(max(4.0, 0.6 * n + 2.0), 3.2), dpi=100)
+        _line(fig.add_subplot(), rows, keys[0], metric, f"{label} ({note})")
+    else:
+        ys, xs = (_axis(rows, k) for k in keys)
+        fig = Figure(figsize=(1.6 + 0.75 * len(xs) + 1.2, 1.3 + 0.5 * len(ys)), dpi=100)
+        _heat_map(fig, rows, keys, metric, f"{label} ({note})", best)
+    FigureCanvasAgg(fig)
+    fig.tight_layout()
+    atomic_write(path, lambda tmp: fig.savefig(tmp, format="png"))
+
+
+def _line(ax, rows, key, metric, title) -> None:
+    import numpy as np
+
+    xs = _axis(rows, key)
+    vals = [_mean([_number(r[metric]) for r in rows if str(r[key]) == x]) for x in xs]
+    numeric = all(not math.isnan(_number(x)) for x in xs)
+    pos = np.array([_number(x) for x in xs]) if numeric else np.arange(len(xs))
+    ax.plot(pos, vals, "o-")
+    fails = [i for i, x in enumerate(xs)
+             if all(r["status"] != "completed" for r in rows if str(r[key]) == x)]
+    if fails:
+        ax.plot(pos[fails], [np.nanmin(vals)] * len(fails), "x", color="tab:red", label="failed")
+        ax.legend(fontsize=8)
+    ax.set_xticks(pos, xs)
+    ax.set_xlabel(key)
+    ax.set_ylabel(METRICS[metric][0])
+    ax.set_title(title, fontsize=10)
+    ax.grid(alpha=0.3)
+
+
+def _grid(rows, keys, metric):
+    """The metric's mean per (y, x) cell over completed jobs, and which cells only failed."""
+    import numpy as np
+
+    (ykey, xkey), (ys, xs) = keys, [_axis(rows, k) for k in keys]
+    grid = np.full((len(ys), len(xs)), np.nan)
+    failed = np.zeros(grid.shape, dtype=bool)
+    for i, y in enumerate(ys):
+        for j, x in enumerate(xs):
+            cell = [r for r in rows if str(r[ykey]) == y and str(r[xkey]) == x]
+            grid[i, j] = _mean([_number(r[metric]) for r in cell if r["status"] == "completed"])
+            failed[i, j] = bool(cell) and all(r["status"] != "completed" for r in cell)
+    return ys, xs, grid, failed
+
+
+def _heat_map(fig, rows, keys, metric, title, best) -> None:
+    import matplotlib
+    import numpy as np
+    from matplotlib.patches import Rectangle
+
+    (ykey, xkey), (ys, xs, grid, failed) = keys, _grid(rows, keys, metric)
+    ax = fig.add_subplot()
+    cmap = matplotlib.colormaps["viridis"].with_extremes(bad="0.88")
+    im = ax.imshow(np.ma.masked_invalid(grid), origin="lower", aspect="auto", cmap=cmap)
+    fig.colorbar(im, ax=ax, label=METRICS[metric][0])
+    finite = grid[np.isfinite(grid)]
+    mid = (finite.min() + finite.max()) / 2 if finite.size else 0.0
+    for (i, j), value in np.ndenumerate(grid):
+        if failed[i, j]:
+            ax.text(j, i, "failed", ha="center", va="center", fontsize=7, color="0.35")
+        elif np.isfinite(value):
+            ax.text(j, i, _short(value), ha="center", va="center", fontsize=7,
+                    color="white" if value < mid else "black")
+    if best is not None:
+        i, j = ys.index(str(best[ykey])), xs.index(str(best[xkey]))
+        ax.add_patch(Rectangle((j - 0.5, i - 0.5), 1, 1, fill=False, lw=2, ec="tab:red"))
+        title += f"\nbest (red): {ykey}={best[ykey]}, {xkey}={best[xkey]}"
+    ax.set_xticks(range(len(xs)), xs)
+    ax.set_yticks(range(len(ys)), ys)
+    ax.set_xlabel(xkey)
+    ax.set_ylabel(ykey)
+    ax.set_title(title, fontsize=9)
+
+
+def _table(report: Report) -> str:
+    """The metric as a text table over the two swept keys (or a column for one)."""
+    rows, keys, metric = report.rows, report.keys, report.metric
+
+    def cell(rs):
+        if not rs:
+            return ""
+        if all(r["status"] != "completed" for r in rs):
+            return "failed"
+        value = _mean([_number(r[metric]) for r in rs])
+        return "-" if math.isnan(value) else _short(value)
+
+    if len(keys) == 1:
+        (key,) = keys
+        lines = [[key, metric]] + [[x, cell([r for r in rows if str(r[key]) == x])]
+                                   for x in _axis(rows, key)]
+    elif len(keys) == 2:
+        ykey, xkey = keys
+        xs = _axis(rows, xkey)
+        lines = [[f"{ykey} \\ {xkey}", *xs]]
+        for y in _axis(rows, ykey):
+            lines.append([y, *(cell([r for r in rows if str(r[ykey]) == y and str(r[xkey]) == x])
+                               for x in xs)])
+    else:
+        return ""
+    widths = [max(len(line[c]) for line in lines) for c in range(len(lines[0]))]
+    return "\n".join("  ".join(v.rjust(w) for v, w in zip(line, widths)) for line in lines)
+
+
+def _print_report(report: Report, file=None) -> None:
+    file = sys.stdout if file is None else file
+    n, failed = len(report.rows), report.failed
+    n_incomplete = sum(r["status"] == "incomplete" for r in failed)
+    print(f"topomap: sweep of {n} jobs, {n - len(failed)} completed, "
+          f"{len(failed) - n_incomplete} failed" +
+          (f", {n_incomplete} incomplete" if n_incomplete else ""), file=file)
+    table = _table(report)
+    if table:
+        print(f"{METRICS[report.metric][0]}:\n{table}", file=file)
+    if report.best is not None:
+        setting = " ".join(f"{k}={report.best[k]}" for k in report.keys)
+        print(f"topomap: best {report.metric}: {_number(report.best[report.metric]):.4g} "
+              f"(job {report.best['job']}: {setting})", file=file)
+    for r in failed[:5]:
+        print(f"topomap: job {r['job']} {r['status']}: {r['error']}", file=file)
+    if len(failed) > 5:
+        print(f"topomap: ... and {len(failed) - 5} more (see {report.summary.name})", file=file)
+    print(f"topomap: report in {report.summary}" +
+          (f" and {report.figure.name}" if report.figure else ""), file=file)
+
+
+class SweepReport(Callback):
+    """Hydra callback: write the sweep report when a multirun ends.
+
+    Parameters (``hydra.callbacks.sweep_report.<name>=...``)
+    ---------------------------------------------------------
+    metric : str
+        Summary column shown in the figure and the printed table (default ``ari``, the final ARI);
+        one of :data:`METRICS`.
+    figure : bool
+        Write ``summary_<metric>.png``.
+    strict : bool
+        Exit with status 1 after writing the report if any job failed (default: failed jobs are
+        rows of the report and the command succeeds).
+    """
+
+    def __init__(self, metric: str = "ari", figure: bool = True, strict: bool = False):
+        if metric not in METRICS:
+            raise ValueError(f"hydra.callbacks.sweep_report.metric={metric!r} is not a summary "
+                             f"column; choose one of {', '.join(METRICS)}")
+        self.metric, self.figure, self.strict = metric, bool(figure), bool(strict)
+
+    def on_multirun_end(self, config, **kwargs) -> None:
+        sweep_dir = Path(str(config.hydra.sweep.dir))
+        report = write_report(sweep_dir, metric=self.metric, figure=self.figure,
+                              multirun_cfg=config)
+        _print_report(report)
+        if report.failed:
+            log.warning("%d of %d jobs did not complete; their errors are in %s",
+                        len(report.failed), len(report.rows), report.summary)
+            if self.strict:
+                sys.exit(f"topomap: error: {len(report.failed)} of {len(report.rows)} jobs "
+                         f"did not complete; see {report.summary}")
+
+
+def main(argv=None) -> int:
+    """``python -m topomap.app.sweep SWEEP_DIR [--metric M] [--no-figure]``: rebuild a sweep report."""
+    parser = argparse.ArgumentParser(prog="python -m topomap.app.sweep", description=main.__doc__)
+    parser.add_argument("sweep_dir", type=Path)
+    parser.add_argument("--metric", default="ari", choices=list(METRICS))
+    parser.add_argument("--no-figure", dest="figure", action="store_false")
+    args = parser.parse_args(argv)
+    if not args.sweep_dir.is_dir():
+        parser.error(f"{args.sweep_dir} is not a folder")
+    report = write_report(args.sweep_dir, metric=args.metric, figure=args.figure)
+    if not report.rows:
+        print(f"topomap: error: no job folders (.hydra/overrides.yaml) under {args.sweep_dir}",
+              file=sys.stderr)
+        return 1
+    _print_report(report)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

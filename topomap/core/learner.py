@@ -1,0 +1,228 @@
+"""The map learner: the paper's two phases behind one scikit-learn estimator."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+from sklearn.base import BaseEstimator
+
+from .clustering import FixedClusters, cluster_observations, make_metric
+from .map import TopologicalMap
+from .splitting import CRITERIA, Splitter, TargetStates
+from .stats import episode_masks
+from .trajectory import check_sequences
+
+__all__ = ["MapLearner"]
+
+
+@dataclass
+class _Data:
+    """Validated input of one fit."""
+
+    X: np.ndarray
+    u: np.ndarray
+    gds: np.ndarray
+    lengths: np.ndarray
+    n_actions: int
+    action_names: list | None
+    gds_names: list | None
+
+    @property
+    def masks(self):
+        return episode_masks(self.X.shape[0], self.lengths)
+
+
+class MapLearner(BaseEstimator):
+    """Learn a topological map from observations and actions (Yairi, Togami & Hori, 2002).
+
+    Phase 1 clusters the non-GDS observations with K-means into ``ns`` symbols, one state each, and
+    adds one fixed state per GDS id.  Phase 2 repeatedly splits the state whose split gains the
+    most, until the stopping rule fires.  A scikit-learn estimator: ``get_params``,
+    ``set_params`` and ``sklearn.base.clone`` work, and ``fit`` never changes the parameters.
+
+    Parameters
+    ----------
+    n_clusters : int
+        ``ns``, the number of K-means clusters (used when ``clusters`` is None).
+    n_states : int
+        Target state count (used when ``stopping`` is None).
+    clusters : object, optional
+        Cluster-count policy with ``choose(Z, random_state)`` returning ``ns`` or ``(ns, details)``
+        (e.g. :class:`topomap.core.clustering.BICClusters`).  Default: ``FixedClusters(n_clusters)``.
+    metric : str or object
+        ``"euclidean"`` (default), ``"standardized"``, ``"cosine"`` or an object with
+        ``fit_transform(X)``.
+    criterion : str or object
+        ``"entropy"`` (default) or an object with ``propose(counts) -> (side, score) | None``.
+    stopping : object, optional
+        Stopping rule with ``check(n_initial)`` and ``should_stop(n_states, best_score)``.
+        Default: ``TargetStates(n_states)``.
+    covariance_type : {"diag", "full"}
+        Form of the Gaussian observation models.
+    reg_covar : float
+        Added to every variance, relative to the data's mean feature variance.
+    n_init : int
+        K-means restarts (k-means++ initialisations; the best inertia wins).
+    random_state : int
+        Seed of K-means (the only random part of the method).
+    callbacks : sequence of callables
+        Each is called as ``callback(event, info)`` with ``event`` in ``"phase1"``, ``"split"``,
+        ``"done"`` and ``info`` a dict (``learner``, ``labels``, ``entropies`` and, for splits, the
+        history record).  Used to log progress or record extra metrics.
+
+    Attributes
+    ----------
+    labels_ : (T,) int -- the state of every step
+    labels_phase1_ : (T,) int -- the state of every step after phase 1
+    map_ : TopologicalMap
+    map_phase1_ : TopologicalMap -- the map before any split
+    n_clusters_ : int -- the ``ns`` actually used
+    cluster_choice_ : dict -- what the cluster-count policy measured (e.g. ``{"bic": {...}}``)
+    n_features_in_ : int -- observation dimension seen by ``fit``
+    split_history_ : list of dict -- ``iteration``, ``state``, ``new_state``, ``gain`` and sizes
+    entropies_ : list of dict -- ``H_o``, ``H_u``, ``H_x`` after phase 1 and after every split
+    stop_reason_ : str
+    timings_ : dict -- seconds spent in ``phase1`` and ``phase2``
+    """
+
+    #: re-evaluate every state after each split instead of only the neighbours of the new state
+    #: (the results are identical; the tests use this to check that)
+    _recompute_all = False
+
+    def __init__(self, n_clusters: int = 20, n_states: int = 30, *, clusters=None,
+                 metric="euclidean", criterion="entropy", stopping=None,
+                 covariance_type: str = "diag", reg_covar: float = 1e-3, n_init: int = 3,
+                 random_state: int = 0, callbacks=()):
+        self.n_clusters = n_clusters
+        self.n_states = n_states
+        self.clusters = clusters
+        self.metric = metric
+        self.criterion = criterion
+        self.stopping = stopping
+        self.covariance_type = covariance_type
+        self.reg_covar = reg_covar
+        self.n_init = n_init
+        self.random_state = random_state
+        self.callbacks = callbacks
+
+    # ------------------------------------------------------------------ the paper's method
+    def fit(self, observations, actions, gds=None, lengths=None, *, n_actions=None,
+            action_names=None, gds_names=None):
+        """Learn the map.  Returns ``self``.
+
+        ``observations`` (T, D), ``actions`` (T,) ints in ``[0, n_actions)``, ``gds`` (T,) ints with
+        -1 for "no GDS", ``lengths`` the episode lengths when several episodes are concatenated.
+        """
+        data = self._validate(observations, actions, gds, lengths, n_actions, action_names,
+                              gds_names)
+        clusters, metric, criterion, stopping = self._components()
+        t0 = time.perf_counter()
+        splitter = self._phase1(data, clusters, metric, criterion, stopping)
+        t1 = time.perf_counter()
+        self.stop_reason_ = "no state can be split"
+        while (best := splitter.best()) is not None:
+            if stopping.should_stop(splitter.n_states, best.score):
+                self.stop_reason_ = "stopping rule"
+                break
+            self._record_split(splitter, best)
+        t2 = time.perf_counter()
+        self.labels_ = splitter.labels
+        self.map_ = self._make_map(data, splitter)
+        self.map_.info.update({
+            "n_clusters": self.n_clusters_, "stop_reason": self.stop_reason_,
+            "criterion": repr(criterion), "stopping": repr(stopping),
+            "clusters": repr(clusters), "metric": getattr(metric, "name", repr(metric)),
+        })
+        self.timings_ = {"phase1": t1 - t0, "phase2": t2 - t1}
+        self._emit("done", labels=self.labels_, entropies=self.entropies_[-1], map=self.map_)
+        return self
+
+    def _phase1(self, data: _Data, clusters, metric, criterion, stopping) -> Splitter:
+        """K-means symbols, one state each, plus one fixed state per GDS id (paper Section 3.2)."""
+        plain = data.gds < 0
+        if plain.sum() < 1:
+            raise ValueError("every step is labelled as a GDS; no observations are left to cluster")
+        symbols, self.cluster_choice_ = cluster_observations(
+            data.X[plain], clusters, metric, n_init=self.n_init, random_state=self.random_state)
+        ns = self.n_clusters_ = int(symbols.max()) + 1
+        gds_ids = np.unique(data.gds[~plain])
+        labels = np.empty(data.X.shape[0], dtype=np.int64)
+        labels[plain] = symbols
+        labels[~plain] = ns + np.searchsorted(gds_ids, data.gds[~plain])
+        stopping.check(ns + gds_ids.size)
+        self.labels_phase1_ = labels.copy()
+        self.split_history_, self.entropies_ = [], []
+        splitter = Splitter(labels, data.u, data.n_actions, *data.masks,
+                            symbol=list(range(ns)) + [-1] * gds_ids.size,
+                            gds=[-1] * ns + gds_ids.tolist(), obs_entropy=np.zeros(0),
+                            criterion=criterion, recompute_all=self._recompute_all)
+        m = self.map_phase1_ = self._make_map(data, splitter)
+        self.entropies_.append(dict(m.entropies(), n_states=m.n_states, iteration=0))
+        m.entropies_ = [dict(e) for e in self.entropies_]
+        splitter.obs_entropy = m.state_entropies()
+        self._emit("phase1", labels=labels, entropies=self.entropies_[-1], map=m)
+        return splitter
+
+    def _record_split(self, splitter: Splitter, best) -> None:
+        """Apply the best split and record it (history, entropies, callbacks)."""
+        iteration = len(self.split_history_) + 1
+        record = {"iteration": iteration, **splitter.apply(best)}
+        self.split_history_.append(record)
+        self.entropies_.append(dict(splitter.entropies(), n_states=splitter.n_states,
+                                    iteration=iteration))
+        self._emit("split", labels=splitter.labels, entropies=self.entropies_[-1], record=record)
+
+    # ------------------------------------------------------------------ helpers
+    def _validate(self, observations, actions, gds, lengths, n_actions, action_names,
+                  gds_names) -> _Data:
+        X, u, g, L = check_sequences(observations, actions, gds, lengths)
+        A = int(u.max()) + 1 if n_actions is None else int(n_actions)
+        if action_names is not None and n_actions is None:
+            A = max(A, len(action_names))
+        if u.max() >= A:
+            raise ValueError(f"actions use id {int(u.max())} but n_actions is {A}")
+        if gds_names is not None and g.max() >= len(gds_names):
+            raise ValueError(f"gds id {int(g.max())} is out of range: only {len(gds_names)} "
+                             "gds_names are given")
+        self.n_features_in_ = X.shape[1]
+        return _Data(X, u, g, L, A, action_names, gds_names)
+
+    def _components(self):
+        clusters = self.clusters if self.clusters is not None else FixedClusters(self.n_clusters)
+        stopping = self.stopping if self.stopping is not None else TargetStates(self.n_states)
+        criterion = self.criterion
+        if isinstance(criterion, str):
+            if criterion not in CRITERIA:
+                raise ValueError(f"criterion {criterion!r} is unknown; choose one of "
+                                 f"{', '.join(sorted(CRITERIA))}")
+            criterion = CRITERIA[criterion]()
+        if self.covariance_type not in ("diag", "full"):
+            raise ValueError(f"covariance_type must be 'diag' or 'full', got {self.covariance_type!r}")
+        if not (isinstance(self.reg_covar, (int, float)) and self.reg_covar > 0):
+            raise ValueError(f"reg_covar must be a positive number, got {self.reg_covar!r}")
+        return clusters, make_metric(self.metric), criterion, stopping
+
+    def _emit(self, event: str, **info) -> None:
+        for cb in self.callbacks:
+            cb(event, dict(info, learner=self))
+
+    def _make_map(self, data: _Data, splitter: Splitter) -> TopologicalMap:
+        return TopologicalMap.from_labels(
+            data.X, data.u, splitter.labels, lengths=data.lengths, state_symbol=splitter.symbol,
+            state_gds=splitter.gds, state_parent=splitter.parent, n_actions=data.n_actions,
+            covariance_type=self.covariance_type, reg_covar=self.reg_covar,
+            action_names=data.action_names, gds_names=data.gds_names,
+            split_history=self.split_history_, entropies=self.entropies_,
+        )
+
+    # ------------------------------------------------------------------ conveniences
+    def fit_trajectory(self, traj):
+        """Fit on a :class:`topomap.Trajectory`, carrying its names and episode lengths."""
+        return self.fit(traj.observations, traj.actions, gds=traj.gds, lengths=traj.lengths,
+                        n_actions=traj.n_actions, action_names=traj.action_names,
+                        gds_names=traj.gds_names)
+
+    def fit_predict(self, observations, actions, gds=None, lengths=None, **kwargs) -> np.ndarray:
+        return self.fit(observations, actions, gds, lengths, **kwargs).labels_

@@ -1,0 +1,392 @@
+"""The learned topological map: a POMDP-style model over discrete states.
+
+A :class:`TopologicalMap` holds, for every state, where it came from (its K-means symbol or its
+GDS id, and the state it was split from), the Gaussian observation model ``P(o|x)``, the counts
+behind ``P(u|x)`` and ``P(x'|x,u)``, and the learning record (split history and the three entropies
+after phase 1 and after every split).  It decodes new sequences (:meth:`predict`, Viterbi), scores
+them (:meth:`score`, forward algorithm), exports a graph (:meth:`to_networkx`, :meth:`to_graphml`)
+and round-trips through JSON (:meth:`save`, :meth:`load`).
+
+Observation models are *tied*: states split from the same symbol share that symbol's Gaussian, as
+in the paper, where splitting refines the state set without touching ``P(o|x)``.  Hence
+``H(o|x)`` is left unchanged by every split.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from .files import atomic_write
+from .stats import conditional_entropy, count_tables, episode_masks, normalise
+from .trajectory import check_sequences
+
+__all__ = ["TopologicalMap", "FORMAT_VERSION"]
+
+FORMAT_VERSION = 1
+LOG2PI = np.log(2 * np.pi)
+
+
+class TopologicalMap:
+    """A learned map.  Usually made by :class:`topomap.MapLearner`; see the module docstring.
+
+    Parameters
+    ----------
+    state_symbol : (S,) int -- K-means symbol of each state, -1 for GDS states
+    state_gds : (S,) int -- GDS id of each state, -1 for ordinary states
+    state_parent : (S,) int -- the state each state was split from, -1 for phase-1 states
+    means : (S, D) float -- observation mean of each state's symbol (or GDS)
+    covariances : (S, D, D) or (S, D) float -- covariance ("full") or variances ("diag")
+    state_counts : (S,) int -- steps in each state
+    action_counts : (S, A) int -- steps in each state taking each action
+    transition_counts : (S, A, S) int -- transitions ``(x, u) -> x'`` inside episodes
+    """
+
+    def __init__(self, state_symbol, state_gds, state_parent, means, covariances, state_counts,
+                 action_counts, transition_counts, *, action_names=None, gds_names=None,
+                 split_history=(), entropies=(), info=None):
+        self.state_symbol_ = np.asarray(state_symbol, dtype=np.int64)
+        self.state_gds_ = np.asarray(state_gds, dtype=np.int64)
+        self.state_parent_ = np.asarray(state_parent, dtype=np.int64)
+        self.means_ = np.asarray(means, dtype=np.float64)
+        self.covariances_ = np.asarray(covariances, dtype=np.float64)
+        self.state_counts_ = np.asarray(state_counts, dtype=np.int64)
+        self.action_counts_ = np.asarray(action_counts, dtype=np.int64)
+        self.transition_counts_ = np.asarray(transition_counts, dtype=np.int64)
+        self.action_names = None if action_names is None else list(action_names)
+        self.gds_names = None if gds_names is None else list(gds_names)
+        self.split_history_ = [dict(h) for h in split_history]
+        self.entropies_ = [dict(e) for e in entropies]
+        self.info = dict(info or {})
+        S, A = self.action_counts_.shape
+        if self.transition_counts_.shape != (S, A, S) or self.means_.shape[0] != S:
+            raise ValueError(
+                f"inconsistent map: {S} states, {A} actions, transition_counts "
+                f"{self.transition_counts_.shape}, means {self.means_.shape}"
+            )
+
+    # ------------------------------------------------------------------ construction
+    @classmethod
+    def from_labels(cls, observations, actions, labels, *, lengths=None, state_symbol, state_gds,
+                    state_parent, n_actions, covariance_type="diag", reg_covar=1e-3, **kwargs):
+        """Estimate every table from a labelled sequence (labels in ``[0, S)``).
+
+        The observation model of a state is the Gaussian of all steps sharing its symbol (or its
+        GDS id); ``reg_covar`` times the mean feature variance of the data is added to every
+        variance so that a constant feature does not make the density degenerate.
+        """
+        X = np.asarray(observations, dtype=np.float64)
+        u = np.asarray(actions, dtype=np.int64)
+        x = np.asarray(labels, dtype=np.int64)
+        T, D = X.shape
+        S = len(state_symbol)
+        A = int(n_actions)
+        L = np.array([T]) if lengths is None else np.asarray(lengths)
+        _, has_next = episode_masks(T, L)
+        symbol = np.asarray(state_symbol)
+        gds = np.asarray(state_gds)
+        # a "model id" per state: symbols, then GDS ids after them
+        n_sym = int(symbol.max()) + 1 if (symbol >= 0).any() else 0
+        model_of_state = np.where(symbol >= 0, symbol, n_sym + gds)
+        model = model_of_state[x]
+        M = int(model_of_state.max()) + 1
+        n_m = np.bincount(model, minlength=M).astype(np.float64)
+        sums = np.zeros((M, D))
+        np.add.at(sums, model, X)
+        mean_m = sums / np.maximum(n_m, 1)[:, None]
+        reg = reg_covar * float(np.mean(X.var(axis=0))) if T > 1 else reg_covar
+        reg = reg if reg > 0 else reg_covar
+        resid = X - mean_m[model]
+        if covariance_type == "diag":
+            sq = np.zeros((M, D))
+            np.add.at(sq, model, resid**2)
+            cov_m = sq / np.maximum(n_m, 1)[:, None] + reg
+        elif covariance_type == "full":
+            cov_m = np.zeros((M, D, D))
+            for m in range(M):
+                r = resid[model == m]
+                cov_m[m] = r.T @ r / max(len(r), 1) + reg * np.eye(D)
+        else:
+            raise ValueError(f"covariance_type must be 'diag' or 'full', got {covariance_type!r}")
+        state_counts, action_counts, trans = count_tables(x, u, S, A, has_next)
+        info = dict(kwargs.pop("info", None) or {})
+        info.setdefault("covariance_type", covariance_type)
+        return cls(state_symbol, state_gds, state_parent, mean_m[model_of_state],
+                   cov_m[model_of_state], state_counts, action_counts, trans, info=info, **kwargs)
+
+    # ------------------------------------------------------------------ sizes and tables
+    @property
+    def n_states(self) -> int:
+        return int(self.state_counts_.shape[0])
+
+    @property
+    def n_actions(self) -> int:
+        return int(self.action_counts_.shape[1])
+
+    @property
+    def n_features(self) -> int:
+        return int(self.means_.shape[1])
+
+    @property
+    def covariance_type(self) -> str:
+        return "full" if self.covariances_.ndim == 3 else "diag"
+
+    @property
+    def state_probs_(self) -> np.ndarray:
+        """(S,) share of steps in each state."""
+        return self.state_counts_ / max(self.state_counts_.sum(), 1)
+
+    @property
+    def action_probs_(self) -> np.ndarray:
+        """(S, A) ``P(u|x)``; a state never seen gets a uniform row."""
+        return normalise(self.action_counts_)
+
+    @property
+    def transition_probs_(self) -> np.ndarray:
+        """(S, A, S) ``P(x'|x,u)``; an ``(x, u)`` never seen gets a uniform row."""
+        return normalise(self.transition_counts_)
+
+    # ------------------------------------------------------------------ entropies
+    def state_entropies(self) -> np.ndarray:
+        """(S,) differential entropy in bits of each state's Gaussian observation model."""
+        if self.covariance_type == "diag":
+            logdet = np.log2(self.covariances_).sum(axis=1)
+        else:
+            logdet = np.linalg.slogdet(self.covariances_)[1] / np.log(2)
+        return 0.5 * (self.n_features * np.log2(2 * np.pi * np.e) + logdet)
+
+    def entropies(self) -> dict:
+        """``H(o|x)``, ``H(u|x)``, ``H(x'|x,u)`` in bits (``H(o|x)`` is a differential entropy)."""
+        return {
+            "H_o": float(self.state_probs_ @ self.state_entropies()),
+            "H_u": conditional_entropy(self.action_counts_),
+            "H_x": conditional_entropy(self.transition_counts_),
+        }
+
+    # ------------------------------------------------------------------ inference
+    def _log_obs(self, X: np.ndarray) -> np.ndarray:
+        """(T, S) Gaussian log-densities."""
+        if self.covariance_type == "diag":
+            var = self.covariances_
+            d = X[:, None, :] - self.means_[None]
+            return -0.5 * ((d**2 / var[None]).sum(-1) + np.log(var).sum(-1)[None]
+                           + self.n_features * LOG2PI)
+        out = np.empty((X.shape[0], self.n_states))
+        for s in range(self.n_states):
+            chol = np.linalg.cholesky(self.covariances_[s])
+            z = np.linalg.solve(chol, (X - self.means_[s]).T)
+            out[:, s] = -0.5 * ((z**2).sum(0) + 2 * np.log(np.diag(chol)).sum()
+                                + self.n_features * LOG2PI)
+        return out
+
+    def _prepare(self, observations, actions, gds, lengths, smoothing):
+        X, u, g, L = check_sequences(observations, actions, gds, lengths, min_length=1)
+        if X.shape[1] != self.n_features:
+            raise ValueError(
+                f"observations have {X.shape[1]} features but the map was learned on {self.n_features}"
+            )
+        if u.max() >= self.n_actions:
+            raise ValueError(
+                f"actions use id {int(u.max())} but the map knows {self.n_actions} actions"
+            )
+        if not 0 < smoothing < 1:
+            raise ValueError(f"smoothing must lie in (0, 1), got {smoothing!r}")
+        S = self.n_states
+        emit = self._log_obs(X)
+        emit += np.log((1 - smoothing) * self.action_probs_ + smoothing / self.n_actions)[:, u].T
+        # GDS labels clamp the state: a GDS step can only be its GDS state, other steps never one
+        is_gds_state = self.state_gds_ >= 0
+        if gds is not None:
+            known = set(self.state_gds_[is_gds_state].tolist())
+            unknown = sorted(set(g[g >= 0].tolist()) - known)
+            if unknown:
+                raise ValueError(f"gds ids {unknown} are not states of this map")
+            allowed = np.where(g[:, None] >= 0, self.state_gds_[None] == g[:, None],
+                               ~is_gds_state[None])
+            emit = np.where(allowed, emit, -np.inf)
+        log_trans = np.log((1 - smoothing) * self.transition_probs_ + smoothing / S)
+        log_init = np.log((1 - smoothing) * self.state_probs_ + smoothing / S)
+        return emit, u, L, log_trans, log_init
+
+    def predict(self, observations, actions, gds=None, lengths=None, *, smoothing=1e-6):
+        """Most likely state of every step of a new sequence (Viterbi).
+
+        Uses the Gaussian observation likelihoods, ``P(u|x)`` and ``P(x'|x,u)``; ``smoothing`` mixes
+        a small uniform share into every table so unseen transitions are unlikely, not impossible.
+        With ``gds`` given, GDS steps are clamped to their GDS state.
+        """
+        emit, u, L, log_trans, log_init = self._prepare(observations, actions, gds, lengths, smoothing)
+        path = np.empty(emit.shape[0], dtype=np.int64)
+        start = 0
+        for n in L.tolist():
+            e = emit[start:start + n]
+            back = np.empty((n, self.n_states), dtype=np.int64)
+            delta = log_init + e[0]
+            for t in range(1, n):
+                cand = delta[:, None] + log_trans[:, u[start + t - 1], :]
+                back[t] = np.argmax(cand, axis=0)
+                delta = cand[back[t], np.arange(self.n_states)] + e[t]
+            s = int(np.argmax(delta))
+            for t in range(n - 1, -1, -1):
+                path[start + t] = s
+                s = back[t, s]
+            start += n
+        return path
+
+    def score(self, observations, actions, gds=None, lengths=None, *, smoothing=1e-6) -> float:
+        """Mean log-likelihood per step (natural log, forward algorithm) of a new sequence."""
+        emit, u, L, log_trans, log_init = self._prepare(observations, actions, gds, lengths, smoothing)
+        total = 0.0
+        start = 0
+        for n in L.tolist():
+            e = emit[start:start + n]
+            alpha = log_init + e[0]
+            for t in range(1, n):
+                m = alpha.max()
+                alpha = m + np.log(np.exp(alpha - m) @ np.exp(log_trans[:, u[start + t - 1], :])) + e[t]
+            m = alpha.max()
+            total += m + np.log(np.exp(alpha - m).sum())
+            start += n
+        return float(total / emit.shape[0])
+
+    # ------------------------------------------------------------------ graphs
+    def state_label(self, s: int) -> str:
+        if self.state_gds_[s] >= 0:
+            g = int(self.state_gds_[s])
+            return self.gds_names[g] if self.gds_names else f"GDS{g}"
+        return f"s{s}"
+
+    def to_networkx(self, min_prob: float = 0.0):
+        """A ``networkx.DiGraph``: one node per state, one arc per ``(x, x')`` with an action whose
+        ``P(x'|x,u) > min_prob`` (and at least one observed transition).
+
+        Arc attributes: ``actions`` (list of action ids), ``action_names``, ``probs`` (the
+        probabilities), ``prob`` (the largest) and ``count`` (transitions observed).
+        """
+        import networkx as nx
+
+        P = self.transition_probs_
+        C = self.transition_counts_
+        G = nx.DiGraph()
+        for s in range(self.n_states):
+            G.add_node(s, label=self.state_label(s), symbol=int(self.state_symbol_[s]),
+                       gds=int(self.state_gds_[s]), parent=int(self.state_parent_[s]),
+                       count=int(self.state_counts_[s]))
+        xs, us, ys = np.nonzero((C > 0) & (P > min_prob))
+        for x, a, y in zip(xs.tolist(), us.tolist(), ys.tolist()):
+            name = self.action_names[a] if self.action_names else str(a)
+            if G.has_edge(x, y):
+                d = G.edges[x, y]
+                d["actions"].append(a)
+                d["action_names"].append(name)
+                d["probs"].append(float(P[x, a, y]))
+                d["prob"] = max(d["probs"])
+                d["count"] += int(C[x, a, y])
+            else:
+                G.add_edge(x, y, actions=[a], action_names=[name], probs=[float(P[x, a, y])],
+                           prob=float(P[x, a, y]), count=int(C[x, a, y]))
+        return G
+
+    def to_graphml(self, path, min_prob: float = 0.0) -> Path:
+        """Write :meth:`to_networkx` as GraphML (list attributes joined with ``;``)."""
+        import networkx as nx
+
+        G = self.to_networkx(min_prob)
+        for _, _, d in G.edges(data=True):
+            d["actions"] = ";".join(str(a) for a in d["actions"])
+            d["action_names"] = ";".join(d["action_names"])
+            d["probs"] = ";".join(f"{p:.6g}" for p in d["probs"])
+        path = Path(path)
+        atomic_write(path, lambda tmp: nx.write_graphml(G, tmp))
+        return path
+
+    # ------------------------------------------------------------------ JSON
+    def to_dict(self) -> dict:
+        xs, us, ys = np.nonzero(self.transition_counts_)
+        return {
+            "format": "topomap.map",
+            "version": FORMAT_VERSION,
+            "n_states": self.n_states,
+            "n_actions": self.n_actions,
+            "n_features": self.n_features,
+            "covariance_type": self.covariance_type,
+            "action_names": self.action_names,
+            "gds_names": self.gds_names,
+            "states": [
+                {
+                    "id": s,
+                    "symbol": int(self.state_symbol_[s]),
+                    "gds": int(self.state_gds_[s]),
+                    "parent": int(self.state_parent_[s]),
+                    "count": int(self.state_counts_[s]),
+                    "mean": self.means_[s].tolist(),
+                    "covariance": self.covariances_[s].tolist(),
+                    "action_counts": self.action_counts_[s].tolist(),
+                }
+                for s in range(self.n_states)
+            ],
+            "transitions": [[int(a), int(b), int(c), int(self.transition_counts_[a, b, c])]
+                            for a, b, c in zip(xs, us, ys)],
+            "split_history": self.split_history_,
+            "entropies": self.entropies_,
+            "info": self.info,
+        }
+
+    def save(self, path) -> Path:
+        """Write the map as JSON (atomically: the file appears only when complete)."""
+        path = Path(path)
+        text = json.dumps(self.to_dict(), indent=1, sort_keys=True)
+
+        def write(tmp):
+            Path(tmp).write_text(text + "\n")
+
+        atomic_write(path, write)
+        return path
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "TopologicalMap":
+        try:
+            if d.get("format") != "topomap.map":
+                raise ValueError("it is not a topomap map (field 'format' is missing or wrong)")
+            if d.get("version") != FORMAT_VERSION:
+                raise ValueError(f"format version {d.get('version')!r} is not supported")
+            S, A = int(d["n_states"]), int(d["n_actions"])
+            states = d["states"]
+            if len(states) != S or [st["id"] for st in states] != list(range(S)):
+                raise ValueError("field 'states' must list states 0..n_states-1 in order")
+            trans = np.zeros((S, A, S), dtype=np.int64)
+            for row in d["transitions"]:
+                a, b, c, n = row
+                trans[a, b, c] = n
+            return cls(
+                [st["symbol"] for st in states], [st["gds"] for st in states],
+                [st["parent"] for st in states], [st["mean"] for st in states],
+                [st["covariance"] for st in states], [st["count"] for st in states],
+                [st["action_counts"] for st in states], trans,
+                action_names=d.get("action_names"), gds_names=d.get("gds_names"),
+                split_history=d.get("split_history", ()), entropies=d.get("entropies", ()),
+                info=d.get("info"),
+            )
+        except (KeyError, TypeError, IndexError) as exc:
+            raise ValueError(f"malformed map: missing or invalid field {exc}") from None
+
+    @classmethod
+    def load(cls, path) -> "TopologicalMap":
+        """Read a map written by :meth:`save`."""
+        path = Path(path)
+        try:
+            d = json.loads(Path(path).read_text())
+        except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+            raise ValueError(f"map file {path} could not be read as JSON: {exc}") from None
+        if not isinstance(d, dict):
+            raise ValueError(f"map file {path} does not hold a JSON object")
+        try:
+            return cls.from_dict(d)
+        except ValueError as exc:
+            raise ValueError(f"map file {path}: {exc}") from None
+
+    def __repr__(self) -> str:
+        return (f"TopologicalMap(n_states={self.n_states}, n_actions={self.n_actions}, "
+                f"n_features={self.n_features})")

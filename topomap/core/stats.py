@@ -1,0 +1,72 @@
+"""Counts and entropies shared by both phases and the map.
+
+Everything the method measures is a function of integer counts: how often each state occurs, takes
+each action, and reaches each next state.  Entropies are in bits.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["xlogx", "weighted_entropy", "conditional_entropy", "normalise", "episode_masks",
+           "count_tables"]
+
+
+def xlogx(c) -> np.ndarray:
+    """``c * log2(c)`` elementwise, with ``0 log 0 = 0``."""
+    c = np.asarray(c, dtype=np.float64)
+    if np.all(c == np.round(c)):  # counts: log2(max(c, 1)) is exact at 0 and 1
+        return c * np.log2(np.maximum(c, 1.0))
+    return np.where(c > 0, c * np.log2(np.where(c > 0, c, 1.0)), 0.0)
+
+
+def weighted_entropy(counts) -> np.ndarray:
+    """``n * H`` in bits for each row of a count matrix (``n`` = row sum, ``H`` = row entropy)."""
+    counts = np.atleast_2d(counts)
+    return xlogx(counts.sum(axis=1)) - xlogx(counts).sum(axis=1)
+
+
+def conditional_entropy(counts) -> float:
+    """``H(Y|X)`` in bits from a count table whose last axis is ``Y`` and other axes are ``X``."""
+    c = np.asarray(counts, dtype=np.float64).reshape(-1, np.shape(counts)[-1])
+    n = c.sum()
+    if n == 0:
+        return 0.0
+    rows = c.sum(axis=1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        terms = np.where(c > 0, c * np.log2(c / rows[:, None]), 0.0)
+    return float(-terms.sum() / n) + 0.0  # + 0.0 turns -0.0 into 0.0
+
+
+def normalise(counts) -> np.ndarray:
+    """Row-normalise along the last axis; rows with no counts become uniform."""
+    counts = np.asarray(counts, dtype=np.float64)
+    total = counts.sum(axis=-1, keepdims=True)
+    uniform = np.full_like(counts, 1.0 / counts.shape[-1])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(total > 0, counts / total, uniform)
+
+
+def episode_masks(T: int, lengths) -> tuple[np.ndarray, np.ndarray]:
+    """``(has_prev, has_next)``: whether step ``t`` has a predecessor / successor in its episode."""
+    lengths = np.asarray(lengths)
+    ends = np.cumsum(lengths) - 1
+    starts = ends - lengths + 1
+    has_prev = np.ones(T, dtype=bool)
+    has_next = np.ones(T, dtype=bool)
+    has_prev[starts] = False
+    has_next[ends] = False
+    return has_prev, has_next
+
+
+def count_tables(labels, actions, n_states: int, n_actions: int, has_next):
+    """``(state_counts (S,), action_counts (S, A), transition_counts (S, A, S))`` of a labelling.
+
+    Transitions ``(x_t, u_t) -> x_{t+1}`` are counted only where ``has_next[t]`` (inside episodes).
+    """
+    x, u, S, A = labels, actions, int(n_states), int(n_actions)
+    state = np.bincount(x, minlength=S)
+    action = np.bincount(x * A + u, minlength=S * A).reshape(S, A)
+    t = np.flatnonzero(has_next)
+    trans = np.bincount((x[t] * A + u[t]) * S + x[t + 1], minlength=S * A * S).reshape(S, A, S)
+    return state, action, trans

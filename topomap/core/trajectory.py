@@ -1,0 +1,314 @@
+"""Trajectories: what a robot saw and did, step by step, and the files that hold them.
+
+A :class:`Trajectory` is the learner's input: ``T`` observation vectors, the action taken at each
+step, optionally the globally distinctive state (GDS) recognised at each step and, for simulated or
+annotated data, the ground truth (place id and position).  Several episodes may be stored back to
+back; ``lengths`` gives their sizes and no transition is counted across an episode boundary.
+
+Two file formats are read and written (see the README for the full description):
+
+``.npz``
+    arrays ``observations`` (T, D) float, ``actions`` (T,) int and optionally ``gds`` (T,) int,
+    ``places`` (T,) int, ``positions`` (T, 2) float, ``lengths`` (E,) int, ``action_names`` and
+    ``gds_names`` (string arrays).  Loaded with ``allow_pickle=False``.
+``.csv``
+    a header row ``o0,...,o{D-1},action[,gds][,place][,x,y][,episode]`` and one row per step.
+"""
+
+from __future__ import annotations
+
+import csv
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .files import atomic_write
+
+__all__ = ["Trajectory", "load_trajectory", "save_trajectory", "check_sequences"]
+
+
+def _as_int_array(values, name: str, length: int | None = None) -> np.ndarray:
+    """Return ``values`` as a 1-D int64 array, or raise a ValueError naming ``name``."""
+    arr = np.asarray(values)
+    if arr.ndim != 1:
+        raise ValueError(f"{name} must be one-dimensional, got shape {arr.shape}")
+    if length is not None and arr.shape[0] != length:
+        raise ValueError(
+            f"{name} has {arr.shape[0]} entries but observations has {length} rows; "
+            "they must have the same length"
+        )
+    if arr.dtype.kind == "b":
+        raise ValueError(f"{name} must hold integers, got booleans")
+    if arr.dtype.kind == "f":
+        if not np.all(np.isfinite(arr)):
+            raise ValueError(f"{name} must hold integers, found NaN or inf")
+        if not np.all(arr == np.round(arr)):
+            bad = int(np.flatnonzero(arr != np.round(arr))[0])
+            raise ValueError(f"{name} must hold integers, found {arr[bad]!r} at index {bad}")
+    elif arr.dtype.kind not in "iu":
+        raise ValueError(f"{name} must hold integers, got values of type {arr.dtype}")
+    return arr.astype(np.int64)
+
+
+def check_sequences(observations, actions, gds=None, lengths=None, *, min_length: int = 3):
+    """Validate learner input and return it as arrays ``(X, u, gds, lengths)``.
+
+    Every problem is reported as a :class:`ValueError` whose message names the argument.
+    ``gds`` defaults to all ``-1`` (no GDS) and ``lengths`` to one episode of length ``T``.
+    """
+    X = np.asarray(observations)
+    if X.dtype.kind not in "fiub":
+        raise ValueError(f"observations must be numbers, got values of type {X.dtype}")
+    X = X.astype(np.float64)
+    if X.ndim == 1:
+        X = X[:, None]
+    if X.ndim != 2:
+        raise ValueError(f"observations must be a 2-D array (T, D), got shape {X.shape}")
+    T = X.shape[0]
+    if T < min_length:
+        raise ValueError(f"observations has {T} steps; at least {min_length} are needed")
+    if X.shape[1] == 0:
+        raise ValueError("observations has 0 columns; at least one feature is needed")
+    if not np.all(np.isfinite(X)):
+        rows = np.flatnonzero(~np.all(np.isfinite(X), axis=1))
+        raise ValueError(
+            f"observations contain NaN or inf in {rows.size} row(s), first at step {int(rows[0])}"
+        )
+    u = _as_int_array(actions, "actions", T)
+    if u.min() < 0:
+        raise ValueError(f"actions must be >= 0, found {int(u.min())} at step {int(np.argmin(u))}")
+    if gds is None:
+        g = np.full(T, -1, dtype=np.int64)
+    else:
+        g = _as_int_array(gds, "gds", T)
+        if g.min() < -1:
+            raise ValueError(
+                f"gds ids must be -1 (no GDS) or >= 0, found {int(g.min())} at step {int(np.argmin(g))}"
+            )
+    if lengths is None:
+        L = np.array([T], dtype=np.int64)
+    else:
+        L = _as_int_array(lengths, "lengths")
+        if L.size == 0 or np.any(L <= 0):
+            raise ValueError("lengths must be a non-empty list of positive episode lengths")
+        if int(L.sum()) != T:
+            raise ValueError(f"lengths sum to {int(L.sum())} but observations has {T} steps")
+    return X, u, g, L
+
+
+@dataclass
+class Trajectory:
+    """One or more episodes of observations and actions, with optional labels and ground truth.
+
+    Attributes
+    ----------
+    observations : (T, D) float array
+    actions : (T,) int array, values in ``[0, n_actions)``
+    gds : (T,) int array or None -- GDS id recognised at each step, ``-1`` for none
+    places : (T,) int array or None -- ground-truth place id of each step
+    positions : (T, 2) float array or None -- ground-truth position of each step
+    lengths : (E,) int array or None -- episode lengths (None: a single episode)
+    action_names, gds_names : list of str or None
+    """
+
+    observations: np.ndarray
+    actions: np.ndarray
+    gds: np.ndarray | None = None
+    places: np.ndarray | None = None
+    positions: np.ndarray | None = None
+    lengths: np.ndarray | None = None
+    action_names: list[str] | None = None
+    gds_names: list[str] | None = None
+    meta: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        X, u, g, L = check_sequences(
+            self.observations, self.actions, self.gds, self.lengths, min_length=1
+        )
+        T = X.shape[0]
+        self.observations, self.actions = X, u
+        self.gds = None if self.gds is None else g
+        self.lengths = None if self.lengths is None else L
+        if self.places is not None:
+            self.places = _as_int_array(self.places, "places", T)
+        if self.positions is not None:
+            P = np.asarray(self.positions, dtype=np.float64)
+            if P.shape != (T, 2):
+                raise ValueError(f"positions must have shape ({T}, 2), got {P.shape}")
+            self.positions = P
+        if self.action_names is not None:
+            self.action_names = [str(a) for a in self.action_names]
+            if u.max() >= len(self.action_names):
+                raise ValueError(
+                    f"actions use id {int(u.max())} but only {len(self.action_names)} "
+                    "action_names are given"
+                )
+        if self.gds_names is not None:
+            self.gds_names = [str(a) for a in self.gds_names]
+            if g.max() >= len(self.gds_names):
+                raise ValueError(
+                    f"gds uses id {int(g.max())} but only {len(self.gds_names)} gds_names are given"
+                )
+
+    def __len__(self) -> int:
+        return int(self.observations.shape[0])
+
+    @property
+    def n_actions(self) -> int:
+        """Number of actions: ``len(action_names)`` if known, else ``max(actions) + 1``."""
+        if self.action_names is not None:
+            return len(self.action_names)
+        return int(self.actions.max()) + 1
+
+
+_REQUIRED = ("observations", "actions")
+_OPTIONAL = ("gds", "places", "positions", "lengths", "action_names", "gds_names")
+
+
+def save_trajectory(traj: Trajectory, path) -> Path:
+    """Write ``traj`` to ``path`` (``.npz`` or ``.csv``); the file appears only when complete."""
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix == ".npz":
+        arrays = {"observations": traj.observations, "actions": traj.actions}
+        for key in _OPTIONAL:
+            value = getattr(traj, key)
+            if value is not None:
+                arrays[key] = np.asarray(value, dtype=str) if key.endswith("names") else value
+
+        def write(tmp):
+            with open(tmp, "wb") as fh:
+                np.savez_compressed(fh, **arrays)
+
+    elif suffix == ".csv":
+        D = traj.observations.shape[1]
+        header = [f"o{i}" for i in range(D)] + ["action"]
+        cols = [traj.observations, traj.actions[:, None]]
+        if traj.gds is not None:
+            header.append("gds")
+            cols.append(traj.gds[:, None])
+        if traj.places is not None:
+            header.append("place")
+            cols.append(traj.places[:, None])
+        if traj.positions is not None:
+            header += ["x", "y"]
+            cols.append(traj.positions)
+        if traj.lengths is not None:
+            header.append("episode")
+            cols.append(np.repeat(np.arange(traj.lengths.size), traj.lengths)[:, None])
+        int_cols = {"action", "gds", "place", "episode"}
+
+        def write(tmp):
+            table = np.hstack([np.asarray(c, dtype=np.float64) for c in cols])
+            with open(tmp, "w", newline="") as fh:
+                w = csv.writer(fh)
+                w.writerow(header)
+                for row in table.tolist():
+                    w.writerow([int(v) if h in int_cols else repr(v) for h, v in zip(header, row)])
+
+    else:
+        raise ValueError(f"trajectory file {path} must end in .npz or .csv, not {suffix!r}")
+    atomic_write(path, write)
+    return path
+
+
+def _load_npz(path: Path) -> Trajectory:
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            contents = {k: data[k] for k in data.files}
+    except ValueError as exc:
+        raise ValueError(f"trajectory file {path} is not a valid .npz without pickled objects: {exc}")
+    except (OSError, EOFError) as exc:
+        raise ValueError(f"trajectory file {path} could not be read as .npz: {exc}") from None
+    except Exception as exc:  # zipfile.BadZipFile and friends
+        raise ValueError(f"trajectory file {path} is malformed: {exc}") from None
+    missing = [k for k in _REQUIRED if k not in contents]
+    if missing:
+        raise ValueError(f"trajectory file {path} lacks the array(s) {', '.join(missing)}")
+    unknown = sorted(set(contents) - set(_REQUIRED) - set(_OPTIONAL))
+    if unknown:
+        raise ValueError(f"trajectory file {path} has unknown array(s) {', '.join(unknown)}")
+    kwargs = {k: contents[k] for k in _REQUIRED + _OPTIONAL if k in contents}
+    for key in ("action_names", "gds_names"):
+        if key in kwargs:
+            kwargs[key] = [str(v) for v in kwargs[key].tolist()]
+    try:
+        return Trajectory(**kwargs)
+    except ValueError as exc:
+        raise ValueError(f"trajectory file {path}: {exc}") from None
+
+
+def _load_csv(path: Path) -> Trajectory:
+    try:
+        with open(path, newline="") as fh:
+            rows = list(csv.reader(fh))
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ValueError(f"trajectory file {path} could not be read as CSV: {exc}") from None
+    if not rows:
+        raise ValueError(f"trajectory file {path} is empty")
+    header = [h.strip() for h in rows[0]]
+    obs_cols = [i for i, h in enumerate(header) if h.startswith("o") and h[1:].isdigit()]
+    known = {"action", "gds", "place", "x", "y", "episode"}
+    unknown = [h for i, h in enumerate(header) if i not in obs_cols and h not in known]
+    if unknown:
+        raise ValueError(
+            f"trajectory file {path}: unknown column(s) {', '.join(unknown)}; expected "
+            "o0..o{D-1}, action and optionally gds, place, x, y, episode"
+        )
+    if not obs_cols:
+        raise ValueError(f"trajectory file {path} has no observation columns o0, o1, ...")
+    expected = [f"o{i}" for i in range(len(obs_cols))]
+    if [header[i] for i in obs_cols] != expected:
+        raise ValueError(f"trajectory file {path}: observation columns must be {expected[0]}..{expected[-1]} in order")
+    if "action" not in header:
+        raise ValueError(f"trajectory file {path} has no 'action' column")
+    if ("x" in header) != ("y" in header):
+        raise ValueError(f"trajectory file {path} needs both 'x' and 'y' columns or neither")
+    body = rows[1:]
+    if not body:
+        raise ValueError(f"trajectory file {path} has a header but no data rows")
+    table = np.empty((len(body), len(header)), dtype=np.float64)
+    for r, row in enumerate(body, start=2):
+        if len(row) != len(header):
+            raise ValueError(
+                f"trajectory file {path}, line {r}: {len(row)} fields but the header has {len(header)}"
+            )
+        for c, value in enumerate(row):
+            try:
+                table[r - 2, c] = float(value)
+            except ValueError:
+                raise ValueError(
+                    f"trajectory file {path}, line {r}, column {header[c]!r}: {value!r} is not a number"
+                ) from None
+    col = {h: table[:, i] for i, h in enumerate(header)}
+    kwargs = {"observations": table[:, obs_cols], "actions": col["action"]}
+    if "gds" in col:
+        kwargs["gds"] = col["gds"]
+    if "place" in col:
+        kwargs["places"] = col["place"]
+    if "x" in col:
+        kwargs["positions"] = np.column_stack([col["x"], col["y"]])
+    if "episode" in col:
+        ep = _as_int_array(col["episode"], "episode")
+        change = np.flatnonzero(np.diff(ep) != 0)
+        if np.any(np.diff(ep) < 0):
+            raise ValueError(f"trajectory file {path}: episode ids must not decrease")
+        kwargs["lengths"] = np.diff(np.concatenate([[0], change + 1, [ep.size]]))
+    try:
+        return Trajectory(**kwargs)
+    except ValueError as exc:
+        raise ValueError(f"trajectory file {path}: {exc}") from None
+
+
+def load_trajectory(path) -> Trajectory:
+    """Read a trajectory from a ``.npz`` or ``.csv`` file, validating every field."""
+    path = Path(path)
+    if not path.is_file():
+        raise ValueError(f"trajectory file {path} does not exist")
+    suffix = path.suffix.lower()
+    if suffix == ".npz":
+        return _load_npz(path)
+    if suffix == ".csv":
+        return _load_csv(path)
+    raise ValueError(f"trajectory file {path} must end in .npz or .csv, not {suffix!r}")
