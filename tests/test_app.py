@@ -122,12 +122,12 @@ def test_learner_config_is_the_learner_signature(make_cfg):
 
 @pytest.mark.parametrize("override, message", [
     ("clusters.ns=abc", "could not be converted to Integer"),
-    ("clusters.nss=3", "Key 'nss' not in"),
+    ("clusters.nss=3", "unknown config key 'clusters.nss'; did you mean clusters.ns?"),
     ("stop.n_states=1.5", "could not be converted to Integer"),
-    ("env.view_rnage=2", "Key 'view_rnage' not in"),
+    ("env.view_rnage=2", "unknown config key 'env.view_rnage'; did you mean env.view_range?"),
 ])
 def test_typed_config_rejects_bad_values(override, message, make_cfg):
-    with pytest.raises(ConfigCompositionException) as info:
+    with pytest.raises((ConfigCompositionException, ValueError)) as info:
         make_cfg([override])
     assert message in str(info.value.__cause__ or info.value)
 

@@ -17,26 +17,32 @@ import logging
 import sys
 from pathlib import Path
 
-from .config import store_configs
+from .config import check_overrides, store_configs
 from .experiment import run, run_job
 from .registry import Registry
 
 log = logging.getLogger("topomap")
 
-__all__ = ["main", "plugins_named", "compose", "list_plugins"]
+__all__ = ["main", "overrides_of", "plugins_named", "compose", "list_plugins"]
 
 CONFIG_MODULE = "topomap.conf"
 
 
-def plugins_named(argv) -> list[str]:
-    """The plugin modules a command line names (``plugins=[a,b]``), read with Hydra's parsers:
-    their components' configs must be stored before Hydra composes."""
+def overrides_of(argv) -> list[str]:
+    """The overrides (``key=value`` words) of a command line, as Hydra's own parser reads it."""
     from hydra._internal.utils import get_args_parser
-    from hydra.core.override_parser.overrides_parser import OverridesParser
 
     args, _ = get_args_parser().parse_known_args(list(argv))
+    return list(args.overrides or [])
+
+
+def plugins_named(overrides) -> list[str]:
+    """The plugin modules the overrides name (``plugins=[a,b]``), read with Hydra's override
+    parser: their components' configs must be stored before Hydra composes."""
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+
     try:
-        overrides = OverridesParser.create().parse_overrides(args.overrides)
+        overrides = OverridesParser.create().parse_overrides(list(overrides))
     except Exception:  # a syntax error: Hydra reports it when it parses the same line
         return []
     for override in overrides:
@@ -55,14 +61,19 @@ def compose(overrides=(), registry: Registry | None = None, *, return_hydra_conf
     from hydra import compose as hydra_compose
     from hydra import initialize_config_module
 
-    store_configs(registry or Registry.load())
+    registry = registry or Registry.load()
+    check_overrides(overrides, registry)
+    store_configs(registry)
     with initialize_config_module(version_base="1.3", config_module=CONFIG_MODULE):
         return hydra_compose(config_name="config", overrides=list(overrides),
                              return_hydra_config=return_hydra_config)
 
 
 def list_plugins(registry: Registry, file=None) -> None:
-    """Print every registered component by kind, with the plugin that provides it."""
+    """Print every registered component by kind, and every action a plugin adds to a world, with
+    the plugin that provides it."""
+    from .config import fields_of, schema_of
+
     file = sys.stdout if file is None else file
     last = None
     for kind, name, comp, provider in registry.items():
@@ -70,6 +81,15 @@ def list_plugins(registry: Registry, file=None) -> None:
             print(f"{kind}:", file=file)
             last = kind
         print(f"  {name:<16} {provider:<24} {comp.description}", file=file)
+    actions = []
+    for name in registry.names("env"):
+        params = fields_of(schema_of(registry.get("env", name)))
+        for provider, added in registry.world_action_providers(params):
+            actions += [(a.name, provider, f"an action of the {name} world") for a in added]
+    if actions:
+        print("actions:", file=file)
+        for action, provider, what in actions:
+            print(f"  {action:<16} {provider:<24} {what}", file=file)
     for err in registry.errors:
         print(f"error: {err}", file=file)
 
@@ -117,7 +137,9 @@ def main() -> None:
         list_plugins(Registry.load(argv[1:]))
         return
     try:
-        registry = Registry.load(plugins_named(argv))
+        overrides = overrides_of(argv)
+        registry = Registry.load(plugins_named(overrides))
+        check_overrides(overrides, registry)
         store_configs(registry)
     except ValueError as exc:
         sys.exit(f"topomap: error: {exc}")

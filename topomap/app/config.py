@@ -27,6 +27,7 @@ from typing import Any, Optional
 from omegaconf import II, MISSING, OmegaConf
 
 from ..core.learner import MapLearner
+from .hookspecs import KINDS
 
 __all__ = ["Config", "LearnerConf", "OutputConf", "RUNTIME_ARGS", "schema_of", "learner_schema",
            "store_configs", "read_yaml_options"]
@@ -143,8 +144,14 @@ _PACKAGE_HEADER = re.compile(r"^#\s*@package\s+(\S+)", re.MULTILINE)
 def _yaml_folder(path: str):
     """A Traversable for ``pkg://package.sub`` or ``file:///abs/dir`` (or a plain path)."""
     if path.startswith("pkg://"):
-        return resources.files(path[len("pkg://"):].replace("/", "."))
-    return Path(path[len("file://"):] if path.startswith("file://") else path)
+        try:
+            return resources.files(path[len("pkg://"):].replace("/", "."))
+        except ImportError as exc:
+            raise ValueError(f"config folder {path} cannot be imported ({exc})") from None
+    folder = Path(path[len("file://"):] if path.startswith("file://") else path)
+    if not folder.is_dir():
+        raise ValueError(f"config folder {path} does not exist")
+    return folder
 
 
 def read_yaml_options(path: str) -> list[tuple[str, str, str, str | None]]:
@@ -183,7 +190,11 @@ def store_configs(registry) -> None:
     cs.store(name="topomap_schema", node=Config)
     files = {}
     for path, provider in registry.config_paths():
-        for group, option, text, package in read_yaml_options(path):
+        try:
+            options = read_yaml_options(path)
+        except ValueError as exc:
+            raise ValueError(f"plugin {provider!r}: {exc}") from None
+        for group, option, text, package in options:
             files[(group, option)] = (text, package, provider)
     for kind, name, comp, provider in registry.items():
         text = files.pop((kind, name), (None,))[0]
@@ -205,3 +216,64 @@ def fields_of(schema) -> dict:
         else:
             out[f.name] = MISSING
     return out
+
+
+# ------------------------------------------------------------------------------ closed configs
+def _keys_of(schema, prefix: str) -> set[str]:
+    return {f"{prefix}.{k}" for k in fields_of(schema)}
+
+
+def valid_keys(registry) -> set[str]:
+    """Every key a config may hold: the top level, every field of every registered component
+    (of any component of its group), ``learner.*`` and ``output.*``."""
+    keys = set(fields_of(Config)) | _keys_of(LearnerConf, "learner") | _keys_of(OutputConf, "output")
+    for kind, _, comp, _ in registry.items():
+        keys |= _keys_of(schema_of(comp), kind)
+    return keys
+
+
+def _unknown(key: str, valid, where: str = "") -> ValueError:
+    import difflib
+
+    close = difflib.get_close_matches(key, sorted(valid), n=1, cutoff=0.6)
+    hint = f"; did you mean {close[0]}?" if close else ""
+    return ValueError(f"unknown config key {key!r}{where}{hint} (topomap --help lists the config)")
+
+
+def check_overrides(overrides, registry) -> None:
+    """Refuse an override whose key no config declares, ``+`` or not, naming the nearest valid
+    key.  Group choices (``env=gridroom``), ``hydra.*`` and deletions are left to Hydra."""
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+
+    try:
+        parsed = OverridesParser.create().parse_overrides(list(overrides))
+    except Exception:  # a syntax error: Hydra reports it with its own message
+        return
+    valid = valid_keys(registry)
+    groups = set(KINDS) | {"experiment"}
+    for override in parsed:
+        key = override.key_or_group
+        if (override.is_delete() or "/" in key or key.split(".")[0] == "hydra"
+                or key in groups or key in valid):
+            continue
+        raise _unknown(key, valid)
+
+
+def check_config(cfg, registry) -> None:
+    """Refuse a composed config (a plain mapping) holding a key that its schemas do not declare,
+    e.g. one added with ``+`` or by a YAML file; only the selected components' fields count."""
+    top = set(fields_of(Config))
+    extra = [k for k in cfg if k not in top and k != "hydra"]
+    sections = {"learner": LearnerConf, "output": OutputConf}
+    for kind in KINDS:
+        if isinstance(cfg.get(kind), dict) and "component" in cfg[kind]:
+            sections[kind] = schema_of(registry.get(kind, cfg[kind]["component"]))
+    for section, schema in sections.items():
+        allowed = set(fields_of(schema))
+        extra += [f"{section}.{k}" for k in cfg.get(section) or {} if k not in allowed]
+    if extra:
+        key = extra[0]
+        section = key.split(".")[0]
+        valid = top | set().union(*(_keys_of(s, n) for n, s in sections.items()))
+        comp = (cfg.get(section) or {}).get("component") if "." in key else None
+        raise _unknown(key, valid, f" for {section}={comp}" if comp else "")

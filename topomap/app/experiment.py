@@ -16,6 +16,7 @@ import traceback
 from pathlib import Path
 
 from ..core.learner import MapLearner
+from .config import check_config
 from .data import TrajectoryCache, trajectory_key
 from .evaluate import evaluate
 from .outputs import versions, write_json, write_outputs
@@ -29,6 +30,14 @@ __all__ = ["run", "run_job", "make_learner", "load_data", "Progress", "STATUS_FI
 STATUS_FILE = "status.json"
 #: the folder of a sweep where its jobs share simulated trajectories
 CACHE_DIR = ".cache"
+#: what the less obvious numbers of metrics.json measure
+UNITS = {
+    "H_o": "bits; a differential entropy of the Gaussian observation models (continuous "
+           "observations), so it can be negative",
+    "H_u, H_x": "bits",
+    "heldout_loglik": "nats per step; a log-density of continuous observations, so it can be "
+                      "positive",
+}
 
 
 def run(cfg, output_dir, *, registry: Registry | None = None, cache_dir=None) -> dict:
@@ -42,10 +51,12 @@ def run(cfg, output_dir, *, registry: Registry | None = None, cache_dir=None) ->
     registry = registry or Registry.load(cfg.get("plugins") or ())
     for err in registry.errors:
         log.warning("%s", err)
+    check_config(cfg, registry)
     parts = registry.build(cfg)
     plugin_metrics: dict = {}
     with Progress(cfg["output"].get("progress", True) and sys.stderr.isatty()) as progress:
         learner = make_learner(cfg, parts, [progress.on_event, registry.learner_events(plugin_metrics)])
+        learner.check_params(n_gds=getattr(parts.world, "n_gds", 0))  # before any simulation
         (traj, heldout), t_data = load_data(cfg, parts, registry, cache_dir, progress)
         learner.fit_trajectory(traj)
     t0 = time.perf_counter()
@@ -54,7 +65,7 @@ def run(cfg, output_dir, *, registry: Registry | None = None, cache_dir=None) ->
     results.update({
         "split_history": learner.split_history_, "entropy_trace": learner.entropies_,
         "stop_reason": learner.stop_reason_, "timings": {**t_data, **learner.timings_},
-        "versions": versions(), "config": cfg, "plugin_metrics": plugin_metrics,
+        "versions": versions(), "config": cfg, "plugin_metrics": plugin_metrics, "units": UNITS,
         "providers": {k: registry.provider(k, cfg[k]["component"])
                       for k in ("clusters", "metric", "split", "stop")},
     })
@@ -123,8 +134,9 @@ class Progress:
         if event == "phase1":
             n = info["learner"].n_clusters_
             e = info["entropies"]
-            log.info("phase 1: %d symbols + %d GDS states, H(o|x)=%.3f H(u|x)=%.3f H(x'|x,u)=%.3f",
-                     n, info["map"].n_states - n, e["H_o"], e["H_u"], e["H_x"])
+            log.info("phase 1: %d symbols + %d GDS states, H(o|x)=%.3f bits (differential entropy "
+                     "of continuous observations: may be negative), H(u|x)=%.3f, "
+                     "H(x'|x,u)=%.3f bits", n, info["map"].n_states - n, e["H_o"], e["H_u"], e["H_x"])
             self.splitting = self._bar(None, "splitting")
         elif event == "split":
             self.splitting.update(1)

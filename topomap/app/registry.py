@@ -210,11 +210,18 @@ class Registry:
 
     # ------------------------------------------------------------------ building a run
     def world_actions(self, env: dict) -> list:
-        """The actions plugins add to the world ``env["component"]``."""
-        extra = []
-        for actions in self.pm.hook.topomap_world_actions(world=env["component"], params=dict(env)):
-            extra.extend(actions or [])
-        return extra
+        """The actions plugins add to the world ``env["component"]``, in plugin order."""
+        return [a for _, actions in self.world_action_providers(env) for a in actions]
+
+    def world_action_providers(self, env: dict) -> list[tuple[str, list]]:
+        """``(provider, actions)`` of every plugin adding actions to the world ``env["component"]``
+        (the order in which they are appended to the world's own)."""
+        out = []
+        for impl in reversed(self.pm.hook.topomap_world_actions.get_hookimpls()):  # call order
+            actions = impl.function(world=env["component"], params=dict(env))
+            if actions:
+                out.append((self.pm.get_name(impl.plugin), list(actions)))
+        return out
 
     def build(self, cfg) -> Parts:
         """Every component of the run ``cfg`` (a mapping), each built once.

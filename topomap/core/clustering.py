@@ -91,6 +91,11 @@ class FixedClusters:
             raise ValueError(f"clusters.ns must be a positive integer, got {ns!r}")
         self.ns = int(ns)
 
+    @property
+    def min_clusters(self) -> int:
+        """The fewest clusters this policy can choose (known before any data is seen)."""
+        return self.ns
+
     def choose(self, Z: np.ndarray, random_state: int) -> int:
         return self.ns
 
@@ -123,7 +128,12 @@ class BICClusters:
         self.min_ns, self.max_ns, self.step = int(min_ns), int(max_ns), int(step)
         self.covariance_type, self.n_init = covariance_type, int(n_init)
 
-    def choose(self, Z: np.ndarray, random_state: int) -> int:
+    @property
+    def min_clusters(self) -> int:
+        """The fewest clusters this policy can choose (known before any data is seen)."""
+        return self.min_ns
+
+    def choose(self, Z: np.ndarray, random_state: int):
         n_distinct = np.unique(Z, axis=0).shape[0]
         candidates = [k for k in range(self.min_ns, self.max_ns + 1, self.step) if k <= n_distinct]
         if not candidates:

@@ -174,6 +174,19 @@ class MapLearner(BaseEstimator):
                                     iteration=iteration))
         self._emit("split", labels=splitter.labels, entropies=self.entropies_[-1], record=record)
 
+    def check_params(self, n_gds: int = 0) -> None:
+        """Check what can be checked before any data is seen; raise ValueError naming the field.
+
+        Besides the parameters themselves, the stopping rule is checked against the states
+        phase 1 will create: at least ``min_clusters`` of the cluster-count policy (when it tells)
+        plus ``n_gds``, the number of GDS the data is expected to hold.  ``fit`` checks again
+        with the real counts.
+        """
+        clusters, _, _, stopping = self._components()
+        least = getattr(clusters, "min_clusters", None)
+        if least is not None:
+            stopping.check(int(least) + int(n_gds))
+
     # ------------------------------------------------------------------ helpers
     def _validate(self, observations, actions, gds, lengths, n_actions, action_names,
                   gds_names) -> _Data:

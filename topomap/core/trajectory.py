@@ -62,7 +62,11 @@ def check_sequences(observations, actions, gds=None, lengths=None, *, min_length
         raise ValueError(f"observations must be numbers, got values of type {X.dtype}")
     X = X.astype(np.float64)
     if X.ndim == 1:
-        X = X[:, None]
+        raise ValueError(
+            f"observations must be a 2-D array (T, D), got a 1-D array of shape {X.shape}; "
+            "reshape it with observations.reshape(-1, 1) if it holds a single feature, or "
+            "observations.reshape(1, -1) if it is a single step"
+        )
     if X.ndim != 2:
         raise ValueError(f"observations must be a 2-D array (T, D), got shape {X.shape}")
     T = X.shape[0]
@@ -305,7 +309,8 @@ def load_trajectory(path) -> Trajectory:
     """Read a trajectory from a ``.npz`` or ``.csv`` file, validating every field."""
     path = Path(path)
     if not path.is_file():
-        raise ValueError(f"trajectory file {path} does not exist")
+        where = "" if path.is_absolute() else f" (relative to {Path.cwd()})"
+        raise ValueError(f"trajectory file {path} does not exist{where}")
     suffix = path.suffix.lower()
     if suffix == ".npz":
         return _load_npz(path)

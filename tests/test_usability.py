@@ -1,0 +1,137 @@
+"""What a new user trips over: closed configs, help, early checks, clear messages."""
+
+import json
+import logging
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from topomap import MapLearner, load_trajectory
+from topomap.app.experiment import run
+from topomap.core.trajectory import check_sequences
+
+PLUGINS = Path(__file__).resolve().parents[1] / "plugins"
+TURNBACK = PLUGINS / "topomap-turnback" / "topomap_turnback.py"
+
+
+def cli(args, cwd, timeout=120, pythonpath=()):
+    env = dict(os.environ, TOPOMAP_DISABLE_PLUGIN_AUTOLOAD="1")
+    env["PYTHONPATH"] = os.pathsep.join([*map(str, pythonpath), env.get("PYTHONPATH", "")])
+    return subprocess.run([sys.executable, "-m", "topomap", *args], cwd=cwd, env=env,
+                          capture_output=True, text=True, timeout=timeout)
+
+
+# ---------------------------------------------------------------- 1. unknown keys fail
+@pytest.mark.parametrize("override, message", [
+    ("+typo=1", "unknown config key 'typo'"),
+    ("cluster.ns=5", "unknown config key 'cluster.ns'; did you mean clusters.ns?"),
+    ("+cluster.ns=5", "unknown config key 'cluster.ns'; did you mean clusters.ns?"),
+    ("+clusters.nss=3", "did you mean clusters.ns?"),
+])
+def test_a_key_no_schema_declares_fails_with_the_nearest_valid_key(override, message, tmp_path):
+    r = cli([override], tmp_path)
+    assert r.returncode == 1 and message in r.stderr, r.stderr
+    assert r.stderr.count("\n") <= 2 and not (tmp_path / "outputs").exists()
+
+
+def test_a_key_of_another_component_is_refused_after_composition(make_cfg, tmp_path):
+    with pytest.raises(ValueError, match=r"'env.n_symbols' for env=office; did you mean env.n_types"):
+        run(make_cfg(["+env.n_symbols=3"]), tmp_path)
+    assert not any(tmp_path.iterdir())
+
+
+def test_the_compose_api_refuses_unknown_keys_too(make_cfg):
+    with pytest.raises(ValueError, match="did you mean seed"):
+        make_cfg(["+sed=3"])
+
+
+# ---------------------------------------------------------------- 2. a real help text
+def test_help_is_topomaps_own_and_lists_components_not_schemas(tmp_path):
+    r = cli(["--help"], tmp_path)
+    assert r.returncode == 0
+    assert "powered by Hydra" not in r.stdout and "_schema" not in r.stdout
+    assert "Usage:" in r.stdout and "topomap --list-plugins" in r.stdout
+    assert "clusters: bic, fixed" in r.stdout and "env: gridroom, minigrid, office" in r.stdout
+    r = cli(["--help", "plugins=[topomap_gtest]"], tmp_path, pythonpath=[PLUGINS / "topomap-gtest"])
+    assert "split: entropy, gtest" in r.stdout and "_schema" not in r.stdout
+
+
+def test_a_plugin_whose_config_folder_cannot_be_found_is_one_clear_line(tmp_path):
+    gtest_file = PLUGINS / "topomap-gtest" / "topomap_gtest" / "__init__.py"
+    r = cli([f"plugins=[{gtest_file}]"], tmp_path)  # its pkg://topomap_gtest.conf is not importable
+    assert r.returncode == 1 and "Traceback" not in r.stderr
+    assert "config folder pkg://topomap_gtest.conf cannot be imported" in r.stderr
+
+
+def test_a_schema_is_not_a_selectable_option(tmp_path):
+    r = cli(["clusters=fixed_schema"], tmp_path)
+    assert r.returncode == 1 and "Could not find 'clusters/fixed_schema'" in r.stderr
+
+
+# ---------------------------------------------------------------- 5. checked before any work
+def test_an_impossible_state_count_fails_before_simulating(make_cfg, tmp_path, monkeypatch):
+    from topomap.worlds.office import OfficeWorld
+
+    def simulate(*args, **kwargs):
+        raise AssertionError("the world was simulated")
+
+    monkeypatch.setattr(OfficeWorld, "simulate", simulate)
+    with pytest.raises(ValueError, match=r"stop.n_states=5 is below the 22 states"):
+        run(make_cfg(["stop.n_states=5"]), tmp_path)
+
+
+def test_check_params_uses_the_cluster_policys_least_count():
+    from topomap.core.clustering import BICClusters
+
+    MapLearner(n_clusters=10, n_states=12).check_params(n_gds=2)
+    with pytest.raises(ValueError, match="stop.n_states=11 is below the 12 states"):
+        MapLearner(n_clusters=10, n_states=11).check_params(n_gds=2)
+    with pytest.raises(ValueError, match="below the 7 states"):
+        MapLearner(clusters=BICClusters(min_ns=7), n_states=6).check_params()
+
+
+# ---------------------------------------------------------------- 6. where a relative path points
+def test_a_missing_relative_file_names_the_folder_it_was_looked_for_in(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(ValueError, match=rf"missing.npz does not exist \(relative to {tmp_path}\)"):
+        load_trajectory("missing.npz")
+    r = cli(["data=file", "data.path=missing.npz"], tmp_path)
+    assert r.returncode == 1 and f"relative to {tmp_path}" in r.stderr
+
+
+# ---------------------------------------------------------------- 7. differential entropy, densities
+def test_continuous_quantities_say_what_they_are(make_cfg, tmp_path, caplog):
+    with caplog.at_level(logging.INFO, logger="topomap"):
+        results = run(make_cfg(["data.n_steps=200", "data.heldout_steps=100",
+                                "output.figures=false", "output.progress=false",
+                                "clusters.ns=8", "stop.n_states=12"]), tmp_path)
+    assert "differential entropy" in caplog.text
+    units = json.loads((tmp_path / "metrics.json").read_text())["units"]
+    assert "differential" in units["H_o"] and "log-density" in units["heldout_loglik"]
+    assert results["heldout_loglik"] is not None
+
+
+# ---------------------------------------------------------------- 10. plugin actions are listed
+def test_list_plugins_shows_actions_added_by_plugins_with_their_provider(tmp_path):
+    r = cli(["--list-plugins", str(TURNBACK)], tmp_path)
+    assert r.returncode == 0
+    lines = r.stdout.splitlines()
+    i = lines.index("actions:")
+    assert lines[i + 1].split()[:2] == ["turn", "back"] and str(TURNBACK) in lines[i + 1]
+    assert "office" in lines[i + 1]
+
+
+# ---------------------------------------------------------------- 11. 1-D observations
+def test_one_dimensional_observations_are_refused_with_a_reshape_hint():
+    X = np.arange(10.0)
+    u = np.zeros(10, dtype=int)
+    with pytest.raises(ValueError, match=r"1-D array of shape \(10,\); reshape it with "
+                                         r"observations.reshape\(-1, 1\)"):
+        check_sequences(X, u)
+    with pytest.raises(ValueError, match="reshape"):
+        MapLearner(n_clusters=2, n_states=2).fit(X, u)
+    MapLearner(n_clusters=2, n_states=2).fit(X.reshape(-1, 1), u)  # the hint works
