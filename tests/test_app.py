@@ -41,6 +41,8 @@ def test_every_component_is_an_option_that_composes_and_builds(group, option, ma
     overrides = [f"{group}={option}"]
     if (group, option) == ("data", "file"):
         overrides.append("data.path=x.npz")
+    if (group, option) == ("data", "rosbag"):
+        overrides += ["data.path=x.bag", "data.observation_topic=/scan", "data.action_topic=/a"]
     cfg = make_cfg(overrides)
     assert cfg[group].component == option
     registry = Registry.load(entry_points_group=None)

@@ -17,12 +17,13 @@ import sys as _sys
 
 from .core import MapLearner, TopologicalMap, Trajectory, load_trajectory, save_trajectory
 from .core import metrics
+from .core.rosbag import read_rosbag, write_rosbag
 
 # ``import topomap.metrics`` keeps working: the module lives in the core
 _sys.modules[f"{__name__}.metrics"] = metrics
 
 __all__ = ["MapLearner", "TopologicalMap", "Trajectory", "load_trajectory", "save_trajectory",
-           "metrics", "hookimpl"]
+           "read_rosbag", "write_rosbag", "metrics", "hookimpl"]
 __version__ = "0.1.0"
 
 

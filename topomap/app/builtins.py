@@ -53,4 +53,7 @@ def topomap_register_components():
            "split while the best gain is at least min_gain (bits)"),
         _c("data", "simulate", data.Simulate, "simulate the configured world for n_steps steps"),
         _c("data", "file", data.FromFile, "learn from a recorded trajectory (.npz or .csv)"),
+        _c("data", "rosbag", data.FromRosbag,
+           "learn from ROS 1 / ROS 2 bags (optional rosbags package): scans or numeric fields, "
+           "String / Int32 / Twist actions"),
     ]

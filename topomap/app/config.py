@@ -49,9 +49,11 @@ def _config_type(annotation, default):
         return annotation
     if optional and len(args) == 1 and args[0] in _PRIMITIVES:
         return Optional[args[0]]
+    if optional and len(args) == 1 and typing.get_origin(args[0]) is list:
+        return Optional[_config_type(args[0], None)]
     origin = typing.get_origin(annotation)
     if origin in (list, tuple) and all(a in _PRIMITIVES for a in typing.get_args(annotation)[:1]):
-        return list[typing.get_args(annotation)[0]] if typing.get_args(annotation) else list
+        return list[typing.get_args(annotation)[0]] if typing.get_args(annotation) else list[Any]
     if isinstance(default, _PRIMITIVES):
         return Optional[type(default)] if optional else type(default)
     return Any
@@ -261,7 +263,13 @@ def check_overrides(overrides, registry) -> None:
 
 def check_config(cfg, registry) -> None:
     """Refuse a composed config (a plain mapping) holding a key that its schemas do not declare,
-    e.g. one added with ``+`` or by a YAML file; only the selected components' fields count."""
+    e.g. one added with ``+`` or by a YAML file (only the selected components' fields count), or
+    lacking a required value (``???``)."""
+    for section, values in cfg.items():
+        for key, value in (values.items() if isinstance(values, dict) else ()):
+            if value == "???":
+                raise ValueError(f"{section}.{key} is required: give it on the command line, "
+                                 f"e.g. topomap ... {section}.{key}=<value>")
     top = set(fields_of(Config))
     extra = [k for k in cfg if k not in top and k != "hydra"]
     sections = {"learner": LearnerConf, "output": OutputConf}

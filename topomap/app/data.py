@@ -11,14 +11,17 @@ import hashlib
 import json
 import logging
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
+from ..core.rosbag import read_rosbag
 from ..core.trajectory import Trajectory, load_trajectory, save_trajectory
 
 log = logging.getLogger("topomap")
 
-__all__ = ["Simulate", "FromFile", "trajectory_key", "TrajectoryCache", "seed_streams"]
+__all__ = ["Simulate", "FromFile", "FromRosbag", "trajectory_key", "TrajectoryCache",
+           "seed_streams"]
 
 
 def seed_streams(seed: int):
@@ -96,6 +99,41 @@ class FromFile:
 
     def heldout(self, parts, seed: int) -> Trajectory | None:
         return None if self.heldout_path is None else load_trajectory(self.heldout_path)
+
+
+class FromRosbag:
+    """Learn from ROS bags (``pip install "topomap[ros]"``): one step per message on the action
+    topic, the observation the latest message at or before it on the observation topic.
+
+    Every parameter but ``path`` and ``heldout_path`` is an argument of
+    :func:`topomap.read_rosbag` (which documents the rules); ``path`` is one bag (a ROS 1 ``.bag``
+    file, a ROS 2 bag folder) or a list of bags, one episode each.  ``heldout_path`` (one bag or a
+    list) is a second recording of the same world the map is scored on.
+    """
+
+    simulates = False
+
+    def __init__(self, path: Any, observation_topic: str, action_topic: str,
+                 observation_fields: list[str] | None = None, scan_bins: int | None = None,
+                 max_range: float | None = None, gds_topic: str | None = None,
+                 gds_window: float = 0.5, action_names: list[str] | None = None,
+                 gds_names: list[str] | None = None, linear_threshold: float = 0.05,
+                 angular_threshold: float = 0.1, heldout_path: Any = None):
+        self.path, self.heldout_path = path, heldout_path
+        self.options = dict(
+            observation_topic=observation_topic, action_topic=action_topic,
+            observation_fields=observation_fields, scan_bins=scan_bins, max_range=max_range,
+            gds_topic=gds_topic or None, gds_window=gds_window, action_names=action_names,
+            gds_names=gds_names, linear_threshold=linear_threshold,
+            angular_threshold=angular_threshold)
+
+    def train(self, parts, seed: int, progress=None) -> Trajectory:
+        return read_rosbag(self.path, **self.options)
+
+    def heldout(self, parts, seed: int) -> Trajectory | None:
+        if self.heldout_path in (None, "", []):
+            return None
+        return read_rosbag(self.heldout_path, **self.options)
 
 
 def trajectory_key(cfg, kind: str = "train", plugins=()) -> str:

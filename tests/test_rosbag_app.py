@@ -1,0 +1,71 @@
+"""``data=rosbag``: a bag of a simulated walk learns the same map as the walk's own file."""
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+pytest.importorskip("rosbags")
+
+from topomap import read_rosbag, save_trajectory, write_rosbag  # noqa: E402
+from topomap.app.experiment import run  # noqa: E402
+from topomap.worlds import GridRoom, RandomExplorer  # noqa: E402
+
+LEARN = ["clusters.ns=4", "stop.n_states=48", "output.figures=false", "output.progress=false"]
+
+
+@pytest.fixture
+def walk(tmp_path):
+    traj = GridRoom().simulate(1500, RandomExplorer(), np.random.default_rng(3))
+    traj.places = traj.positions = None  # a robot's log has no ground truth
+    return traj, save_trajectory(traj, tmp_path / "walk.npz")
+
+
+@pytest.mark.parametrize("version, storage", [(1, "sqlite3"), (2, "sqlite3"), (2, "mcap")])
+def test_a_bag_learns_the_same_states_and_map_as_the_file(walk, tmp_path, make_cfg, version,
+                                                          storage):
+    traj, npz = walk
+    bag = write_rosbag(traj, tmp_path / ("walk.bag" if version == 1 else "walk"), version=version,
+                       storage=storage)
+    from_bag = run(make_cfg(["data=rosbag", f"data.path={bag}", "data.observation_topic=/scan",
+                             "data.action_topic=/action", *LEARN]), tmp_path / "bag")
+    from_file = run(make_cfg(["data=file", f"data.path={npz}", *LEARN]), tmp_path / "file")
+    assert from_bag["n_states"] == from_file["n_states"]
+    for name in ("states.csv", "map.json"):
+        assert (tmp_path / "bag" / name).read_bytes() == (tmp_path / "file" / name).read_bytes()
+
+
+def test_a_list_of_bags_is_one_episode_each(walk, tmp_path, make_cfg):
+    traj, _ = walk
+    first = write_rosbag(traj, tmp_path / "a.bag")
+    second = write_rosbag(traj, tmp_path / "b.bag")
+    results = run(make_cfg(["data=rosbag", f"data.path=[{first},{second}]",
+                            "data.observation_topic=/scan", "data.action_topic=/action", *LEARN,
+                            f"data.heldout_path={first}"]), tmp_path / "out")
+    both = read_rosbag([first, second], "/scan", "/action")
+    assert both.lengths.tolist() == [len(traj), len(traj)]
+    assert results["heldout_steps"] == len(traj) and results["heldout_loglik"] is not None
+
+
+def test_bag_errors_are_one_line_and_write_nothing(walk, tmp_path):
+    traj, _ = walk
+    bag = write_rosbag(traj, tmp_path / "walk.bag")
+    r = subprocess.run([sys.executable, "-m", "topomap", "data=rosbag", f"data.path={bag}",
+                        "data.observation_topic=/laser", "data.action_topic=/action", *LEARN],
+                       cwd=tmp_path, capture_output=True, text=True, timeout=120)
+    assert r.returncode == 1
+    line = r.stderr.strip().splitlines()[-1]
+    assert "no observation topic /laser; its topics are: /action (std_msgs/msg/String, 1500" in line
+    assert not list((tmp_path / "outputs" / "runs").rglob("map.json"))
+
+
+def test_without_rosbags_installed_the_message_says_how_to_get_it(walk, tmp_path):
+    write_rosbag(walk[0], tmp_path / "x.bag")
+    code = ("import sys; sys.modules['rosbags'] = None\n"
+            "import topomap\n"
+            "try:\n    topomap.read_rosbag('x.bag', '/scan', '/action')\n"
+            "except ValueError as exc:\n    print(exc)\n")
+    r = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True, text=True,
+                       timeout=60)
+    assert 'pip install "topomap[ros]"' in r.stdout, r.stderr

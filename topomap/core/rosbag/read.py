@@ -1,0 +1,490 @@
+"""Reading bags into a :class:`~topomap.core.trajectory.Trajectory` (see the package docstring)."""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+import numpy as np
+
+from ..trajectory import Trajectory
+from .common import (ACTION_TYPES, GDS_TYPES, INT32, LASER_SCAN, STRING, TWIST, TWIST_STAMPED,
+                     _check_bag_path, _describe_failure, _one_line, _positive, _read_errors,
+                     _rosbags)
+
+__all__ = ["read_rosbag", "twist_action"]
+
+
+# ---------------------------------------------------------------------------------- options
+
+
+@dataclasses.dataclass(frozen=True)
+class _Options:
+    """The validated keyword arguments of :func:`read_rosbag`."""
+
+    observation_topic: str
+    action_topic: str
+    observation_fields: tuple | None
+    scan_bins: int | None
+    max_range: float | None
+    gds_topic: str | None
+    gds_window: float
+    action_names: list | None
+    gds_names: list | None
+    linear_threshold: float
+    angular_threshold: float
+    action_rule: object
+
+    def roles(self) -> list[tuple[str, str]]:
+        """``(role, topic)`` of each topic read: observation, action and, if any, GDS."""
+        extra = [] if self.gds_topic is None else [("GDS", self.gds_topic)]
+        return [("observation", self.observation_topic), ("action", self.action_topic), *extra]
+
+
+def _name_list(name: str, values) -> list | None:
+    """``values`` as a list of distinct strings, or None."""
+    if values is None:
+        return None
+    if isinstance(values, str) or not all(isinstance(v, str) for v in values):
+        raise ValueError(f"{name} must be a list of strings, got {values!r}")
+    values = list(values)
+    if not values or len(set(values)) != len(values):
+        raise ValueError(f"{name} must be a non-empty list of distinct names, got {values!r}")
+    return values
+
+
+def _field_list(fields) -> tuple | None:
+    """``observation_fields`` as a tuple of dotted field paths, or None."""
+    if fields is None:
+        return None
+    if isinstance(fields, str):
+        fields = [fields]
+    fields = tuple(fields)
+    if not fields or not all(isinstance(f, str) and f.strip(".") for f in fields):
+        raise ValueError(f"observation_fields must be a non-empty list of field names such as "
+                         f"'pose.position.x', got {list(fields)!r}")
+    return fields
+
+
+def _make_options(observation_topic, action_topic, kw: dict) -> _Options:
+    """Validate the arguments of :func:`read_rosbag`."""
+    topics = [observation_topic, action_topic] + ([kw["gds_topic"]] if kw["gds_topic"] else [])
+    if not all(isinstance(t, str) and t for t in topics):
+        raise ValueError(f"topics must be non-empty strings, got {topics!r}")
+    if len(set(topics)) != len(topics):
+        raise ValueError(f"the observation, action and GDS topics must differ, got {topics!r}")
+    if kw["action_rule"] is not None and not callable(kw["action_rule"]):
+        raise ValueError(f"action_rule must be callable, got {kw['action_rule']!r}")
+    return _Options(
+        observation_topic=observation_topic, action_topic=action_topic,
+        observation_fields=_field_list(kw["observation_fields"]),
+        scan_bins=None if kw["scan_bins"] is None else _positive("scan_bins", kw["scan_bins"],
+                                                                  integer=True),
+        max_range=None if kw["max_range"] is None else _positive("max_range", kw["max_range"]),
+        gds_topic=kw["gds_topic"] or None,
+        gds_window=_positive("gds_window", kw["gds_window"], zero=True),
+        action_names=_name_list("action_names", kw["action_names"]),
+        gds_names=_name_list("gds_names", kw["gds_names"]),
+        linear_threshold=_positive("linear_threshold", kw["linear_threshold"]),
+        angular_threshold=_positive("angular_threshold", kw["angular_threshold"]),
+        action_rule=kw["action_rule"],
+    )
+
+
+# ---------------------------------------------------------------------------------- decoders
+
+
+def twist_action(linear_x: float, angular_z: float, linear_threshold: float = 0.05,
+                 angular_threshold: float = 0.1) -> str:
+    """Name of the discrete action for a velocity command (m/s, rad/s; REP 103 axes).
+
+    Turning wins over driving: ``angular_z >= angular_threshold`` is ``"turn_left"``,
+    ``angular_z <= -angular_threshold`` is ``"turn_right"``; otherwise
+    ``linear_x >= linear_threshold`` is ``"forward"``, ``linear_x <= -linear_threshold`` is
+    ``"backward"``, and anything slower is ``"stop"``.
+    """
+    if angular_z >= angular_threshold:
+        return "turn_left"
+    if angular_z <= -angular_threshold:
+        return "turn_right"
+    if linear_x >= linear_threshold:
+        return "forward"
+    if linear_x <= -linear_threshold:
+        return "backward"
+    return "stop"
+
+
+def _field_value(msg, dotted: str, msgtype: str):
+    """The value at the dotted field path ``dotted`` of ``msg``."""
+    value = msg
+    for depth, part in enumerate(dotted.split(".")):
+        is_message = dataclasses.is_dataclass(value)
+        names = [f.name for f in dataclasses.fields(value)] if is_message else []
+        if part not in names:
+            where = ".".join(dotted.split(".")[:depth]) or msgtype
+            raise ValueError(f"field {dotted!r} not found in {msgtype}: {where} has fields "
+                             f"{', '.join(names) or '(none: it is a value)'}")
+        value = getattr(value, part)
+    return value
+
+
+def _numeric(value, dotted: str, msgtype: str) -> np.ndarray:
+    """A field's value as a flat float64 array, or a ValueError if it is not numeric."""
+    arr = np.asarray(value)
+    if arr.dtype.kind not in "biuf":
+        raise ValueError(f"field {dotted!r} of {msgtype} is not numeric (it holds "
+                         f"{type(value).__name__} values)")
+    return arr.astype(np.float64).ravel()
+
+
+def _fields_decoder(fields: tuple, msgtype: str):
+    """A function turning a message of ``msgtype`` into the vector of its ``fields``."""
+    def decode(msg) -> np.ndarray:
+        """The concatenated values of the fields of ``msg``."""
+        parts = [_numeric(_field_value(msg, f, msgtype), f, msgtype) for f in fields]
+        return np.concatenate(parts)
+    return decode
+
+
+def _scan_decoder(max_range: float | None):
+    """A function turning a LaserScan into its float32 ranges (inf/nan -> range_max, clipped)."""
+    def decode(msg) -> np.ndarray:
+        """The processed ranges of scan ``msg``."""
+        ranges = np.array(msg.ranges, dtype=np.float32)
+        ranges[~np.isfinite(ranges)] = msg.range_max
+        if max_range is not None:
+            np.fmin(ranges, np.float32(max_range), out=ranges)
+        return ranges
+    return decode
+
+
+def _observation_decoder(msgtype: str, opts: _Options):
+    """The decoder for observation messages of ``msgtype``, or a ValueError."""
+    if opts.observation_fields is not None:
+        if opts.scan_bins is not None or opts.max_range is not None:
+            raise ValueError("scan_bins and max_range apply to LaserScan ranges; they cannot be "
+                             "combined with observation_fields")
+        return _fields_decoder(opts.observation_fields, msgtype)
+    if msgtype == LASER_SCAN:
+        return _scan_decoder(opts.max_range)
+    raise ValueError(f"observation topic {opts.observation_topic} has type {msgtype}, which is not "
+                     f"supported: without observation_fields only {LASER_SCAN} is read; pass "
+                     "observation_fields=[...] to read numeric fields by name (e.g. "
+                     "'pose.position.x')")
+
+
+def _action_decoder(msgtype: str, opts: _Options):
+    """The decoder for action messages of ``msgtype`` (message -> name or id), or a ValueError."""
+    if opts.action_rule is not None:
+        return opts.action_rule
+    if msgtype in (STRING, INT32):
+        return lambda msg: msg.data
+    lin, ang = opts.linear_threshold, opts.angular_threshold
+    if msgtype == TWIST:
+        return lambda msg: twist_action(msg.linear.x, msg.angular.z, lin, ang)
+    if msgtype == TWIST_STAMPED:
+        return lambda msg: twist_action(msg.twist.linear.x, msg.twist.angular.z, lin, ang)
+    raise ValueError(f"action topic {opts.action_topic} has type {msgtype}, which is not "
+                     f"supported; supported types: {', '.join(ACTION_TYPES)} (or pass action_rule)")
+
+
+def _gds_decoder(msgtype: str, opts: _Options):
+    """The decoder for GDS messages of ``msgtype`` (message -> name or id), or a ValueError."""
+    if msgtype in GDS_TYPES:
+        return lambda msg: msg.data
+    raise ValueError(f"GDS topic {opts.gds_topic} has type {msgtype}, which is not supported; "
+                     f"supported types: {', '.join(GDS_TYPES)}")
+
+
+# ---------------------------------------------------------------------------------- one bag
+
+
+@dataclasses.dataclass
+class _Episode:
+    """What one bag contributes: per step its observation row, action value and GDS value."""
+
+    path: Path
+    observations: np.ndarray
+    actions: list
+    gds: list | None
+    dropped: int
+    types: dict
+
+
+def _topic_listing(topics: dict) -> str:
+    """``/a (type, N messages), ...`` for the error message about a missing topic."""
+    return ", ".join(f"{name} ({info.msgtype}, {info.msgcount} messages)"
+                     for name, info in sorted(topics.items()))
+
+
+def _topic_types(reader, opts: _Options) -> dict:
+    """Map each topic read to its message type, checking that it exists with one type."""
+    topics = reader.topics
+    if reader.message_count == 0:
+        raise ValueError("empty, it has no messages")
+    types = {}
+    for role, topic in opts.roles():
+        info = topics.get(topic)
+        if info is None:
+            raise ValueError(f"no {role} topic {topic}; its topics are: {_topic_listing(topics)}")
+        if info.msgtype is None:
+            raise ValueError(f"topic {topic} mixes several message types")
+        types[topic] = info.msgtype
+    return types
+
+
+class _Rows:
+    """Observation vectors kept in one growing 2-D array, not as one small array per message.
+
+    (Hundreds of thousands of small arrays cost more than their data and, once freed, are not
+    given back to the system; one large array is.)
+    """
+
+    def __init__(self, capacity: int):
+        self.data = None
+        self.n = 0
+        self.capacity = max(int(capacity), 1)
+
+    def append(self, row: np.ndarray) -> None:
+        """Add ``row``, which must have as many values as the first row."""
+        if self.data is None:
+            self.data = np.empty((self.capacity, row.size), dtype=row.dtype)
+        if row.size != self.data.shape[1]:
+            raise ValueError(f"observation message {self.n} has {row.size} values but the first "
+                             f"has {self.data.shape[1]}; all observations must have the same size")
+        if self.n == self.data.shape[0]:
+            self.data = np.concatenate([self.data, np.empty_like(self.data)])
+        self.data[self.n] = row
+        self.n += 1
+
+    def take(self, order: np.ndarray) -> np.ndarray:
+        """The rows in ``order`` (no copy when that is the order they came in)."""
+        if self.data is None:
+            return np.empty((0, 0))
+        rows = self.data[: self.n]
+        return rows if np.array_equal(order, np.arange(self.n)) else rows[order]
+
+
+def _collect(reader, types: dict, decoders: dict, obs_topic: str) -> dict:
+    """Read and decode every message of the chosen topics, in time order.
+
+    Returns ``{topic: (times, values)}``: the values are a 2-D array for ``obs_topic`` and a
+    list for the other topics.
+    """
+    counts = {t: info.msgcount for t, info in reader.topics.items()}
+    streams = {topic: ([], _Rows(counts[topic]) if topic == obs_topic else []) for topic in types}
+    connections = [c for c in reader.connections if c.topic in types]
+    for conn, stamp, raw in reader.messages(connections=connections):
+        times, values = streams[conn.topic]
+        times.append(stamp)
+        values.append(decoders[conn.topic](reader.deserialize(raw, conn.msgtype)))
+    result = {}
+    for topic, (times, values) in streams.items():
+        t = np.asarray(times, dtype=np.int64)
+        order = np.argsort(t, kind="stable")
+        ordered = values.take(order) if isinstance(values, _Rows) else [values[i] for i in order]
+        result[topic] = (t[order], ordered)
+    return result
+
+
+def _read_streams(path: Path, opts: _Options):
+    """Open the bag at ``path`` and return its topic types and decoded message streams.
+
+    Every error becomes a one-line ValueError starting with ``bag PATH``.
+    """
+    rb = _rosbags()
+    default = rb.typesys.get_typestore(rb.typesys.Stores.ROS2_HUMBLE)
+    try:
+        with rb.highlevel.AnyReader([path], default_typestore=default) as reader:
+            types = _topic_types(reader, opts)
+            obs, act = opts.observation_topic, opts.action_topic
+            decoders = {obs: _observation_decoder(types[obs], opts),
+                        act: _action_decoder(types[act], opts)}
+            if opts.gds_topic is not None:
+                decoders[opts.gds_topic] = _gds_decoder(types[opts.gds_topic], opts)
+            return types, _collect(reader, types, decoders, obs)
+    except _read_errors() as exc:  # first: UnicodeDecodeError is a ValueError too
+        raise ValueError(_describe_failure(path, exc)) from None
+    except ValueError as exc:  # raised above without the path, or by a decoder
+        raise ValueError(f"bag {path}: {_one_line(exc)}") from None
+
+
+def _select_rows(rows: np.ndarray, index: np.ndarray, path: Path, topic: str) -> np.ndarray:
+    """The observation of each step (``rows[index]``), checked to be non-empty and finite."""
+    if rows.shape[1] == 0:
+        raise ValueError(f"bag {path}: the observations on {topic} are empty (0 values)")
+    X = rows if np.array_equal(index, np.arange(rows.shape[0])) else rows[index]
+    finite = np.isfinite(X).all(axis=1)
+    if not finite.all():
+        bad = int(np.flatnonzero(~finite)[0])
+        raise ValueError(f"bag {path}: observation at step {bad} (from {topic}) contains NaN or "
+                         "inf (for a LaserScan whose range_max is not finite, set max_range)")
+    return X
+
+
+def _match_gds(step_t: np.ndarray, gds_t: np.ndarray, window_ns: float) -> np.ndarray:
+    """Index of the GDS message nearest each step within the window (earlier on a tie), or -1."""
+    if gds_t.size == 0:
+        return np.full(step_t.size, -1, dtype=np.int64)
+    right = np.searchsorted(gds_t, step_t, side="left")
+    left = np.clip(right - 1, 0, gds_t.size - 1)
+    right = np.clip(right, 0, gds_t.size - 1)
+    d_left, d_right = np.abs(step_t - gds_t[left]), np.abs(gds_t[right] - step_t)
+    nearest = np.where(d_left <= d_right, left, right)
+    return np.where(np.minimum(d_left, d_right) <= window_ns, nearest, -1)
+
+
+def _read_episode(path: Path, opts: _Options) -> _Episode:
+    """Read one bag into the steps of one episode."""
+    _check_bag_path(path)
+    types, streams = _read_streams(path, opts)
+    for role, topic in opts.roles()[:2]:
+        if streams[topic][0].size == 0:
+            raise ValueError(f"bag {path}: no messages on the {role} topic {topic}")
+    obs_t, obs_rows = streams[opts.observation_topic]
+    act_t, act_values = streams[opts.action_topic]
+    obs_idx = np.searchsorted(obs_t, act_t, side="right") - 1
+    keep = np.flatnonzero(obs_idx >= 0)
+    if keep.size == 0:
+        raise ValueError(
+            f"bag {path}: all {obs_t.size} observations on {opts.observation_topic} come after the "
+            f"last action on {opts.action_topic} (first observation at {obs_t[0] / 1e9:.3f} s, "
+            f"last action at {act_t[-1] / 1e9:.3f} s), so no step has an observation")
+    X = _select_rows(obs_rows, obs_idx[keep], path, opts.observation_topic)
+    gds = None
+    if opts.gds_topic is not None:
+        gds_t, gds_values = streams[opts.gds_topic]
+        match = _match_gds(act_t[keep], gds_t, opts.gds_window * 1e9)
+        gds = [None if m < 0 else gds_values[m] for m in match.tolist()]
+    return _Episode(path, X, [act_values[i] for i in keep.tolist()], gds,
+                    int(act_t.size - keep.size), types)
+
+
+# ---------------------------------------------------------------------------------- assembly
+
+
+def _encode(values: list, names: list | None, what: str, source: str):
+    """Turn step values (names or ids; None = no value) into ``(ids, names)``.
+
+    Names get ids in order of first appearance unless ``names`` fixes them; ids are kept.
+    """
+    present = [v for v in values if v is not None]
+    kinds = {isinstance(v, str) for v in present}
+    if len(kinds) > 1:
+        raise ValueError(f"{source}: the {what} values mix names and numeric ids")
+    if kinds == {True}:
+        table = {n: i for i, n in enumerate(names)} if names is not None else {}
+        for v in present:
+            if v not in table:
+                if names is not None:
+                    raise ValueError(f"{source}: {what} {v!r} is not one of the given {what}_names "
+                                     f"{names}")
+                table[v] = len(table)
+        ids = [-1 if v is None else table[v] for v in values]
+        return np.asarray(ids, dtype=np.int64), list(table)
+    if not all(isinstance(v, (int, np.integer)) and not isinstance(v, bool) for v in present):
+        raise ValueError(f"{source}: the {what} values must be names (str) or ids (int)")
+    if present and min(present) < 0:
+        raise ValueError(f"{source}: {what} ids must be >= 0, found {int(min(present))}")
+    ids = np.asarray([-1 if v is None else int(v) for v in values], dtype=np.int64)
+    return ids, names
+
+
+def _assemble(episodes: list, opts: _Options, many: bool) -> Trajectory:
+    """Concatenate the episodes into one :class:`Trajectory`."""
+    source = f"bag {episodes[0].path}" if len(episodes) == 1 else \
+        f"bags {', '.join(str(e.path) for e in episodes)}"
+    X = episodes[0].observations if len(episodes) == 1 else \
+        np.concatenate([e.observations for e in episodes])
+    for e in episodes:
+        e.observations = None  # let each episode's rows go once concatenated
+    if opts.scan_bins is not None:
+        X = _reduce_bins(X, opts.scan_bins, source, opts.observation_topic)
+    actions, action_names = _encode([a for e in episodes for a in e.actions], opts.action_names,
+                                     "action", source)
+    gds, gds_names = (None, None) if opts.gds_topic is None else _encode(
+        [g for e in episodes for g in e.gds], opts.gds_names, "gds", source)
+    meta = {"source": "rosbag", "bags": [str(e.path) for e in episodes],
+            "topics": episodes[0].types, "dropped_steps": [e.dropped for e in episodes]}
+    lengths = [len(e.actions) for e in episodes] if many else None
+    try:
+        return Trajectory(observations=X, actions=actions, gds=gds, lengths=lengths,
+                          action_names=action_names, gds_names=gds_names, meta=meta)
+    except ValueError as exc:
+        raise ValueError(f"{source}: {_one_line(exc)}") from None
+
+
+def _reduce_bins(X: np.ndarray, bins: int, source: str, topic: str) -> np.ndarray:
+    """Reduce each scan to ``bins`` sectors holding the minimum range of their beams."""
+    beams = X.shape[1]
+    if bins > beams:
+        raise ValueError(f"{source}: scan_bins={bins} exceeds the {beams} beams of the scans "
+                         f"on {topic}")
+    starts = (np.arange(bins) * beams) // bins
+    return np.minimum.reduceat(X, starts, axis=1)
+
+
+def _bag_list(path) -> tuple[list[Path], bool]:
+    """The bag paths of ``path`` and whether a list (one episode per bag) was given."""
+    if isinstance(path, (list, tuple)):
+        if not path:
+            raise ValueError("path is an empty list; give at least one bag")
+        return [Path(p) for p in path], True
+    return [Path(path)], False
+
+
+def read_rosbag(path, observation_topic: str, action_topic: str, *, observation_fields=None,
+                scan_bins: int | None = None, max_range: float | None = None,
+                gds_topic: str | None = None, gds_window: float = 0.5, action_names=None,
+                gds_names=None, linear_threshold: float = 0.05, angular_threshold: float = 0.1,
+                action_rule=None) -> Trajectory:
+    """Read one ROS bag, or a list of bags (one episode each), into a :class:`Trajectory`.
+
+    Parameters
+    ----------
+    path : path or list of paths
+        A ROS 1 ``.bag`` file, a ROS 2 bag folder, or a ROS 2 ``.db3``/``.mcap`` file; a list
+        gives one episode per bag, in order, and sets ``lengths``.
+    observation_topic, action_topic : str
+        One step per action message; its observation is the latest observation message recorded
+        at or before it.  Steps before the first observation are dropped.
+    observation_fields : list of str, optional
+        Numeric fields to read from observation messages of any type (dotted paths; array fields
+        give one column per element).  Without it the topic must carry ``sensor_msgs/LaserScan``.
+    scan_bins : int, optional
+        Reduce each scan to this many sectors, each the minimum range of its beams.
+    max_range : float, optional
+        Clip ranges at this value (after ``inf``/``nan`` became ``range_max``).
+    gds_topic : str, optional
+        ``std_msgs/String`` or ``Int32`` topic of globally distinctive states.
+    gds_window : float
+        A step gets the GDS of the nearest GDS message at most this many seconds away.
+    action_names, gds_names : list of str, optional
+        Fix the id of each name (other names are an error); for Int32 topics, name the ids.
+    linear_threshold, angular_threshold : float
+        Thresholds in m/s and rad/s of :func:`twist_action` for Twist action topics.
+    action_rule : callable, optional
+        ``action_rule(message) -> name or id`` for action messages of any type.
+
+    Returns
+    -------
+    Trajectory
+        Observations (float64; LaserScan ranges are float32 values), actions, ``gds`` (with a GDS
+        topic), ``lengths`` (when ``path`` is a list), the names, and ``meta`` with ``source``
+        (``"rosbag"``), ``bags``, ``topics`` (topic -> message type, of the first bag) and
+        ``dropped_steps`` (per bag, the steps before the first observation).
+
+    Raises
+    ------
+    ValueError
+        One line naming the file: missing topics (listing the bag's topics, types and counts),
+        unsupported message types, empty, truncated or corrupt bags, no step with an observation.
+    """
+    opts = _make_options(observation_topic, action_topic, dict(
+        observation_fields=observation_fields, scan_bins=scan_bins, max_range=max_range,
+        gds_topic=gds_topic, gds_window=gds_window, action_names=action_names,
+        gds_names=gds_names, linear_threshold=linear_threshold,
+        angular_threshold=angular_threshold, action_rule=action_rule))
+    paths, many = _bag_list(path)
+    episodes = [_read_episode(p, opts) for p in paths]
+    return _assemble(episodes, opts, many)
