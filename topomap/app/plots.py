@@ -1,4 +1,10 @@
-"""Figures of a run, after the paper's Figs. 4-7 (matplotlib, Agg backend, PNG files)."""
+"""Figures of a run, after the paper's Figs. 4-7 (matplotlib, Agg backend, PNG files).
+
+Every ``plot_*`` function draws on the Axes (or Figure) it is given and returns it, so a figure can
+be composed and inspected without reading PNG files; :func:`write_figures` writes a run's PNGs.
+A state has the same style in every figure (:func:`state_styles`): a colour of :data:`PALETTE`
+and, once the palette is used up, the next marker of :data:`MARKERS`.
+"""
 
 from __future__ import annotations
 
@@ -8,10 +14,24 @@ import numpy as np
 
 from ..core.files import atomic_write
 
-__all__ = ["write_figures", "plot_states", "plot_split", "plot_map", "plot_entropy"]
+__all__ = ["write_figures", "plot_states", "plot_split", "plot_map", "plot_entropy",
+           "state_styles", "compound_mask", "PALETTE", "MARKERS"]
+
+#: qualitative colours of states: saturated, none near white, every two at least 24 CIELAB
+#: units apart (tab10 without its gray, then darker and brighter hues)
+PALETTE = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2",
+           "#17becf", "#bcbd22", "#393b79", "#05472a", "#be03fd", "#7b4173", "#e6ab02",
+           "#000000", "#0165fc", "#ff0789", "#82a67d", "#b15928", "#5f6f81")
+#: marker of the states of the palette's first, second, ... round
+MARKERS = ("o", "s", "^", "D", "v", "P", "X", "*")
+#: most numbers written on the states figure, and most states whose map nodes are numbered
+MAX_STATE_NUMBERS, MAX_MAP_NUMBERS = 300, 60
+#: width (points) of the white outline that keeps a number readable on any background
+_HALO = 2.0
 
 
 def _plt():
+    """pyplot on the Agg backend (unless a backend was chosen already)."""
     import matplotlib
 
     matplotlib.use("Agg", force=False)
@@ -20,18 +40,31 @@ def _plt():
     return plt
 
 
-def _colours(n):
-    plt = _plt()
-    cmap = plt.get_cmap("tab20" if n <= 20 else "gist_ncar", max(n, 1))
-    return [cmap(i % cmap.N) for i in range(n)]
+def state_styles(n: int) -> list[tuple[str, str]]:
+    """``(colour, marker)`` of states ``0..n-1``: the palette's colours in turn, the marker
+    changing each time the palette starts again (distinct for up to 160 states)."""
+    k = len(PALETTE)
+    return [(PALETTE[s % k], MARKERS[(s // k) % len(MARKERS)]) for s in range(n)]
 
 
-def _jitter(P, scale=0.15, seed=0):
-    """Spread points that share a position so that their number shows (fixed seed)."""
-    return P + np.random.default_rng(seed).normal(0, scale, P.shape)
+def compound_mask(labels, places, n_states: int) -> np.ndarray:
+    """Which of ``n_states`` states hold steps of more than one ground-truth place (the strict
+    reading of :func:`topomap.core.metrics.compound_states`)."""
+    labels, places = np.asarray(labels), np.asarray(places)
+    pairs = np.unique(np.column_stack([labels, places]), axis=0)
+    return np.bincount(pairs[:, 0], minlength=n_states)[:n_states] > 1
 
 
-def _room(ax, world, positions):
+def _jitter(P, seed=0):
+    """Spread points that share a position so that their number shows (fixed seed); the spread
+    is 0.75 % of the room's extent, well inside the gap between neighbouring places."""
+    span = float(np.ptp(P, axis=0).max()) if len(P) else 0.0
+    return P + np.random.default_rng(seed).normal(0, 0.0075 * max(span, 1.0), P.shape)
+
+
+def _room(ax, world, positions, faint=False):
+    """The world's room (or bare limits around ``positions``); ``faint`` fades it into a
+    background and drops its legend, so that colours are the states'."""
     if world is not None and hasattr(world, "plot_room"):
         world.plot_room(ax, labels=False)
     else:
@@ -40,11 +73,17 @@ def _room(ax, world, positions):
         pad = 0.05 * (hi - lo).max() + 0.5
         ax.set_xlim(lo[0] - pad, hi[0] + pad)
         ax.set_ylim(lo[1] - pad, hi[1] + pad)
+    if faint:
+        for artist in [*ax.patches, *ax.images, *ax.collections, *ax.lines, *ax.texts]:
+            artist.set_alpha(0.3)
+        if ax.get_legend() is not None:
+            ax.get_legend().remove()
     ax.set_xticks([])
     ax.set_yticks([])
 
 
 def _state_positions(labels, positions, S):
+    """``(S, 2)``: the mean position of each state's steps (NaN for a state without steps)."""
     P = np.full((S, 2), np.nan)
     for s in range(S):
         sel = labels == s
@@ -53,14 +92,116 @@ def _state_positions(labels, positions, S):
     return P
 
 
+def _data_per_point(ax) -> float:
+    """Data units per typographic point along x (the Axes' aspect applied)."""
+    ax.apply_aspect()
+    x0, x1 = ax.get_xlim()
+    return abs(x1 - x0) / max(ax.bbox.width * 72.0 / ax.figure.dpi, 1e-9)
+
+
+def _close_pairs(Q, d) -> np.ndarray:
+    """``(k, 2)`` indices of the points of ``Q`` closer than ``d`` (a sweep along x, so that
+    thousands of points cost little)."""
+    order = np.argsort(Q[:, 0], kind="stable")
+    R = Q[order]
+    pairs = [np.empty((0, 2), dtype=int)]
+    for k in range(1, len(R)):
+        i = np.flatnonzero(R[k:, 0] - R[:-k, 0] < d)
+        if not i.size:
+            break
+        near = np.hypot(*(R[i + k] - R[i]).T) < d
+        pairs.append(np.column_stack([order[i[near]], order[i[near] + k]]))
+    return np.concatenate(pairs)
+
+
+def _spread(P, d, iters=40):
+    """``P`` with points closer than ``d`` pushed apart (deterministic; coincident points leave in
+    fixed directions), so that numbers or nodes at one position stay readable."""
+    angle = np.arange(len(P)) * 2.399963  # the golden angle: a different direction for each point
+    Q = P + 1e-3 * d * np.column_stack([np.cos(angle), np.sin(angle)])
+    for _ in range(iters):
+        pairs = _close_pairs(Q, d)
+        if not len(pairs):
+            break
+        diff = Q[pairs[:, 0]] - Q[pairs[:, 1]]
+        dist = np.hypot(*diff.T)[:, None]
+        push = diff / np.maximum(dist, 1e-12) * (d - dist) / 2
+        np.add.at(Q, pairs[:, 0], push)
+        np.add.at(Q, pairs[:, 1], -push)
+    return Q
+
+
+def _numbers(ax, P, states, fontsize):
+    """Write each state's number at its point of ``P`` in bold with a white outline (points too
+    close for two numbers are spread apart first)."""
+    import matplotlib.patheffects as pe
+
+    halo = [pe.withStroke(linewidth=_HALO, foreground="white")]
+    Q = _spread(P, 1.4 * fontsize * _data_per_point(ax)) if len(P) > 1 else P
+    for s, (x, y) in zip(states, Q):
+        ax.text(x, y, str(s), ha="center", va="center", fontsize=fontsize, zorder=6,
+                fontweight="bold", path_effects=halo, clip_on=True)
+
+
+def _spots(labels, positions, places, S, min_share=0.1):
+    """Where the states figure numbers each state: ``(states, points, compound)``.
+
+    A state of one true place (or any state when ``places`` is None) is numbered once, at its
+    mean position; a compound state at the mean position of each of its places that holds at least
+    ``min_share`` of its steps (its main place at least), so that its number sits on each of its
+    point clouds rather than between them.
+    """
+    if places is None:
+        means = _state_positions(labels, positions, S)
+        states = np.flatnonzero(np.isfinite(means).all(axis=1))
+        return states, means[states], np.zeros(len(states), dtype=bool)
+    pairs, inverse, counts = np.unique(np.column_stack([labels, places]), axis=0,
+                                       return_inverse=True, return_counts=True)
+    inverse = inverse.reshape(-1)
+    sums = np.column_stack([np.bincount(inverse, positions[:, k], len(pairs)) for k in (0, 1)])
+    state = pairs[:, 0]
+    total = np.bincount(state, counts, S)
+    main = np.zeros(len(pairs), dtype=bool)
+    order = np.lexsort((-counts, state))  # each state's biggest place first
+    main[order[np.r_[True, state[order][1:] != state[order][:-1]]]] = True
+    keep = main | (counts >= min_share * total[state])
+    compound = compound_mask(labels, places, S)
+    return state[keep], sums[keep] / counts[keep, None], compound[state[keep]]
+
+
 def plot_states(ax, traj, labels, world=None, title=""):
-    """Observation points (jittered positions) coloured by state."""
+    """Observation points (jittered positions) in the style of their state, with each state's
+    number at its mean position; a compound state (steps of more than one ground-truth place) is
+    ringed and numbered at each of its places (see :func:`_spots`).  Numbers and rings are left
+    out beyond :data:`MAX_STATE_NUMBERS` numbers.  Returns ``ax``."""
+    labels = np.asarray(labels)
     S = int(labels.max()) + 1
-    _room(ax, world, traj.positions)
+    _room(ax, world, traj.positions, faint=True)
     P = _jitter(traj.positions)
-    cols = np.array(_colours(S))
-    ax.scatter(P[:, 0], P[:, 1], c=cols[labels], s=6, lw=0, alpha=0.8, zorder=3)
-    ax.set_title(title or f"observation points by state ({S} states)", fontsize=9)
+    styles = state_styles(S)
+    colours = np.array([c for c, _ in styles])
+    for marker in dict.fromkeys(m for _, m in styles):
+        sel = np.isin(labels, [s for s in range(S) if styles[s][1] == marker])
+        ax.scatter(P[sel, 0], P[sel, 1], c=colours[labels[sel]], marker=marker, s=9, lw=0,
+                   alpha=0.85, zorder=3)
+    states, spots, ringed = _spots(labels, traj.positions, traj.places, S)
+    title = title or f"observation points by state ({S} states)"
+    if len(states) > MAX_STATE_NUMBERS:
+        ax.set_title(f"{title}\n(numbers and compound-state rings left out: {len(states)} numbers "
+                     "would not be legible)", fontsize=9)
+        return ax
+    size = 6.5 if len(states) <= 60 else 5.5  # of the numbers, points
+    if traj.places is not None:
+        n = len(np.unique(states[ringed]))
+        ax.scatter(spots[ringed, 0], spots[ringed, 1], s=(2.1 * size) ** 2, facecolors="none",
+                   edgecolors="black", lw=1.2, zorder=5,
+                   label=f"compound state ({n}): steps of more than one true place, "
+                         "numbered at each")
+        ax.legend(loc="upper center", bbox_to_anchor=(0.5, 0.0), fontsize=7, frameon=False,
+                  handletextpad=0.3)
+    _numbers(ax, spots, states, fontsize=size)
+    ax.set_title(title, fontsize=9)
+    return ax
 
 
 def _table(ax, m, s, title):
@@ -83,8 +224,27 @@ def _table(ax, m, s, title):
         tab.scale(1, 1.1)
 
 
+def _clouds(ax, traj, P, labels, sel, names):
+    """The steps ``sel`` at their jittered positions ``P`` in the style of their state of
+    ``labels``, numbered at each of their places (as in :func:`plot_states`); one legend entry
+    per state, named by ``names``."""
+    shown = np.unique(labels[sel])
+    styles = state_styles(int(shown.max()) + 1)
+    for s in shown:
+        pick = sel & (labels == s)
+        ax.scatter(P[pick, 0], P[pick, 1], s=14, color=styles[s][0], marker=styles[s][1], lw=0,
+                   zorder=3, label=f"{names(s)} ({pick.sum()})")
+    places = None if traj.places is None else traj.places[sel]
+    states, spots, _ = _spots(labels[sel], traj.positions[sel], places, int(shown.max()) + 1)
+    _numbers(ax, spots, states, fontsize=7)
+    ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, 0.0), frameon=False,
+              ncol=min(len(shown), 6), markerscale=1.5, title="state (steps)", title_fontsize=7,
+              columnspacing=1.0, handletextpad=0.2)
+
+
 def plot_split(fig, traj, learner, world=None, state=None):
-    """A compound phase-1 state (left column) and the states it became (right column)."""
+    """A compound phase-1 state (left) and the states it became (right), each in its style of
+    :func:`plot_states`, with their transition tables below.  Returns False when nothing split."""
     hist = learner.split_history_
     if state is None:
         if not hist:
@@ -95,19 +255,13 @@ def plot_split(fig, traj, learner, world=None, state=None):
         raise ValueError(f"output.compound_state={state} is not a phase-1 state (0..{m0.n_states - 1})")
     sel = learner.labels_phase1_ == state
     after = np.unique(learner.labels_[sel])
-    grid = fig.add_gridspec(2, 6, height_ratios=[3, 2])
+    grid = fig.add_gridspec(2, 6, height_ratios=[3, 1.4], hspace=0.4)
     top = [fig.add_subplot(grid[0, :3]), fig.add_subplot(grid[0, 3:])]
-    for ax in top:
-        _room(ax, world, traj.positions)
     P = _jitter(traj.positions)
-    top[0].scatter(P[sel, 0], P[sel, 1], s=8, c="tab:blue", zorder=3)
+    for ax, labels, m in zip(top, (learner.labels_phase1_, learner.labels_), (m0, m1)):
+        _room(ax, world, traj.positions, faint=True)
+        _clouds(ax, traj, P, labels, sel, m.state_label)
     top[0].set_title(f"state {state} after clustering ({sel.sum()} steps)", fontsize=9)
-    cols = _colours(max(len(after), 2))
-    for k, s in enumerate(after):
-        pick = sel & (learner.labels_ == s)
-        top[1].scatter(P[pick, 0], P[pick, 1], s=8, color=cols[k], zorder=3,
-                       label=f"{m1.state_label(s)} ({pick.sum()})")
-    top[1].legend(fontsize=6, loc="upper right")
     top[1].set_title(f"after splitting: states {', '.join(map(str, after))}", fontsize=9)
     _table(fig.add_subplot(grid[1, :2]), m0, state, f"P(x'|x={state}, u) before")
     for k, s in enumerate(after[:2]):
@@ -115,43 +269,117 @@ def plot_split(fig, traj, learner, world=None, state=None):
     return True
 
 
-def plot_map(ax, traj, learner, world=None, min_prob=0.8):
-    """The learned map at the states' mean positions; arcs where some P(x'|x,u) > min_prob."""
-    import networkx as nx
+def _arcs(ax, G, pos, diameter):
+    """Draw the map's arcs as thin grey curves that bend to the right of their direction (so the
+    arcs x -> x' and x' -> x stay apart), ending at the nodes' rims (``diameter`` points) in an
+    arrowhead; a self-loop is a small circle above its node.  Two collections, so that maps
+    of thousands of arcs draw quickly."""
+    from matplotlib.collections import LineCollection, PolyCollection
 
+    unit = _data_per_point(ax)
+    edges = np.array([(a, b) for a, b in G.edges if a != b], dtype=int).reshape(-1, 2)
+    loops = [a for a, b in G.edges if a == b]
+    t = np.linspace(0.0, 1.0, 12)[:, None, None]
+    p = np.array([pos[a] for a in edges[:, 0]]).reshape(-1, 2)
+    q = np.array([pos[b] for b in edges[:, 1]]).reshape(-1, 2)
+    d = q - p
+    normal = np.column_stack([d[:, 1], -d[:, 0]])
+    c = (p + q) / 2 + 0.15 * normal
+
+    def rim(x):
+        """From the nodes ``x`` towards the arcs' control points, out to the nodes' rims."""
+        v = c - x
+        return x + (0.5 * diameter + 1.0) * unit * v / np.maximum(np.hypot(*v.T), 1e-12)[:, None]
+
+    s, e = rim(p), rim(q)
+    curves = ((1 - t) ** 2 * s + 2 * (1 - t) * t * c + t ** 2 * e).transpose(1, 0, 2)
+    u = (e - c) / np.maximum(np.hypot(*(e - c).T), 1e-12)[:, None]
+    side = np.column_stack([-u[:, 1], u[:, 0]]) * 1.8 * unit
+    back = e - 5.0 * u * unit
+    heads = np.stack([e, back + side, back - side], axis=1)
+    angle = np.linspace(0, 2 * np.pi, 12)
+    circle = 3.0 * unit * np.column_stack([np.cos(angle), np.sin(angle) + 1.0])
+    circles = [pos[a] + (0.5 * diameter * unit) * np.array([0, 1]) + circle for a in loops]
+    ax.add_collection(LineCollection([*curves, *circles], colors="0.3", linewidths=0.6,
+                                     alpha=0.6, zorder=2), autolim=False)
+    ax.add_collection(PolyCollection(heads, facecolors="0.3", edgecolors="none", alpha=0.7,
+                                     zorder=2), autolim=False)
+
+
+#: how the map draws a plain, a compound and a GDS state: (fill, edge, area factor, legend)
+_NODE_KINDS = (("white", "black", 1.0, "learned state"),
+               ("#b2abd2", "black", 1.0, "compound state (steps of more than one true place)"),
+               ("gold", "red", 1.3, "state at a GDS"))
+
+
+def _nodes(ax, P, states, kinds, diameter, numbered):
+    """The map's states at ``P`` in the style of their kind (0 plain, 1 compound, 2 GDS), with
+    their numbers when ``numbered``."""
+    for k, (face, edge, area, label) in enumerate(_NODE_KINDS):
+        pick = kinds == k
+        if pick.any():
+            ax.scatter(P[pick, 0], P[pick, 1], s=area * diameter ** 2, c=face, edgecolors=edge,
+                       lw=0.8, zorder=4, label=label)
+    if numbered:
+        for s, (x, y) in zip(states, P):
+            ax.text(x, y, str(s), ha="center", va="center", fontsize=5.5, zorder=5)
+
+
+def plot_map(ax, traj, learner, world=None, min_prob=0.8):
+    """The learned map at the states' mean positions, arcs where some P(x'|x,u) > min_prob;
+    numbered nodes (spread apart where they coincide) up to :data:`MAX_MAP_NUMBERS` states, small
+    dots beyond; compound states lavender (when the ground truth is known), GDS states gold.  One legend
+    beside the map: the room's entries (if any), then the nodes'.  Returns ``ax``."""
     m = learner.map_
     G = m.to_networkx(min_prob=min_prob)
-    pos_arr = _state_positions(learner.labels_, traj.positions, m.n_states)
-    pos = {s: pos_arr[s] for s in G.nodes if np.isfinite(pos_arr[s]).all()}
-    G = G.subgraph(pos)
+    means = _state_positions(learner.labels_, traj.positions, m.n_states)
     _room(ax, world, traj.positions)
-    gds = [s for s in G.nodes if m.state_gds_[s] >= 0]
-    nx.draw_networkx_edges(G, pos, ax=ax, arrowsize=7, width=0.8, alpha=0.7,
-                           connectionstyle="arc3,rad=0.1", node_size=120)
-    nx.draw_networkx_nodes(G, pos, ax=ax, node_size=120, node_color="white", edgecolors="black")
-    nx.draw_networkx_nodes(G, pos, nodelist=gds, ax=ax, node_size=160, node_color="gold",
-                           edgecolors="red")
-    nx.draw_networkx_labels(G, pos, {s: str(s) for s in G.nodes}, ax=ax, font_size=6)
+    room_legend = ax.get_legend()
+    keep = np.array([s for s in G.nodes if np.isfinite(means[s]).all()], dtype=int)
+    G = G.subgraph(keep.tolist())
+    numbered = len(keep) <= MAX_MAP_NUMBERS
+    diameter = 11.0 if numbered else 4.0  # points
+    P = _spread(means[keep], 1.1 * diameter * _data_per_point(ax)) if numbered else means[keep]
+    _arcs(ax, G, dict(zip(keep.tolist(), P)), diameter)
+    kinds = np.where(m.state_gds_[keep] >= 0, 2, 0)
+    if traj.places is not None:
+        compound = compound_mask(learner.labels_, traj.places, m.n_states)
+        kinds[(kinds == 0) & compound[keep]] = 1
+    _nodes(ax, P, keep, kinds, diameter, numbered)
+    handles, names = ax.get_legend_handles_labels()
+    if room_legend is not None:  # one legend: the room's entries, then the map's
+        handles = [*room_legend.legend_handles, *handles]
+        names = [*(t.get_text() for t in room_legend.get_texts()), *names]
+    ax.legend(handles, names, loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=6.5,
+              frameon=False)
     ax.set_title(f"learned map: {m.n_states} states, {G.number_of_edges()} arcs with "
-                 f"P(x'|x,u) > {min_prob}", fontsize=9)
+                 f"P(x'|x,u) > {min_prob}" + ("" if numbered else "; numbers omitted"),
+                 fontsize=9)
+    return ax
 
 
 def plot_entropy(ax, learner):
+    """H(u|x), H(x'|x,u) and their sum after phase 1 and after each split.  Returns ``ax``."""
+    from matplotlib.ticker import MaxNLocator
+
     e = learner.entropies_
     it = [r["n_states"] for r in e]
     hu = np.array([r["H_u"] for r in e])
     hx = np.array([r["H_x"] for r in e])
-    ax.plot(it, hu, "o-", ms=3, label="H(u|x)")
-    ax.plot(it, hx, "s-", ms=3, label="H(x'|x,u)")
     ax.plot(it, hu + hx, "k^-", ms=3, label="sum")
-    ax.set_xlabel("number of states")
+    ax.plot(it, hu, "o-", ms=3, color="tab:blue", label="H(u|x)")
+    ax.plot(it, hx, "s-", ms=3, color="tab:orange", label="H(x'|x,u)")
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+    ax.set_xlabel("number of states (phase 1, then one more per split)")
     ax.set_ylabel("bits")
-    ax.legend(fontsize=8)
+    ax.legend(fontsize=8, loc="center right")
     ax.grid(alpha=0.3)
     ax.set_title("entropies after each split", fontsize=9)
+    return ax
 
 
 def _save(fig, path: Path):
+    """Write ``fig`` as a PNG file atomically and close it."""
     plt = _plt()
     atomic_write(path, lambda tmp: fig.savefig(tmp, dpi=130, bbox_inches="tight", format="png"))
     plt.close(fig)
@@ -164,14 +392,14 @@ def write_figures(out: Path, traj, learner, world=None, *, min_prob=0.8, compoun
     out = Path(out)
     written = []
     if traj.positions is not None:
-        fig, axes = plt.subplots(1, 2, figsize=(12, 4.6))
+        fig, axes = plt.subplots(1, 2, figsize=(12, 4.9))
         plot_states(axes[0], traj, learner.labels_phase1_, world,
                     f"after clustering: {learner.map_phase1_.n_states} states")
         plot_states(axes[1], traj, learner.labels_, world,
                     f"after splitting: {learner.map_.n_states} states")
         _save(fig, out / "fig_states.png")
         written.append("fig_states.png")
-        fig = plt.figure(figsize=(13, 7.5))
+        fig = plt.figure(figsize=(13, 6.6))
         if plot_split(fig, traj, learner, world, compound_state):
             _save(fig, out / "fig_split.png")
             written.append("fig_split.png")
