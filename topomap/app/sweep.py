@@ -294,8 +294,8 @@ def _plot(path: Path, rows, keys, metric, best) -> None:
     note = ", ".join([f"{len(rows)} jobs", *(f"{n} {st}" for st, n in counts.items() if n)])
     if len(keys) == 1:
         n = len(_axis(rows, keys[0]))
-        fig = Figure(figsize=(max(4.0, 0.6 * n + 2.0), 3.2), dpi=100)
-        _line(fig.add_subplot(), rows, keys[0], metric, f"{label} ({note})")
+        fig = Figure(figsize=(max(4.0, 0.6 * n + 2.0) + 1.8, 3.2), dpi=100)
+        _line(fig.add_subplot(), rows, keys[0], metric, f"{label} ({note})", best)
     else:
         ys, xs = (_axis(rows, k) for k in keys)
         fig = Figure(figsize=(1.6 + 0.75 * len(xs) + 1.2, 1.3 + 0.5 * len(ys)), dpi=100)
@@ -305,20 +305,45 @@ def _plot(path: Path, rows, keys, metric, best) -> None:
     atomic_write(path, lambda tmp: fig.savefig(tmp, format="png"))
 
 
-def _line(ax, rows, key, metric, title) -> None:
+def _line(ax, rows, key, metric, title, best=None) -> None:
+    """The metric over one swept key: completed jobs as a line (broken where a value is
+    missing), the best one ringed in red; a value of ``key`` whose jobs all failed (or are
+    incomplete) as a hatched red band across the plot, labelled, with no point."""
     import numpy as np
+    from matplotlib.patches import Patch
 
     xs = _axis(rows, key)
-    vals = [_mean([_number(r[metric]) for r in rows if str(r[key]) == x]) for x in xs]
+    vals = np.array([_mean([_number(r[metric]) for r in rows if str(r[key]) == x
+                            and r["status"] == "completed"]) for x in xs])
     numeric = all(not math.isnan(_number(x)) for x in xs)
-    pos = np.array([_number(x) for x in xs]) if numeric else np.arange(len(xs))
-    ax.plot(pos, vals, "o-")
-    fails = [i for i, x in enumerate(xs)
-             if all(r["status"] != "completed" for r in rows if str(r[key]) == x)]
-    if fails:
-        ax.plot(pos[fails], [np.nanmin(vals)] * len(fails), "x", color="tab:red", label="failed")
-        ax.legend(fontsize=8)
+    pos = np.array([_number(x) for x in xs]) if numeric else np.arange(len(xs), dtype=float)
+    handles = ax.plot(pos, vals, "o-", label="completed jobs (mean)")
+    if best is not None:
+        i = xs.index(str(best[key]))
+        handles += ax.plot(pos[i], vals[i], "o", ms=11, mfc="none", mec="tab:red", mew=1.5,
+                           label=f"best: {key}={best[key]}")
+    half = 0.3 * (np.diff(np.sort(pos)).min() if len(pos) > 1 else 1.0)
+    states, failed = set(), []
+    for i, x in enumerate(xs):
+        status = {r["status"] for r in rows if str(r[key]) == x}
+        if "completed" in status:
+            continue
+        states |= status
+        ax.axvspan(pos[i] - half, pos[i] + half, fc="tab:red", alpha=0.12, hatch="///",
+                   ec="tab:red", lw=0)
+        ax.annotate(f"{'/'.join(sorted(status))}: no value", (pos[i], 0.5),
+                    xycoords=("data", "axes fraction"), rotation=90, ha="center", va="center",
+                    fontsize=8, color="tab:red")
+        failed.append(i)
+    if states:
+        handles.append(Patch(fc="tab:red", alpha=0.12, hatch="///", ec="tab:red", lw=0,
+                             label=f"{'/'.join(sorted(states))} jobs"))
     ax.set_xticks(pos, xs)
+    for i in failed:
+        ax.get_xticklabels()[i].set_color("tab:red")
+    ax.set_xlim(pos.min() - 2 * half, pos.max() + 2 * half)
+    ax.legend(handles=handles, fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0),
+              frameon=False)
     ax.set_xlabel(key)
     ax.set_ylabel(METRICS[metric][0])
     ax.set_title(title, fontsize=10)
@@ -341,6 +366,8 @@ def _grid(rows, keys, metric):
 
 
 def _heat_map(fig, rows, keys, metric, title, best) -> None:
+    """The metric over two swept keys: one cell per pair of values with its value written in it,
+    cells whose jobs all failed grey and marked "failed", the best cell outlined in red."""
     import matplotlib
     import numpy as np
     from matplotlib.patches import Rectangle
