@@ -26,11 +26,25 @@ import numpy as np
 from ..core.trajectory import Trajectory
 from .common import assign_symbols, check_no_extra_actions, positive_int, symbol_embedding, walk
 
-__all__ = ["GridRoom"]
+__all__ = ["GridRoom", "symbol_legend"]
 
 #: the four moves as (dx, dy)
 MOVES = np.array([[0, 1], [1, 0], [0, -1], [-1, 0]], dtype=np.int64)
 MOVE_NAMES = ["north", "east", "south", "west"]
+#: most symbols listed in a room's legend (more are told apart by their labels only)
+MAX_LEGEND_SYMBOLS = 20
+
+
+def symbol_legend(ax, colours) -> None:
+    """A legend of the symbols' tints (one entry per colour) beside the room, for at most
+    :data:`MAX_LEGEND_SYMBOLS` symbols."""
+    from matplotlib.patches import Patch
+
+    if len(colours) > MAX_LEGEND_SYMBOLS:
+        return
+    handles = [Patch(fc=c, ec="0.5", lw=0.5, label=f"symbol {k}") for k, c in enumerate(colours)]
+    ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=6.5,
+              title="observed symbol", title_fontsize=7, frameon=False)
 
 
 class GridRoom:
@@ -121,17 +135,14 @@ class GridRoom:
         return walk(self, n_steps, explorer, rng, meta)
 
     def plot_room(self, ax, labels: bool = False):
-        """Draw the cells, tinted by symbol, and the walls.  ``labels`` writes each cell's symbol.
-
-        Returns ``ax``.
-        """
+        """Draw the cells, tinted by symbol (with a legend of the symbols beside the room), and the
+        walls.  ``labels`` writes each cell's symbol.  Returns ``ax``."""
         import matplotlib.pyplot as plt
         from matplotlib.patches import Rectangle
 
         cmap = plt.get_cmap("Pastel1" if self.n_symbols <= 9 else "tab20", max(self.n_symbols, 1))
-        img = np.array([cmap(s % cmap.N) for s in self.place_symbols]).reshape(
-            self.height, self.width, 4)
-        img[..., 3] = 0.6
+        colours = [cmap(k % cmap.N)[:3] + (0.6,) for k in range(self.n_symbols)]
+        img = np.array([colours[s] for s in self.place_symbols]).reshape(self.height, self.width, 4)
         ax.imshow(img, origin="lower", extent=(0, self.width, 0, self.height),
                   interpolation="nearest", zorder=0)
         for k in range(1, self.width):
@@ -146,6 +157,7 @@ class GridRoom:
         ax.set_xlim(-0.3, self.width + 0.3)
         ax.set_ylim(-0.3, self.height + 0.3)
         ax.set_aspect("equal")
+        symbol_legend(ax, colours)
         return ax
 
     def __repr__(self) -> str:

@@ -23,6 +23,7 @@ import numpy as np
 
 from ..core.trajectory import Trajectory
 from .common import assign_symbols, check_no_extra_actions, positive_int, symbol_embedding, walk
+from .gridroom import symbol_legend
 
 __all__ = ["RandomGraphWorld", "random_strong_digraph"]
 
@@ -139,20 +140,18 @@ class RandomGraphWorld:
         return walk(self, n_steps, explorer, rng, meta)
 
     def plot_room(self, ax, labels: bool = False):
-        """Draw the place graph: faint arcs, places tinted by symbol (ids with ``labels``).
-
-        Returns ``ax``.
-        """
+        """Draw the place graph: faint arcs, places tinted by symbol (with a legend of the symbols
+        beside the graph; ids with ``labels``).  Returns ``ax``."""
         import matplotlib.pyplot as plt
+        from matplotlib.collections import LineCollection
 
         P = self.place_positions
         segs = [(P[p], P[q]) for p in range(self.n_places) for q in self.successors[p]]
-        from matplotlib.collections import LineCollection
-
         ax.add_collection(LineCollection(segs, colors="lightgray", linewidths=0.6, zorder=0))
         cmap = plt.get_cmap("tab20", 20)
-        ax.scatter(P[:, 0], P[:, 1], s=260, c=[cmap(s % 20) for s in self.place_symbols],
-                   alpha=0.35, lw=0, zorder=1)
+        colours = [cmap(k % 20)[:3] + (0.35,) for k in range(self.n_symbols)]
+        ax.scatter(P[:, 0], P[:, 1], s=260, c=[colours[s] for s in self.place_symbols], lw=0,
+                   zorder=1)
         if labels:
             for p in range(self.n_places):
                 ax.annotate(str(p), P[p], ha="center", va="center", fontsize=6, color="dimgray")
@@ -160,6 +159,7 @@ class RandomGraphWorld:
         ax.set_xlim(-1.0, side + 1.0)
         ax.set_ylim(-1.0, side + 1.0)
         ax.set_aspect("equal")
+        symbol_legend(ax, colours)
         return ax
 
     def __repr__(self) -> str:
