@@ -45,6 +45,8 @@ _UNSEEN, _EMPTY, _WALL, _FLOOR = 0, 1, 2, 3
 _DIR_VEC = np.array([[1, 0], [0, 1], [-1, 0], [0, -1]], dtype=np.int64)
 #: cell types the agent never steps onto, although MiniGrid lets it (they end the episode)
 _ENDS_EPISODE = ("goal", "lava")
+#: fill colours of the cell kinds drawn in a fixed colour (other objects: a tint of their own)
+_KIND_COLOURS = {"wall": (0.35, 0.35, 0.35), "goal": (0.55, 0.9, 0.55), "lava": (1.0, 0.65, 0.3)}
 MAX_STEPS = 10**6
 #: the environments the adapter was checked on (minigrid 3.2.0; see the module docstring)
 CHECKED_ENVS = (
@@ -258,29 +260,56 @@ class MiniGridWorld:
         )
 
     # ------------------------------------------------------------------ figures
-    def plot_room(self, ax, labels: bool = False):
-        """Draw the layout (north up): walls dark, goal green, lava orange, doors and objects in
-        their colour.  ``labels`` marks the start pose.  Returns ``ax``."""
-        from minigrid.core.constants import IDX_TO_COLOR, IDX_TO_OBJECT, COLORS
+    def _layout_image(self):
+        """RGB image of the layout (row 0 at the top) and the kinds of cell it shows."""
+        from minigrid.core.constants import COLORS, IDX_TO_COLOR, IDX_TO_OBJECT
 
         img = np.ones((self.height, self.width, 3))
+        kinds = {}
         for x in range(self.width):
             for y in range(self.height):
                 kind = IDX_TO_OBJECT[int(self.grid_encoding[x, y, 0])]
                 colour = COLORS[IDX_TO_COLOR[int(self.grid_encoding[x, y, 1])]] / 255.0
-                if kind == "wall":
-                    img[y, x] = 0.35
-                elif kind == "goal":
-                    img[y, x] = (0.55, 0.9, 0.55)
-                elif kind == "lava":
-                    img[y, x] = (1.0, 0.65, 0.3)
-                elif kind not in ("empty", "floor", "unseen"):
-                    img[y, x] = 0.5 + 0.5 * colour
+                if kind in ("empty", "floor", "unseen"):
+                    continue
+                img[y, x] = _KIND_COLOURS.get(kind, 0.5 + 0.5 * colour)
+                kinds.setdefault(kind, img[y, x].copy())
+        return img, kinds
+
+    def heading_glyphs(self) -> np.ndarray:
+        """``(n, 3, 2)`` triangles, one per reachable pose: at the pose's figure position
+        (:meth:`position_of`), pointing along its heading (north up)."""
+        places = self.reachable_places()
+        _, _, d = self.pose_of(places)
+        centre = self.position_of(places)
+        v = _DIR_VEC[d] * np.array([1, -1])  # figure coordinates: y grows northwards
+        side = np.column_stack([-v[:, 1], v[:, 0]]) * 0.09
+        return np.stack([centre + 0.15 * v, centre - 0.08 * v + side, centre - 0.08 * v - side],
+                        axis=1)
+
+    def plot_room(self, ax, labels: bool = False):
+        """Draw the layout (north up): walls dark, goal green, lava orange, doors and objects in
+        their colour, and a grey triangle per reachable pose pointing along its heading; a legend
+        beside the room.  ``labels`` marks the start pose.  Returns ``ax``."""
+        from matplotlib.collections import PolyCollection
+        from matplotlib.lines import Line2D
+        from matplotlib.patches import Patch
+
+        img, kinds = self._layout_image()
         ax.imshow(img, origin="upper", extent=(0, self.width, 0, self.height),
                   interpolation="nearest", zorder=0)
+        ax.add_collection(PolyCollection(self.heading_glyphs(), facecolors="0.72",
+                                         edgecolors="none", zorder=1))
+        handles = [Line2D([], [], ls="none", marker=">", ms=6, color="0.72",
+                          label="pose (its heading)")]
+        handles += [Patch(fc=c, ec="0.5", lw=0.5, label=k) for k, c in kinds.items()]
         if labels:
             sx, sy = self.position_of(self.place_id(*self.start_pose))
             ax.plot([sx], [sy], "r*", ms=8)
+            handles.append(Line2D([], [], ls="none", marker="*", ms=8, color="red",
+                                  label="start pose"))
+        ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=6.5,
+                  frameon=False)
         ax.set_xlim(0, self.width)
         ax.set_ylim(0, self.height)
         ax.set_aspect("equal")
