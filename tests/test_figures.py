@@ -1,0 +1,235 @@
+"""The figures read at a glance: measurable properties of what each plotting function draws.
+
+Every test draws on a matplotlib Axes (Agg) and inspects its artists, not a PNG file.
+"""
+
+import itertools
+
+import matplotlib.colors as mcolors
+import numpy as np
+import pytest
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.collections import PolyCollection
+from matplotlib.figure import Figure
+
+from topomap import MapLearner
+from topomap.app import plots
+from topomap.app.sweep import _line
+from topomap.core.metrics import compound_states
+from topomap.core.trajectory import Trajectory
+
+
+def _axes(size=(6, 4.5)):
+    """A fresh Axes on an Agg canvas of ``size`` inches."""
+    fig = Figure(figsize=size, dpi=100)
+    FigureCanvasAgg(fig)
+    return fig.add_subplot()
+
+
+def _lab(colour):
+    """CIELAB (D65) of a matplotlib colour: an independent check of the palette's spacing."""
+    rgb = np.array(mcolors.to_rgb(colour))
+    lin = np.where(rgb <= 0.04045, rgb / 12.92, ((rgb + 0.055) / 1.055) ** 2.4)
+    xyz = np.array([[0.4124, 0.3576, 0.1805], [0.2126, 0.7152, 0.0722],
+                    [0.0193, 0.1192, 0.9505]]) @ lin / np.array([0.95047, 1.0, 1.08883])
+    f = np.where(xyz > 0.008856, np.cbrt(xyz), 7.787 * xyz + 16 / 116)
+    return np.array([116 * f[1] - 16, 500 * (f[0] - f[1]), 200 * (f[1] - f[2])])
+
+
+def _labelling(n_states=30, compound=(1, 3, 7), steps=12, seed=0):
+    """A hand-made run: state ``s`` sits at place ``s`` (on a 6-wide grid, 3 m apart); each state
+    of ``compound`` also holds ``steps // 3`` steps of place ``n_states + s``.  Returns the
+    trajectory (positions = place centres) and the labels."""
+    rng = np.random.default_rng(seed)
+    labels, places = [], []
+    for s in range(n_states):
+        labels += [s] * steps
+        places += [s] * steps
+        if s in compound:
+            labels += [s] * (steps // 3)
+            places += [n_states + s] * (steps // 3)
+    labels, places = np.array(labels), np.array(places)
+    centre = np.column_stack([places % 6, places // 6]) * 3.0
+    T = len(labels)
+    traj = Trajectory(observations=rng.normal(size=(T, 2)), actions=np.zeros(T, dtype=int),
+                      places=places, positions=centre.astype(float))
+    return traj, labels
+
+
+# ---------------------------------------------------------------------------- fig_states
+@pytest.mark.parametrize("n", [22, 30, 48])
+def test_state_palette_is_distinct_and_not_pale(n):
+    styles = plots.state_styles(n)
+    assert len(set(styles)) == n  # (colour, marker) tells every state apart
+    colours = [c for c, _ in styles[:len(plots.PALETTE)]]
+    assert len(set(colours)) == min(n, len(plots.PALETTE))
+    lab = np.array([_lab(c) for c in colours])
+    gaps = [np.linalg.norm(a - b) for a, b in itertools.combinations(lab, 2)]
+    assert min(gaps) >= 20  # CIELAB units: clearly different colours
+    assert lab[:, 0].max() <= 80  # lightness: none near white
+
+
+def test_states_figure_draws_distinct_non_pale_styles():
+    """What the figure draws (not just the palette): every state's points in one colour and
+    marker of their own, none near white."""
+    traj, labels = _labelling(n_states=30, compound=())
+    ax = plots.plot_states(_axes(), traj, labels)
+    styles = set()
+    for coll in ax.collections:
+        if coll.get_label().startswith("compound"):
+            continue
+        marker = tuple(np.round(coll.get_paths()[0].vertices, 3).ravel())
+        for rgba in coll.get_facecolors():
+            styles.add((tuple(np.round(rgba[:3], 3)), marker))
+            assert _lab(rgba[:3])[0] <= 80
+    assert len(styles) == 30
+
+
+def test_states_figure_numbers_every_state_at_its_mean():
+    traj, labels = _labelling(n_states=30, compound=())
+    ax = plots.plot_states(_axes(), traj, labels)
+    texts = {t.get_text(): np.array(t.get_position()) for t in ax.texts}
+    assert set(texts) == {str(s) for s in range(30)}
+    for s in range(30):
+        assert np.allclose(texts[str(s)], traj.positions[labels == s].mean(axis=0), atol=0.05)
+
+
+def test_compound_states_are_ringed_and_numbered_at_each_place():
+    compound = (1, 3, 7)
+    traj, labels = _labelling(n_states=12, compound=compound)
+    ax = plots.plot_states(_axes(), traj, labels)
+    (rings,) = [c for c in ax.collections if c.get_label().startswith("compound")]
+    ringed = set()
+    for x, y in rings.get_offsets():
+        (text,) = [t for t in ax.texts if np.allclose(t.get_position(), (x, y), atol=0.05)]
+        ringed.add(int(text.get_text()))
+    assert ringed == set(compound)
+    assert len(ringed) == compound_states(labels, traj.places)
+    assert len(rings.get_offsets()) == 2 * len(compound)  # one ring on each of their places
+    assert any(t.get_text().startswith("compound state (3)") for t in ax.get_legend().get_texts())
+
+
+def test_states_figure_is_deterministic():
+    traj, labels = _labelling()
+    a, b = (plots.plot_states(_axes(), traj, labels) for _ in range(2))
+    for ca, cb in zip(a.collections, b.collections):
+        assert np.array_equal(ca.get_offsets(), cb.get_offsets())
+
+
+# ---------------------------------------------------------------------------- the map
+@pytest.fixture(scope="module")
+def small_run():
+    """A small gridroom walk (aliased: 3 symbols in 16 cells) and the map learned from it."""
+    from topomap.worlds.explorers import RandomExplorer
+    from topomap.worlds.gridroom import GridRoom
+
+    world = GridRoom(width=4, height=4, n_symbols=3, seed=1)
+    traj = world.simulate(600, RandomExplorer(), np.random.default_rng(0))
+    noise = np.random.default_rng(1).normal(0, 0.05, traj.observations.shape)
+    traj = Trajectory(observations=traj.observations + noise, actions=traj.actions,
+                      places=traj.places, positions=traj.positions,
+                      action_names=traj.action_names)
+    learner = MapLearner(n_clusters=3, n_states=20, n_init=1).fit_trajectory(traj)
+    return world, traj, learner
+
+
+def test_map_nodes_are_numbered_and_never_overlap(small_run):
+    world, traj, learner = small_run
+    ax = plots.plot_map(_axes((8, 6)), traj, learner, world)
+    ax.figure.canvas.draw()
+    assert {t.get_text() for t in ax.texts} == {str(s) for s in range(learner.map_.n_states)}
+    nodes = np.vstack([c.get_offsets() for c in ax.collections if c.get_label() in
+                       {label for *_, label in plots._NODE_KINDS}])
+    assert len(nodes) == learner.map_.n_states
+    pixels = ax.transData.transform(nodes)
+    diameter = 11.0 * ax.figure.dpi / 72  # the numbered nodes' diameter, in pixels
+    gaps = [np.hypot(*(a - b)) for a, b in itertools.combinations(pixels, 2)]
+    assert min(gaps) >= 0.99 * diameter
+
+
+def test_map_marks_compound_states_in_its_legend(small_run):
+    world, traj, learner = small_run
+    ax = plots.plot_map(_axes((8, 6)), traj, learner, world)
+    labels = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert any(label.startswith("compound state") for label in labels)
+    assert any(label.startswith("symbol") for label in labels)  # the room's tints, explained
+    (coll,) = [c for c in ax.collections if c.get_label().startswith("compound state")]
+    assert (learner.map_.state_gds_ < 0).all()  # no GDS in a gridroom: every compound is drawn so
+    assert len(coll.get_offsets()) == compound_states(learner.labels_, traj.places) > 0
+
+
+# ---------------------------------------------------------------------------- the office room
+def _overlapping(boxes):
+    """The pairs of display boxes that overlap."""
+    return [(a, b) for a, b in itertools.combinations(boxes, 2) if a.overlaps(b)]
+
+
+def test_office_room_has_a_type_legend_and_no_overlapping_labels():
+    from topomap.worlds.office import OfficeWorld
+
+    world = OfficeWorld()
+    ax = _axes((8, 6))
+    world.plot_room(ax)
+    ax.figure.canvas.draw()
+    renderer = ax.figure.canvas.get_renderer()
+    legend = ax.get_legend()
+    entries = [t.get_text() for t in legend.get_texts()]
+    assert sorted(e for e in entries if e in world.type_names) == sorted(world.type_names)
+    assert len(entries) == world.n_types + 2  # plus the GDS range and the corner mark
+    fills = [tuple(h.get_facecolor()) for h, e in zip(legend.legend_handles, entries)
+             if e in world.type_names]
+    assert len(set(fills)) == world.n_types
+    boxes = [t.get_window_extent(renderer) for t in ax.texts]
+    assert len(boxes) >= world.n_places - 3  # nearly every place is labelled
+    assert _overlapping(boxes) == []
+
+
+def test_office_type_colours_follow_the_names():
+    from topomap.worlds.office.plot import type_colours
+
+    names = ["red wall", "blue desk", "blue chair", "computer"]
+    r, b1, b2, other = (np.array(mcolors.to_rgb(c)) for c in type_colours(names))
+    assert r[0] > r[1] + 0.2 and r[0] > r[2] + 0.2
+    assert b1[2] > b1[0] and b2[2] > b2[0] and not np.allclose(b1, b2)
+    assert len({tuple(r), tuple(b1), tuple(b2), tuple(other)}) == 4
+
+
+# ---------------------------------------------------------------------------- MiniGrid headings
+def test_minigrid_room_draws_a_heading_glyph_per_pose():
+    pytest.importorskip("minigrid")
+    from topomap.worlds.minigrid import MiniGridWorld
+
+    world = MiniGridWorld("MiniGrid-Empty-5x5-v0")
+    ax = world.plot_room(_axes())
+    (glyphs,) = [c for c in ax.collections if isinstance(c, PolyCollection)]
+    places = world.reachable_places()
+    tri = np.array([p.vertices[:3] for p in glyphs.get_paths()])
+    assert len(tri) == len(places) == 32  # 3 x 3 open cells but the goal, 4 headings each
+    _, _, d = world.pose_of(places)
+    north_up = {0: (1, 0), 1: (0, -1), 2: (-1, 0), 3: (0, 1)}
+    tip = tri[:, 0] - tri.mean(axis=1)
+    for heading, v in zip(d, tip):
+        assert np.allclose(v / np.hypot(*v), north_up[int(heading)], atol=1e-9)
+    assert np.allclose(tri.mean(axis=1), world.position_of(places), atol=0.05)
+    world.close()
+
+
+# ---------------------------------------------------------------------------- sweep line
+ROWS = [{"job": 0, "clusters.ns": "10", "status": "completed", "ari": 0.958},
+        {"job": 1, "clusters.ns": "20", "status": "completed", "ari": 0.970},
+        {"job": 2, "clusters.ns": "30", "status": "failed", "ari": None}]
+
+
+def test_sweep_line_draws_no_value_for_a_failed_job():
+    ax = _axes()
+    _line(ax, ROWS, "clusters.ns", "ari", "final ARI", best=ROWS[1])
+    for line in ax.lines:
+        x, y = (np.asarray(v, dtype=float) for v in line.get_data())
+        assert not np.isfinite(y[x == 30]).any(), line.get_label()
+    x30 = ax.transData.transform((30, 0))[0]
+    (band,) = [p for p in ax.patches if p.get_hatch()]  # the failed value, marked across the plot
+    assert band.get_extents().x0 < x30 < band.get_extents().x1
+    assert any("failed" in t.get_text() for t in ax.texts)
+    assert any("failed" in t.get_text() for t in ax.get_legend().get_texts())
+    ticks = {t.get_text(): t.get_color() for t in ax.get_xticklabels()}
+    assert mcolors.to_hex(ticks["30"]) == mcolors.to_hex("tab:red")
