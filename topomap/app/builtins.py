@@ -10,9 +10,10 @@ from ..core import clustering, splitting
 from ..worlds import explorers, noise
 from ..worlds.gridroom import GridRoom
 from ..worlds.minigrid import MiniGridWorld
+from ..worlds.navigation import Navigation
 from ..worlds.office import OfficeWorld
 from ..worlds.random_graph import RandomGraphWorld
-from . import data
+from . import data, evaluate
 from .hookspecs import Component, hookimpl
 
 
@@ -56,4 +57,7 @@ def topomap_register_components():
         _c("data", "rosbag", data.FromRosbag,
            "learn from ROS 1 / ROS 2 bags (optional rosbags package): scans or numeric fields, "
            "String / Int32 / Twist actions"),
+        _c("evaluate", "none", evaluate.nothing, "no evaluation beyond ground truth and held-out data"),
+        _c("evaluate", "navigation", Navigation,
+           "localise, plan on the map and act in the world: success rate and path length"),
     ]

@@ -94,7 +94,16 @@ def list_plugins(registry: Registry, file=None) -> None:
         print(f"error: {err}", file=file)
 
 
-def _summary(results: dict, out) -> None:
+def _summary(results: dict, out) -> str:
+    """The one-line result of a run, as printed."""
+    if "loglik" in results:  # task=localize
+        line = (f"localised {results['n_steps']} steps on a map of {results['n_states']} states, "
+                f"log-likelihood {results['loglik']:.3f} per step (a log-density)")
+        gt = results.get("ground_truth")
+        if gt:
+            line += (f" | ARI {gt['filter']['ari']:.3f} (filtered), "
+                     f"{gt['viterbi']['ari']:.3f} (Viterbi)")
+        return line
     gt = results.get("ground_truth", {}).get("final", {})
     line = f"{results['n_states']['final']} states"
     if gt:
@@ -102,7 +111,12 @@ def _summary(results: dict, out) -> None:
         line += (f" | ARI {g0['ari']:.3f} -> {gt['ari']:.3f}, purity {g0['purity']:.3f} -> "
                  f"{gt['purity']:.3f}, compound states {g0['compound_states']} -> "
                  f"{gt['compound_states']}")
-    print(f"topomap: {line}\ntopomap: outputs in {out}")
+    nav = results.get("navigation")
+    if nav:
+        ratio = "-" if nav["path_ratio"] is None else f"{nav['path_ratio']:.2f}"
+        line += (f" | navigation: {nav['success_rate']:.0%} of {nav['episodes']} episodes, "
+                 f"path {ratio} x the shortest")
+    return line
 
 
 def _task(cfg, registry: Registry):
@@ -124,7 +138,7 @@ def _task(cfg, registry: Registry):
         except ValueError as exc:
             log.error("%s", exc)
             sys.exit(f"topomap: error: {exc}")
-    _summary(results, out)
+    print(f"topomap: {_summary(results, out)}\ntopomap: outputs in {out}")
     return results.get("ground_truth", {}).get("final", {}).get("ari")
 
 

@@ -20,6 +20,7 @@ import re
 import typing
 from dataclasses import MISSING as _NO_DEFAULT
 from dataclasses import dataclass, field, make_dataclass
+from enum import Enum
 from importlib import resources
 from pathlib import Path
 from typing import Any, Optional
@@ -121,12 +122,23 @@ class OutputConf:
     progress: bool = True
 
 
+class Task(Enum):
+    """What a run does: learn a map (the default), or localise on a saved one."""
+
+    learn = "learn"
+    localize = "localize"
+
+
 @dataclass
 class Config:
     """The top level of a run's config; each component group holds a ``<kind>/<name>`` config."""
 
     seed: int = 0
     plugins: list[str] = field(default_factory=list)
+    #: learn: learn a map from the data; localize: apply the saved ``map`` to the data
+    task: Task = Task.learn
+    #: the map.json a ``task=localize`` run applies
+    map: Optional[str] = None
     env: Any = MISSING
     noise: Any = MISSING
     explorer: Any = MISSING
@@ -135,6 +147,7 @@ class Config:
     split: Any = MISSING
     stop: Any = MISSING
     data: Any = MISSING
+    evaluate: Any = MISSING
     learner: LearnerConf = field(default_factory=LearnerConf)
     output: OutputConf = field(default_factory=OutputConf)
 

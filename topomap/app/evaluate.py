@@ -6,13 +6,20 @@ from ..core import metrics as M
 from ..core.learner import MapLearner
 from ..core.trajectory import Trajectory
 
-__all__ = ["evaluate"]
+__all__ = ["evaluate", "nothing"]
 
 
-def evaluate(learner: MapLearner, traj: Trajectory, heldout: Trajectory | None) -> dict:
+def nothing():
+    """``evaluate=none``: no evaluation beyond ground truth and held-out data."""
+    return None
+
+
+def evaluate(learner: MapLearner, traj: Trajectory, heldout: Trajectory | None,
+             parts=None) -> dict:
     """State counts and entropies after phase 1 and at the end; ARI, NMI, purity and compound
     states against ``traj.places`` when the trajectory has ground truth; the mean log-likelihood
-    per step of ``heldout`` under the learned map (None without held-out data)."""
+    per step of ``heldout`` under the learned map (None without held-out data); and what the
+    run's ``evaluate`` component measures (``navigation``)."""
     out = {
         "n_states": {"phase1": learner.map_phase1_.n_states, "final": learner.map_.n_states},
         "entropies": {"phase1": learner.entropies_[0], "final": learner.entropies_[-1]},
@@ -28,4 +35,23 @@ def evaluate(learner: MapLearner, traj: Trajectory, heldout: Trajectory | None) 
         out.update(heldout_loglik=learner.map_.score(heldout.observations, heldout.actions,
                                                      gds=heldout.gds, lengths=heldout.lengths),
                    heldout_steps=len(heldout))
+    if parts is not None and parts.evaluate is not None:
+        if parts.world is None or traj.places is None:
+            raise ValueError("evaluate=navigation needs a simulated world with ground truth "
+                             "(data=simulate)")
+        out["navigation"] = parts.evaluate.evaluate(learner.map_, learner.labels_, traj.places,
+                                                    parts.world, parts.noise)
+    return out
+
+
+def localization_scores(m, traj: Trajectory, beliefs, viterbi) -> dict:
+    """How a saved map localises on a recording: its log-likelihood per step, and with ground
+    truth the ARI / NMI / purity of the filtered (past only) and Viterbi (whole sequence)
+    states against the places."""
+    out = {"n_steps": len(traj), "n_states": m.n_states,
+           "loglik": m.score(traj.observations, traj.actions, gds=traj.gds, lengths=traj.lengths),
+           "mean_max_belief": float(beliefs.max(axis=1).mean())}
+    if traj.places is not None:
+        out["ground_truth"] = {"filter": M.evaluate(beliefs.argmax(axis=1), traj.places),
+                               "viterbi": M.evaluate(viterbi, traj.places)}
     return out

@@ -16,10 +16,11 @@ import traceback
 from pathlib import Path
 
 from ..core.learner import MapLearner
+from ..core.map import TopologicalMap
 from .config import check_config
 from .data import TrajectoryCache, trajectory_key
-from .evaluate import evaluate
-from .outputs import versions, write_json, write_outputs
+from .evaluate import evaluate, localization_scores
+from .outputs import versions, write_json, write_localization, write_outputs
 from .registry import Parts, Registry
 
 log = logging.getLogger("topomap")
@@ -37,21 +38,33 @@ UNITS = {
     "H_u, H_x": "bits",
     "heldout_loglik": "nats per step; a log-density of continuous observations, so it can be "
                       "positive",
+    "loglik": "nats per step (task=localize); a log-density, like heldout_loglik",
 }
 
 
 def run(cfg, output_dir, *, registry: Registry | None = None, cache_dir=None) -> dict:
     """Run one experiment described by ``cfg`` and write its outputs into ``output_dir``.
 
-    Every component is built before any data is simulated, so a bad setting fails first; every
-    file is written atomically.  Returns the metrics dict.  ``cache_dir``: where simulated
-    trajectories are shared between runs (the jobs of a sweep).
+    ``task=learn`` (the default) learns a map (:func:`learn`); ``task=localize`` applies the
+    saved ``map`` to the data (:func:`localize`).  Returns the metrics dict.
     """
     cfg = _as_dict(cfg)
     registry = registry or Registry.load(cfg.get("plugins") or ())
     for err in registry.errors:
         log.warning("%s", err)
     check_config(cfg, registry)
+    if cfg.get("task", "learn") == "localize":
+        return localize(cfg, output_dir, registry)
+    return learn(cfg, output_dir, registry, cache_dir)
+
+
+def learn(cfg: dict, output_dir, registry: Registry, cache_dir=None) -> dict:
+    """Learn a map: components -> data -> learner -> evaluation -> outputs.
+
+    Every component is built before any data is simulated, so a bad setting fails first; every
+    file is written atomically.  ``cache_dir``: where simulated trajectories are shared between
+    runs (the jobs of a sweep).
+    """
     parts = registry.build(cfg)
     plugin_metrics: dict = {}
     with Progress(cfg["output"].get("progress", True) and sys.stderr.isatty()) as progress:
@@ -60,7 +73,7 @@ def run(cfg, output_dir, *, registry: Registry | None = None, cache_dir=None) ->
         (traj, heldout), t_data = load_data(cfg, parts, registry, cache_dir, progress)
         learner.fit_trajectory(traj)
     t0 = time.perf_counter()
-    results = evaluate(learner, traj, heldout)
+    results = evaluate(learner, traj, heldout, parts)
     t_data["evaluate"] = time.perf_counter() - t0
     results.update({
         "split_history": learner.split_history_, "entropy_trace": learner.entropies_,
@@ -70,6 +83,23 @@ def run(cfg, output_dir, *, registry: Registry | None = None, cache_dir=None) ->
                       for k in ("clusters", "metric", "split", "stop")},
     })
     write_outputs(Path(output_dir), traj, learner, results, cfg, parts.world)
+    return results
+
+
+def localize(cfg: dict, output_dir, registry: Registry) -> dict:
+    """Apply the saved map ``cfg["map"]`` to the data: the belief over states at every step
+    (forward filtering), the Viterbi states and, with ground truth, their scores."""
+    if not cfg.get("map"):
+        raise ValueError("task=localize needs the map to apply: map=path/to/map.json")
+    m = TopologicalMap.load(cfg["map"])
+    parts = registry.build(cfg)
+    traj = parts.data.train(parts, int(cfg["seed"]))
+    args = (traj.observations, traj.actions)
+    kw = {"gds": traj.gds, "lengths": traj.lengths}
+    beliefs, viterbi = m.filter(*args, **kw), m.predict(*args, **kw)
+    results = {**localization_scores(m, traj, beliefs, viterbi), "config": cfg,
+               "versions": versions(), "units": UNITS}
+    write_localization(Path(output_dir), traj, beliefs, viterbi, results)
     return results
 
 
@@ -157,7 +187,9 @@ class _TickingExplorer:
 def _as_dict(cfg) -> dict:
     from omegaconf import OmegaConf
 
-    return OmegaConf.to_container(cfg, resolve=True) if OmegaConf.is_config(cfg) else dict(cfg)
+    if OmegaConf.is_config(cfg):
+        return OmegaConf.to_container(cfg, resolve=True, enum_to_str=True)
+    return dict(cfg)
 
 
 # ---------------------------------------------------------------------------------- sweep jobs

@@ -22,6 +22,8 @@ kind           what the factory returns                                        c
 ``stop``       ``check(n_initial)``; ``should_stop(n_states, best_score)``     ``stop``
 ``data``       ``simulates`` (bool); ``train(parts, seed, progress)`` and      ``data``
                ``heldout(parts, seed)`` return Trajectory objects (or None)
+``evaluate``   ``evaluate(map, labels, places, world, noise) -> dict``, or      ``evaluate``
+               None for no extra evaluation
 =============  ==============================================================  ==================
 """
 
@@ -38,7 +40,7 @@ hookspec = pluggy.HookspecMarker("topomap")
 hookimpl = pluggy.HookimplMarker("topomap")
 
 #: every kind of component a plugin can provide, in the order the app builds them
-KINDS = ("env", "noise", "explorer", "metric", "clusters", "split", "stop", "data")
+KINDS = ("env", "noise", "explorer", "metric", "clusters", "split", "stop", "data", "evaluate")
 
 
 @dataclass(frozen=True)

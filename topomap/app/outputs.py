@@ -13,7 +13,8 @@ import numpy as np
 from ..core.files import atomic_write
 from ..core.trajectory import save_trajectory
 
-__all__ = ["OUTPUT_FILES", "FIGURE_FILES", "write_outputs", "versions", "write_json"]
+__all__ = ["OUTPUT_FILES", "FIGURE_FILES", "LOCALIZE_FILES", "write_outputs",
+           "write_localization", "versions", "write_json"]
 
 #: files every run writes, with what they hold (figures only with ``output.figures``)
 OUTPUT_FILES = {
@@ -22,6 +23,12 @@ OUTPUT_FILES = {
     "map.graphml": "the map as a graph: arcs where P(x'|x,u) > output.min_prob",
     "states.csv": "step, state after phase 1, final state (and ground-truth place)",
     "metrics.json": "entropies, ARI/NMI/purity/compound states, splits, timings, versions, config",
+}
+#: files a ``task=localize`` run writes
+LOCALIZE_FILES = {
+    "states.csv": "step, filtered state (argmax of the belief), Viterbi state (and place)",
+    "beliefs.npz": "beliefs: (T, S) belief over the map's states at every step (past only)",
+    "metrics.json": "log-likelihood, ARI/NMI/purity of both state sequences, config, versions",
 }
 FIGURE_FILES = {
     "fig_states.png": "observation points coloured by state (the paper's Fig. 4, right)",
@@ -83,4 +90,26 @@ def write_outputs(out: Path, traj, learner, results, cfg, world=None) -> None:
         plots.write_figures(out, traj, learner, world, min_prob=cfg["output"]["min_prob"],
                             compound_state=cfg["output"].get("compound_state"))
     results["timings"]["outputs"] = time.perf_counter() - t0
+    write_json(out / "metrics.json", results)
+
+
+def write_localization(out: Path, traj, beliefs, viterbi, results) -> None:
+    """Write the files of a ``task=localize`` run (:data:`LOCALIZE_FILES`) into ``out``."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    cols = [np.arange(len(traj)), beliefs.argmax(axis=1), viterbi]
+    header = "step,state_filter,state_viterbi"
+    if traj.places is not None:
+        cols.append(traj.places)
+        header += ",place"
+    table = np.column_stack(cols)
+    atomic_write(out / "states.csv",
+                 lambda tmp: np.savetxt(tmp, table, fmt="%d", delimiter=",", header=header,
+                                        comments=""))
+
+    def save_beliefs(tmp):
+        with open(tmp, "wb") as fh:
+            np.savez_compressed(fh, beliefs=beliefs)
+
+    atomic_write(out / "beliefs.npz", save_beliefs)
     write_json(out / "metrics.json", results)

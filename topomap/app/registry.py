@@ -52,6 +52,7 @@ class Parts:
     split: Any
     stop: Any
     data: Any
+    evaluate: Any
 
 
 @dataclass(frozen=True)
@@ -236,7 +237,8 @@ class Registry:
             noise = self.make("noise", cfg["noise"])
             explorer = self.make("explorer", cfg["explorer"])
         return Parts(world=world, noise=noise, explorer=explorer,
-                     **{k: self.make(k, cfg[k]) for k in ("metric", "clusters", "split", "stop")},
+                     **{k: self.make(k, cfg[k])
+                        for k in ("metric", "clusters", "split", "stop", "evaluate")},
                      data=data)
 
     def learner_events(self, metrics: dict):

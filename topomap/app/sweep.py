@@ -58,6 +58,8 @@ METRICS = {
     "H_u": ("H(u|x) [bits]", "min"),
     "H_x": ("H(x'|x,u) [bits]", "min"),
     "heldout_loglik": ("held-out log-likelihood per step [nats, a log-density]", "max"),
+    "nav_success": ("navigation success rate", "max"),
+    "nav_path_ratio": ("navigation path length / shortest", "min"),
     "fit_time": ("fit time [s]", "min"),
     "data_time": ("data time [s]", "min"),
     "job_time": ("job time [s]", "min"),
@@ -177,6 +179,8 @@ def _row(job: Job, keys, sweep_dir: Path) -> dict[str, Any]:
            "purity_phase1": p1.get("purity"),
            "H_o": ent.get("H_o"), "H_u": ent.get("H_u"), "H_x": ent.get("H_x"),
            "heldout_loglik": m.get("heldout_loglik"), "fit_time": fit,
+           "nav_success": (m.get("navigation") or {}).get("success_rate"),
+           "nav_path_ratio": (m.get("navigation") or {}).get("path_ratio"),
            "data_time": t.get("data"), "job_time": job.job_time,
            "error": " ".join(str(job.error).split()) if job.error else "",
            "output_dir": job.path.relative_to(sweep_dir).as_posix()}

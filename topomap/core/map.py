@@ -181,7 +181,8 @@ class TopologicalMap:
                                 + self.n_features * LOG2PI)
         return out
 
-    def _prepare(self, observations, actions, gds, lengths, smoothing):
+    def _check_inputs(self, observations, actions, gds, lengths, smoothing):
+        """Validated ``(X, u, gds, lengths)`` of a sequence for this map."""
         X, u, g, L = check_sequences(observations, actions, gds, lengths, min_length=1)
         if X.shape[1] != self.n_features:
             raise ValueError(
@@ -193,21 +194,38 @@ class TopologicalMap:
             )
         if not 0 < smoothing < 1:
             raise ValueError(f"smoothing must lie in (0, 1), got {smoothing!r}")
-        S = self.n_states
-        emit = self._log_obs(X)
-        emit += np.log((1 - smoothing) * self.action_probs_ + smoothing / self.n_actions)[:, u].T
-        # GDS labels clamp the state: a GDS step can only be its GDS state, other steps never one
-        is_gds_state = self.state_gds_ >= 0
         if gds is not None:
-            known = set(self.state_gds_[is_gds_state].tolist())
+            known = set(self.state_gds_[self.state_gds_ >= 0].tolist())
             unknown = sorted(set(g[g >= 0].tolist()) - known)
             if unknown:
                 raise ValueError(f"gds ids {unknown} are not states of this map")
+        return X, u, (None if gds is None else g), L
+
+    def _log_emissions(self, X: np.ndarray, g) -> np.ndarray:
+        """(T, S) ``log P(o_t|x)``; with GDS labels ``g`` a GDS step can only be its GDS state and
+        other steps never one (-inf elsewhere)."""
+        emit = self._log_obs(X)
+        if g is not None:
+            is_gds_state = self.state_gds_ >= 0
             allowed = np.where(g[:, None] >= 0, self.state_gds_[None] == g[:, None],
                                ~is_gds_state[None])
             emit = np.where(allowed, emit, -np.inf)
+        return emit
+
+    def _log_tables(self, smoothing: float):
+        """``(log P(u|x) (S, A), log P(x'|x,u) (S, A, S), log P(x_0) (S,))``, each mixed with a
+        ``smoothing`` share of the uniform distribution."""
+        S, A = self.n_states, self.n_actions
+        log_act = np.log((1 - smoothing) * self.action_probs_ + smoothing / A)
         log_trans = np.log((1 - smoothing) * self.transition_probs_ + smoothing / S)
         log_init = np.log((1 - smoothing) * self.state_probs_ + smoothing / S)
+        return log_act, log_trans, log_init
+
+    def _prepare(self, observations, actions, gds, lengths, smoothing):
+        """Everything decoding and scoring need: emissions including ``log P(u_t|x_t)``."""
+        X, u, g, L = self._check_inputs(observations, actions, gds, lengths, smoothing)
+        log_act, log_trans, log_init = self._log_tables(smoothing)
+        emit = self._log_emissions(X, g) + log_act[:, u].T
         return emit, u, L, log_trans, log_init
 
     def predict(self, observations, actions, gds=None, lengths=None, *, smoothing=1e-6):
@@ -250,6 +268,91 @@ class TopologicalMap:
             total += m + np.log(np.exp(alpha - m).sum())
             start += n
         return float(total / emit.shape[0])
+
+    def filter(self, observations, actions, gds=None, lengths=None, *, smoothing=1e-6):
+        """Belief over the states at every step given only the past (forward filtering).
+
+        Row ``t`` is ``P(x_t | o_1..o_t, u_1..u_{t-1})``: the step's own observation counts, its
+        action (chosen after it) does not; every row sums to 1 and each episode of ``lengths``
+        starts afresh from the map's state frequencies.  :meth:`predict` decodes the whole
+        sequence at once (Viterbi) instead.  Returns a (T, S) float array.
+        """
+        X, u, g, L = self._check_inputs(observations, actions, gds, lengths, smoothing)
+        log_act, log_trans, log_init = self._log_tables(smoothing)
+        moves = np.exp(log_act[:, :, None] + log_trans)  # P(u|x) P(x'|x,u), (S, A, S)
+        emit = self._log_emissions(X, g)
+        beliefs = np.empty_like(emit)
+        start = 0
+        for n in L.tolist():
+            belief = _normalised(log_init + emit[start])
+            beliefs[start] = belief
+            for t in range(start + 1, start + n):
+                belief = _normalised(np.log(belief @ moves[:, u[t - 1], :]) + emit[t])
+                beliefs[t] = belief
+            start += n
+        return beliefs
+
+    def step_belief(self, belief, action: int, observation, gds: int = -1, *,
+                    smoothing: float = 1e-6) -> np.ndarray:
+        """One step of :meth:`filter`: the belief after taking ``action`` from ``belief`` and then
+        seeing ``observation`` (and, if not -1, recognising GDS ``gds``).  ``belief=None`` gives the
+        belief at an episode's first step."""
+        X = np.asarray(observation, dtype=np.float64).reshape(1, -1)
+        X, _, g, _ = self._check_inputs(X, [max(int(action), 0)], [int(gds)], None, smoothing)
+        log_act, log_trans, log_init = self._log_tables(smoothing)
+        emit = self._log_emissions(X, g)[0]
+        if belief is None:
+            return _normalised(log_init + emit)
+        belief = np.asarray(belief, dtype=np.float64)
+        if belief.shape != (self.n_states,) or not np.isclose(belief.sum(), 1.0):
+            raise ValueError(f"belief must be a probability vector over the {self.n_states} states")
+        prior = belief @ np.exp(log_act[:, action, None] + log_trans[:, action, :])
+        return _normalised(np.log(prior) + emit)
+
+    def plan(self, start: int, goal, *, min_prob: float = 0.0) -> list[int]:
+        """Actions of the most probable path from state ``start`` to ``goal`` (a state or an
+        iterable of states, e.g. the GDS states; the nearest one is taken).
+
+        The path maximises the product of ``max_u P(x'|x,u)`` over its arcs (networkx's Dijkstra
+        on ``-log P``); each step's action is the one that makes its arc most probable.  Arcs are
+        those observed at least once with a probability above ``min_prob``.  Returns ``[]`` when
+        ``start`` is a goal; raises ValueError when no goal can be reached.
+        """
+        import networkx as nx
+
+        goals = {int(goal)} if isinstance(goal, (int, np.integer)) else {int(x) for x in goal}
+        for s in goals | {int(start)}:
+            if not 0 <= s < self.n_states:
+                raise ValueError(f"state {s} is not a state of this map (0..{self.n_states - 1})")
+        if not goals:
+            raise ValueError("goal must name at least one state")
+        if int(start) in goals:
+            return []
+        graph = self._planning_graph(min_prob)
+        try:
+            _, path = nx.multi_source_dijkstra(graph.reverse(copy=False), goals, int(start))
+        except nx.NetworkXNoPath:
+            raise ValueError(f"no goal state of {sorted(goals)} can be reached from state {start} "
+                             f"through arcs with P(x'|x,u) > {min_prob}") from None
+        path = path[::-1]
+        return [graph.edges[x, y]["action"] for x, y in zip(path[:-1], path[1:])]
+
+    def _planning_graph(self, min_prob: float):
+        """The arcs :meth:`plan` may use, weighted by ``-log max_u P(x'|x,u)`` (cached)."""
+        import networkx as nx
+
+        cache = self.__dict__.setdefault("_plan_graphs", {})
+        if min_prob not in cache:
+            P = np.where(self.transition_counts_ > 0, self.transition_probs_, 0.0)
+            best = P.argmax(axis=1)  # (S, S'): the action of each arc
+            prob = np.take_along_axis(P, best[:, None, :], axis=1)[:, 0, :]
+            graph = nx.DiGraph()
+            graph.add_nodes_from(range(self.n_states))
+            for x, y in zip(*np.nonzero(prob > min_prob)):
+                graph.add_edge(int(x), int(y), weight=float(-np.log(prob[x, y])),
+                               action=int(best[x, y]))
+            cache[min_prob] = graph
+        return cache[min_prob]
 
     # ------------------------------------------------------------------ graphs
     def state_label(self, s: int) -> str:
@@ -390,3 +493,13 @@ class TopologicalMap:
     def __repr__(self) -> str:
         return (f"TopologicalMap(n_states={self.n_states}, n_actions={self.n_actions}, "
                 f"n_features={self.n_features})")
+
+
+def _normalised(log_belief: np.ndarray) -> np.ndarray:
+    """``exp(log_belief)`` scaled to sum to 1 (a belief that lost all mass is an error)."""
+    m = np.max(log_belief)
+    if not np.isfinite(m):
+        raise ValueError("no state of the map can explain this observation (every state has "
+                         "probability 0; check the GDS labels)")
+    b = np.exp(log_belief - m)
+    return b / b.sum()

@@ -13,7 +13,7 @@ import numpy as np
 from ..core.trajectory import Trajectory
 
 __all__ = ["positive_int", "check_no_extra_actions", "check_simulate_args", "check_choice", "walk",
-           "symbol_embedding", "assign_symbols"]
+           "symbol_embedding", "assign_symbols", "symbol_legend"]
 
 
 def positive_int(name: str, value, low: int = 1) -> int:
@@ -90,3 +90,19 @@ def assign_symbols(n_places: int, n_symbols: int, rng: np.random.Generator) -> n
     """A symbol for every place: each symbol at least once, the rest uniform, shuffled."""
     sym = np.concatenate([np.arange(n_symbols), rng.integers(0, n_symbols, n_places - n_symbols)])
     return rng.permutation(sym).astype(np.int64)
+
+
+#: most symbols listed in a room's legend (more are told apart by their labels only)
+MAX_LEGEND_SYMBOLS = 20
+
+
+def symbol_legend(ax, colours) -> None:
+    """A legend of the symbols' tints (one entry per colour) beside the room, for at most
+    :data:`MAX_LEGEND_SYMBOLS` symbols."""
+    from matplotlib.patches import Patch
+
+    if len(colours) > MAX_LEGEND_SYMBOLS:
+        return
+    handles = [Patch(fc=c, ec="0.5", lw=0.5, label=f"symbol {k}") for k, c in enumerate(colours)]
+    ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=6.5,
+              title="observed symbol", title_fontsize=7, frameon=False)

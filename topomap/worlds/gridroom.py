@@ -24,29 +24,14 @@ from __future__ import annotations
 import numpy as np
 
 from ..core.trajectory import Trajectory
-from .common import assign_symbols, check_no_extra_actions, positive_int, symbol_embedding, walk
+from .common import (assign_symbols, check_no_extra_actions, positive_int, symbol_embedding,
+                     symbol_legend, walk)
 
-__all__ = ["GridRoom", "symbol_legend"]
+__all__ = ["GridRoom"]
 
 #: the four moves as (dx, dy)
 MOVES = np.array([[0, 1], [1, 0], [0, -1], [-1, 0]], dtype=np.int64)
 MOVE_NAMES = ["north", "east", "south", "west"]
-#: most symbols listed in a room's legend (more are told apart by their labels only)
-MAX_LEGEND_SYMBOLS = 20
-
-
-def symbol_legend(ax, colours) -> None:
-    """A legend of the symbols' tints (one entry per colour) beside the room, for at most
-    :data:`MAX_LEGEND_SYMBOLS` symbols."""
-    from matplotlib.patches import Patch
-
-    if len(colours) > MAX_LEGEND_SYMBOLS:
-        return
-    handles = [Patch(fc=c, ec="0.5", lw=0.5, label=f"symbol {k}") for k, c in enumerate(colours)]
-    ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=6.5,
-              title="observed symbol", title_fontsize=7, frameon=False)
-
-
 class GridRoom:
     """A ``width x height`` room of cells, each showing one of ``n_symbols`` symbols.
 
@@ -118,6 +103,12 @@ class GridRoom:
     def observe(self, place: int) -> np.ndarray:
         """Noise-free observation at ``place``."""
         return self.embedding[self.place_symbols[place]].copy()
+
+    def place_graph(self):
+        """The true topology, for navigation (:mod:`topomap.worlds.navigation`)."""
+        from .navigation import table_graph
+
+        return table_graph(self)
 
     def simulate(self, n_steps: int, explorer, rng: np.random.Generator) -> Trajectory:
         """Random walk of ``n_steps`` steps from a cell drawn with ``rng``.

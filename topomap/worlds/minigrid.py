@@ -217,6 +217,21 @@ class MiniGridWorld:
         return encode_view(u.gen_obs()["image"][None])[0]
 
     # ------------------------------------------------------------------ simulation
+    def place_graph(self):
+        """The true topology, for navigation (:mod:`topomap.worlds.navigation`): the poses
+        reachable from the start pose and the moves between them."""
+        from .navigation import explored_graph
+
+        def step(place):
+            pose = tuple(int(v) for v in self.pose_of(place))
+            mask = self.executable_mask(*pose)
+            return [int(self.place_id(*self.step_pose(*pose, a))) if mask[a] else -1
+                    for a in range(self.n_actions)]
+
+        start = int(self.place_id(*self.start_pose))
+        return explored_graph(self.width * self.height * 4, self.n_actions, [start], step,
+                              self.observe, lambda place: -1)
+
     def simulate(self, n_steps: int, explorer, rng: np.random.Generator) -> Trajectory:
         """Random walk of ``n_steps`` steps from the seeded reset's start pose.
 

@@ -22,8 +22,8 @@ import math
 import numpy as np
 
 from ..core.trajectory import Trajectory
-from .common import assign_symbols, check_no_extra_actions, positive_int, symbol_embedding, walk
-from .gridroom import symbol_legend
+from .common import (assign_symbols, check_no_extra_actions, positive_int, symbol_embedding,
+                     symbol_legend, walk)
 
 __all__ = ["RandomGraphWorld", "random_strong_digraph"]
 
@@ -124,6 +124,12 @@ class RandomGraphWorld:
     def observe(self, place: int) -> np.ndarray:
         """Noise-free observation at ``place``."""
         return self.embedding[self.place_symbols[place]].copy()
+
+    def place_graph(self):
+        """The true topology, for navigation (:mod:`topomap.worlds.navigation`)."""
+        from .navigation import table_graph
+
+        return table_graph(self)
 
     def simulate(self, n_steps: int, explorer, rng: np.random.Generator) -> Trajectory:
         """Random walk of ``n_steps`` steps from a place drawn with ``rng``.

@@ -334,14 +334,41 @@ class OfficeWorld:
         reason = m.run(legs)
         place = self.place_of(m.p, reason, m.entered)
         if self.dock:
-            m.p = self._standing_points[place]
-            target = self.place_positions[place] if place < self.n_objects else np.array(
-                [self.width / 2, self.height / 2])
-            m.heading = math.atan2(target[1] - m.p[1], target[0] - m.p[0])
+            docked = self.docked_pose(place)
+            m.p, m.heading = docked.xy, docked.heading
         return Pose(
             float(m.p[0]), float(m.p[1]), float(m.heading), place, pose.place, reason,
             float(m.turned), float(m.path), int(m.entered) if reason == "reach" else -1,
         )
+
+    def docked_pose(self, place: int, prev_place: int = -1) -> Pose:
+        """Where the robot stands at ``place`` after docking: its standing point, facing the
+        place (a corner: facing the room centre)."""
+        p = self._standing_points[place]
+        target = self.place_positions[place] if place < self.n_objects else np.array(
+            [self.width / 2, self.height / 2])
+        heading = math.atan2(target[1] - p[1], target[0] - p[0])
+        return Pose(float(p[0]), float(p[1]), float(heading), int(place), int(prev_place))
+
+    def place_graph(self):
+        """The true topology for navigation (:mod:`topomap.worlds.navigation`): with docking, an
+        action's result depends only on the place it starts from, so the office is a graph of
+        places.  Without docking it is not (ValueError)."""
+        from ..navigation import explored_graph
+
+        if not self.dock:
+            raise ValueError("navigation in the office world needs env.dock=true: without "
+                             "docking an action's result depends on where in a place it starts")
+        poses = [self.docked_pose(p) for p in range(self.n_places)]
+        rng = np.random.default_rng(0)  # the built-in actions are deterministic
+
+        def step(p):
+            mask = self.executable_mask(poses[p])
+            return [self.step(poses[p], a, rng).place if mask[a] else -1
+                    for a in range(self.n_actions)]
+
+        return explored_graph(self.n_places, self.n_actions, list(range(self.n_places)), step,
+                              lambda p: self.observe(poses[p]), lambda p: self.gds_of(poses[p]))
 
     def step(self, pose: Pose, action: int, rng: np.random.Generator) -> Pose:
         """Execute action ``action`` (an index into :attr:`actions`) from ``pose``."""
