@@ -296,3 +296,16 @@ def test_learner_is_a_scikit_learn_estimator():
     assert learner.n_features_in_ == X.shape[1]
     assert np.array_equal(twin.fit(X, u).labels_, learner.labels_)
     assert clone(learner).get_params()["n_states"] == 6 and not hasattr(clone(learner), "labels_")
+
+
+def test_min_gain_has_a_default_cap_of_three_times_the_initial_states():
+    rng = np.random.default_rng(0)
+    X = np.eye(3)[rng.integers(3, size=3000)] + rng.normal(0, 0.01, (3000, 3))
+    u = rng.integers(4, size=3000)  # noise: every split gains a little
+    rule = MinGain(min_gain=0.0)
+    before = vars(rule).copy()
+    learner = MapLearner(n_clusters=3, stopping=rule).fit(X, u)
+    assert learner.map_.n_states == 9 and learner.stop_reason_ == "stopping rule"
+    assert vars(rule) == before  # the parameter is not changed by fit
+    capped = MapLearner(n_clusters=3, stopping=MinGain(0.0, max_states=5)).fit(X, u)
+    assert capped.map_.n_states == 5

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import copy
 import time
 from dataclasses import dataclass
 
@@ -204,7 +205,10 @@ class MapLearner(BaseEstimator):
 
     def _components(self):
         clusters = self.clusters if self.clusters is not None else FixedClusters(self.n_clusters)
-        stopping = self.stopping if self.stopping is not None else TargetStates(self.n_states)
+        # a stopping rule may keep state during a fit (e.g. its limit): fit works on a copy, so
+        # the parameter itself is never changed
+        stopping = copy.deepcopy(self.stopping) if self.stopping is not None else TargetStates(
+            self.n_states)
         criterion = self.criterion
         if isinstance(criterion, str):
             if criterion not in CRITERIA:

@@ -145,7 +145,9 @@ class TargetStates:
 
 
 class MinGain:
-    """Stop when the best split scores below ``min_gain`` (or the map reaches ``max_states``)."""
+    """Stop when the best split scores below ``min_gain`` (bits), or when the map reaches
+    ``max_states`` states (None: three times the states phase 1 creates, so that a small
+    ``min_gain`` cannot split a map into fragments without end)."""
 
     name = "min_gain"
 
@@ -156,15 +158,17 @@ class MinGain:
             raise ValueError(f"stop.max_states must be a positive integer or None, got {max_states!r}")
         self.min_gain = float(min_gain)
         self.max_states = None if max_states is None else int(max_states)
+        self._limit = self.max_states
 
     def check(self, n_initial: int) -> None:
         if self.max_states is not None and self.max_states < n_initial:
             raise ValueError(
                 f"stop.max_states={self.max_states} is below the {n_initial} states that phase 1 creates"
             )
+        self._limit = self.max_states if self.max_states is not None else 3 * int(n_initial)
 
     def should_stop(self, n_states: int, best_score: float) -> bool:
-        if self.max_states is not None and n_states >= self.max_states:
+        if self._limit is not None and n_states >= self._limit:
             return True
         return best_score < self.min_gain
 
