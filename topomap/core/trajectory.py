@@ -18,7 +18,7 @@ Two file formats are read and written (see the README for the full description):
 from __future__ import annotations
 
 import csv
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 
 import numpy as np
@@ -28,9 +28,23 @@ from .files import atomic_write
 __all__ = ["Trajectory", "load_trajectory", "save_trajectory", "check_sequences"]
 
 
+def _as_array(values, name: str) -> np.ndarray:
+    """``np.asarray(values)``, or a ValueError naming ``name`` when the nested lists are ragged."""
+    try:
+        return np.asarray(values)
+    except (ValueError, TypeError):
+        text = " ".join(repr(values).split())
+        raise ValueError(f"{name} must be a rectangular array (nested lists of equal lengths), "
+                         f"got {text if len(text) <= 60 else text[:57] + '...'}") from None
+
+
+#: the largest magnitude an id, count or length may have (it must fit an int64 exactly)
+_INT_LIMIT = 2**53
+
+
 def _as_int_array(values, name: str, length: int | None = None) -> np.ndarray:
     """Return ``values`` as a 1-D int64 array, or raise a ValueError naming ``name``."""
-    arr = np.asarray(values)
+    arr = _as_array(values, name)
     if arr.ndim != 1:
         raise ValueError(f"{name} must be one-dimensional, got shape {arr.shape}")
     if length is not None and arr.shape[0] != length:
@@ -48,6 +62,9 @@ def _as_int_array(values, name: str, length: int | None = None) -> np.ndarray:
             raise ValueError(f"{name} must hold integers, found {arr[bad]!r} at index {bad}")
     elif arr.dtype.kind not in "iu":
         raise ValueError(f"{name} must hold integers, got values of type {arr.dtype}")
+    if arr.size and (arr.max() > _INT_LIMIT or arr.min() < -_INT_LIMIT):
+        big = (arr.max() if arr.max() > _INT_LIMIT else arr.min()).item()
+        raise ValueError(f"{name} holds {big!r}, beyond the supported range of +-2**53")
     return arr.astype(np.int64)
 
 
@@ -57,7 +74,7 @@ def check_sequences(observations, actions, gds=None, lengths=None, *, min_length
     Every problem is reported as a :class:`ValueError` whose message names the argument.
     ``gds`` defaults to all ``-1`` (no GDS) and ``lengths`` to one episode of length ``T``.
     """
-    X = np.asarray(observations)
+    X = _as_array(observations, "observations")
     if X.dtype.kind not in "fiub":
         raise ValueError(f"observations must be numbers, got values of type {X.dtype}")
     X = X.astype(np.float64)
@@ -101,6 +118,17 @@ def check_sequences(observations, actions, gds=None, lengths=None, *, min_length
     return X, u, g, L
 
 
+def _as_names(values, name: str) -> list[str]:
+    """A list of names from a sequence (a 1-D array, list or tuple), or a ValueError naming
+    ``name``."""
+    if isinstance(values, (str, bytes)):
+        raise ValueError(f"{name} must be a list of names, got the single string {values!r}")
+    arr = _as_array(values, name)
+    if arr.ndim != 1:
+        raise ValueError(f"{name} must be a one-dimensional list of names, got shape {arr.shape}")
+    return [str(v) for v in arr.tolist()]
+
+
 @dataclass
 class Trajectory:
     """One or more episodes of observations and actions, with optional labels and ground truth.
@@ -137,19 +165,21 @@ class Trajectory:
         if self.places is not None:
             self.places = _as_int_array(self.places, "places", T)
         if self.positions is not None:
-            P = np.asarray(self.positions, dtype=np.float64)
+            P = _as_array(self.positions, "positions")
+            if P.dtype.kind not in "fiu":
+                raise ValueError(f"positions must be numbers, got values of type {P.dtype}")
             if P.shape != (T, 2):
                 raise ValueError(f"positions must have shape ({T}, 2), got {P.shape}")
-            self.positions = P
+            self.positions = P.astype(np.float64)
         if self.action_names is not None:
-            self.action_names = [str(a) for a in self.action_names]
+            self.action_names = _as_names(self.action_names, "action_names")
             if u.max() >= len(self.action_names):
                 raise ValueError(
                     f"actions use id {int(u.max())} but only {len(self.action_names)} "
                     "action_names are given"
                 )
         if self.gds_names is not None:
-            self.gds_names = [str(a) for a in self.gds_names]
+            self.gds_names = _as_names(self.gds_names, "gds_names")
             if g.max() >= len(self.gds_names):
                 raise ValueError(
                     f"gds uses id {int(g.max())} but only {len(self.gds_names)} gds_names are given"
@@ -170,9 +200,21 @@ _REQUIRED = ("observations", "actions")
 _OPTIONAL = ("gds", "places", "positions", "lengths", "action_names", "gds_names")
 
 
+def _checked(traj: Trajectory, path: Path) -> Trajectory:
+    """A validated copy of ``traj``, whose fields may have been changed since it was made."""
+    try:
+        return Trajectory(**{f.name: getattr(traj, f.name) for f in fields(traj)})
+    except ValueError as exc:
+        raise ValueError(f"cannot write trajectory file {path}: {exc}") from None
+
+
 def save_trajectory(traj: Trajectory, path) -> Path:
-    """Write ``traj`` to ``path`` (``.npz`` or ``.csv``); the file appears only when complete."""
+    """Write ``traj`` to ``path`` (``.npz`` or ``.csv``); the file appears only when complete.
+
+    The trajectory is validated again first, so that no file is written that would not load.
+    """
     path = Path(path)
+    traj = _checked(traj, path)
     suffix = path.suffix.lower()
     if suffix == ".npz":
         arrays = {"observations": traj.observations, "actions": traj.actions}
@@ -221,12 +263,9 @@ def _load_npz(path: Path) -> Trajectory:
     try:
         with np.load(path, allow_pickle=False) as data:
             contents = {k: data[k] for k in data.files}
-    except ValueError as exc:
-        raise ValueError(f"trajectory file {path} is not a valid .npz without pickled objects: {exc}")
-    except (OSError, EOFError) as exc:
-        raise ValueError(f"trajectory file {path} could not be read as .npz: {exc}") from None
-    except Exception as exc:  # zipfile.BadZipFile and friends
-        raise ValueError(f"trajectory file {path} is malformed: {exc}") from None
+    except Exception as exc:  # zipfile.BadZipFile, zlib.error, EOFError, pickled objects, ...
+        raise ValueError(f"trajectory file {path} is not a valid .npz file (arrays without "
+                         f"pickled objects): {' '.join(str(exc).split())}") from None
     missing = [k for k in _REQUIRED if k not in contents]
     if missing:
         raise ValueError(f"trajectory file {path} lacks the array(s) {', '.join(missing)}")
@@ -234,9 +273,6 @@ def _load_npz(path: Path) -> Trajectory:
     if unknown:
         raise ValueError(f"trajectory file {path} has unknown array(s) {', '.join(unknown)}")
     kwargs = {k: contents[k] for k in _REQUIRED + _OPTIONAL if k in contents}
-    for key in ("action_names", "gds_names"):
-        if key in kwargs:
-            kwargs[key] = [str(v) for v in kwargs[key].tolist()]
     try:
         return Trajectory(**kwargs)
     except ValueError as exc:
@@ -247,7 +283,7 @@ def _load_csv(path: Path) -> Trajectory:
     try:
         with open(path, newline="") as fh:
             rows = list(csv.reader(fh))
-    except (OSError, UnicodeDecodeError) as exc:
+    except (OSError, UnicodeDecodeError, csv.Error) as exc:
         raise ValueError(f"trajectory file {path} could not be read as CSV: {exc}") from None
     if not rows:
         raise ValueError(f"trajectory file {path} is empty")
@@ -293,13 +329,13 @@ def _load_csv(path: Path) -> Trajectory:
         kwargs["places"] = col["place"]
     if "x" in col:
         kwargs["positions"] = np.column_stack([col["x"], col["y"]])
-    if "episode" in col:
-        ep = _as_int_array(col["episode"], "episode")
-        change = np.flatnonzero(np.diff(ep) != 0)
-        if np.any(np.diff(ep) < 0):
-            raise ValueError(f"trajectory file {path}: episode ids must not decrease")
-        kwargs["lengths"] = np.diff(np.concatenate([[0], change + 1, [ep.size]]))
     try:
+        if "episode" in col:
+            ep = _as_int_array(col["episode"], "episode")
+            if np.any(np.diff(ep) < 0):
+                raise ValueError("episode ids must not decrease")
+            change = np.flatnonzero(np.diff(ep) != 0)
+            kwargs["lengths"] = np.diff(np.concatenate([[0], change + 1, [ep.size]]))
         return Trajectory(**kwargs)
     except ValueError as exc:
         raise ValueError(f"trajectory file {path}: {exc}") from None
