@@ -29,6 +29,152 @@ FORMAT_VERSION = 1
 LOG2PI = np.log(2 * np.pi)
 
 
+# ------------------------------------------------------------------ checking a map's fields
+#: the largest magnitude a count or id may have (it must fit an int64 exactly)
+_INT_LIMIT = 2**53
+
+
+def _short(value) -> str:
+    """A one-line repr of ``value``, cut to 60 characters."""
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def _is_int(value) -> bool:
+    """Whether ``value`` is an integer (a JSON integer; booleans are not)."""
+    return isinstance(value, (int, np.integer)) and not isinstance(value, bool)
+
+
+def _array(values, name: str, integer: bool) -> np.ndarray:
+    """``values`` as an int64 or float64 array, or a ValueError naming ``name``."""
+    what = "integers" if integer else "numbers"
+    try:
+        arr = np.asarray(values)
+    except (ValueError, TypeError):
+        raise ValueError(f"{name} must be a rectangular array of {what}, "
+                         f"got {_short(values)}") from None
+    if arr.dtype.kind not in ("iu" if integer else "iuf"):
+        raise ValueError(f"{name} must hold {what}, got {_short(values)}")
+    if integer and arr.size and (arr.max() > _INT_LIMIT or arr.min() < -_INT_LIMIT):
+        raise ValueError(f"{name} holds an integer beyond +-2**53: {_short(values)}")
+    return arr.astype(np.int64 if integer else np.float64)
+
+
+def _first_bad(ok) -> int | None:
+    """The first state (row of ``ok``) with a False entry, or None."""
+    ok = np.asarray(ok).reshape(len(ok), -1).all(axis=1)
+    return None if ok.all() else int(np.flatnonzero(~ok)[0])
+
+
+def _require(ok, message: str) -> None:
+    """Raise ``states[i].<message>`` for the first state ``i`` where ``ok`` is False."""
+    i = _first_bad(ok)
+    if i is not None:
+        raise ValueError(f"states[{i}].{message}")
+
+
+def _is_covariance(c: np.ndarray) -> bool:
+    """Whether ``c`` is a symmetric positive definite matrix of finite numbers."""
+    if not (np.all(np.isfinite(c)) and np.allclose(c, c.T)):
+        return False
+    try:
+        np.linalg.cholesky(c)
+    except np.linalg.LinAlgError:
+        return False
+    return True
+
+
+def _names(values, name: str) -> list:
+    """``values`` as a list (of names), or a ValueError naming ``name``."""
+    if isinstance(values, (str, bytes, dict)):
+        raise ValueError(f"{name} must be a list of names, got {_short(values)}")
+    try:
+        return list(values)
+    except TypeError:
+        raise ValueError(f"{name} must be a list of names, got {_short(values)}") from None
+
+
+def _records(values, name: str) -> list[dict]:
+    """``values`` as a list of dicts (copied), or a ValueError naming ``name``."""
+    if isinstance(values, (str, bytes, dict)) or not hasattr(values, "__iter__"):
+        raise ValueError(f"{name} must be a list of records, got {_short(values)}")
+    out = []
+    for k, record in enumerate(values):
+        if not isinstance(record, dict):
+            raise ValueError(f"{name}[{k}] must be a record (a JSON object), got {_short(record)}")
+        out.append(dict(record))
+    return out
+
+
+def _field(d: dict, key: str, where: str = ""):
+    """``d[key]``, or a ValueError naming the missing field ``<where>.<key>``."""
+    if key not in d:
+        raise ValueError(f"field {where}{'.' if where else ''}{key} is missing")
+    return d[key]
+
+
+def _positive_int(d: dict, key: str) -> int:
+    """Field ``key`` of ``d``, which must be an integer >= 1."""
+    value = _field(d, key)
+    if not _is_int(value) or not 1 <= value <= _INT_LIMIT:
+        raise ValueError(f"field {key} must be a positive integer, got {_short(value)}")
+    return int(value)
+
+
+def _state_column(states: list, key: str, integer: bool) -> np.ndarray:
+    """Field ``key`` of every state, stacked; a ValueError names ``states[i].<key>``."""
+    rows = [_array(_field(st, key, f"states[{i}]"), f"states[{i}].{key}", integer)
+            for i, st in enumerate(states)]
+    for i, row in enumerate(rows):
+        if row.shape != rows[0].shape:
+            raise ValueError(f"states[{i}].{key} has shape {row.shape} but states[0].{key} "
+                             f"has shape {rows[0].shape}")
+    return np.stack(rows)
+
+
+def _json_states(d: dict) -> list[dict]:
+    """The ``states`` list of a map's JSON object, checked to be states 0..n_states-1."""
+    S = _positive_int(d, "n_states")
+    states = _field(d, "states")
+    if not isinstance(states, list):
+        raise ValueError(f"field states must be a list, got {_short(states)}")
+    if len(states) != S:
+        raise ValueError(f"field states has {len(states)} entries but n_states is {S}")
+    for i, st in enumerate(states):
+        if not isinstance(st, dict):
+            raise ValueError(f"states[{i}] must be a JSON object, got {_short(st)}")
+        if not (_is_int(_field(st, "id", f"states[{i}]")) and st["id"] == i):
+            raise ValueError(f"states[{i}].id is {_short(st['id'])}; states must be listed in "
+                             "order 0..n_states-1")
+    return states
+
+
+def _json_transitions(rows, S: int, A: int) -> np.ndarray:
+    """The (S, A, S) transition counts from the JSON rows ``[state, action, next_state, count]``."""
+    if not isinstance(rows, list):
+        raise ValueError(f"field transitions must be a list of rows, got {_short(rows)}")
+    trans = np.zeros((S, A, S), dtype=np.int64)
+    for k, row in enumerate(rows):
+        if not (isinstance(row, list) and len(row) == 4 and all(_is_int(v) for v in row)):
+            raise ValueError(f"transitions[{k}] must be [state, action, next_state, count] "
+                             f"(integers), got {_short(row)}")
+        x, a, y, n = row
+        if not (0 <= x < S and 0 <= a < A and 0 <= y < S and 0 <= n <= _INT_LIMIT):
+            raise ValueError(f"transitions[{k}] = {row} is out of range (states 0..{S - 1}, "
+                             f"actions 0..{A - 1}, a count >= 0)")
+        trans[x, a, y] = n
+    return trans
+
+
+def _json_names(d: dict, key: str):
+    """Optional field ``key``: null or a list of strings."""
+    names = d.get(key)
+    if names is not None and not (isinstance(names, list)
+                                  and all(isinstance(n, str) for n in names)):
+        raise ValueError(f"field {key} must be a list of strings or null, got {_short(names)}")
+    return names
+
+
 class TopologicalMap:
     """A learned map.  Usually made by :class:`topomap.MapLearner`; see the module docstring.
 
@@ -47,25 +193,69 @@ class TopologicalMap:
     def __init__(self, state_symbol, state_gds, state_parent, means, covariances, state_counts,
                  action_counts, transition_counts, *, action_names=None, gds_names=None,
                  split_history=(), entropies=(), info=None):
-        self.state_symbol_ = np.asarray(state_symbol, dtype=np.int64)
-        self.state_gds_ = np.asarray(state_gds, dtype=np.int64)
-        self.state_parent_ = np.asarray(state_parent, dtype=np.int64)
-        self.means_ = np.asarray(means, dtype=np.float64)
-        self.covariances_ = np.asarray(covariances, dtype=np.float64)
-        self.state_counts_ = np.asarray(state_counts, dtype=np.int64)
-        self.action_counts_ = np.asarray(action_counts, dtype=np.int64)
-        self.transition_counts_ = np.asarray(transition_counts, dtype=np.int64)
-        self.action_names = None if action_names is None else list(action_names)
-        self.gds_names = None if gds_names is None else list(gds_names)
-        self.split_history_ = [dict(h) for h in split_history]
-        self.entropies_ = [dict(e) for e in entropies]
+        self.state_symbol_ = _array(state_symbol, "states[*].symbol", integer=True)
+        self.state_gds_ = _array(state_gds, "states[*].gds", integer=True)
+        self.state_parent_ = _array(state_parent, "states[*].parent", integer=True)
+        self.means_ = _array(means, "states[*].mean", integer=False)
+        self.covariances_ = _array(covariances, "states[*].covariance", integer=False)
+        self.state_counts_ = _array(state_counts, "states[*].count", integer=True)
+        self.action_counts_ = _array(action_counts, "states[*].action_counts", integer=True)
+        self.transition_counts_ = _array(transition_counts, "transitions", integer=True)
+        self.action_names = None if action_names is None else _names(action_names, "action_names")
+        self.gds_names = None if gds_names is None else _names(gds_names, "gds_names")
+        self.split_history_ = _records(split_history, "split_history")
+        self.entropies_ = _records(entropies, "entropies")
+        if info is not None and not isinstance(info, dict):
+            raise ValueError(f"info must be a dict (a JSON object), got {_short(info)}")
         self.info = dict(info or {})
+        self._check_shapes()
+        self._check_values()
+
+    def _check_shapes(self) -> None:
+        """Every table has the shape the state, action and feature counts give it."""
+        if self.action_counts_.ndim != 2 or 0 in self.action_counts_.shape:
+            raise ValueError("states[*].action_counts must form a non-empty (n_states, n_actions) "
+                             f"table, got shape {self.action_counts_.shape}")
         S, A = self.action_counts_.shape
-        if self.transition_counts_.shape != (S, A, S) or self.means_.shape[0] != S:
-            raise ValueError(
-                f"inconsistent map: {S} states, {A} actions, transition_counts "
-                f"{self.transition_counts_.shape}, means {self.means_.shape}"
-            )
+        for key, arr in (("symbol", self.state_symbol_), ("gds", self.state_gds_),
+                         ("parent", self.state_parent_), ("count", self.state_counts_)):
+            if arr.shape != (S,):
+                raise ValueError(f"states[*].{key} must be one integer for each of the {S} "
+                                 f"states, got shape {arr.shape}")
+        if self.means_.ndim != 2 or self.means_.shape[0] != S or self.means_.shape[1] == 0:
+            raise ValueError(f"states[*].mean must form a ({S}, n_features) array, got shape "
+                             f"{self.means_.shape}")
+        D = self.means_.shape[1]
+        if self.covariances_.shape not in ((S, D), (S, D, D)):
+            raise ValueError(f"states[*].covariance must form a ({S}, {D}) or ({S}, {D}, {D}) "
+                             f"array, got shape {self.covariances_.shape}")
+        if self.transition_counts_.shape != (S, A, S):
+            raise ValueError(f"transitions must form a ({S}, {A}, {S}) table, got shape "
+                             f"{self.transition_counts_.shape}")
+
+    def _check_values(self) -> None:
+        """Counts are >= 0, observation models are proper Gaussians, ids refer to what exists."""
+        S, A = self.action_counts_.shape
+        _require(self.state_counts_ >= 0, "count must be >= 0")
+        _require(self.action_counts_ >= 0, "action_counts must be >= 0")
+        _require(self.transition_counts_ >= 0, "transitions: counts must be >= 0")
+        _require(np.isfinite(self.means_), "mean must hold finite numbers")
+        if self.covariances_.ndim == 2:
+            _require(np.isfinite(self.covariances_) & (self.covariances_ > 0),
+                     "covariance must hold finite variances > 0")
+        else:
+            _require([_is_covariance(c) for c in self.covariances_],
+                     "covariance must be a symmetric positive definite matrix")
+        symbol, gds, parent = self.state_symbol_, self.state_gds_, self.state_parent_
+        _require((symbol >= -1) & (gds >= -1) & ((symbol >= 0) != (gds >= 0)),
+                 "symbol and .gds: one must be >= 0 and the other -1")
+        _require((parent >= -1) & (parent < np.arange(S)), "parent must be -1 or an earlier state")
+        if self.action_names is not None and len(self.action_names) < A:
+            raise ValueError(f"action_names has {len(self.action_names)} names but the map has "
+                             f"{A} actions")
+        if self.gds_names is not None and len(self.gds_names) <= gds.max():
+            raise ValueError(f"gds_names has {len(self.gds_names)} names but states use GDS id "
+                             f"{int(gds.max())}")
 
     # ------------------------------------------------------------------ construction
     @classmethod
@@ -450,41 +640,48 @@ class TopologicalMap:
 
     @classmethod
     def from_dict(cls, d: dict) -> "TopologicalMap":
-        try:
-            if d.get("format") != "topomap.map":
-                raise ValueError("it is not a topomap map (field 'format' is missing or wrong)")
-            if d.get("version") != FORMAT_VERSION:
-                raise ValueError(f"format version {d.get('version')!r} is not supported")
-            S, A = int(d["n_states"]), int(d["n_actions"])
-            states = d["states"]
-            if len(states) != S or [st["id"] for st in states] != list(range(S)):
-                raise ValueError("field 'states' must list states 0..n_states-1 in order")
-            trans = np.zeros((S, A, S), dtype=np.int64)
-            for row in d["transitions"]:
-                a, b, c, n = row
-                trans[a, b, c] = n
-            return cls(
-                [st["symbol"] for st in states], [st["gds"] for st in states],
-                [st["parent"] for st in states], [st["mean"] for st in states],
-                [st["covariance"] for st in states], [st["count"] for st in states],
-                [st["action_counts"] for st in states], trans,
-                action_names=d.get("action_names"), gds_names=d.get("gds_names"),
-                split_history=d.get("split_history", ()), entropies=d.get("entropies", ()),
-                info=d.get("info"),
-            )
-        except (KeyError, TypeError, IndexError) as exc:
-            raise ValueError(f"malformed map: missing or invalid field {exc}") from None
+        """The map described by ``d`` (what :meth:`to_dict` returns), every field checked: a
+        problem is a one-line ValueError naming the field, e.g. ``states[3].covariance``."""
+        if not isinstance(d, dict):
+            raise ValueError(f"a map must be a JSON object, got {_short(d)}")
+        if d.get("format") != "topomap.map":
+            raise ValueError(f"field format must be 'topomap.map', got {_short(d.get('format'))}")
+        if not _is_int(d.get("version")) or d["version"] != FORMAT_VERSION:
+            raise ValueError(f"field version is {_short(d.get('version'))}; this topomap reads "
+                             f"version {FORMAT_VERSION}")
+        states = _json_states(d)
+        S, A, D = len(states), _positive_int(d, "n_actions"), _positive_int(d, "n_features")
+        col = {key: _state_column(states, key, integer=key not in ("mean", "covariance"))
+               for key in ("symbol", "gds", "parent", "mean", "covariance", "count",
+                           "action_counts")}
+        kind = _field(d, "covariance_type")
+        if kind not in ("diag", "full"):
+            raise ValueError(f"field covariance_type must be 'diag' or 'full', got {_short(kind)}")
+        shapes = {"action_counts": (A,), "mean": (D,),
+                  "covariance": (D,) if kind == "diag" else (D, D)}
+        for key, shape in shapes.items():
+            if col[key].shape[1:] != shape:
+                raise ValueError(f"states[*].{key} must each have shape {shape} (n_actions={A}, "
+                                 f"n_features={D}, covariance_type={kind}), got "
+                                 f"{col[key].shape[1:]}")
+        return cls(col["symbol"], col["gds"], col["parent"], col["mean"], col["covariance"],
+                   col["count"], col["action_counts"],
+                   _json_transitions(_field(d, "transitions"), S, A),
+                   action_names=_json_names(d, "action_names"),
+                   gds_names=_json_names(d, "gds_names"),
+                   split_history=d.get("split_history", ()), entropies=d.get("entropies", ()),
+                   info=d.get("info"))
 
     @classmethod
     def load(cls, path) -> "TopologicalMap":
-        """Read a map written by :meth:`save`."""
+        """Read a map written by :meth:`save`; any problem is a one-line ValueError naming the
+        file and the field."""
         path = Path(path)
         try:
             d = json.loads(Path(path).read_text())
-        except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-            raise ValueError(f"map file {path} could not be read as JSON: {exc}") from None
-        if not isinstance(d, dict):
-            raise ValueError(f"map file {path} does not hold a JSON object")
+        except (OSError, UnicodeDecodeError, json.JSONDecodeError, RecursionError) as exc:
+            reason = "it is nested too deeply" if isinstance(exc, RecursionError) else exc
+            raise ValueError(f"map file {path} could not be read as JSON: {reason}") from None
         try:
             return cls.from_dict(d)
         except ValueError as exc:
