@@ -98,32 +98,87 @@ def _job_num(path: Path, fallback: int) -> int:
 
 
 def read_jobs(sweep_dir) -> list[Job]:
-    """Every job folder under ``sweep_dir`` (found by its ``.hydra/overrides.yaml``), by job number.
+    """Every job folder under ``sweep_dir`` (a folder holding ``.hydra/``), by job number.
 
     A job's status is that of its ``status.json``; without one it is ``completed`` if it wrote
-    ``metrics.json`` and ``incomplete`` otherwise (still running, killed or lost).
+    ``metrics.json`` and ``incomplete`` otherwise (still running, killed or lost).  Reading never
+    fails on what a crash or a kill leaves behind: a ``.hydra`` folder without ``overrides.yaml``,
+    a truncated ``status.json`` or ``metrics.json``; the job's error says what is wrong, and a job
+    without a readable ``metrics.json`` is never ``completed``.
     """
-    from omegaconf import OmegaConf
-
     sweep_dir = Path(sweep_dir)
     jobs = []
-    for i, ov_file in enumerate(sorted(sweep_dir.rglob(".hydra/overrides.yaml"))):
-        path = ov_file.parent.parent
-        if CACHE_DIR in path.relative_to(sweep_dir).parts:
-            continue
-        overrides = dict(_key_value(o) for o in OmegaConf.to_container(OmegaConf.load(ov_file)))
-        status = {}
-        if (path / STATUS_FILE).is_file():
-            status = json.loads((path / STATUS_FILE).read_text())
-        metrics = {}
-        if (path / "metrics.json").is_file():
-            metrics = json.loads((path / "metrics.json").read_text())
-        state = status.get("status") or ("completed" if metrics else "incomplete")
-        if state == "completed" and not metrics:
-            state, status["error"] = "incomplete", "metrics.json is missing"
-        jobs.append(Job(num=_job_num(path, i), path=path, overrides=overrides, status=state,
-                        error=status.get("error"), metrics=metrics, job_time=status.get("job_time")))
+    for i, hydra_dir in enumerate(sorted(sweep_dir.rglob(".hydra"))):
+        path = hydra_dir.parent
+        if hydra_dir.is_dir() and CACHE_DIR not in path.relative_to(sweep_dir).parts:
+            jobs.append(_read_job(path, i))
     return sorted(jobs, key=lambda j: j.num)
+
+
+def _read_job(path: Path, index: int) -> Job:
+    """The job in folder ``path`` (``index``: its number if Hydra's files do not tell)."""
+    problems: list[str] = []
+    overrides = _read_overrides(path, problems)
+    status = _read_json(path / STATUS_FILE, problems)
+    metrics = _read_json(path / "metrics.json", problems)
+    state = status.get("status")
+    if state is None:  # no status.json: the job ended (or was stopped) before writing it
+        state = "completed" if metrics else "incomplete"
+        if not (path / STATUS_FILE).exists() and not (path / "metrics.json").exists():
+            problems.append(f"no {STATUS_FILE} or metrics.json: the job is still running, or "
+                            "was killed or lost")
+    elif state not in ("completed", "failed"):
+        problems.append(f"{STATUS_FILE} gives the unknown status {state!r}")
+        state = "incomplete"
+    if state == "completed" and not metrics:
+        state = "incomplete"
+        if not (path / "metrics.json").is_file():
+            problems.append("metrics.json is missing")
+    errors = [str(status["error"])] if status.get("error") else []
+    return Job(num=_job_num(path, index), path=path, overrides=overrides, status=state,
+               error="; ".join(errors + problems) or None,
+               metrics=metrics if state == "completed" else {}, job_time=status.get("job_time"))
+
+
+def _read_overrides(path: Path, problems: list[str]) -> dict[str, str]:
+    """The job's ``.hydra/overrides.yaml`` as ``{key: value}``; ``{}`` (and a note in
+    ``problems``) when it is missing or unreadable."""
+    from omegaconf import OmegaConf
+
+    file = path / ".hydra" / "overrides.yaml"
+    if not file.is_file():
+        problems.append(f"{file.relative_to(path)} is missing")
+        return {}
+    try:
+        overrides = OmegaConf.to_container(OmegaConf.load(file))
+        if not isinstance(overrides, list):
+            raise ValueError("it is not a list of overrides")
+        return dict(_key_value(o) for o in overrides)
+    except Exception as exc:  # a YAML or OmegaConf error: the file was cut short
+        problems.append(f"{file.relative_to(path)} is unreadable ({_one_line(exc)})")
+        return {}
+
+
+def _read_json(path: Path, problems: list[str]) -> dict:
+    """The JSON object in ``path``; ``{}`` when there is no such file, and also (with a note in
+    ``problems``) when it is unreadable, e.g. cut short by a kill."""
+    if not path.is_file():
+        return {}
+    try:
+        value = json.loads(path.read_text())
+    except (OSError, UnicodeDecodeError, RecursionError, ValueError) as exc:
+        problems.append(f"{path.name} is unreadable ({_one_line(exc)})")
+        return {}
+    if not isinstance(value, dict):
+        problems.append(f"{path.name} does not hold a JSON object")
+        return {}
+    return value
+
+
+def _one_line(exc: BaseException) -> str:
+    """An exception's message on one line, cut to 120 characters."""
+    text = " ".join(str(exc).split()) or type(exc).__name__
+    return text if len(text) <= 120 else text[:117] + "..."
 
 
 def _sweep_overrides(multirun_cfg) -> list[str]:
@@ -496,7 +551,7 @@ def main(argv=None) -> int:
         parser.error(f"{args.sweep_dir} is not a folder")
     report = write_report(args.sweep_dir, metric=args.metric, figure=args.figure)
     if not report.rows:
-        print(f"topomap: error: no job folders (.hydra/overrides.yaml) under {args.sweep_dir}",
+        print(f"topomap: error: no job folders (holding .hydra/) under {args.sweep_dir}",
               file=sys.stderr)
         return 1
     _print_report(report)
