@@ -376,6 +376,7 @@ def test_save_trajectory_writes_a_loadable_file_or_nothing(suffix, field, value)
 
 def test_save_trajectory_interrupted_while_writing_leaves_no_file(tmp_path, monkeypatch):
     def broken(fh, **arrays):
+        """Half a file, then the disk is full."""
         fh.write(b"PK\x03\x04 half a zip")
         raise OSError("disk full")
 

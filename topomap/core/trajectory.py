@@ -279,6 +279,15 @@ def _load_npz(path: Path) -> Trajectory:
         raise ValueError(f"trajectory file {path}: {exc}") from None
 
 
+def _episode_lengths(episode) -> np.ndarray:
+    """Episode lengths from a CSV's ``episode`` column (ids that never decrease)."""
+    ep = _as_int_array(episode, "episode")
+    if np.any(np.diff(ep) < 0):
+        raise ValueError("episode ids must not decrease")
+    change = np.flatnonzero(np.diff(ep) != 0)
+    return np.diff(np.concatenate([[0], change + 1, [ep.size]]))
+
+
 def _load_csv(path: Path) -> Trajectory:
     try:
         with open(path, newline="") as fh:
@@ -331,11 +340,7 @@ def _load_csv(path: Path) -> Trajectory:
         kwargs["positions"] = np.column_stack([col["x"], col["y"]])
     try:
         if "episode" in col:
-            ep = _as_int_array(col["episode"], "episode")
-            if np.any(np.diff(ep) < 0):
-                raise ValueError("episode ids must not decrease")
-            change = np.flatnonzero(np.diff(ep) != 0)
-            kwargs["lengths"] = np.diff(np.concatenate([[0], change + 1, [ep.size]]))
+            kwargs["lengths"] = _episode_lengths(col["episode"])
         return Trajectory(**kwargs)
     except ValueError as exc:
         raise ValueError(f"trajectory file {path}: {exc}") from None
