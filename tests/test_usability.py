@@ -135,3 +135,18 @@ def test_one_dimensional_observations_are_refused_with_a_reshape_hint():
     with pytest.raises(ValueError, match="reshape"):
         MapLearner(n_clusters=2, n_states=2).fit(X, u)
     MapLearner(n_clusters=2, n_states=2).fit(X.reshape(-1, 1), u)  # the hint works
+
+
+def test_a_sweep_cell_without_a_completed_job_says_why():
+    from topomap.app.sweep import _no_value
+
+    assert _no_value([{"status": "incomplete"}]) == "incomplete"
+    assert _no_value([{"status": "failed"}, {"status": "incomplete"}]) == "failed/incomplete"
+    assert _no_value([{"status": "failed"}, {"status": "completed"}]) == ""
+
+
+def test_too_few_action_names_fail_before_any_work():
+    X = np.eye(3)[np.arange(30) % 3]
+    with pytest.raises(ValueError, match="action_names has 1 names but n_actions is 3"):
+        MapLearner(n_clusters=3, n_states=3).fit(X, np.arange(30) % 3, n_actions=3,
+                                                 action_names=["a"])

@@ -409,29 +409,37 @@ def _line(ax, rows, key, metric, title, best=None) -> None:
     ax.grid(alpha=0.3)
 
 
+def _no_value(rows) -> str:
+    """Why a cell of jobs has no value: the statuses of its jobs ("failed", "incomplete") when
+    none completed; "" when one did (or there are none)."""
+    status = {r["status"] for r in rows}
+    return "" if not rows or "completed" in status else "/".join(sorted(status))
+
+
 def _grid(rows, keys, metric):
-    """The metric's mean per (y, x) cell over completed jobs, and which cells only failed."""
+    """The metric's mean per (y, x) cell over completed jobs, and why a cell has no value."""
     import numpy as np
 
     (ykey, xkey), (ys, xs) = keys, [_axis(rows, k) for k in keys]
     grid = np.full((len(ys), len(xs)), np.nan)
-    failed = np.zeros(grid.shape, dtype=bool)
+    why = np.full(grid.shape, "", dtype=object)
     for i, y in enumerate(ys):
         for j, x in enumerate(xs):
             cell = [r for r in rows if str(r[ykey]) == y and str(r[xkey]) == x]
             grid[i, j] = _mean([_number(r[metric]) for r in cell if r["status"] == "completed"])
-            failed[i, j] = bool(cell) and all(r["status"] != "completed" for r in cell)
-    return ys, xs, grid, failed
+            why[i, j] = _no_value(cell)
+    return ys, xs, grid, why
 
 
 def _heat_map(fig, rows, keys, metric, title, best) -> None:
     """The metric over two swept keys: one cell per pair of values with its value written in it,
-    cells whose jobs all failed grey and marked "failed", the best cell outlined in red."""
+    cells without a completed job grey and marked "failed" or "incomplete", the best cell
+    outlined in red."""
     import matplotlib
     import numpy as np
     from matplotlib.patches import Rectangle
 
-    (ykey, xkey), (ys, xs, grid, failed) = keys, _grid(rows, keys, metric)
+    (ykey, xkey), (ys, xs, grid, why) = keys, _grid(rows, keys, metric)
     ax = fig.add_subplot()
     cmap = matplotlib.colormaps["viridis"].with_extremes(bad="0.88")
     im = ax.imshow(np.ma.masked_invalid(grid), origin="lower", aspect="auto", cmap=cmap)
@@ -439,8 +447,8 @@ def _heat_map(fig, rows, keys, metric, title, best) -> None:
     finite = grid[np.isfinite(grid)]
     mid = (finite.min() + finite.max()) / 2 if finite.size else 0.0
     for (i, j), value in np.ndenumerate(grid):
-        if failed[i, j]:
-            ax.text(j, i, "failed", ha="center", va="center", fontsize=7, color="0.35")
+        if why[i, j]:
+            ax.text(j, i, why[i, j], ha="center", va="center", fontsize=7, color="0.35")
         elif np.isfinite(value):
             ax.text(j, i, _short(value), ha="center", va="center", fontsize=7,
                     color="white" if value < mid else "black")
@@ -460,10 +468,8 @@ def _table(report: Report) -> str:
     rows, keys, metric = report.rows, report.keys, report.metric
 
     def cell(rs):
-        if not rs:
-            return ""
-        if all(r["status"] != "completed" for r in rs):
-            return "failed"
+        if not rs or _no_value(rs):
+            return _no_value(rs)
         value = _mean([_number(r[metric]) for r in rs])
         return "-" if math.isnan(value) else _short(value)
 

@@ -197,6 +197,8 @@ class MapLearner(BaseEstimator):
             A = max(A, len(action_names))
         if u.max() >= A:
             raise ValueError(f"actions use id {int(u.max())} but n_actions is {A}")
+        if action_names is not None and len(action_names) != A:
+            raise ValueError(f"action_names has {len(action_names)} names but n_actions is {A}")
         if gds_names is not None and g.max() >= len(gds_names):
             raise ValueError(f"gds id {int(g.max())} is out of range: only {len(gds_names)} "
                              "gds_names are given")
