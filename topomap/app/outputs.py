@@ -66,6 +66,16 @@ def write_json(path, obj) -> None:
     atomic_write(path, lambda tmp: Path(tmp).write_text(text + "\n"))
 
 
+def write_states(path: Path, traj, **columns) -> None:
+    """``states.csv``: the step, the given state columns and, with ground truth, the place."""
+    columns = {"step": np.arange(len(traj)), **columns}
+    if traj.places is not None:
+        columns["place"] = traj.places
+    table = np.column_stack(list(columns.values()))
+    atomic_write(path, lambda tmp: np.savetxt(tmp, table, fmt="%d", delimiter=",",
+                                              header=",".join(columns), comments=""))
+
+
 def write_outputs(out: Path, traj, learner, results, cfg, world=None) -> None:
     """Write every output file of a run into ``out`` (each atomically; metrics.json last)."""
     out = Path(out)
@@ -75,15 +85,8 @@ def write_outputs(out: Path, traj, learner, results, cfg, world=None) -> None:
     m = learner.map_
     m.save(out / "map.json")
     m.to_graphml(out / "map.graphml", min_prob=cfg["output"]["min_prob"])
-    cols = [np.arange(len(traj)), learner.labels_phase1_, learner.labels_]
-    header = "step,state_phase1,state"
-    if traj.places is not None:
-        cols.append(traj.places)
-        header += ",place"
-    table = np.column_stack(cols)
-    atomic_write(out / "states.csv",
-                 lambda tmp: np.savetxt(tmp, table, fmt="%d", delimiter=",", header=header,
-                                        comments=""))
+    write_states(out / "states.csv", traj, state_phase1=learner.labels_phase1_,
+                 state=learner.labels_)
     if cfg["output"]["figures"]:
         from . import plots
 
@@ -97,15 +100,8 @@ def write_localization(out: Path, traj, beliefs, viterbi, results) -> None:
     """Write the files of a ``task=localize`` run (:data:`LOCALIZE_FILES`) into ``out``."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    cols = [np.arange(len(traj)), beliefs.argmax(axis=1), viterbi]
-    header = "step,state_filter,state_viterbi"
-    if traj.places is not None:
-        cols.append(traj.places)
-        header += ",place"
-    table = np.column_stack(cols)
-    atomic_write(out / "states.csv",
-                 lambda tmp: np.savetxt(tmp, table, fmt="%d", delimiter=",", header=header,
-                                        comments=""))
+    write_states(out / "states.csv", traj, state_filter=beliefs.argmax(axis=1),
+                 state_viterbi=viterbi)
 
     def save_beliefs(tmp):
         with open(tmp, "wb") as fh:
