@@ -120,7 +120,8 @@ class TopomapSpecs:
         :param event: ``"phase1"`` after clustering, ``"split"`` after each split, ``"done"`` at
             the end.
         :param info: ``learner`` (the :class:`topomap.MapLearner`), ``labels`` (state of every
-            step), ``entropies`` (dict with ``H_o``, ``H_u``, ``H_x``, ``n_states``), ``record``
+            step; for ``"split"`` the learner's working array, changed in place by later splits,
+            so copy it to keep it), ``entropies`` (dict with ``H_o``, ``H_u``, ``H_x``, ``n_states``), ``record``
             (for ``"split"``: iteration, state, new_state, gain, sizes) and ``metrics`` (a dict a
             plugin may add JSON-serialisable entries to; they are written to ``metrics.json`` under
             ``plugin_metrics``).

@@ -11,13 +11,39 @@ Two kinds of swappable pieces live here, each a small object with one method:
   the paper's suggested remedy for having to fix ``ns`` in advance).
 
 Policies and metrics are not changed by use: everything a fit learns is returned.
+
+How K-means runs (``method`` of :func:`cluster_observations`, ``MapLearner(phase1=...)``):
+
+``"full"``
+    scikit-learn ``KMeans`` on every row: the paper's method, exactly.
+``"distinct"``
+    ``KMeans`` on the distinct rows with their counts as ``sample_weight``.  The objective is the
+    full one (a repeated row contributes count x its squared distance), so it is exact for data
+    that repeat (MiniGrid views, noise-free worlds).
+``"sample"``
+    ``KMeans`` on ``sample_size`` rows drawn without replacement (default ``64 * ns``, at least
+    20,000), then every row assigned to its nearest centre (scikit-learn's chunked ``predict``);
+    when the sample would hold every row this is ``"full"``.
+``"minibatch"``
+    scikit-learn ``MiniBatchKMeans`` over all rows.
+``"auto"`` (default)
+    ``"full"`` while ``T * ns * D <= 1e7`` (the paper's run: T = 2000, ns = 20, D = 15), else
+    ``"distinct"`` when the rows repeat (at most half of them distinct; above 65,536 rows judged
+    on a seeded sample of that size), else ``"sample"``.  So every run of up to 20,000 steps
+    whose rows do not repeat gets the exact full fit.
+
+All methods run with single-threaded BLAS (see :func:`_run`).
 """
 
 from __future__ import annotations
 
 import numpy as np
-from sklearn.cluster import KMeans
+from numba import njit
+from sklearn.cluster import KMeans, MiniBatchKMeans
 from sklearn.mixture import GaussianMixture
+from threadpoolctl import threadpool_limits
+
+from .stats import distinct_rows
 
 __all__ = [
     "Euclidean",
@@ -28,6 +54,8 @@ __all__ = [
     "METRICS",
     "make_metric",
     "cluster_observations",
+    "METHODS",
+    "choose_method",
 ]
 
 
@@ -151,30 +179,130 @@ class BICClusters:
         return f"BICClusters(min_ns={self.min_ns}, max_ns={self.max_ns}, step={self.step})"
 
 
+METHODS = ("auto", "full", "distinct", "sample", "minibatch")
+#: ``T * ns * D`` up to which ``method="auto"`` runs the exact full K-means
+FULL_BUDGET = 10_000_000
+_MIN_SAMPLE = 20_000
+
+
+#: above this many rows, whether the rows repeat is judged on a seeded sample of this size
+PROBE_ROWS = 65_536
+
+
+def choose_method(n_rows: int, repeats: bool, n_clusters: int, n_features: int,
+                  full_budget: int = FULL_BUDGET) -> str:
+    """The method ``"auto"`` stands for (see the module docstring)."""
+    if n_rows * n_clusters * n_features <= full_budget:
+        return "full"
+    return "distinct" if repeats else "sample"
+
+
+def probe_distinct(Z: np.ndarray, n_clusters: int, random_state: int):
+    """``(repeats, distinct)``: whether at most half of the rows are distinct, and the exact
+    :func:`topomap.core.stats.distinct_rows` of ``Z`` or None when they are not needed.
+
+    Above :data:`PROBE_ROWS` rows a seeded sample of that size is looked at first; when more than
+    half of its rows are distinct and they are at least ``n_clusters``, the rows are taken not to
+    repeat and the full count is skipped (it can only be larger).
+    """
+    T = Z.shape[0]
+    if T > PROBE_ROWS:
+        rows = np.sort(np.random.default_rng(random_state).choice(T, PROBE_ROWS, replace=False))
+        n_probe = distinct_rows(Z[rows])[0].size
+        if 2 * n_probe > PROBE_ROWS and n_probe >= n_clusters:
+            return False, None
+    distinct = distinct_rows(Z)
+    return 2 * distinct[0].size <= T, distinct
+
+
+@njit(cache=True)
+def first_appearance_order(labels, k):
+    """``rename`` with ``rename[label]`` = rank of the label's first appearance (labels that never
+    appear get -1) and the number of labels that appear."""
+    rename = np.full(k, -1, dtype=np.int64)
+    n = 0
+    for t in range(labels.size):
+        if rename[labels[t]] < 0:
+            rename[labels[t]] = n
+            n += 1
+    return rename, n
+
+
+def _fit_full(Z, ns, n_init, random_state, **_):
+    return KMeans(n_clusters=ns, n_init=n_init, random_state=random_state).fit_predict(Z)
+
+
+def _fit_distinct(Z, ns, n_init, random_state, distinct, **_):
+    first, inverse, counts = distinct
+    km = KMeans(n_clusters=ns, n_init=n_init, random_state=random_state)
+    km.fit(Z[first], sample_weight=counts.astype(np.float64))
+    return km.labels_[inverse]
+
+
+def sample_rows(n_clusters: int, sample_size: int | None = None) -> int:
+    """Rows ``"sample"`` fits K-means on."""
+    return sample_size or max(_MIN_SAMPLE, 64 * n_clusters)
+
+
+def _fit_sample(Z, ns, n_init, random_state, sample_size=None, **_):
+    T, m = Z.shape[0], sample_rows(ns, sample_size)
+    rows = np.sort(np.random.default_rng(random_state).choice(T, size=m, replace=False))
+    km = KMeans(n_clusters=ns, n_init=n_init, random_state=random_state).fit(Z[rows])
+    return km.predict(Z)
+
+
+def _fit_minibatch(Z, ns, n_init, random_state, **_):
+    km = MiniBatchKMeans(n_clusters=ns, n_init=n_init, random_state=random_state,
+                         batch_size=max(1024, 8 * ns))
+    return km.fit(Z).labels_
+
+
+_FITTERS = {"full": _fit_full, "distinct": _fit_distinct, "sample": _fit_sample,
+            "minibatch": _fit_minibatch}
+
+
+def _run(method, Z, ns, **kw):
+    """Run a fitter with single-threaded BLAS.  k-means++ multiplies many small matrices, which
+    multithreaded OpenBLAS makes 3-15x slower on a busy 2-core machine (scikit-learn already
+    limits BLAS inside its Lloyd and assignment loops).  Each product's entries are computed
+    the same way whatever the thread count: the full fit's labels were checked identical with
+    and without the limit (12 data sets, and every configuration of the identity tests)."""
+    with threadpool_limits(limits=1, user_api="blas"):
+        return _FITTERS[method](Z, ns, **kw)
+
+
 def cluster_observations(X: np.ndarray, policy, metric, *, n_init: int = 10,
-                         random_state: int = 0) -> tuple[np.ndarray, dict]:
+                         random_state: int = 0, method: str = "auto",
+                         sample_size: int | None = None) -> tuple[np.ndarray, dict]:
     """K-means symbols for the rows of ``X`` (GDS steps already removed).
 
-    Returns ``(symbols, details)``: an int array of symbols in ``[0, ns)`` and what the
-    cluster-count policy reported.  Raises ValueError when more clusters are asked for than there
-    are distinct observations.
+    Returns ``(symbols, details)``: int64 symbols in ``[0, ns)`` numbered by first appearance in
+    time (a cluster left empty by ``"sample"`` or ``"minibatch"`` is dropped, so ``ns`` may
+    shrink) and what the cluster-count policy reported plus ``"method"``, the phase-1 method that
+    ran (``"auto"`` resolved; see :data:`METHODS`).  Raises ValueError when more clusters are
+    asked for than there are distinct observations.
     """
+    if method not in METHODS:
+        raise ValueError(f"phase1={method!r} is unknown; choose one of {', '.join(METHODS)}")
     Z = np.ascontiguousarray(metric.fit_transform(X), dtype=np.float64)
     choice = policy.choose(Z, random_state)
     ns, details = choice if isinstance(choice, tuple) else (choice, {})
     ns = int(ns)
-    n_distinct = np.unique(Z, axis=0).shape[0]
-    if ns > n_distinct:
+    repeats, distinct = probe_distinct(Z, ns, random_state)
+    n_distinct = distinct[0].size if distinct is not None else None
+    if n_distinct is not None and ns > n_distinct:
         raise ValueError(
             f"clusters.ns={ns} is more than the {n_distinct} distinct observations "
             "(GDS steps excluded); lower the cluster count"
         )
-    km = KMeans(n_clusters=ns, n_init=n_init, random_state=random_state)
-    labels = km.fit_predict(Z)
-    # Name symbols by first appearance in time so the numbering does not depend on K-means'
-    # internal order (and reads naturally along the trajectory).
-    _, first = np.unique(labels, return_index=True)
-    order = np.argsort(first, kind="stable")
-    rename = np.empty(ns, dtype=np.int64)
-    rename[order] = np.arange(ns)
-    return rename[labels], dict(details)
+    if method == "auto":
+        method = choose_method(Z.shape[0], repeats, ns, Z.shape[1])
+    if method == "distinct" and distinct is None:
+        distinct = distinct_rows(Z)
+    if method == "sample" and sample_rows(ns, sample_size) >= Z.shape[0]:
+        method = "full"  # the sample would hold every row
+    labels = _run(method, Z, ns, n_init=n_init, random_state=random_state, distinct=distinct,
+                  sample_size=sample_size)
+    labels = np.asarray(labels, dtype=np.int64)
+    rename, _ = first_appearance_order(labels, ns)
+    return rename[labels], dict(details, method=method)

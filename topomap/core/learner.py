@@ -66,12 +66,20 @@ class MapLearner(BaseEstimator):
         Added to every variance, relative to the data's mean feature variance.
     n_init : int
         K-means restarts (k-means++ initialisations; the best inertia wins).
+    phase1 : {"auto", "full", "distinct", "sample", "minibatch"}
+        How K-means runs (:data:`topomap.core.clustering.METHODS`): ``"full"`` is the paper's
+        exact fit on every step, which ``"auto"`` picks for runs up to ``T * ns * D = 1e7`` (the
+        paper's included); above that it clusters the distinct rows with their counts when
+        observations repeat, else fits on a sample and assigns every step.
+    sample_size : int, optional
+        Rows K-means is fitted on with ``phase1="sample"`` (default ``max(20000, 64 ns)``).
     random_state : int
         Seed of K-means (the only random part of the method).
     callbacks : sequence of callables
         Each is called as ``callback(event, info)`` with ``event`` in ``"phase1"``, ``"split"``,
         ``"done"`` and ``info`` a dict (``learner``, ``labels``, ``entropies`` and, for splits, the
-        history record).  Used to log progress or record extra metrics.
+        history record).  Used to log progress or record extra metrics.  ``labels`` of a split is
+        the learner's working array, changed in place by later splits: copy it to keep it.
 
     Attributes
     ----------
@@ -81,6 +89,7 @@ class MapLearner(BaseEstimator):
     map_phase1_ : TopologicalMap -- the map before any split
     n_clusters_ : int -- the ``ns`` actually used
     cluster_choice_ : dict -- what the cluster-count policy measured (e.g. ``{"bic": {...}}``)
+    phase1_method_ : str -- the K-means method that ran (``phase1`` with ``"auto"`` resolved)
     n_features_in_ : int -- observation dimension seen by ``fit``
     split_history_ : list of dict -- ``iteration``, ``state``, ``new_state``, ``gain`` and sizes
     entropies_ : list of dict -- ``H_o``, ``H_u``, ``H_x`` after phase 1 and after every split
@@ -95,7 +104,8 @@ class MapLearner(BaseEstimator):
     def __init__(self, n_clusters: int = 20, n_states: int = 30, *, clusters=None,
                  metric="euclidean", criterion="entropy", stopping=None,
                  covariance_type: str = "diag", reg_covar: float = 1e-3, n_init: int = 3,
-                 random_state: int = 0, callbacks=()):
+                 phase1: str = "auto", sample_size: int | None = None, random_state: int = 0,
+                 callbacks=()):
         self.n_clusters = n_clusters
         self.n_states = n_states
         self.clusters = clusters
@@ -105,6 +115,8 @@ class MapLearner(BaseEstimator):
         self.covariance_type = covariance_type
         self.reg_covar = reg_covar
         self.n_init = n_init
+        self.phase1 = phase1
+        self.sample_size = sample_size
         self.random_state = random_state
         self.callbacks = callbacks
 
@@ -145,8 +157,11 @@ class MapLearner(BaseEstimator):
         plain = data.gds < 0
         if plain.sum() < 1:
             raise ValueError("every step is labelled as a GDS; no observations are left to cluster")
-        symbols, self.cluster_choice_ = cluster_observations(
-            data.X[plain], clusters, metric, n_init=self.n_init, random_state=self.random_state)
+        symbols, choice = cluster_observations(
+            data.X if plain.all() else data.X[plain], clusters, metric, n_init=self.n_init,
+            random_state=self.random_state, method=self.phase1, sample_size=self.sample_size)
+        self.phase1_method_ = choice.pop("method")
+        self.cluster_choice_ = choice
         ns = self.n_clusters_ = int(symbols.max()) + 1
         gds_ids = np.unique(data.gds[~plain])
         labels = np.empty(data.X.shape[0], dtype=np.int64)

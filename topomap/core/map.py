@@ -19,14 +19,15 @@ from pathlib import Path
 
 import numpy as np
 
+from . import inference
 from .files import atomic_write
-from .stats import conditional_entropy, count_tables, episode_masks, normalise
-from .trajectory import check_sequences
+from .stats import (conditional_entropy, count_tables, episode_masks, normalise,
+                    observation_models)
+from .trajectory import as_float_observations
 
 __all__ = ["TopologicalMap", "FORMAT_VERSION"]
 
 FORMAT_VERSION = 1
-LOG2PI = np.log(2 * np.pi)
 
 
 # ------------------------------------------------------------------ checking a map's fields
@@ -267,10 +268,10 @@ class TopologicalMap:
         GDS id); ``reg_covar`` times the mean feature variance of the data is added to every
         variance so that a constant feature does not make the density degenerate.
         """
-        X = np.asarray(observations, dtype=np.float64)
+        X = as_float_observations(observations)
         u = np.asarray(actions, dtype=np.int64)
         x = np.asarray(labels, dtype=np.int64)
-        T, D = X.shape
+        T = X.shape[0]
         S = len(state_symbol)
         A = int(n_actions)
         L = np.array([T]) if lengths is None else np.asarray(lengths)
@@ -280,26 +281,8 @@ class TopologicalMap:
         # a "model id" per state: symbols, then GDS ids after them
         n_sym = int(symbol.max()) + 1 if (symbol >= 0).any() else 0
         model_of_state = np.where(symbol >= 0, symbol, n_sym + gds)
-        model = model_of_state[x]
         M = int(model_of_state.max()) + 1
-        n_m = np.bincount(model, minlength=M).astype(np.float64)
-        sums = np.zeros((M, D))
-        np.add.at(sums, model, X)
-        mean_m = sums / np.maximum(n_m, 1)[:, None]
-        reg = reg_covar * float(np.mean(X.var(axis=0))) if T > 1 else reg_covar
-        reg = reg if reg > 0 else reg_covar
-        resid = X - mean_m[model]
-        if covariance_type == "diag":
-            sq = np.zeros((M, D))
-            np.add.at(sq, model, resid**2)
-            cov_m = sq / np.maximum(n_m, 1)[:, None] + reg
-        elif covariance_type == "full":
-            cov_m = np.zeros((M, D, D))
-            for m in range(M):
-                r = resid[model == m]
-                cov_m[m] = r.T @ r / max(len(r), 1) + reg * np.eye(D)
-        else:
-            raise ValueError(f"covariance_type must be 'diag' or 'full', got {covariance_type!r}")
+        mean_m, cov_m, _ = observation_models(X, model_of_state[x], M, covariance_type, reg_covar)
         state_counts, action_counts, trans = count_tables(x, u, S, A, has_next)
         info = dict(kwargs.pop("info", None) or {})
         info.setdefault("covariance_type", covariance_type)
@@ -357,109 +340,32 @@ class TopologicalMap:
 
     # ------------------------------------------------------------------ inference
     def _log_obs(self, X: np.ndarray) -> np.ndarray:
-        """(T, S) Gaussian log-densities."""
-        if self.covariance_type == "diag":
-            var = self.covariances_
-            d = X[:, None, :] - self.means_[None]
-            return -0.5 * ((d**2 / var[None]).sum(-1) + np.log(var).sum(-1)[None]
-                           + self.n_features * LOG2PI)
-        out = np.empty((X.shape[0], self.n_states))
-        for s in range(self.n_states):
-            chol = np.linalg.cholesky(self.covariances_[s])
-            z = np.linalg.solve(chol, (X - self.means_[s]).T)
-            out[:, s] = -0.5 * ((z**2).sum(0) + 2 * np.log(np.diag(chol)).sum()
-                                + self.n_features * LOG2PI)
-        return out
+        """(T, S) Gaussian log-densities (:func:`topomap.core.inference.log_densities`)."""
+        return inference.log_densities(self, np.asarray(X, dtype=np.float64))
 
-    def _check_inputs(self, observations, actions, gds, lengths, smoothing):
-        """Validated ``(X, u, gds, lengths)`` of a sequence for this map."""
-        X, u, g, L = check_sequences(observations, actions, gds, lengths, min_length=1)
-        if X.shape[1] != self.n_features:
-            raise ValueError(
-                f"observations have {X.shape[1]} features but the map was learned on {self.n_features}"
-            )
-        if u.max() >= self.n_actions:
-            raise ValueError(
-                f"actions use id {int(u.max())} but the map knows {self.n_actions} actions"
-            )
-        if not 0 < smoothing < 1:
-            raise ValueError(f"smoothing must lie in (0, 1), got {smoothing!r}")
-        if gds is not None:
-            known = set(self.state_gds_[self.state_gds_ >= 0].tolist())
-            unknown = sorted(set(g[g >= 0].tolist()) - known)
-            if unknown:
-                raise ValueError(f"gds ids {unknown} are not states of this map")
-        return X, u, (None if gds is None else g), L
-
-    def _log_emissions(self, X: np.ndarray, g) -> np.ndarray:
-        """(T, S) ``log P(o_t|x)``; with GDS labels ``g`` a GDS step can only be its GDS state and
-        other steps never one (-inf elsewhere)."""
-        emit = self._log_obs(X)
-        if g is not None:
-            is_gds_state = self.state_gds_ >= 0
-            allowed = np.where(g[:, None] >= 0, self.state_gds_[None] == g[:, None],
-                               ~is_gds_state[None])
-            emit = np.where(allowed, emit, -np.inf)
-        return emit
-
-    def _log_tables(self, smoothing: float):
-        """``(log P(u|x) (S, A), log P(x'|x,u) (S, A, S), log P(x_0) (S,))``, each mixed with a
-        ``smoothing`` share of the uniform distribution."""
-        S, A = self.n_states, self.n_actions
-        log_act = np.log((1 - smoothing) * self.action_probs_ + smoothing / A)
-        log_trans = np.log((1 - smoothing) * self.transition_probs_ + smoothing / S)
-        log_init = np.log((1 - smoothing) * self.state_probs_ + smoothing / S)
-        return log_act, log_trans, log_init
-
-    def _prepare(self, observations, actions, gds, lengths, smoothing):
-        """Everything decoding and scoring need: emissions including ``log P(u_t|x_t)``."""
-        X, u, g, L = self._check_inputs(observations, actions, gds, lengths, smoothing)
-        log_act, log_trans, log_init = self._log_tables(smoothing)
-        emit = self._log_emissions(X, g) + log_act[:, u].T
-        return emit, u, L, log_trans, log_init
-
-    def predict(self, observations, actions, gds=None, lengths=None, *, smoothing=1e-6):
+    def predict(self, observations, actions, gds=None, lengths=None, *, smoothing=1e-6,
+                prune=True) -> np.ndarray:
         """Most likely state of every step of a new sequence (Viterbi).
 
         Uses the Gaussian observation likelihoods, ``P(u|x)`` and ``P(x'|x,u)``; ``smoothing`` mixes
         a small uniform share into every table so unseen transitions are unlikely, not impossible.
-        With ``gds`` given, GDS steps are clamped to their GDS state.
+        With ``gds`` given, GDS steps are clamped to their GDS state and other steps never take
+        one.  ``prune`` skips states far below a step's best (exact; see
+        :mod:`topomap.core.inference`).  Memory does not grow with T beyond the path.
         """
-        emit, u, L, log_trans, log_init = self._prepare(observations, actions, gds, lengths, smoothing)
-        path = np.empty(emit.shape[0], dtype=np.int64)
-        start = 0
-        for n in L.tolist():
-            e = emit[start:start + n]
-            back = np.empty((n, self.n_states), dtype=np.int64)
-            delta = log_init + e[0]
-            for t in range(1, n):
-                cand = delta[:, None] + log_trans[:, u[start + t - 1], :]
-                back[t] = np.argmax(cand, axis=0)
-                delta = cand[back[t], np.arange(self.n_states)] + e[t]
-            s = int(np.argmax(delta))
-            for t in range(n - 1, -1, -1):
-                path[start + t] = s
-                s = back[t, s]
-            start += n
-        return path
+        s = inference.setup(self, observations, actions, gds, lengths, smoothing, prune)
+        return inference.viterbi(s)
 
-    def score(self, observations, actions, gds=None, lengths=None, *, smoothing=1e-6) -> float:
-        """Mean log-likelihood per step (natural log, forward algorithm) of a new sequence."""
-        emit, u, L, log_trans, log_init = self._prepare(observations, actions, gds, lengths, smoothing)
-        total = 0.0
-        start = 0
-        for n in L.tolist():
-            e = emit[start:start + n]
-            alpha = log_init + e[0]
-            for t in range(1, n):
-                m = alpha.max()
-                alpha = m + np.log(np.exp(alpha - m) @ np.exp(log_trans[:, u[start + t - 1], :])) + e[t]
-            m = alpha.max()
-            total += m + np.log(np.exp(alpha - m).sum())
-            start += n
-        return float(total / emit.shape[0])
+    def score(self, observations, actions, gds=None, lengths=None, *, smoothing=1e-6,
+              prune=True) -> float:
+        """Mean log-likelihood per step (natural log, forward algorithm) of a new sequence.
 
-    def filter(self, observations, actions, gds=None, lengths=None, *, smoothing=1e-6):
+        Observations are continuous, so this is a log-*density* (it can be positive)."""
+        s = inference.setup(self, observations, actions, gds, lengths, smoothing, prune)
+        return inference.forward(s)
+
+    def filter(self, observations, actions, gds=None, lengths=None, *, smoothing=1e-6,
+               prune=True) -> np.ndarray:
         """Belief over the states at every step given only the past (forward filtering).
 
         Row ``t`` is ``P(x_t | o_1..o_t, u_1..u_{t-1})``: the step's own observation counts, its
@@ -467,37 +373,27 @@ class TopologicalMap:
         starts afresh from the map's state frequencies.  :meth:`predict` decodes the whole
         sequence at once (Viterbi) instead.  Returns a (T, S) float array.
         """
-        X, u, g, L = self._check_inputs(observations, actions, gds, lengths, smoothing)
-        log_act, log_trans, log_init = self._log_tables(smoothing)
-        moves = np.exp(log_act[:, :, None] + log_trans)  # P(u|x) P(x'|x,u), (S, A, S)
-        emit = self._log_emissions(X, g)
-        beliefs = np.empty_like(emit)
-        start = 0
-        for n in L.tolist():
-            belief = _normalised(log_init + emit[start])
-            beliefs[start] = belief
-            for t in range(start + 1, start + n):
-                belief = _normalised(np.log(belief @ moves[:, u[t - 1], :]) + emit[t])
-                beliefs[t] = belief
-            start += n
-        return beliefs
+        s = inference.setup(self, observations, actions, gds, lengths, smoothing, prune)
+        return inference.filtered(s)
 
-    def step_belief(self, belief, action: int, observation, gds: int = -1, *,
+    def step_belief(self, belief, action: int, observation, gds: int | None = None, *,
                     smoothing: float = 1e-6) -> np.ndarray:
         """One step of :meth:`filter`: the belief after taking ``action`` from ``belief`` and then
-        seeing ``observation`` (and, if not -1, recognising GDS ``gds``).  ``belief=None`` gives the
-        belief at an episode's first step."""
+        seeing ``observation``; ``gds`` is the GDS recognised there (-1: none, so no GDS state;
+        None: no GDS information).  ``belief=None`` gives the belief at an episode's first step
+        (``action`` is then ignored)."""
         X = np.asarray(observation, dtype=np.float64).reshape(1, -1)
-        X, _, g, _ = self._check_inputs(X, [max(int(action), 0)], [int(gds)], None, smoothing)
-        log_act, log_trans, log_init = self._log_tables(smoothing)
-        emit = self._log_emissions(X, g)[0]
+        g = None if gds is None else [int(gds)]
+        s = inference.setup(self, X, [0], g, None, smoothing, prune=False)
+        emit = inference.emission_row(s)
         if belief is None:
-            return _normalised(log_init + emit)
+            return _normalised(s["log_init"] + emit)
         belief = np.asarray(belief, dtype=np.float64)
         if belief.shape != (self.n_states,) or not np.isclose(belief.sum(), 1.0):
             raise ValueError(f"belief must be a probability vector over the {self.n_states} states")
-        prior = belief @ np.exp(log_act[:, action, None] + log_trans[:, action, :])
-        return _normalised(np.log(prior) + emit)
+        if not (isinstance(action, (int, np.integer)) and 0 <= action < self.n_actions):
+            raise ValueError(f"action must be an action id in [0, {self.n_actions}), got {action!r}")
+        return _normalised(np.log(inference.predicted(s, belief, int(action))) + emit)
 
     def plan(self, start: int, goal, *, min_prob: float = 0.0) -> list[int]:
         """Actions of the most probable path from state ``start`` to ``goal`` (a state or an

@@ -5,10 +5,19 @@ when steps ``t-1`` and ``t+1`` lie in the same episode as ``t`` (so the first an
 episode are never the centre of an instance).
 
 For a state ``q`` its instances are grouped by the key ``(x[t-1], u[t-1])`` and counted by the
-column ``(u[t], x[t+1])``: a (groups x columns) count matrix.  Keys and columns are encoded
-with the action count ``A`` only, so they stay valid when the state count grows.  ``H(I) = H_I(u) + H_I(x'|u)`` is the
-entropy of the joint distribution of ``(u, x')`` in ``I``, so everything the method needs follows
-from those counts.
+column ``(u[t], x[t+1])``: a (groups x columns) count matrix.  Keys and columns are encoded with
+the action count ``A`` only (``key = x[t-1] * A + u[t-1]``, ``column = x[t+1] * A + u[t]``), so
+they stay valid when the state count grows.  ``H(I) = H_I(u) + H_I(x'|u)`` is the entropy of the
+joint distribution of ``(u, x')`` in ``I``, so everything the method needs follows from those
+counts.
+
+The work of a split is near-linear: :class:`SplitEngine` keeps every state's steps, its instance
+table (the distinct ``(key, column)`` pairs with counts, as sorted codes ``key << 32 | column``),
+the sparse transition counts and the state and action counts, and after a split touches only the
+split state's steps and their neighbours -- a split of ``q`` relabels some steps of ``q`` only, so
+an instance or a transition changes only where its centre or an end is such a step.  No
+``S x A x S`` table is ever formed, and every number it reports is the same float the plain numpy
+expressions over all instances give (see :mod:`topomap.core.exact`).
 
 Swappable pieces, each a small object:
 
@@ -24,26 +33,19 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
-from .stats import conditional_entropy, count_tables, weighted_entropy, xlogx
+from .exact import merge_groups_kernel
+from .stats import conditional_entropy, sparse_conditional_entropy, weighted_entropy, xlogx
 
-__all__ = [
-    "EntropyCriterion",
-    "TargetStates",
-    "MinGain",
-    "CRITERIA",
-    "merge_groups",
-    "Instances",
-    "build_instances",
-    "Proposal",
-    "propose_split",
-    "split_state",
-    "Splitter",
-]
+__all__ = ["EntropyCriterion", "TargetStates", "MinGain", "CRITERIA", "merge_groups", "Proposal",
+           "SplitEngine", "Splitter"]
 
 #: merge costs are rounded to this many decimals so that ties that are exact in real arithmetic
 #: are exact in floating point too and are broken by index order, not by rounding noise
 _TIE_DECIMALS = 9
+_SHIFT = np.int64(32)
+_MASK = np.int64((1 << 32) - 1)
 
 
 class EntropyCriterion:
@@ -71,53 +73,39 @@ class EntropyCriterion:
         return "EntropyCriterion()"
 
 
-#: pairwise merge costs are computed in one broadcast when groups^2 * columns stays below this
-_BROADCAST_LIMIT = 2_000_000
+class _XlogxTable:
+    """``c * log2(max(c, 1))`` for c = 0, 1, 2, ... computed by numpy once and grown on demand.
+
+    numpy's ``log2`` gives the same bits for a value wherever it sits in an array, so a long table
+    holds exactly the entries a table computed for each call would hold.
+    """
+
+    def __init__(self):
+        self.values = xlogx(np.arange(1024))
+
+    def upto(self, top: int) -> np.ndarray:
+        if top >= self.values.size:
+            self.values = xlogx(np.arange(max(top + 1, 2 * self.values.size)))
+        return self.values
+
+
+_TABLE = _XlogxTable()
 
 
 def merge_groups(counts: np.ndarray) -> np.ndarray:
     """Agglomerate the rows of an integer count matrix into two clusters, each time merging the
-    pair whose union increases the weighted entropy ``n H`` least (ties: smallest indices).
+    pair whose union increases the weighted entropy ``n H`` least (costs rounded to 1e-9 bits;
+    ties: smallest indices).  Compiled (:func:`topomap.core.exact.merge_groups_kernel`).
 
     Returns a boolean array: False for the rows in the cluster holding row 0, True for the others.
     """
-    work = np.asarray(counts, dtype=np.int64).copy()
+    work = np.ascontiguousarray(counts, dtype=np.int64)
     if np.any(work < 0):
         raise ValueError("counts must be non-negative")
-    G, K = work.shape
-    # c log2 c for every integer a count can reach: merged counts stay integers
-    table = xlogx(np.arange(2 * int(work.sum()) + 1))  # 2x: a row is also paired with itself
-    n = work.sum(axis=1)
-    W = table[n] - table[work].sum(axis=1)
-
-    def row_cost(a):
-        return np.round(table[n[a] + n] - table[work[a] + work].sum(axis=1) - W[a] - W,
-                        _TIE_DECIMALS)
-
-    if G * G * K <= _BROADCAST_LIMIT:
-        pair = (table[n[:, None] + n[None, :]] - table[work[:, None, :] + work[None, :, :]].sum(-1)
-                - W[:, None] - W[None, :])
-        cost = np.round(pair, _TIE_DECIMALS)
-    else:
-        cost = np.stack([row_cost(a) for a in range(G)])
-    cost[np.tril_indices(G)] = np.inf  # only cost[a, b] with a < b is used
-    owner = np.arange(G)
-    for _ in range(G - 2):
-        a, b = divmod(int(np.argmin(cost)), G)
-        work[a] += work[b]
-        work[b] = 0
-        n[a] += n[b]
-        n[b] = 0
-        W[a] = table[n[a]] - table[work[a]].sum()
-        owner[owner == b] = a
-        cost[b, :] = np.inf
-        cost[:, b] = np.inf
-        row = row_cost(a)
-        dead = owner != np.arange(G)
-        row[dead] = np.inf
-        cost[a, a + 1:] = row[a + 1:]
-        cost[:a, a] = row[:a]
-    return owner != owner[0]
+    if work.shape[0] < 2:
+        return np.zeros(work.shape[0], dtype=bool)
+    table = _TABLE.upto(2 * int(work.sum()))  # 2x: a row is also paired with itself
+    return merge_groups_kernel(work, table, _TIE_DECIMALS)
 
 
 class TargetStates:
@@ -180,44 +168,6 @@ CRITERIA = {EntropyCriterion.name: EntropyCriterion}
 
 
 @dataclass
-class Instances:
-    """All transition instances of a labelling, sorted by centre state.
-
-    ``center`` holds the step index of every instance; ``key`` the group key
-    ``x[t-1] * A + u[t-1]``; ``col`` the column ``x[t+1] * A + u[t]``; ``bounds[q]:bounds[q+1]``
-    is the slice of state ``q``.
-    """
-
-    center: np.ndarray
-    key: np.ndarray
-    col: np.ndarray
-    bounds: np.ndarray
-
-    def of(self, q: int) -> slice:
-        return slice(int(self.bounds[q]), int(self.bounds[q + 1]))
-
-
-def build_instances(x: np.ndarray, u: np.ndarray, n_states: int, n_actions: int,
-                    has_prev: np.ndarray, has_next: np.ndarray) -> Instances:
-    """Collect the transition instances of labelling ``x`` (see module docstring)."""
-    center = np.flatnonzero(has_prev & has_next)
-    order = np.argsort(x[center], kind="stable")
-    center = center[order]
-    key = x[center - 1] * n_actions + u[center - 1]
-    col = x[center + 1] * n_actions + u[center]
-    bounds = np.searchsorted(x[center], np.arange(n_states + 1), side="left")
-    return Instances(center, key, col, bounds)
-
-
-def group_counts(key: np.ndarray, col: np.ndarray):
-    """(groups x columns) count matrix of one state's instances and the sorted unique keys."""
-    keys, g = np.unique(key, return_inverse=True)
-    cols, c = np.unique(col, return_inverse=True)
-    counts = np.bincount(g * cols.size + c, minlength=keys.size * cols.size)
-    return counts.reshape(keys.size, cols.size), keys, cols
-
-
-@dataclass
 class Proposal:
     """The best split of one state: its groups (``keys``), columns, counts, halves and score."""
 
@@ -229,72 +179,251 @@ class Proposal:
     score: float
 
 
-def propose_split(inst: Instances, q: int, criterion) -> Proposal | None:
-    """Ask ``criterion`` for the best split of state ``q``; ``None`` if it cannot be split."""
-    sl = inst.of(q)
-    if sl.stop - sl.start < 2:
-        return None
-    counts, keys, cols = group_counts(inst.key[sl], inst.col[sl])
-    result = criterion.propose(counts)
-    if result is None:
-        return None
-    side, score = result
-    side = np.asarray(side, dtype=bool)
-    if side.shape != (keys.size,) or side.all() or not side.any():
-        return None
-    return Proposal(q, keys, cols, counts, side, float(score))
+@njit(cache=True)
+def group_steps(labels, n_states):
+    """Counting sort of steps by state: ``(order, bounds)`` with the steps of state ``s`` in
+    increasing order at ``order[bounds[s]:bounds[s + 1]]``."""
+    bounds = np.zeros(n_states + 1, dtype=np.int64)
+    for s in labels:
+        bounds[s + 1] += 1
+    for s in range(n_states):
+        bounds[s + 1] += bounds[s]
+    fill = bounds[:-1].copy()
+    order = np.empty(labels.size, dtype=np.int64)
+    for t in range(labels.size):
+        order[fill[labels[t]]] = t
+        fill[labels[t]] += 1
+    return order, bounds
 
 
-def split_state(x: np.ndarray, u: np.ndarray, p: Proposal, new: int, n_states: int,
-                n_actions: int, has_prev: np.ndarray, has_next: np.ndarray) -> np.ndarray:
-    """Return a copy of ``x`` where the steps of ``p.state`` in the second half become ``new``.
+@njit(cache=True)
+def sorted_union(a, b):
+    """The distinct values of two sorted int arrays, sorted (a merge: no sort)."""
+    out = np.empty(a.size + b.size, dtype=np.int64)
+    i = j = n = 0
+    while i < a.size or j < b.size:
+        if j >= b.size or (i < a.size and a[i] <= b[j]):
+            v = a[i]
+            i += 1
+        else:
+            v = b[j]
+            j += 1
+        if n == 0 or out[n - 1] != v:
+            out[n] = v
+            n += 1
+    return out[:n]
 
-    Which half keeps the old id: the one with more instances (ties: the half holding the smallest
-    key).  Steps of the state that are not instance centres are placed as follows:
 
-    * a step with a predecessor follows its key ``(x[t-1], u[t-1])`` when that key is one of the
-      groups, and otherwise keeps the old id -- so every step's half is a function of its key
-      alone, which guarantees that relabelled successors cannot raise ``H(x'|x,u)``;
-    * the first step of an episode (no predecessor) goes to the half in which its column
-      ``(u[t], x[t+1])`` is relatively more frequent (ties, unseen columns, one-step episodes: the
-      old id).
+def _compact(values, size):
+    """The sorted distinct entries of ``values`` (ints in ``[0, size)``) and each entry's rank
+    among them: by a presence mask in O(len(values) + size), or by sorting when ``values`` is
+    short next to ``size`` (many states)."""
+    if 16 * values.size < size:
+        return np.unique(values, return_inverse=True)
+    present = np.zeros(size, dtype=bool)
+    present[values] = True
+    rank = np.cumsum(present) - 1
+    return np.flatnonzero(present), rank[values]
+
+
+def _sparse_table(keys, cols, size):
+    """Sorted codes ``key << 32 | col`` of the distinct pairs and their counts (keys and columns
+    below ``size``), by one bincount."""
+    k, ki = _compact(keys, size)
+    c, ci = _compact(cols, size)
+    n = np.bincount(ki * c.size + ci, minlength=k.size * c.size)
+    nz = np.flatnonzero(n)
+    return (k[nz // c.size] << _SHIFT) | c[nz % c.size], n[nz]
+
+
+def _merge_delta(codes, counts, d_codes, d_counts):
+    """Add signed counts ``d_counts`` at ``d_codes`` to a sorted sparse table (``codes``,
+    ``counts``); entries that reach zero are dropped.  O(table + delta log delta)."""
+    d_codes, inv = np.unique(d_codes, return_inverse=True)
+    d = np.rint(np.bincount(inv, weights=d_counts, minlength=d_codes.size)).astype(np.int64)
+    idx = np.searchsorted(codes, d_codes)
+    hit = idx < codes.size
+    hit[hit] = codes[idx[hit]] == d_codes[hit]
+    counts = counts.copy()
+    counts[idx[hit]] += d[hit]
+    codes = np.insert(codes, idx[~hit], d_codes[~hit])
+    counts = np.insert(counts, idx[~hit], d[~hit])
+    keep = counts != 0
+    return codes[keep], counts[keep]
+
+
+class SplitEngine:
+    """Transition instances and counts of a labelling, updated in place split by split.
+
+    Parameters: ``labels`` (T,) int (copied), ``actions`` (T,) int, ``n_states``, ``n_actions``,
+    ``has_prev`` / ``has_next`` from :func:`topomap.core.stats.episode_masks`.
+    Attributes: ``labels`` (T,) int64, ``members[s]`` sorted steps of state ``s``,
+    ``state_counts`` (S,), ``action_counts`` (S, A).
     """
-    side = p.side
-    if p.counts[side].sum() > p.counts[~side].sum():
-        side = ~side
-    steps = np.flatnonzero(x == p.state)
-    out = x.copy()
-    with_prev = steps[has_prev[steps]]
-    key = x[with_prev - 1] * n_actions + u[with_prev - 1]
-    out[with_prev[np.isin(key, p.keys[side])]] = new
-    starts = steps[~has_prev[steps] & has_next[steps]]
-    if starts.size:
-        halves = np.stack([p.counts[~side].sum(axis=0), p.counts[side].sum(axis=0)])
-        freq = halves / np.maximum(halves.sum(axis=1, keepdims=True), 1)
-        col = x[starts + 1] * n_actions + u[starts]
-        pos = np.minimum(np.searchsorted(p.cols, col), p.cols.size - 1)
-        known = p.cols[pos] == col
-        goes = known & (freq[1, pos] > freq[0, pos])
-        out[starts[goes]] = new
-    return out
+
+    def __init__(self, labels, actions, n_states, n_actions, has_prev, has_next):
+        self.labels = np.array(labels, dtype=np.int64)
+        self.u = np.asarray(actions, dtype=np.int64)
+        self.S, self.A = int(n_states), int(n_actions)
+        self.has_prev, self.has_next = has_prev, has_next
+        self.centre = has_prev & has_next
+        order, bounds = group_steps(self.labels, self.S)
+        self.members = [order[bounds[s]:bounds[s + 1]] for s in range(self.S)]
+        self.tables = [self._instance_table(m) for m in self.members]
+        self.state_counts = np.diff(bounds)
+        self.action_counts = np.bincount(self.labels * self.A + self.u,
+                                         minlength=self.S * self.A).reshape(self.S, self.A)
+        t = np.flatnonzero(has_next)
+        self.transitions = _sparse_table(self.labels[t] * self.A + self.u[t], self.labels[t + 1],
+                                         self.S * self.A)
+
+    # ------------------------------------------------------------------ codes
+    def _instance_keys(self, c):
+        """Group keys ``x[t-1] * A + u[t-1]`` and columns ``x[t+1] * A + u[t]`` of centres ``c``."""
+        x, u, A = self.labels, self.u, self.A
+        return x[c - 1] * A + u[c - 1], x[c + 1] * A + u[c]
+
+    def _instance_codes(self, c):
+        key, col = self._instance_keys(c)
+        return (key << _SHIFT) | col
+
+    def _transition_codes(self, t):
+        return ((self.labels[t] * self.A + self.u[t]) << _SHIFT) | self.labels[t + 1]
+
+    def _instance_table(self, steps):
+        c = steps[self.centre[steps]]
+        return _sparse_table(*self._instance_keys(c), (self.S + 1) * self.A)
+
+    # ------------------------------------------------------------------ proposals
+    def count_matrix(self, q: int):
+        """``(counts, keys, cols)`` of state ``q``: the (groups x columns) count matrix of its
+        instances, with its sorted group keys and columns."""
+        codes, n = self.tables[q]
+        keys, g = _compact(codes >> _SHIFT, self.S * self.A)
+        cols, c = _compact(codes & _MASK, self.S * self.A)
+        counts = np.zeros((keys.size, cols.size), dtype=np.int64)
+        counts[g, c] = n
+        return counts, keys, cols
+
+    def propose(self, q: int, criterion) -> Proposal | None:
+        """Ask ``criterion`` for the best split of state ``q``; None if it cannot be split."""
+        if self.tables[q][1].sum() < 2:
+            return None
+        counts, keys, cols = self.count_matrix(q)
+        result = criterion.propose(counts)
+        if result is None:
+            return None
+        side, score = result
+        side = np.asarray(side, dtype=bool)
+        if side.shape != (keys.size,) or side.all() or not side.any():
+            return None
+        return Proposal(q, keys, cols, counts, side, float(score))
+
+    # ------------------------------------------------------------------ splits
+    def moving_steps(self, p: Proposal) -> np.ndarray:
+        """Mask over ``members[p.state]``: the steps that go to the new state.
+
+        Which half keeps the old id: the one with more instances (ties: the half holding the smallest
+        key).  Steps of the state that are not instance centres are placed as follows:
+
+        * a step with a predecessor follows its key ``(x[t-1], u[t-1])`` when that key is one of the
+          groups, and otherwise keeps the old id -- so every step's half is a function of its key
+          alone, which guarantees that relabelled successors cannot raise ``H(x'|x,u)``;
+        * the first step of an episode (no predecessor) goes to the half in which its column
+          ``(u[t], x[t+1])`` is relatively more frequent (ties, unseen columns, one-step episodes: the
+          old id).
+        """
+        x, u, A = self.labels, self.u, self.A
+        side = p.side
+        if p.counts[side].sum() > p.counts[~side].sum():
+            side = ~side
+        steps = self.members[p.state]
+        hp = self.has_prev[steps]
+        goes = np.zeros(steps.size, dtype=bool)
+        with_prev = steps[hp]
+        goes[hp] = np.isin(x[with_prev - 1] * A + u[with_prev - 1], p.keys[side])
+        is_start = ~hp & self.has_next[steps]
+        if is_start.any():
+            starts = steps[is_start]
+            halves = np.stack([p.counts[~side].sum(axis=0), p.counts[side].sum(axis=0)])
+            freq = halves / np.maximum(halves.sum(axis=1, keepdims=True), 1)
+            col = x[starts + 1] * A + u[starts]
+            pos = np.minimum(np.searchsorted(p.cols, col), p.cols.size - 1)
+            goes[is_start] = (p.cols[pos] == col) & (freq[1, pos] > freq[0, pos])
+        return goes
+
+    def _touched(self, moved, q):
+        """Instance centres outside ``q`` and transition starts next to the moved steps."""
+        hp, hn = self.has_prev[moved], self.has_next[moved]
+        c = sorted_union(moved[hp] - 1, moved[hn] + 1)
+        c = c[self.centre[c] & (self.labels[c] != q)]
+        t = sorted_union(moved[hn], moved[hp] - 1)
+        return c, t[self.has_next[t]]
+
+    def split(self, p: Proposal, new: int) -> np.ndarray:
+        """Split ``p.state``: its moving steps become state ``new`` (= the current state count).
+        Returns the moved steps (sorted)."""
+        q = p.state
+        goes = self.moving_steps(p)
+        steps = self.members[q]
+        moved = steps[goes]
+        centres, starts = self._touched(moved, q)
+        old_inst, old_trans = self._instance_codes(centres), self._transition_codes(starts)
+        self.labels[moved] = new
+        self._update_instances(centres, old_inst, self._instance_codes(centres))
+        self.transitions = _merge_delta(
+            *self.transitions, np.concatenate([old_trans, self._transition_codes(starts)]),
+            np.repeat([-1, 1], starts.size))
+        self.members[q] = steps[~goes]
+        self.members.append(moved)
+        self.tables[q] = self._instance_table(self.members[q])
+        self.tables.append(self._instance_table(moved))
+        self._update_counts(q, moved)
+        return moved
+
+    def _update_instances(self, centres, old, new):
+        """Move the instances at ``centres`` (all outside the split state) from ``old`` codes to
+        ``new`` codes in their states' tables."""
+        order, bounds = group_steps(self.labels[centres], self.S + 1)
+        for s in np.flatnonzero(np.diff(bounds)):
+            pick = order[bounds[s]:bounds[s + 1]]
+            self.tables[s] = _merge_delta(*self.tables[s], np.concatenate([old[pick], new[pick]]),
+                                          np.repeat([-1, 1], pick.size))
+
+    def _update_counts(self, q, moved):
+        acts = np.bincount(self.u[moved], minlength=self.A)
+        self.action_counts[q] -= acts
+        self.action_counts = np.vstack([self.action_counts, acts[None]])
+        self.state_counts[q] -= moved.size
+        self.state_counts = np.append(self.state_counts, moved.size)
+        self.S += 1
+
+    # ------------------------------------------------------------------ entropies
+    def entropies(self, h_state: np.ndarray) -> dict:
+        """``H_o``, ``H_u``, ``H_x`` of the current labelling from the counts alone (``h_state``:
+        each state's observation-model entropy; models are tied to symbols)."""
+        n, S, A = self.state_counts, self.S, self.A
+        return {"H_o": float(n @ h_state / self.labels.size),
+                "H_u": conditional_entropy(self.action_counts),
+                "H_x": sparse_conditional_entropy(*self.transitions, (S * A, S))}
 
 
 class Splitter:
-    """The state of phase 2: the labelling, the states' origins and every state's best proposal.
+    """The state of phase 2: the engine, the states' origins and every state's best proposal.
 
     ``best()`` returns the best split (largest score; ties: smallest state id) or ``None`` when no
     state can be split; ``apply(proposal)`` performs it and returns its history record.  After a
-    split only the states next to the relabelled steps are re-evaluated (``recompute_all``
-    re-evaluates every state instead; the results are identical).
+    split only the states next to the moved steps are re-evaluated (``recompute_all`` re-evaluates
+    every state instead; the results are identical).  ``labels`` is the engine's working array,
+    updated in place by every split.
     """
 
     def __init__(self, labels, actions, n_actions: int, has_prev, has_next, *, symbol, gds,
                  obs_entropy, criterion, recompute_all: bool = False):
-        self.labels = labels
-        self.u, self.A = actions, int(n_actions)
-        self.has_prev, self.has_next = has_prev, has_next
         self.symbol, self.gds = list(symbol), list(gds)
         self.parent = [-1] * len(self.symbol)
+        self.engine = SplitEngine(labels, actions, len(self.symbol), n_actions, has_prev, has_next)
+        self.has_prev, self.has_next = has_prev, has_next
         self.obs_entropy = np.asarray(obs_entropy, dtype=np.float64)
         self.criterion = criterion
         self.recompute_all = recompute_all
@@ -305,11 +434,13 @@ class Splitter:
     def n_states(self) -> int:
         return len(self.symbol)
 
+    @property
+    def labels(self) -> np.ndarray:
+        return self.engine.labels
+
     def best(self) -> Proposal | None:
-        inst = build_instances(self.labels, self.u, self.n_states, self.A, self.has_prev,
-                               self.has_next)
         for q in self._dirty:
-            self._cache[q] = propose_split(inst, q, self.criterion) if self.gds[q] < 0 else None
+            self._cache[q] = self.engine.propose(q, self.criterion) if self.gds[q] < 0 else None
         self._dirty = set()
         candidates = [p for p in self._cache.values() if p is not None]
         if not candidates:
@@ -319,34 +450,25 @@ class Splitter:
     def apply(self, best: Proposal) -> dict:
         """Split ``best.state``: the steps of the moving half get a new state id."""
         q, new = best.state, self.n_states
-        x = self.labels
-        n_before = int(np.sum(x == q))
-        x = self.labels = split_state(x, self.u, best, new, new, self.A, self.has_prev,
-                                      self.has_next)
-        # a state's instances change only where a neighbouring step was relabelled q -> new
-        touched = np.flatnonzero(x == new)
-        near = np.concatenate([touched, touched[self.has_prev[touched]] - 1,
-                               touched[self.has_next[touched]] + 1])
+        n_before = int(self.engine.members[q].size)
+        moved = self.engine.split(best, new)
+        # a state's instances change only where a neighbouring step moved q -> new
+        near = np.concatenate([moved, moved[self.has_prev[moved]] - 1,
+                               moved[self.has_next[moved]] + 1])
         self.symbol.append(self.symbol[q])
         self.gds.append(-1)
         self.parent.append(q)
         self.obs_entropy = np.append(self.obs_entropy, self.obs_entropy[q])
-        self._dirty = set(np.unique(x[near]).tolist()) | {q, new}
+        touched = np.bincount(self.labels[near], minlength=self.n_states)
+        self._dirty = set(np.flatnonzero(touched).tolist()) | {q, new}
         if self.recompute_all:
             self._dirty = set(range(self.n_states))
         return {
             "state": int(q), "new_state": int(new), "gain": best.score, "n_steps": n_before,
-            "n_steps_kept": int(np.sum(x == q)), "n_steps_new": int(np.sum(x == new)),
+            "n_steps_kept": int(self.engine.members[q].size), "n_steps_new": int(moved.size),
             "n_groups": int(best.keys.size),
         }
 
     def entropies(self) -> dict:
-        """``H(o|x)``, ``H(u|x)``, ``H(x'|x,u)`` of the current labelling, from counts alone.
-
-        Observation models are tied to symbols, so ``H(o|x)`` only needs each state's share and
-        its model's entropy.
-        """
-        S, x = self.n_states, self.labels
-        n, ac, tc = count_tables(x, self.u, S, self.A, self.has_next)
-        return {"H_o": float(n @ self.obs_entropy / x.size), "H_u": conditional_entropy(ac),
-                "H_x": conditional_entropy(tc.reshape(S * self.A, S))}
+        """``H(o|x)``, ``H(u|x)``, ``H(x'|x,u)`` of the current labelling, from counts alone."""
+        return self.engine.entropies(self.obs_entropy)

@@ -25,7 +25,8 @@ import numpy as np
 
 from .files import atomic_write
 
-__all__ = ["Trajectory", "load_trajectory", "save_trajectory", "check_sequences"]
+__all__ = ["Trajectory", "load_trajectory", "save_trajectory", "check_sequences",
+           "as_float_observations"]
 
 
 def _as_array(values, name: str) -> np.ndarray:
@@ -65,7 +66,30 @@ def _as_int_array(values, name: str, length: int | None = None) -> np.ndarray:
     if arr.size and (arr.max() > _INT_LIMIT or arr.min() < -_INT_LIMIT):
         big = (arr.max() if arr.max() > _INT_LIMIT else arr.min()).item()
         raise ValueError(f"{name} holds {big!r}, beyond the supported range of +-2**53")
-    return arr.astype(np.int64)
+    return arr if arr.dtype == np.int64 else arr.astype(np.int64)
+
+
+def as_float_observations(observations) -> np.ndarray:
+    """``observations`` as a float64 array, copied only when it is not one already: a contiguous
+    float64 array is used as it is (at T = 10^7, D = 15 a copy would be 1.2 GB)."""
+    X = _as_array(observations, "observations")
+    if X.dtype.kind not in "fiub":
+        raise ValueError(f"observations must be numbers, got values of type {X.dtype}")
+    contiguous = X.flags.c_contiguous or X.flags.f_contiguous
+    return X if X.dtype == np.float64 and contiguous else X.astype(np.float64)
+
+
+_BLOCK_ROWS = 1 << 16
+
+
+def _nonfinite_rows(X: np.ndarray) -> np.ndarray:
+    """Indices of the rows holding NaN or inf, found block by block (no (T, D) temporary)."""
+    bad = []
+    for start in range(0, X.shape[0], _BLOCK_ROWS):
+        block = X[start:start + _BLOCK_ROWS]
+        if not np.isfinite(block.sum()):  # a cheap screen; an overflowing sum is re-checked
+            bad.append(np.flatnonzero(~np.all(np.isfinite(block), axis=1)) + start)
+    return np.concatenate(bad) if bad else np.empty(0, dtype=np.int64)
 
 
 def check_sequences(observations, actions, gds=None, lengths=None, *, min_length: int = 3):
@@ -73,11 +97,9 @@ def check_sequences(observations, actions, gds=None, lengths=None, *, min_length
 
     Every problem is reported as a :class:`ValueError` whose message names the argument.
     ``gds`` defaults to all ``-1`` (no GDS) and ``lengths`` to one episode of length ``T``.
+    ``X`` is the caller's array when that is contiguous float64 already (not a copy).
     """
-    X = _as_array(observations, "observations")
-    if X.dtype.kind not in "fiub":
-        raise ValueError(f"observations must be numbers, got values of type {X.dtype}")
-    X = X.astype(np.float64)
+    X = as_float_observations(observations)
     if X.ndim == 1:
         raise ValueError(
             f"observations must be a 2-D array (T, D), got a 1-D array of shape {X.shape}; "
@@ -91,8 +113,8 @@ def check_sequences(observations, actions, gds=None, lengths=None, *, min_length
         raise ValueError(f"observations has {T} steps; at least {min_length} are needed")
     if X.shape[1] == 0:
         raise ValueError("observations has 0 columns; at least one feature is needed")
-    if not np.all(np.isfinite(X)):
-        rows = np.flatnonzero(~np.all(np.isfinite(X), axis=1))
+    rows = _nonfinite_rows(X)
+    if rows.size:
         raise ValueError(
             f"observations contain NaN or inf in {rows.size} row(s), first at step {int(rows[0])}"
         )

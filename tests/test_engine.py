@@ -1,0 +1,125 @@
+"""Phase 2 at scale: the incremental engine and the compiled merge give the plain numpy results,
+bit for bit (tests/reference_splitting.py holds the numpy code that rebuilds everything)."""
+
+import numpy as np
+import pytest
+import reference_splitting as ref
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from topomap.core.exact import pairwise_sum, sparse_pairwise_sum
+from topomap.core.splitting import EntropyCriterion, Splitter, merge_groups
+from topomap.core.stats import (conditional_entropy, count_tables, episode_masks,
+                                sparse_conditional_entropy, weighted_entropy)
+
+
+def bits(x):
+    return np.asarray(x, dtype=np.float64).view(np.int64)
+
+
+def wild(rng, shape):
+    """Values over a wide range of magnitudes, so the order of additions shows in the result."""
+    return rng.standard_normal(shape) * np.exp(rng.uniform(-20, 20, shape))
+
+
+@pytest.mark.parametrize("n", list(range(1, 140)) + [255, 1000, 8193, 100003])
+def test_pairwise_sum_is_numpys_sum(n):
+    a = wild(np.random.default_rng(n), n)
+    assert bits(0.0 + pairwise_sum(a, 0, n)) == bits(a.sum())
+
+
+@pytest.mark.parametrize("n,density", [(10, 0.5), (200, 0.1), (9000, 0.01), (300_000, 0.002),
+                                       (1000, 1.0), (50, 0.0)])
+def test_sparse_pairwise_sum_is_the_dense_sum(n, density):
+    rng = np.random.default_rng(n)
+    dense = np.zeros(n)
+    pos = np.flatnonzero(rng.random(n) < density)
+    dense[pos] = -np.abs(wild(rng, pos.size))
+    assert bits(sparse_pairwise_sum(pos, dense[pos], n)) == bits(dense.sum())
+
+
+@pytest.mark.parametrize("seed", range(15))
+def test_sparse_conditional_entropy_is_the_dense_one(seed):
+    rng = np.random.default_rng(seed)
+    S, A = int(rng.integers(2, 80)), int(rng.integers(1, 18))
+    dense = rng.integers(1, rng.integers(2, 5000), (S * A, S)) * (rng.random((S * A, S)) < 0.05)
+    r, c = np.nonzero(dense)
+    codes, n = (r << 32) | c, dense[r, c]
+    assert bits(sparse_conditional_entropy(codes, n, (S * A, S))) == bits(conditional_entropy(dense))
+
+
+counts_strategy = st.integers(0, 10**6).flatmap(lambda seed: st.tuples(
+    st.just(seed), st.integers(2, 30), st.integers(1, 25), st.sampled_from([2, 4, 30, 1000])))
+
+
+@settings(max_examples=150, deadline=None, derandomize=True, database=None)
+@given(counts_strategy)
+def test_compiled_merge_is_the_numpy_merge(args):
+    seed, G, K, high = args
+    rng = np.random.default_rng(seed)
+    counts = rng.integers(0, high, (G, K)) * (rng.random((G, K)) < rng.uniform(0.1, 1))
+    if rng.random() < 0.3:  # duplicated rows: exact ties
+        counts[rng.integers(0, G, G // 2)] = counts[0]
+    counts[counts.sum(1) == 0, 0] = 1
+    side = merge_groups(counts)
+    assert np.array_equal(side, ref.merge_groups(counts))
+    halves = np.stack([counts[~side].sum(axis=0), counts[side].sum(axis=0)])
+    gain = (weighted_entropy(halves.sum(axis=0))[0] - weighted_entropy(halves).sum()) / counts.sum()
+    assert bits(EntropyCriterion().propose(counts)[1]) == bits(max(gain, 0.0))
+
+
+def test_merge_groups_hand_cases():
+    assert merge_groups(np.array([[10, 0], [9, 1], [0, 10]])).tolist() == [False, False, True]
+    assert merge_groups(np.array([[5, 0], [5, 0], [5, 0]])).tolist() == [False, False, True]
+    assert merge_groups(np.array([[1, 2], [3, 4]])).tolist() == [False, True]
+
+
+def random_walk(seed, T, n_places=12, n_symbols=5, n_actions=3, episodes=1):
+    """A walk on a random graph with aliased symbols (phase-1 labels = the true symbols)."""
+    rng = np.random.default_rng(seed)
+    succ = rng.integers(0, n_places, (n_places, n_actions))
+    symbol = np.concatenate([np.arange(n_symbols), rng.integers(0, n_symbols, n_places - n_symbols)])
+    p, labels, actions = 0, [], []
+    for _ in range(T):
+        a = int(rng.integers(n_actions))
+        labels.append(symbol[p])
+        actions.append(a)
+        p = succ[p, a]
+    cuts = np.sort(rng.choice(np.arange(1, T), episodes - 1, replace=False)) if episodes > 1 else []
+    lengths = np.diff(np.concatenate([[0], cuts, [T]])).astype(int)
+    return np.array(labels), np.array(actions), lengths, n_symbols, n_actions
+
+
+def reference_splits(labels, u, S, A, lengths, n_splits):
+    """The numpy phase 2: rebuild every instance, propose every state, split the best."""
+    has_prev, has_next = episode_masks(len(u), lengths)
+    x, history, crit = labels.copy(), [], EntropyCriterion()
+    for _ in range(n_splits):
+        inst = ref.build_instances(x, u, S, A, has_prev, has_next)
+        props = [p for q in range(S) if (p := ref.propose_split(inst, q, crit)) is not None]
+        if not props:
+            break
+        best = max(props, key=lambda p: (p.score, -p.state))
+        x = ref.split_state(x, u, best, S, S, A, has_prev, has_next)
+        history.append((best.state, best.score, x.copy()))
+        S += 1
+    return history
+
+
+@pytest.mark.parametrize("seed, episodes", [(0, 1), (1, 1), (2, 4), (3, 7), (4, 2)])
+def test_the_engine_splits_exactly_as_the_numpy_code(seed, episodes):
+    labels, u, lengths, S, A = random_walk(seed, 1500, episodes=episodes)
+    expected = reference_splits(labels, u, S, A, lengths, 12)
+    has_prev, has_next = episode_masks(len(u), lengths)
+    splitter = Splitter(labels, u, A, has_prev, has_next, symbol=list(range(S)), gds=[-1] * S,
+                        obs_entropy=np.zeros(S), criterion=EntropyCriterion())
+    for state, score, x in expected:
+        best = splitter.best()
+        assert (best.state, bits(best.score)) == (state, bits(score))
+        splitter.apply(best)
+        assert np.array_equal(splitter.labels, x)
+        n, ac, tc = count_tables(x, u, splitter.n_states, A, has_next)
+        ent = splitter.entropies()
+        assert bits(ent["H_u"]) == bits(conditional_entropy(ac))
+        assert bits(ent["H_x"]) == bits(conditional_entropy(tc.reshape(-1, splitter.n_states)))
+    assert len(expected) == 12
