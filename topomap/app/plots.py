@@ -47,12 +47,35 @@ def state_styles(n: int) -> list[tuple[str, str]]:
     return [(PALETTE[s % k], MARKERS[(s // k) % len(MARKERS)]) for s in range(n)]
 
 
+def _pairs(labels, places, **kw):
+    """``np.unique`` of the (state, place) pairs of the steps, as rows ``[state, place]`` (the
+    pairs are coded as one integer first: a 1-D unique is many times faster)."""
+    labels, places = np.asarray(labels, dtype=np.int64), np.asarray(places, dtype=np.int64)
+    base = int(places.max()) - int(places.min()) + 1
+    out = np.unique(labels * base + (places - places.min()), **kw)
+    codes = out[0] if kw else out
+    pairs = np.column_stack([codes // base, codes % base + places.min()])
+    return (pairs, *out[1:]) if kw else pairs
+
+
 def compound_mask(labels, places, n_states: int) -> np.ndarray:
     """Which of ``n_states`` states hold steps of more than one ground-truth place (the strict
     reading of :func:`topomap.core.metrics.compound_states`)."""
-    labels, places = np.asarray(labels), np.asarray(places)
-    pairs = np.unique(np.column_stack([labels, places]), axis=0)
+    pairs = _pairs(labels, places)
     return np.bincount(pairs[:, 0], minlength=n_states)[:n_states] > 1
+
+
+#: most observation points a figure draws; longer runs show every k-th step (all steps still
+#: count for the state numbers, rings and legend counts)
+MAX_POINTS = 20_000
+
+
+def _drawn(n: int) -> np.ndarray:
+    """Mask of the steps a figure draws: all of ``n`` up to :data:`MAX_POINTS`, else every
+    ``ceil(n / MAX_POINTS)``-th step."""
+    keep = np.zeros(n, dtype=bool)
+    keep[::max(1, -(-n // MAX_POINTS))] = True
+    return keep
 
 
 def _jitter(P, seed=0):
@@ -84,12 +107,10 @@ def _room(ax, world, positions, faint=False):
 
 def _state_positions(labels, positions, S):
     """``(S, 2)``: the mean position of each state's steps (NaN for a state without steps)."""
-    P = np.full((S, 2), np.nan)
-    for s in range(S):
-        sel = labels == s
-        if sel.any():
-            P[s] = positions[sel].mean(axis=0)
-    return P
+    n = np.bincount(labels, minlength=S)[:S].astype(float)
+    sums = np.column_stack([np.bincount(labels, positions[:, k], S)[:S] for k in (0, 1)])
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(n[:, None] > 0, sums / n[:, None], np.nan)
 
 
 def _data_per_point(ax) -> float:
@@ -155,8 +176,7 @@ def _spots(labels, positions, places, S, min_share=0.1):
         means = _state_positions(labels, positions, S)
         states = np.flatnonzero(np.isfinite(means).all(axis=1))
         return states, means[states], np.zeros(len(states), dtype=bool)
-    pairs, inverse, counts = np.unique(np.column_stack([labels, places]), axis=0,
-                                       return_inverse=True, return_counts=True)
+    pairs, inverse, counts = _pairs(labels, places, return_inverse=True, return_counts=True)
     inverse = inverse.reshape(-1)
     sums = np.column_stack([np.bincount(inverse, positions[:, k], len(pairs)) for k in (0, 1)])
     state = pairs[:, 0]
@@ -180,12 +200,15 @@ def plot_states(ax, traj, labels, world=None, title=""):
     P = _jitter(traj.positions)
     styles = state_styles(S)
     colours = np.array([c for c, _ in styles])
+    keep = _drawn(labels.size)
     for marker in dict.fromkeys(m for _, m in styles):
-        sel = np.isin(labels, [s for s in range(S) if styles[s][1] == marker])
+        sel = keep & np.isin(labels, [s for s in range(S) if styles[s][1] == marker])
         ax.scatter(P[sel, 0], P[sel, 1], c=colours[labels[sel]], marker=marker, s=9, lw=0,
                    alpha=0.85, zorder=3)
     states, spots, ringed = _spots(labels, traj.positions, traj.places, S)
     title = title or f"observation points by state ({S} states)"
+    if not keep.all():
+        title += f" (every {labels.size // keep.sum()}th step drawn)"
     if len(states) > MAX_STATE_NUMBERS:
         ax.set_title(f"{title}\n(numbers and compound-state rings left out: {len(states)} numbers "
                      "would not be legible)", fontsize=9)
@@ -230,10 +253,11 @@ def _clouds(ax, traj, P, labels, sel, names):
     per state, named by ``names``."""
     shown = np.unique(labels[sel])
     styles = state_styles(int(shown.max()) + 1)
+    keep = _drawn(labels.size)
     for s in shown:
         pick = sel & (labels == s)
-        ax.scatter(P[pick, 0], P[pick, 1], s=14, color=styles[s][0], marker=styles[s][1], lw=0,
-                   zorder=3, label=f"{names(s)} ({pick.sum()})")
+        ax.scatter(P[pick & keep, 0], P[pick & keep, 1], s=14, color=styles[s][0],
+                   marker=styles[s][1], lw=0, zorder=3, label=f"{names(s)} ({pick.sum()})")
     places = None if traj.places is None else traj.places[sel]
     states, spots, _ = _spots(labels[sel], traj.positions[sel], places, int(shown.max()) + 1)
     _numbers(ax, spots, states, fontsize=7)

@@ -230,8 +230,16 @@ def _checked(traj: Trajectory, path: Path) -> Trajectory:
         raise ValueError(f"cannot write trajectory file {path}: {exc}") from None
 
 
-def save_trajectory(traj: Trajectory, path) -> Path:
+#: ``.npz`` files of trajectories with more observation values than this are not compressed
+COMPRESS_LIMIT = 10**7
+
+
+def save_trajectory(traj: Trajectory, path, *, compress: bool | None = None) -> Path:
     """Write ``traj`` to ``path`` (``.npz`` or ``.csv``); the file appears only when complete.
+
+    ``compress`` (``.npz``): None compresses up to :data:`COMPRESS_LIMIT` observation values
+    (80 MB), where it is quick and pays off (MiniGrid's 0/1 views shrink 40-fold); beyond that
+    compression costs seconds per 100 MB and saves little on continuous sensor data.
 
     The trajectory is validated again first, so that no file is written that would not load.
     """
@@ -245,9 +253,13 @@ def save_trajectory(traj: Trajectory, path) -> Path:
             if value is not None:
                 arrays[key] = np.asarray(value, dtype=str) if key.endswith("names") else value
 
+        if compress is None:  # compression costs seconds per 100 MB and saves little on sensors
+            compress = traj.observations.size <= COMPRESS_LIMIT
+        save = np.savez_compressed if compress else np.savez
+
         def write(tmp):
             with open(tmp, "wb") as fh:
-                np.savez_compressed(fh, **arrays)
+                save(fh, **arrays)
 
     elif suffix == ".csv":
         D = traj.observations.shape[1]

@@ -1,0 +1,334 @@
+"""Fit time and peak memory (RSS) as T grows: ten million steps, MiniGrid FourRooms, scoring.
+
+    python benchmarks/bench_scale.py                                  # this checkout, medians of 3
+    python benchmarks/bench_scale.py --baseline /path/to/old/venv/bin/python   # two versions, one run
+    python benchmarks/bench_scale.py --repeats 1 --sizes 1e4 1e5 --no-fourrooms
+    python benchmarks/bench_scale.py --report                          # reprint the last results
+    python benchmarks/bench_scale.py --end-to-end 1e6                 # `topomap data=file` at T = 1e6
+
+``--baseline`` runs every measurement also with another Python interpreter (a virtual environment
+with another version of topomap installed, numba included), interleaved with this checkout's, so
+that both are timed under the same load; ``--baseline-max-T`` limits its sizes.
+
+Worlds:
+
+* ``aliased_walk`` of ``benchmarks/bench_fit.py`` (D = 15, 17 actions, Gaussian noise 0.02):
+  ns 50 -> 100 states at T = 1e4 and 1e5, ns 100 -> 200 at T = 1e6 and 1e7.  The data are made in
+  blocks (the same numbers as ``aliased_walk``), so that making them peaks at the size of the data.
+* MiniGrid FourRooms (``MiniGridWorld("MiniGrid-FourRooms-v0", 0)``, noise-free 147-D views):
+  ns = the number of distinct views of the walk, stopping at 1036 states, at T = 10,000 and
+  50,000; then held-out scoring (``map.score``) of a second 50,000-step walk on the T = 50,000 map
+  (a baseline whose scoring builds a (steps x states x features) array scores 1,000 steps).
+
+Every measurement runs in a fresh subprocess.  Peak RSS: the process's ``ru_maxrss`` right after
+the fit (``getrusage(RUSAGE_SELF)``) and, for scoring, the ``ru_maxrss`` that ``os.wait4`` reports
+for the finished child; both include the interpreter and the data.  The time is the wall time of
+``fit`` (or ``score``) alone, after a warm-up fit (numba compilation excluded).  ``k`` is the
+least-squares slope of log(time) on log(T) over the aliased-walk sizes.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import resource
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+from numba import njit
+
+HERE = Path(__file__).resolve().parent
+#: this checkout's Python, and the label of its rows
+CURRENT = ("new", sys.executable)
+WALK_SIZES = {10**4: (50, 100), 10**5: (50, 100), 10**6: (100, 200), 10**7: (100, 200)}
+FOURROOMS = ("MiniGrid-FourRooms-v0", 0, 1036)
+TARGETS = {10**5: (1.0, None), 10**6: (8.0, 1.0), 10**7: (100.0, 6.0)}
+
+
+# ---------------------------------------------------------------------- data
+@njit(cache=True)
+def _walk(succ, actions):
+    places = np.empty(actions.size, dtype=np.int64)
+    p = 0
+    for t in range(actions.size):
+        places[t] = p
+        p = succ[p, actions[t]]
+    return places
+
+
+def aliased_walk_blocks(T, D, ns, n_places, n_actions, seed=0, block=1 << 20):
+    """``bench_fit.aliased_walk`` (same random streams, same numbers), made block by block."""
+    rng = np.random.default_rng(seed)
+    succ = rng.integers(0, n_places, size=(n_places, n_actions))
+    symbol = np.concatenate([np.arange(ns), rng.integers(0, ns, n_places - ns)])
+    centres = rng.uniform(0, 1, size=(ns, D))
+    actions = rng.integers(0, n_actions, size=T)
+    places = _walk(succ, actions)
+    X = np.empty((T, D))
+    for start in range(0, T, block):
+        stop = min(start + block, T)
+        X[start:stop] = centres[symbol[places[start:stop]]]
+        X[start:stop] += rng.normal(0, 0.02, size=(stop - start, D))
+    return X, actions, places
+
+
+def fourrooms_walks(path: Path, T: int) -> None:
+    """Simulate a training and a held-out walk of ``T`` steps and store them in ``path``."""
+    from topomap.worlds import MiniGridWorld, RandomExplorer
+
+    world = MiniGridWorld(FOURROOMS[0], FOURROOMS[1])
+    a = world.simulate(T, RandomExplorer(), np.random.default_rng(0))
+    b = world.simulate(T, RandomExplorer(), np.random.default_rng(1))
+    np.savez(path, X=a.observations, u=a.actions, places=a.places, Xh=b.observations,
+             uh=b.actions)
+
+
+# ---------------------------------------------------------------------- children
+def _learner(**kw):
+    from topomap import MapLearner
+
+    return MapLearner(**kw)
+
+
+def _fit_record(X, u, places, ns, S):
+    from topomap.metrics import adjusted_rand  # the same name in every version
+
+    learner = _learner(n_clusters=ns, n_states=S, random_state=0)
+    t0 = time.perf_counter()
+    learner.fit(X, u)
+    total = time.perf_counter() - t0
+    fit_rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024 / 1e9
+    return learner, {"time": total, **learner.timings_, "S": learner.map_.n_states,
+                     "fit_rss_gb": fit_rss,
+                     "ari0": adjusted_rand(learner.labels_phase1_, places),
+                     "ari1": adjusted_rand(learner.labels_, places),
+                     "method": getattr(learner, "phase1_method_", "full")}
+
+
+def child_walk(T):
+    ns, S = WALK_SIZES[T]
+    X, u, places = aliased_walk_blocks(T, 15, ns, S, 17)
+    data_rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    _learner(n_clusters=20, n_states=30).fit(X[:2000], u[:2000])  # warm caches, compile
+    return {**_fit_record(X, u, places, ns, S)[1], "data_rss_kb": data_rss}
+
+
+def child_fourrooms(T, data, score_steps):
+    d = np.load(data)
+    X, u, places = d["X"][:T], d["u"][:T], d["places"][:T]
+    ns = np.unique(X, axis=0).shape[0]
+    _learner(n_clusters=20, n_states=30).fit(d["X"][:2000], d["u"][:2000])
+    learner, rec = _fit_record(X, u, places, ns, FOURROOMS[2])
+    rec["ns"] = ns
+    if score_steps:
+        learner.map_.score(d["Xh"][:50], d["uh"][:50])  # compile
+        t0 = time.perf_counter()
+        rec["loglik"] = learner.map_.score(d["Xh"][:score_steps], d["uh"][:score_steps])
+        rec["score_time"] = time.perf_counter() - t0
+        rec["score_steps"] = score_steps
+    return rec
+
+
+def run_child(python, *args) -> dict:
+    """Run ``bench_scale.py --child ...`` with ``python`` in a fresh process; its result plus its
+    peak RSS."""
+    cmd = [python, str(Path(__file__).resolve()), "--child", *map(str, args)]
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, text=True)
+    out = proc.stdout.read()
+    _, status, usage = os.wait4(proc.pid, 0)
+    if status != 0:
+        raise RuntimeError(f"{' '.join(cmd)} failed with status {status}")
+    rec = json.loads(out.strip().splitlines()[-1])
+    rec["rss_gb"] = usage.ru_maxrss * 1024 / 1e9
+    return rec
+
+
+# ---------------------------------------------------------------------- parent
+def median_record(records: list) -> dict:
+    """Medians of the numeric fields over repeats (the first record's other fields)."""
+    out = dict(records[0])
+    for key, value in records[0].items():
+        if isinstance(value, (int, float)) and not isinstance(value, bool):
+            out[key] = statistics.median(r[key] for r in records)
+    out["load"] = statistics.median(r["load"] for r in records)
+    return out
+
+
+def measure(repeats, python, *args) -> dict:
+    """Median over ``repeats`` fresh processes of ``python``."""
+    records = []
+    for _ in range(repeats):
+        load = os.getloadavg()[0]
+        records.append({**run_child(python, *args), "load": load})
+    return median_record(records)
+
+
+def walk_rows(sizes, repeats, versions, baseline_max_T):
+    rows = []
+    for T in sizes:
+        for impl, python in versions:
+            if impl == "old" and T > baseline_max_T:
+                continue
+            rec = measure(repeats, python, "walk", T)
+            rows.append({"world": "aliased_walk", "T": T, "impl": impl, **rec})
+            print(format_row(rows[-1]), flush=True)
+    return rows
+
+
+def fourrooms_rows(repeats, data, versions):
+    rows = []
+    for T, score in ((10_000, 0), (50_000, 50_000)):
+        for impl, python in versions:
+            steps = min(score, 1000) if impl == "old" else score
+            rec = measure(repeats if T < 50_000 or impl == "new" else 1, python, "fourrooms", T,
+                          data, steps)
+            rows.append({"world": "FourRooms", "T": T, "impl": impl, **rec})
+            print(format_row(rows[-1]), flush=True)
+    return rows
+
+
+def format_row(r) -> str:
+    text = (f"{r['world']:12s} T={r['T']:>10,} {r['impl']:3s} [{r['method']:8s}] "
+            f"-> {r['S']:5d} states | phase1 {r['phase1']:7.2f} s  phase2 {r['phase2']:7.2f} s  "
+            f"fit {r['time']:7.2f} s  RSS {r['fit_rss_gb']:5.2f} GB | ARI {r['ari0']:.3f} -> "
+            f"{r['ari1']:.3f} | load {r['load']:.1f}")
+    if r.get("score_steps"):
+        text += (f" | score {r['score_steps']:,} steps {r['score_time']:.2f} s, "
+                 f"RSS with scoring {r['rss_gb']:.2f} GB")
+    return text
+
+
+def exponent(rows, impl, min_T=0) -> float | None:
+    """Least-squares slope of log(fit time) on log(T) over the aliased-walk sizes >= ``min_T``."""
+    pts = [(r["T"], r["time"]) for r in rows
+           if r["world"] == "aliased_walk" and r["impl"] == impl and r["T"] >= min_T]
+    if len(pts) < 2:
+        return None
+    T, t = np.log(np.array(pts, dtype=float)).T
+    return float(np.polyfit(T, t, 1)[0])
+
+
+def figure(rows, path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(5.5, 4))
+    for impl, style in (("old", "o--"), ("new", "s-")):
+        pts = sorted((r["T"], r["time"]) for r in rows
+                     if r["world"] == "aliased_walk" and r["impl"] == impl)
+        if pts:
+            k = exponent(rows, impl)
+            name = "baseline" if impl == "old" else "this version"
+            ax.loglog(*zip(*pts), style, label=f"{name} (k = {k:.2f})" if k else name)
+    ax.set_xlabel("steps T")
+    ax.set_ylabel("fit time (s)")
+    ax.set_title("aliased_walk, D = 15, 17 actions")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+
+
+def write_big(path: Path, T: int) -> None:
+    """``aliased_walk`` of T steps (ns 100, 200 places) as a trajectory file, with the places and
+    a position per place (on a 20 x 10 grid) so that the run draws every figure."""
+    from topomap import Trajectory, save_trajectory
+
+    ns, S = WALK_SIZES.get(T, (100, 200))
+    X, u, places = aliased_walk_blocks(T, 15, ns, S, 17)
+    grid = np.column_stack([np.arange(S) % 20, np.arange(S) // 20]).astype(float)
+    save_trajectory(Trajectory(X, u, places=places, positions=grid[places]), path)
+
+
+def end_to_end(T: int, folder: Path) -> dict:
+    """Wall time and peak RSS of ``topomap data=file data.path=big.npz ...`` at T steps, every
+    output written; returns the record (also the run's own timings)."""
+    ns, S = WALK_SIZES.get(T, (100, 200))
+    data, run = folder / "big.npz", folder / "run"
+    write_big(data, T)
+    cmd = [sys.executable, "-m", "topomap", "data=file", f"data.path={data}", f"clusters.ns={ns}",
+           f"stop.n_states={S}", "output.progress=false", f"hydra.run.dir={run}"]
+    t0 = time.perf_counter()
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    out, err = proc.communicate()
+    wall = time.perf_counter() - t0
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    if proc.returncode != 0:
+        raise RuntimeError(f"{' '.join(cmd)} failed: {err.strip().splitlines()[-1]}")
+    metrics = json.loads((run / "metrics.json").read_text())
+    rec = {"T": T, "wall_s": wall, "rss_gb": usage.ru_maxrss * 1024 / 1e9,
+           "timings": metrics["timings"], "ari": metrics["ground_truth"]["final"]["ari"],
+           "files": sorted(p.name for p in run.iterdir())}
+    print(f"end to end, T = {T:,}: {wall:.1f} s wall, peak RSS {rec['rss_gb']:.2f} GB | "
+          + ", ".join(f"{k} {v:.1f} s" for k, v in metrics["timings"].items())
+          + f" | ARI {rec['ari']:.3f} | {' '.join(rec['files'])}", flush=True)
+    return rec
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--sizes", nargs="+", type=float, default=sorted(WALK_SIZES))
+    ap.add_argument("--baseline", help="another Python (virtual environment) to time beside this one")
+    ap.add_argument("--baseline-max-T", type=float, default=1e6)
+    ap.add_argument("--no-fourrooms", action="store_true")
+    ap.add_argument("--out", default=str(HERE / "results"))
+    ap.add_argument("--report", action="store_true", help="reprint the last run's results")
+    ap.add_argument("--end-to-end", type=float, metavar="T",
+                    help="only time `topomap data=file` on a T-step recording")
+    args = ap.parse_args()
+    out = Path(args.out)
+    out.mkdir(exist_ok=True)
+    if args.end_to_end:
+        with tempfile.TemporaryDirectory() as tmp:
+            rec = end_to_end(int(args.end_to_end), Path(tmp))
+        (out / f"end_to_end_{int(args.end_to_end)}.json").write_text(json.dumps(rec, indent=1))
+        return None
+    if args.report:
+        rows = json.loads((out / "bench_scale.json").read_text())
+        for row in rows:
+            print(format_row(row))
+        return report(rows, out)
+    versions = ([("old", args.baseline)] if args.baseline else []) + [CURRENT]
+    rows = walk_rows([int(s) for s in args.sizes], args.repeats, versions, args.baseline_max_T)
+    if not args.no_fourrooms:
+        with tempfile.TemporaryDirectory() as tmp:
+            data = Path(tmp) / "fourrooms.npz"
+            fourrooms_walks(data, 50_000)
+            rows += fourrooms_rows(args.repeats, data, versions)
+    (out / "bench_scale.json").write_text(json.dumps(rows, indent=1))
+    report(rows, out)
+
+
+def report(rows, out: Path) -> None:
+    """Print the cost exponents and draw the log-log figure."""
+    for impl in ("old", "new"):
+        for min_T in (0, 10**5):
+            k = exponent(rows, impl, min_T)
+            label = "all sizes" if not min_T else "T >= 1e5"
+            print(f"cost exponent k ({impl}, {label}): " + (f"{k:.3f}" if k is not None else "-"))
+    figure(rows, out / "fit_time_loglog.png")
+
+
+def child_main(argv):
+    kind, T, *rest = argv
+    if kind == "walk":
+        rec = child_walk(int(T))
+    else:
+        rec = child_fourrooms(int(T), rest[0], int(rest[1]))
+    print(json.dumps(rec))
+
+
+if __name__ == "__main__":
+    if len(sys.argv) > 1 and sys.argv[1] == "--child":
+        child_main(sys.argv[2:])
+    else:
+        main()
