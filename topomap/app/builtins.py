@@ -13,12 +13,18 @@ from ..worlds.minigrid import MiniGridWorld
 from ..worlds.navigation import Navigation
 from ..worlds.office import OfficeWorld
 from ..worlds.random_graph import RandomGraphWorld
-from . import data, evaluate
+from ..core import refine
+from . import data
 from .hookspecs import Component, hookimpl
 
 
 def _c(kind, name, factory, description):
     return Component(kind, name, factory, description=description)
+
+
+def nothing():
+    """A component switched off (``refine=none``, ``evaluate=none``)."""
+    return None
 
 
 @hookimpl
@@ -57,7 +63,12 @@ def topomap_register_components():
         _c("data", "rosbag", data.FromRosbag,
            "learn from ROS 1 / ROS 2 bags (optional rosbags package): scans or numeric fields, "
            "String / Int32 / Twist actions"),
-        _c("evaluate", "none", evaluate.nothing, "no evaluation beyond ground truth and held-out data"),
+        _c("refine", "none", nothing, "the paper's method alone: the split map is the map"),
+        _c("refine", "em", refine.EMRefinement,
+           "EM over a clone budget sized by the split, merging and splitting states"),
+        _c("refine", "cscg", refine.CSCGRefinement,
+           "EM alone from phase 1 with CSCG's recipe (70 clones per symbol), for comparison"),
+        _c("evaluate", "none", nothing, "no evaluation beyond ground truth and held-out data"),
         _c("evaluate", "navigation", Navigation,
            "localise, plan on the map and act in the world: success rate and path length"),
     ]

@@ -104,13 +104,17 @@ def _summary(results: dict, out) -> str:
             line += (f" | ARI {gt['filter']['ari']:.3f} (filtered), "
                      f"{gt['viterbi']['ari']:.3f} (Viterbi)")
         return line
-    gt = results.get("ground_truth", {}).get("final", {})
+    gt = results.get("ground_truth", {})
     line = f"{results['n_states']['final']} states"
     if gt:
-        g0 = results["ground_truth"]["phase1"]
-        line += (f" | ARI {g0['ari']:.3f} -> {gt['ari']:.3f}, purity {g0['purity']:.3f} -> "
-                 f"{gt['purity']:.3f}, compound states {g0['compound_states']} -> "
-                 f"{gt['compound_states']}")
+        stages = [gt[k] for k in ("phase1", "split", "final") if k in gt]
+        label = " (phase 1 -> split -> refined)" if "split" in gt else ""
+
+        def trace(key, fmt):
+            return " -> ".join(format(s[key], fmt) for s in stages)
+
+        line += (f" | ARI {trace('ari', '.3f')}, purity {trace('purity', '.3f')}, compound "
+                 f"states {trace('compound_states', 'd')}{label}")
     nav = results.get("navigation")
     if nav:
         ratio = "-" if nav["path_ratio"] is None else f"{nav['path_ratio']:.2f}"

@@ -37,7 +37,7 @@ __all__ = ["Config", "LearnerConf", "OutputConf", "RUNTIME_ARGS", "schema_of", "
 RUNTIME_ARGS = frozenset({"extra_actions"})
 #: MapLearner arguments that are components or run settings, not ``learner.*`` fields
 _LEARNER_COMPONENT_ARGS = frozenset({"n_clusters", "n_states", "clusters", "metric", "criterion",
-                                     "stopping", "random_state", "callbacks"})
+                                     "stopping", "refine", "random_state", "callbacks"})
 _PRIMITIVES = (int, float, bool, str)
 
 
@@ -146,6 +146,7 @@ class Config:
     clusters: Any = MISSING
     split: Any = MISSING
     stop: Any = MISSING
+    refine: Any = MISSING
     data: Any = MISSING
     evaluate: Any = MISSING
     learner: LearnerConf = field(default_factory=LearnerConf)

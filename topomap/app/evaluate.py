@@ -6,12 +6,7 @@ from ..core import metrics as M
 from ..core.learner import MapLearner
 from ..core.trajectory import Trajectory
 
-__all__ = ["evaluate", "nothing"]
-
-
-def nothing():
-    """``evaluate=none``: no evaluation beyond ground truth and held-out data."""
-    return None
+__all__ = ["evaluate", "localization_scores"]
 
 
 def evaluate(learner: MapLearner, traj: Trajectory, heldout: Trajectory | None,
@@ -20,15 +15,20 @@ def evaluate(learner: MapLearner, traj: Trajectory, heldout: Trajectory | None,
     states against ``traj.places`` when the trajectory has ground truth; the mean log-likelihood
     per step of ``heldout`` under the learned map (None without held-out data); and what the
     run's ``evaluate`` component measures (``navigation``)."""
+    refined = learner.map_ is not learner.map_split_
     out = {
         "n_states": {"phase1": learner.map_phase1_.n_states, "final": learner.map_.n_states},
         "entropies": {"phase1": learner.entropies_[0], "final": learner.entropies_[-1]},
     }
+    if refined:
+        out["n_states"]["split"] = learner.map_split_.n_states
     if traj.places is not None:
         out["ground_truth"] = {
             "phase1": M.evaluate(learner.labels_phase1_, traj.places),
             "final": M.evaluate(learner.labels_, traj.places),
         }
+        if refined:
+            out["ground_truth"]["split"] = M.evaluate(learner.labels_split_, traj.places)
     if heldout is None:
         out.update(heldout_loglik=None, heldout_steps=0)
     else:

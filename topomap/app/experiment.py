@@ -106,8 +106,8 @@ def localize(cfg: dict, output_dir, registry: Registry) -> dict:
 def make_learner(cfg, parts: Parts, callbacks=()) -> MapLearner:
     """A :class:`MapLearner` with the run's components and ``learner.*`` settings."""
     return MapLearner(clusters=parts.clusters, metric=parts.metric, criterion=parts.split,
-                      stopping=parts.stop, random_state=int(cfg["seed"]), callbacks=callbacks,
-                      **cfg["learner"])
+                      stopping=parts.stop, refine=parts.refine, random_state=int(cfg["seed"]),
+                      callbacks=callbacks, **cfg["learner"])
 
 
 def load_data(cfg, parts: Parts, registry: Registry, cache_dir=None, progress=None):

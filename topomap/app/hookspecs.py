@@ -20,6 +20,8 @@ kind           what the factory returns                                        c
 ``clusters``   ``choose(Z, random_state) -> ns``                               ``clusters``
 ``split``      ``propose(counts) -> (side, score) | None``                     ``split``
 ``stop``       ``check(n_initial)``; ``should_stop(n_states, best_score)``     ``stop``
+``refine``     ``fit(sequence, split_state_symbol, random_state) -> CloneFit``  ``refine``
+               (:mod:`topomap.core.refine`), or None for none
 ``data``       ``simulates`` (bool); ``train(parts, seed, progress)`` and      ``data``
                ``heldout(parts, seed)`` return Trajectory objects (or None)
 ``evaluate``   ``evaluate(map, labels, places, world, noise) -> dict``, or      ``evaluate``
@@ -40,7 +42,8 @@ hookspec = pluggy.HookspecMarker("topomap")
 hookimpl = pluggy.HookimplMarker("topomap")
 
 #: every kind of component a plugin can provide, in the order the app builds them
-KINDS = ("env", "noise", "explorer", "metric", "clusters", "split", "stop", "data", "evaluate")
+KINDS = ("env", "noise", "explorer", "metric", "clusters", "split", "stop", "refine", "data",
+         "evaluate")
 
 
 @dataclass(frozen=True)
@@ -117,8 +120,8 @@ class TopomapSpecs:
     def topomap_learner_event(self, event: str, info: dict) -> None:
         """Observe the learner's progress.
 
-        :param event: ``"phase1"`` after clustering, ``"split"`` after each split, ``"done"`` at
-            the end.
+        :param event: ``"phase1"`` after clustering, ``"split"`` after each split, ``"refine"``
+            after a refinement, ``"done"`` at the end.
         :param info: ``learner`` (the :class:`topomap.MapLearner`), ``labels`` (state of every
             step; for ``"split"`` the learner's working array, changed in place by later splits,
             so copy it to keep it), ``entropies`` (dict with ``H_o``, ``H_u``, ``H_x``, ``n_states``), ``record``

@@ -51,6 +51,7 @@ class Parts:
     clusters: Any
     split: Any
     stop: Any
+    refine: Any
     data: Any
     evaluate: Any
 
@@ -238,7 +239,7 @@ class Registry:
             explorer = self.make("explorer", cfg["explorer"])
         return Parts(world=world, noise=noise, explorer=explorer,
                      **{k: self.make(k, cfg[k])
-                        for k in ("metric", "clusters", "split", "stop", "evaluate")},
+                        for k in ("metric", "clusters", "split", "stop", "refine", "evaluate")},
                      data=data)
 
     def learner_events(self, metrics: dict):

@@ -11,6 +11,7 @@ from sklearn.base import BaseEstimator
 
 from .clustering import FixedClusters, cluster_observations, make_metric
 from .map import TopologicalMap
+from .refine import REFINEMENTS, SymbolSequence
 from .splitting import CRITERIA, Splitter, TargetStates
 from .stats import episode_masks
 from .trajectory import check_sequences
@@ -73,11 +74,18 @@ class MapLearner(BaseEstimator):
         observations repeat, else fits on a sample and assigns every step.
     sample_size : int, optional
         Rows K-means is fitted on with ``phase1="sample"`` (default ``max(20000, 64 ns)``).
+    refine : None, "em", "cscg" or object
+        A refinement phase after the split (:mod:`topomap.core.refine`): ``"em"`` re-estimates
+        every state jointly with EM over a clone budget sized by the split, merges states that
+        are one place and splits compound ones (maps that stay right under heavy aliasing);
+        ``"cscg"`` is EM alone from phase 1 with CSCG's recipe, ignoring the split; an object
+        with ``fit(sequence, split_state_symbol, random_state) -> CloneFit``.  None (default):
+        the paper's method alone.
     random_state : int
         Seed of K-means (the only random part of the method).
     callbacks : sequence of callables
         Each is called as ``callback(event, info)`` with ``event`` in ``"phase1"``, ``"split"``,
-        ``"done"`` and ``info`` a dict (``learner``, ``labels``, ``entropies`` and, for splits, the
+        ``"refine"`` (after a refinement), ``"done"`` and ``info`` a dict (``learner``, ``labels``, ``entropies`` and, for splits, the
         history record).  Used to log progress or record extra metrics.  ``labels`` of a split is
         the learner's working array, changed in place by later splits: copy it to keep it.
 
@@ -85,8 +93,11 @@ class MapLearner(BaseEstimator):
     ----------
     labels_ : (T,) int -- the state of every step
     labels_phase1_ : (T,) int -- the state of every step after phase 1
-    map_ : TopologicalMap
+    labels_split_ : (T,) int -- the state of every step after phase 2 (before any refinement)
+    map_ : TopologicalMap -- the final map (refined, with ``refine``)
     map_phase1_ : TopologicalMap -- the map before any split
+    map_split_ : TopologicalMap -- the map after splitting (``map_`` without ``refine``)
+    refine_info_ : dict -- the refinement's stages (with ``refine``)
     n_clusters_ : int -- the ``ns`` actually used
     cluster_choice_ : dict -- what the cluster-count policy measured (e.g. ``{"bic": {...}}``)
     phase1_method_ : str -- the K-means method that ran (``phase1`` with ``"auto"`` resolved)
@@ -94,7 +105,7 @@ class MapLearner(BaseEstimator):
     split_history_ : list of dict -- ``iteration``, ``state``, ``new_state``, ``gain`` and sizes
     entropies_ : list of dict -- ``H_o``, ``H_u``, ``H_x`` after phase 1 and after every split
     stop_reason_ : str
-    timings_ : dict -- seconds spent in ``phase1`` and ``phase2``
+    timings_ : dict -- seconds spent in ``phase1``, ``phase2`` (and ``refine``)
     """
 
     #: re-evaluate every state after each split instead of only the neighbours of the new state
@@ -104,8 +115,8 @@ class MapLearner(BaseEstimator):
     def __init__(self, n_clusters: int = 20, n_states: int = 30, *, clusters=None,
                  metric="euclidean", criterion="entropy", stopping=None,
                  covariance_type: str = "diag", reg_covar: float = 1e-3, n_init: int = 3,
-                 phase1: str = "auto", sample_size: int | None = None, random_state: int = 0,
-                 callbacks=()):
+                 phase1: str = "auto", sample_size: int | None = None, refine=None,
+                 random_state: int = 0, callbacks=()):
         self.n_clusters = n_clusters
         self.n_states = n_states
         self.clusters = clusters
@@ -117,6 +128,7 @@ class MapLearner(BaseEstimator):
         self.n_init = n_init
         self.phase1 = phase1
         self.sample_size = sample_size
+        self.refine = refine
         self.random_state = random_state
         self.callbacks = callbacks
 
@@ -131,6 +143,7 @@ class MapLearner(BaseEstimator):
         data = self._validate(observations, actions, gds, lengths, n_actions, action_names,
                               gds_names)
         clusters, metric, criterion, stopping = self._components()
+        refinement = self._refinement()
         t0 = time.perf_counter()
         splitter = self._phase1(data, clusters, metric, criterion, stopping)
         t1 = time.perf_counter()
@@ -141,16 +154,52 @@ class MapLearner(BaseEstimator):
                 break
             self._record_split(splitter, best)
         t2 = time.perf_counter()
-        self.labels_ = splitter.labels
-        self.map_ = self._make_map(data, splitter)
+        self.labels_ = self.labels_split_ = splitter.labels
+        self.map_ = self.map_split_ = self._make_map(data, splitter)
         self.map_.info.update({
             "n_clusters": self.n_clusters_, "stop_reason": self.stop_reason_,
             "criterion": repr(criterion), "stopping": repr(stopping),
             "clusters": repr(clusters), "metric": getattr(metric, "name", repr(metric)),
         })
         self.timings_ = {"phase1": t1 - t0, "phase2": t2 - t1}
+        if refinement is not None:
+            self._refine(data, splitter, refinement)
+            self.timings_["refine"] = time.perf_counter() - t2
         self._emit("done", labels=self.labels_, entropies=self.entropies_[-1], map=self.map_)
         return self
+
+    def _refine(self, data: _Data, splitter: Splitter, refinement) -> None:
+        """Re-estimate every state jointly (:mod:`topomap.core.refine`); the split map stays as
+        ``map_split_``.  Refined states have no parent; ``map_.info["refined_from"]`` names, for
+        each, the split state most of its steps held."""
+        ns = self.n_clusters_
+        gds_ids = np.unique(data.gds[data.gds >= 0])
+        seq = SymbolSequence.build(self.labels_phase1_, data.u, data.lengths, data.n_actions, ns)
+        split_symbol = np.where(np.asarray(splitter.gds) < 0, splitter.symbol, -1)
+        fit = refinement.fit(seq, split_symbol, self.random_state)
+        sym = fit.state_symbol
+        is_gds = sym >= ns
+        state_gds = np.full(sym.size, -1, dtype=np.int64)
+        state_gds[is_gds] = gds_ids[sym[is_gds] - ns]
+        pairs = np.unique(fit.labels * splitter.n_states + self.labels_split_, return_counts=True)
+        origin = np.full(sym.size, -1, dtype=np.int64)
+        for code, _ in sorted(zip(*pairs), key=lambda p: p[1]):  # the largest count wins
+            origin[code // splitter.n_states] = code % splitter.n_states
+        self.labels_ = fit.labels
+        self.map_ = TopologicalMap.from_labels(
+            data.X, data.u, fit.labels, lengths=data.lengths,
+            state_symbol=np.where(is_gds, -1, sym),
+            state_gds=state_gds,
+            state_parent=np.full(sym.size, -1), n_actions=data.n_actions, covariance_type=self.covariance_type,
+            reg_covar=self.reg_covar, action_names=data.action_names, gds_names=data.gds_names,
+            split_history=self.split_history_, info=dict(self.map_split_.info))
+        self.refine_info_ = dict(fit.info)
+        self.entropies_.append(dict(self.map_.entropies(), n_states=self.map_.n_states,
+                                    iteration=len(self.split_history_) + 1, stage="refined"))
+        self.map_.entropies_ = [dict(e) for e in self.entropies_]
+        self.map_.info.update({"refine": repr(refinement), "refine_info": self.refine_info_,
+                               "refined_from": origin.tolist()})
+        self._emit("refine", labels=self.labels_, entropies=self.entropies_[-1], map=self.map_)
 
     def _phase1(self, data: _Data, clusters, metric, criterion, stopping) -> Splitter:
         """K-means symbols, one state each, plus one fixed state per GDS id (paper Section 3.2)."""
@@ -219,6 +268,21 @@ class MapLearner(BaseEstimator):
                              "gds_names are given")
         self.n_features_in_ = X.shape[1]
         return _Data(X, u, g, L, A, action_names, gds_names)
+
+    def _refinement(self):
+        """The refinement object (None: the paper's method alone)."""
+        refine = self.refine
+        if isinstance(refine, str):
+            if refine == "none":
+                return None
+            if refine not in REFINEMENTS:
+                raise ValueError(f"refine {refine!r} is unknown; choose one of none, "
+                                 f"{', '.join(sorted(REFINEMENTS))}")
+            return REFINEMENTS[refine]()
+        if refine is not None and not callable(getattr(refine, "fit", None)):
+            raise ValueError(f"refine {refine!r} has no fit(sequence, split_state_symbol, "
+                             "random_state) method")
+        return refine
 
     def _components(self):
         clusters = self.clusters if self.clusters is not None else FixedClusters(self.n_clusters)

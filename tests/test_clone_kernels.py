@@ -1,0 +1,186 @@
+"""The clone-model kernels against brute-force enumeration of every clone path on tiny models."""
+
+import itertools
+
+import numpy as np
+import pytest
+
+from topomap.core.clones import make_layout, m_step
+from topomap.core.kernels import clone_backward_counts as backward_counts
+from topomap.core.kernels import clone_forward as forward
+from topomap.core.kernels import clone_normalize_blocks as normalize_blocks
+from topomap.core.kernels import clone_path_counts as path_counts
+from topomap.core.kernels import clone_viterbi as viterbi
+
+
+def tiny_case(seed, lengths=(4, 3), clones=(2, 3, 1), n_actions=2):
+    """A random sequence over 3 symbols and a random block model for it."""
+    rng = np.random.default_rng(seed)
+    T = sum(lengths)
+    sym = rng.integers(0, len(clones), T)
+    u = rng.integers(0, n_actions, T)
+    lay = make_layout(sym, u, np.array(lengths), np.array(clones), n_actions)
+    vals = rng.random(int(lay.boff[-1])) + 0.05
+    return lay, vals
+
+
+def block_entry(lay, vals, t, i, j):
+    """The factor of moving from global clone i at step t to global clone j at step t + 1."""
+    s, s2 = lay.sym[t], lay.sym[t + 1]
+    nn = lay.start[s2 + 1] - lay.start[s2]
+    return vals[lay.boff[lay.blk[t]] + (i - lay.start[s]) * nn + (j - lay.start[s2])]
+
+
+def enumerate_paths(lay, vals):
+    """Yield (path, probability) for every clone path consistent with the symbols."""
+    choices = [range(lay.start[s], lay.start[s + 1]) for s in lay.sym]
+    for path in itertools.product(*choices):
+        p = 1.0
+        for t in range(lay.sym.size):
+            if t == 0 or lay.blk[t - 1] < 0:
+                p /= lay.start[lay.sym[t] + 1] - lay.start[lay.sym[t]]
+            else:
+                p *= block_entry(lay, vals, t - 1, path[t - 1], path[t])
+        yield np.array(path), p
+
+
+def brute_force(lay, vals):
+    """Likelihood, expected counts (block layout), occupancy and the best path by enumeration."""
+    total, best, best_p = 0.0, None, -1.0
+    counts = np.zeros(vals.size)
+    occ = np.zeros(lay.n_clones)
+    for path, p in enumerate_paths(lay, vals):
+        total += p
+        if p > best_p:
+            best, best_p = path, p
+        path_counts(path, lay.sym, lay.blk, lay.start, lay.boff, counts_p := np.zeros(vals.size))
+        counts += p * counts_p
+        np.add.at(occ, path, p)
+    return total, counts / total, occ / total, best, best_p
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_forward_backward_match_enumeration(seed):
+    lay, vals = tiny_case(seed)
+    total, counts, occ, _, _ = brute_force(lay, vals)
+    alpha, log_c = forward(lay.sym, lay.blk, lay.start, lay.boff, vals, lay.pos, 0.0)
+    assert log_c.sum() == pytest.approx(np.log(total), rel=1e-10)
+    got, got_occ = np.zeros(vals.size), np.zeros(lay.n_clones)
+    backward_counts(lay.sym, lay.blk, lay.start, lay.boff, vals, lay.pos, alpha, log_c, got, got_occ)
+    np.testing.assert_allclose(got, counts, rtol=1e-10, atol=1e-14)
+    np.testing.assert_allclose(got_occ, occ, rtol=1e-10, atol=1e-14)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_viterbi_matches_enumeration(seed):
+    lay, vals = tiny_case(seed)
+    _, _, _, best, best_p = brute_force(lay, vals)
+    path, log_p = viterbi(lay.sym, lay.blk, lay.start, lay.boff, np.log(vals), lay.pos)
+    assert log_p == pytest.approx(np.log(best_p), rel=1e-10)
+    np.testing.assert_array_equal(path, best)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_zero_transitions_are_skipped_exactly(seed):
+    """Exact zeros in the model give zero forward messages; skipping them changes nothing."""
+    lay, vals = tiny_case(seed, lengths=(7,), clones=(3, 3, 2))
+    vals[np.random.default_rng(seed).random(vals.size) < 0.4] = 0.0
+    total, counts, occ, _, _ = brute_force(lay, vals)
+    if total == 0.0:
+        pytest.skip("this random sparsity pattern makes the sequence impossible")
+    alpha, log_c = forward(lay.sym, lay.blk, lay.start, lay.boff, vals, lay.pos, 0.0)
+    assert log_c.sum() == pytest.approx(np.log(total), rel=1e-10)
+    got, got_occ = np.zeros(vals.size), np.zeros(lay.n_clones)
+    backward_counts(lay.sym, lay.blk, lay.start, lay.boff, vals, lay.pos, alpha, log_c, got, got_occ)
+    np.testing.assert_allclose(got, counts, rtol=1e-10, atol=1e-14)
+    np.testing.assert_allclose(got_occ, occ, rtol=1e-10, atol=1e-14)
+
+
+def deterministic_walk(T, clones, n_actions, seed):
+    """A walk through a random deterministic clone graph; returns its symbols, actions, path."""
+    rng = np.random.default_rng(seed)
+    symbol = np.repeat(np.arange(len(clones)), clones)
+    nxt = rng.integers(0, symbol.size, (symbol.size, n_actions))
+    path, u = np.empty(T, dtype=np.int64), rng.integers(0, n_actions, T)
+    path[0] = 0
+    for t in range(1, T):
+        path[t] = nxt[path[t - 1], u[t - 1]]
+    return symbol[path], u, path
+
+
+def test_pruning_approximates_exact_statistics():
+    """On data a peaked model explains, dropping filtered probabilities below 1e-6 skips most
+    clones and leaves likelihood and counts as they were."""
+    T = 3000
+    sym, u, path = deterministic_walk(T, [4, 4, 4], 2, seed=1)
+    lay = make_layout(sym, u, np.array([T]), np.array([4, 4, 4]), 2)
+    counts = path_counts(path, lay.sym, lay.blk, lay.start, lay.boff, np.zeros(int(lay.boff[-1])))
+    vals = m_step(lay, counts, 1e-9, joint=False)
+    stats = []
+    for prune in (0.0, 1e-6):
+        alpha, log_c = forward(lay.sym, lay.blk, lay.start, lay.boff, vals, lay.pos, prune)
+        got, occ = np.zeros(vals.size), np.zeros(lay.n_clones)
+        backward_counts(lay.sym, lay.blk, lay.start, lay.boff, vals, lay.pos, alpha, log_c, got, occ)
+        stats.append((log_c.sum(), got, occ, (alpha == 0).mean()))
+    (ll0, c0, o0, _), (ll1, c1, o1, zero_share) = stats
+    assert zero_share > 0.5
+    assert ll1 == pytest.approx(ll0, abs=1e-3)
+    np.testing.assert_allclose(c1, c0, atol=1e-3)
+    np.testing.assert_allclose(o1, o0, atol=1e-3)
+
+
+def test_single_episode_and_single_clone_symbols():
+    lay, vals = tiny_case(7, lengths=(6,), clones=(1, 2, 2))
+    total, counts, _, best, _ = brute_force(lay, vals)
+    alpha, log_c = forward(lay.sym, lay.blk, lay.start, lay.boff, vals, lay.pos, 0.0)
+    assert log_c.sum() == pytest.approx(np.log(total), rel=1e-10)
+    path, _ = viterbi(lay.sym, lay.blk, lay.start, lay.boff, np.log(vals), lay.pos)
+    np.testing.assert_array_equal(path, best)
+
+
+def test_no_transition_crosses_an_episode_start():
+    lay, _ = tiny_case(1, lengths=(2, 2, 3))
+    assert (lay.blk[[1, 3, 6]] == -1).all() and (lay.blk[[0, 2, 4, 5]] >= 0).all()
+
+
+def test_long_sequence_does_not_underflow():
+    rng = np.random.default_rng(0)
+    T = 100_000
+    sym, u = rng.integers(0, 3, T), rng.integers(0, 2, T)
+    lay = make_layout(sym, u, np.array([T]), np.array([4, 4, 4]), 2)
+    vals = m_step(lay, rng.random(int(lay.boff[-1])), 1e-3, joint=False)
+    alpha, log_c = forward(lay.sym, lay.blk, lay.start, lay.boff, vals, lay.pos, 0.0)
+    assert np.isfinite(log_c.sum()) and log_c.sum() < -1e4
+    path, log_p = viterbi(lay.sym, lay.blk, lay.start, lay.boff, np.log(vals), lay.pos)
+    assert np.isfinite(log_p) and log_p <= log_c.sum()
+
+
+def dense_transitions(lay, counts, pseudocount, joint):
+    """The dense (A, S, S) model a count array stands for, normalised by brute force."""
+    A, S = lay.n_actions, lay.n_clones
+    C = np.zeros((A, S, S))
+    for b, (a, s, s2) in enumerate(lay.triples):
+        block = counts[lay.boff[b]:lay.boff[b + 1]].reshape(lay.start[s + 1] - lay.start[s], -1)
+        C[a, lay.start[s]:lay.start[s + 1], lay.start[s2]:lay.start[s2 + 1]] = block
+    C += pseudocount
+    if joint:
+        return C / C.sum(axis=(0, 2), keepdims=True)
+    return C / C.sum(axis=2, keepdims=True)
+
+
+@pytest.mark.parametrize("joint", [False, True])
+def test_normalize_matches_dense_model(joint):
+    lay, counts = tiny_case(3)
+    vals = m_step(lay, counts, 0.01, joint)
+    P = dense_transitions(lay, counts, 0.01, joint)
+    for b, (a, s, s2) in enumerate(lay.triples):
+        expect = P[a, lay.start[s]:lay.start[s + 1], lay.start[s2]:lay.start[s2 + 1]]
+        np.testing.assert_allclose(vals[lay.boff[b]:lay.boff[b + 1]], expect.ravel(), rtol=1e-12)
+
+
+def test_normalize_zero_rows_stay_zero():
+    lay, counts = tiny_case(4)
+    counts[:] = 0.0
+    vals, Z = normalize_blocks(counts, lay.triples[:, 1].copy(), lay.triples[:, 2].copy(),
+                               lay.triples[:, 0].copy(), lay.n_actions, lay.start, lay.boff, 0.0, 0.0)
+    assert (vals == 0).all() and (Z == 0).all()

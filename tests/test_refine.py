@@ -1,0 +1,152 @@
+"""The refinement, EM alone and the structure moves on small worlds whose answer is known."""
+
+import numpy as np
+import pytest
+from sklearn.metrics import adjusted_rand_score
+
+from topomap.core.refine import cscg_fit, refine_fit
+from topomap.core.structure import episode_masks, merge_states, same_partition, split_compounds
+from topomap.worlds import GridRoom, RandomExplorer
+
+
+def ring_walk(T, symbols, seed=0):
+    """Random walk on a ring of places (action 0: forward, 1: back); returns symbols, actions,
+    places."""
+    rng = np.random.default_rng(seed)
+    n = len(symbols)
+    u = rng.integers(0, 2, T)
+    places = np.empty(T, dtype=np.int64)
+    places[0] = 0
+    for t in range(1, T):
+        places[t] = (places[t - 1] + (1 if u[t - 1] == 0 else -1)) % n
+    return np.asarray(symbols)[places], u, places
+
+
+RING = [0, 1, 2, 3, 1, 4, 2, 5]  # places 1/4 and 2/6 look alike
+
+
+ROOM = GridRoom(4, 3, 3, seed=1)
+
+
+def grid_walk(T, seed=0):
+    traj = ROOM.simulate(T, RandomExplorer(), np.random.default_rng(seed))
+    return ROOM.place_symbols[traj.places], traj.actions, traj.places
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_refine_recovers_every_place_of_an_aliased_ring(seed):
+    """The split is given as one state per symbol (it found nothing to split)."""
+    sym, u, places = ring_walk(3000, RING, seed)
+    fit = refine_fit(sym, u, [3000], 2, 6, np.arange(6), random_state=seed)
+    assert adjusted_rand_score(places, fit.labels) == 1.0 and fit.n_states == 8
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_refine_recovers_every_cell_of_a_small_grid(seed):
+    """The split is given as many states per symbol as there are cells (its usual size)."""
+    sym, u, places = grid_walk(4000, seed)
+    fit = refine_fit(sym, u, [4000], 4, 3, ROOM.place_symbols, random_state=seed)
+    assert adjusted_rand_score(places, fit.labels) == 1.0 and fit.n_states == 12
+
+
+def test_refine_respects_episodes():
+    sym, u, places = ring_walk(3000, RING, 0)
+    fit = refine_fit(sym, u, [1000, 1500, 500], 2, 6, np.arange(6))
+    assert adjusted_rand_score(places, fit.labels) == 1.0
+
+
+def test_cscg_nearly_recovers_the_ring():
+    """EM alone with CSCG's 70 clones per symbol; it may leave a duplicate or two."""
+    sym, u, places = ring_walk(3000, RING, 1)
+    fit = cscg_fit(sym, u, [3000], 2, 6, random_state=1)
+    assert adjusted_rand_score(places, fit.labels) > 0.9
+
+
+def test_gds_ids_keep_one_state():
+    """A symbol id past n_symbols is a GDS: one clone, one state."""
+    sym, u, places = ring_walk(3000, [0, 1, 2, 3, 1, 4, 2, 6], 2)  # id 6 = GDS of place 7
+    fit = refine_fit(sym, u, [3000], 2, 6, np.arange(6), random_state=2)
+    assert np.sum(fit.state_symbol == 6) == 1
+    assert adjusted_rand_score(places, fit.labels) == 1.0
+
+
+def test_merge_joins_duplicates_of_one_place():
+    """Duplicate every place: each visit goes to one of two copies at random."""
+    sym, u, places = ring_walk(4000, RING, 3)
+    labels = places * 2 + np.random.default_rng(0).integers(0, 2, places.size)
+    _, has_next = episode_masks([places.size], places.size)
+    merged, merged_symbol = merge_states(labels, np.repeat(RING, 2), u, has_next)
+    assert same_partition(merged, places) and merged_symbol.size == 8
+
+
+def test_merge_keeps_places_that_allow_different_moves():
+    """Two wall cells of one symbol that no shared move tells apart stay two states."""
+    sym, u, places = grid_walk(4000, 0)
+    _, has_next = episode_masks([places.size], places.size)
+    merged, _ = merge_states(places, ROOM.place_symbols, u, has_next)
+    assert same_partition(merged, places)
+
+
+def test_split_separates_a_compound_state():
+    sym, u, places = ring_walk(4000, RING, 4)
+    labels = np.where(places == 4, 1, places)  # places 1 and 4 folded into state 1
+    has_prev, has_next = episode_masks([places.size], places.size)
+    state_symbol = np.array([0, 1, 2, 3, -9, 4, 2, 5])
+    split, split_symbol = split_compounds(labels, state_symbol, u, has_prev, has_next, 2)
+    assert split_symbol.size == 9
+    assert adjusted_rand_score(places, split) > 0.99
+
+
+# ---------------------------------------------------------------- through the learner and the map
+def noisy(sym, n_symbols, seed=0):
+    """One-hot observations of the symbols, with sensor noise."""
+    rng = np.random.default_rng(seed)
+    return np.eye(n_symbols)[sym] + rng.normal(0, 0.01, (len(sym), n_symbols))
+
+
+def test_the_learner_refines_the_split_and_keeps_it_beside():
+    from topomap import MapLearner
+
+    sym, u, places = ring_walk(3000, RING, 0)
+    split = MapLearner(n_clusters=6, n_states=6).fit(noisy(sym, 6), u)
+    learner = MapLearner(n_clusters=6, n_states=6, refine="em").fit(noisy(sym, 6), u)
+    assert adjusted_rand_score(places, split.labels_) < 0.9  # the split alone cannot tell them
+    assert adjusted_rand_score(places, learner.labels_) == 1.0 and learner.map_.n_states == 8
+    assert np.array_equal(learner.labels_split_, split.labels_)
+    assert learner.map_split_.n_states == 6 and learner.map_.info["refine"].startswith("EMRef")
+    assert learner.entropies_[-1]["stage"] == "refined"
+    assert set(learner.timings_) == {"phase1", "phase2", "refine"}
+
+
+def test_a_refined_map_saved_and_loaded_scores_the_same(tmp_path):
+    from topomap import MapLearner, TopologicalMap
+
+    sym, u, places = ring_walk(2000, RING, 1)
+    X = noisy(sym, 6, 1)
+    m = MapLearner(n_clusters=6, n_states=6, refine="em").fit(X, u).map_
+    twin = TopologicalMap.load(m.save(tmp_path / "map.json"))
+    held_sym, held_u, _ = ring_walk(500, RING, 9)
+    Xh = noisy(held_sym, 6, 9)
+    assert twin.score(Xh, held_u) == m.score(Xh, held_u)
+    assert np.array_equal(twin.predict(Xh, held_u), m.predict(Xh, held_u))
+
+
+def test_gds_states_stay_fixed_through_refinement():
+    from topomap import MapLearner
+
+    sym, u, places = ring_walk(3000, RING, 2)
+    gds = np.where(places == 7, 0, -1)  # place 7 (the only one showing symbol 5) is a GDS
+    learner = MapLearner(n_clusters=5, n_states=6, refine="em").fit(noisy(sym, 6, 2), u, gds=gds)
+    m = learner.map_
+    (gds_state,) = np.flatnonzero(m.state_gds_ == 0)
+    assert np.all(learner.labels_[gds == 0] == gds_state)
+    assert not np.any(learner.labels_[gds < 0] == gds_state)
+    assert adjusted_rand_score(places, learner.labels_) == 1.0
+
+
+def test_unknown_refinements_are_refused():
+    from topomap import MapLearner
+
+    sym, u, _ = ring_walk(300, RING, 0)
+    with pytest.raises(ValueError, match="refine 'magic' is unknown; choose one of none, cscg, em"):
+        MapLearner(n_clusters=6, n_states=6, refine="magic").fit(noisy(sym, 6), u)

@@ -1,0 +1,249 @@
+"""Clone-structured, action-conditioned HMMs: layout, initialisation, EM, Viterbi training.
+
+A :class:`Layout` ties one discrete sequence (symbols, actions, episode lengths) to a clone budget
+(clones per symbol) and the sparse transition blocks that sequence needs (one per observed
+``(action, symbol, next symbol)`` triple; see :mod:`topomap.core.kernels`).  Parameters are plain count arrays
+in the block layout; probabilities are derived from counts by :func:`m_step`.
+
+Two normalisations are offered (``joint``):
+
+* ``False`` -- ``P(x'|x,u)``, CSCG's model: the action is an input;
+* ``True`` -- ``P(u,x'|x) = P(u|x) P(x'|x,u)``, the paper's model (Eq. 1 of Yairi et al. has the
+  term ``P(u|x)``): which actions a state takes is evidence about the state too.  Measured: EM
+  with it splits places by the action taken next (gridroom 8x6: 92 states for 48 places), so
+  the estimators use ``False``.
+
+The pseudocount behaves as in a dense CSCG: every one of the ``S`` (or ``A S``) entries of a row
+receives it, also those never stored, so a row's normaliser is ``counts + pseudocount * S``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .kernels import (
+    clone_backward_counts,
+    clone_forward,
+    clone_normalize_blocks,
+    clone_path_counts,
+    clone_step_offsets,
+    clone_viterbi,
+)
+
+__all__ = [
+    "Layout",
+    "make_layout",
+    "m_step",
+    "e_step",
+    "baum_welch",
+    "viterbi_training",
+    "decode",
+    "random_counts",
+    "clone_budget",
+    "init_from_path",
+    "states_to_clones",
+    "compact_labels",
+]
+
+
+@dataclass(frozen=True)
+class Layout:
+    """A symbol sequence bound to a clone budget and its transition blocks.
+
+    Attributes
+    ----------
+    sym, u : (T,) int64 -- symbol and action of every step
+    blk : (T,) int64 -- block of the transition ``t -> t + 1`` (-1 at an episode's last step)
+    triples : (B, 3) int64 -- ``(action, symbol, next symbol)`` of every block
+    start : (K + 1,) int64 -- clones of symbol ``k`` are ``start[k] .. start[k + 1] - 1``
+    boff : (B + 1,) int64 -- block ``b`` occupies ``boff[b] .. boff[b + 1] - 1`` of a count array
+    pos : (T + 1,) int64 -- per-step offsets of the clone vectors (:func:`topomap.core.kernels.clone_step_offsets`)
+    n_actions : int
+    """
+
+    sym: np.ndarray
+    u: np.ndarray
+    blk: np.ndarray
+    triples: np.ndarray
+    start: np.ndarray
+    boff: np.ndarray
+    pos: np.ndarray
+    n_actions: int
+
+    @property
+    def n_clones(self) -> int:
+        """Total number of clones ``S``."""
+        return int(self.start[-1])
+
+    @property
+    def clones_per_symbol(self) -> np.ndarray:
+        """(K,) clones of every symbol."""
+        return np.diff(self.start)
+
+    @property
+    def clone_symbol(self) -> np.ndarray:
+        """(S,) the symbol every clone emits."""
+        return np.repeat(np.arange(self.start.size - 1), self.clones_per_symbol)
+
+    def with_clones(self, clones_per_symbol) -> "Layout":
+        """The same data and blocks under another clone budget."""
+        start = np.concatenate([[0], np.cumsum(clones_per_symbol)]).astype(np.int64)
+        return Layout(self.sym, self.u, self.blk, self.triples, start,
+                      _block_offsets(self.triples, start), clone_step_offsets(self.sym, start),
+                      self.n_actions)
+
+
+def _block_offsets(triples: np.ndarray, start: np.ndarray) -> np.ndarray:
+    """Offsets of the blocks of ``triples`` in a count array, for the clone ranges ``start``."""
+    n = np.diff(start)
+    sizes = n[triples[:, 1]] * n[triples[:, 2]]
+    return np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
+
+
+def make_layout(sym, u, lengths, clones_per_symbol, n_actions: int) -> Layout:
+    """Bind a sequence to ``clones_per_symbol`` (K,) clones per symbol.
+
+    ``lengths`` (episode sizes, summing to ``T``) keeps transitions inside episodes.
+    """
+    sym = np.ascontiguousarray(sym, dtype=np.int64)
+    u = np.ascontiguousarray(u, dtype=np.int64)
+    K = len(clones_per_symbol)
+    T = sym.size
+    has_next = np.ones(T, dtype=bool)
+    has_next[np.cumsum(lengths) - 1] = False
+    t = np.flatnonzero(has_next)
+    key = (u[t] * K + sym[t]) * K + sym[t + 1]
+    uniq, inv = np.unique(key, return_inverse=True)
+    blk = np.full(T, -1, dtype=np.int64)
+    blk[t] = inv
+    triples = np.column_stack([uniq // (K * K), (uniq // K) % K, uniq % K]).astype(np.int64)
+    base = Layout(sym, u, blk, triples, np.zeros(K + 1, np.int64), np.zeros(1, np.int64),
+                  np.zeros(1, np.int64), int(n_actions))
+    return base.with_clones(np.asarray(clones_per_symbol, dtype=np.int64))
+
+
+def _row_keys(lay: Layout, joint: bool):
+    """Row-group key per block, number of keys and dense row width (for the pseudocount)."""
+    if joint:
+        return np.zeros(len(lay.triples), np.int64), 1, lay.n_clones * lay.n_actions
+    return np.ascontiguousarray(lay.triples[:, 0]), lay.n_actions, lay.n_clones
+
+
+def m_step(lay: Layout, counts, pseudocount: float, joint: bool) -> np.ndarray:
+    """Block probabilities from counts (see :func:`topomap.core.kernels.clone_normalize_blocks`)."""
+    key, n_keys, width = _row_keys(lay, joint)
+    vals, _ = clone_normalize_blocks(counts, np.ascontiguousarray(lay.triples[:, 1]),
+                               np.ascontiguousarray(lay.triples[:, 2]), key, n_keys, lay.start,
+                               lay.boff, pseudocount, pseudocount * width)
+    return vals
+
+
+def e_step(lay: Layout, vals, prune: float = 0.0):
+    """Expected counts, expected clone occupancy and log-likelihood under ``vals`` (``prune``: see
+    :func:`topomap.core.kernels.clone_forward`)."""
+    alpha, log_c = clone_forward(lay.sym, lay.blk, lay.start, lay.boff, vals, lay.pos, prune)
+    counts = np.zeros(vals.size)
+    occupancy = np.zeros(lay.n_clones)
+    clone_backward_counts(lay.sym, lay.blk, lay.start, lay.boff, vals, lay.pos, alpha, log_c, counts,
+                    occupancy)
+    return counts, occupancy, float(log_c.sum())
+
+
+def baum_welch(lay: Layout, counts, pseudocount: float, joint: bool, *, max_iter: int = 1000,
+               tol: float = 1e-6, min_iter: int = 10, prune: float = 0.0):
+    """Baum-Welch from ``counts`` until the log-likelihood gains less than ``tol`` nats per step
+    (checked from iteration ``min_iter`` on: from a random start the first iterations barely move).
+
+    Returns ``(counts, occupancy, history)``: the last expected counts (whose M-step is the fitted
+    model), the clone occupancy and the log-likelihood of every iteration.
+    """
+    history = []
+    occupancy = np.zeros(lay.n_clones)
+    T = lay.sym.size
+    for _ in range(max_iter):
+        new, occupancy, ll = e_step(lay, m_step(lay, counts, pseudocount, joint), prune)
+        counts = new
+        history.append(ll)
+        if len(history) > min_iter and history[-1] - history[-2] < tol * T:
+            break
+    return counts, occupancy, history
+
+
+def decode(lay: Layout, counts, pseudocount: float, joint: bool):
+    """Viterbi path (global clone ids) and its log-probability under the model of ``counts``."""
+    vals = m_step(lay, counts, pseudocount, joint)
+    with np.errstate(divide="ignore"):
+        log_vals = np.log(vals)
+    return clone_viterbi(lay.sym, lay.blk, lay.start, lay.boff, log_vals, lay.pos)
+
+
+def viterbi_training(lay: Layout, counts, joint: bool, *, pseudocount: float = 0.0,
+                     max_iter: int = 100):
+    """Hard EM: decode, re-count the path, repeat until the path's probability stops rising.
+
+    Returns ``(path, counts, history)``; ``counts`` are the hard counts of ``path``.
+    """
+    history = []
+    path = None
+    for _ in range(max_iter):
+        new_path, log_p = decode(lay, counts, pseudocount, joint)
+        if history and log_p <= history[-1] + 1e-9 * abs(history[-1]):
+            break
+        path, history = new_path, history + [log_p]
+        counts = clone_path_counts(path, lay.sym, lay.blk, lay.start, lay.boff, np.zeros(counts.size))
+    return path, counts, history
+
+
+def random_counts(lay: Layout, rng: np.random.Generator) -> np.ndarray:
+    """CSCG's initialisation: independent uniform counts in every stored entry."""
+    return rng.random(int(lay.boff[-1]))
+
+
+def clone_budget(n_symbols: int, n_fixed: int, per_symbol) -> np.ndarray:
+    """Clones per symbol id: ``per_symbol`` (int or (n_symbols,) array) for the K-means symbols,
+    then one for each of the ``n_fixed`` GDS ids (GDS states stay fixed and unique)."""
+    free = np.broadcast_to(np.asarray(per_symbol, dtype=np.int64), (n_symbols,))
+    return np.concatenate([free, np.ones(n_fixed, dtype=np.int64)])
+
+
+def init_from_path(lay: Layout, path, n_steps: int, rng, noise: float = 1.0) -> np.ndarray:
+    """Initial counts on ``lay`` from a hard clone path of its first ``n_steps`` steps.
+
+    The path's transitions are counted and scaled by ``T / n_steps`` (as if the whole sequence
+    looked like its first part); ``noise`` times a uniform random count is added to every stored
+    entry, so spare clones and triples the path never used start with small random weights that
+    EM can grow.
+    """
+    blk = lay.blk[:n_steps].copy()
+    blk[n_steps - 1] = -1
+    counts = clone_path_counts(np.ascontiguousarray(path[:n_steps]), lay.sym[:n_steps], blk, lay.start,
+                         lay.boff, np.zeros(int(lay.boff[-1])))
+    return counts * (lay.sym.size / n_steps) + noise * rng.random(counts.size)
+
+
+def states_to_clones(labels, state_symbol, n_ids: int, n_symbols: int, spare: int):
+    """Clone budget holding every state plus ``spare`` clones per K-means symbol (ids below
+    ``n_symbols``; GDS ids get none), and the clone path of ``labels``: each state becomes one
+    clone of its symbol."""
+    per = np.bincount(state_symbol, minlength=n_ids)
+    budget = per + np.where(np.arange(n_ids) < n_symbols, spare, 0)
+    order = np.argsort(state_symbol, kind="stable")
+    rank = np.empty(state_symbol.size, dtype=np.int64)
+    first = np.concatenate([[0], np.cumsum(per)])
+    rank[order] = np.arange(state_symbol.size) - first[state_symbol[order]]
+    start = np.concatenate([[0], np.cumsum(budget)])
+    return budget, (start[state_symbol] + rank)[labels]
+
+
+def compact_labels(path, clone_symbol):
+    """Renumber the clones a path uses as states ``0..n-1`` (by first use).
+
+    Returns ``(labels, state_symbol, used)``: ``used`` are the original clone ids of the states.
+    """
+    used, first = np.unique(path, return_index=True)
+    used = used[np.argsort(first, kind="stable")]
+    rename = np.full(int(path.max()) + 1, -1, dtype=np.int64)
+    rename[used] = np.arange(used.size)
+    return rename[path], np.asarray(clone_symbol)[used], used
