@@ -13,7 +13,7 @@ from ..worlds.minigrid import MiniGridWorld
 from ..worlds.navigation import Navigation
 from ..worlds.office import OfficeWorld
 from ..worlds.random_graph import RandomGraphWorld
-from ..core import refine
+from ..core import auto, refine
 from . import data
 from .hookspecs import Component, hookimpl
 
@@ -58,6 +58,8 @@ def topomap_register_components():
            "split until the map has n_states states (the paper's)"),
         _c("stop", "min_gain", splitting.MinGain,
            "split while the best gain is at least min_gain (bits)"),
+        _c("stop", "auto", auto.AutoStates,
+           "choose the number of states: the held-out log-likelihood (or BIC) of every split size"),
         _c("data", "simulate", data.Simulate, "simulate the configured world for n_steps steps"),
         _c("data", "file", data.FromFile, "learn from a recorded trajectory (.npz or .csv)"),
         _c("data", "rosbag", data.FromRosbag,

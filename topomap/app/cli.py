@@ -106,6 +106,9 @@ def _summary(results: dict, out) -> str:
         return line
     gt = results.get("ground_truth", {})
     line = f"{results['n_states']['final']} states"
+    choice = results.get("size_choice")
+    if choice:
+        line += f" (split to {choice['chosen']}, the size {choice['criterion']} chose)"
     if gt:
         stages = [gt[k] for k in ("phase1", "split", "final") if k in gt]
         label = " (phase 1 -> split -> refined)" if "split" in gt else ""

@@ -78,6 +78,7 @@ def learn(cfg: dict, output_dir, registry: Registry, cache_dir=None) -> dict:
     results.update({
         "split_history": learner.split_history_, "entropy_trace": learner.entropies_,
         "stop_reason": learner.stop_reason_, "timings": {**t_data, **learner.timings_},
+        "size_choice": getattr(learner, "size_choice_", None),
         "versions": versions(), "config": cfg, "plugin_metrics": plugin_metrics, "units": UNITS,
         "providers": {k: registry.provider(k, cfg[k]["component"])
                       for k in ("clusters", "metric", "split", "stop")},

@@ -10,6 +10,7 @@ import numpy as np
 from sklearn.base import BaseEstimator
 
 from .clustering import FixedClusters, cluster_observations, make_metric
+from .auto import AutoStates, SizeScores, split_holdout
 from .map import TopologicalMap
 from .refine import REFINEMENTS, SymbolSequence
 from .splitting import CRITERIA, Splitter, TargetStates
@@ -48,8 +49,9 @@ class MapLearner(BaseEstimator):
     ----------
     n_clusters : int
         ``ns``, the number of K-means clusters (used when ``clusters`` is None).
-    n_states : int
-        Target state count (used when ``stopping`` is None).
+    n_states : int or "auto"
+        Target state count (used when ``stopping`` is None); ``"auto"`` chooses it by the
+        held-out log-likelihood (:class:`topomap.core.auto.AutoStates`).
     clusters : object, optional
         Cluster-count policy with ``choose(Z, random_state)`` returning ``ns`` or ``(ns, details)``
         (e.g. :class:`topomap.core.clustering.BICClusters`).  Default: ``FixedClusters(n_clusters)``.
@@ -98,6 +100,7 @@ class MapLearner(BaseEstimator):
     map_phase1_ : TopologicalMap -- the map before any split
     map_split_ : TopologicalMap -- the map after splitting (``map_`` without ``refine``)
     refine_info_ : dict -- the refinement's stages (with ``refine``)
+    size_choice_ : dict -- with ``stop=auto``: the criterion, the chosen count and every score
     n_clusters_ : int -- the ``ns`` actually used
     cluster_choice_ : dict -- what the cluster-count policy measured (e.g. ``{"bic": {...}}``)
     phase1_method_ : str -- the K-means method that ran (``phase1`` with ``"auto"`` resolved)
@@ -144,8 +147,11 @@ class MapLearner(BaseEstimator):
                               gds_names)
         clusters, metric, criterion, stopping = self._components()
         refinement = self._refinement()
+        self.__dict__.pop("size_choice_", None)
         t0 = time.perf_counter()
         splitter = self._phase1(data, clusters, metric, criterion, stopping)
+        if isinstance(stopping, AutoStates):
+            stopping = TargetStates(self._choose_size(data, splitter, stopping))
         t1 = time.perf_counter()
         self.stop_reason_ = "no state can be split"
         while (best := splitter.best()) is not None:
@@ -162,6 +168,8 @@ class MapLearner(BaseEstimator):
             "clusters": repr(clusters), "metric": getattr(metric, "name", repr(metric)),
         })
         self.timings_ = {"phase1": t1 - t0, "phase2": t2 - t1}
+        if hasattr(self, "size_choice_"):
+            self.map_.info["size_choice"] = {k: self.size_choice_[k] for k in ("criterion", "chosen")}
         if refinement is not None:
             self._refine(data, splitter, refinement)
             self.timings_["refine"] = time.perf_counter() - t2
@@ -269,6 +277,33 @@ class MapLearner(BaseEstimator):
         self.n_features_in_ = X.shape[1]
         return _Data(X, u, g, L, A, action_names, gds_names)
 
+    def _choose_size(self, data: _Data, splitter: Splitter, rule: AutoStates) -> int:
+        """The number of states ``stop=auto`` picks (:mod:`topomap.core.auto`): from the phase-1
+        labels, a probe splits up to the rule's limit -- on all steps for BIC, on all but the held
+        out final block for ``"heldout"`` -- and every size is scored; ``size_choice_`` keeps the
+        scores."""
+        X, u, g, L, A = data.X, data.u, data.gds, data.lengths, data.n_actions
+        cut = u.size
+        if rule.criterion == "heldout":
+            L, held, cut = split_holdout(u.size, L, rule.holdout)
+            scores = SizeScores("heldout", (X[:cut], u[:cut], L, A),
+                                heldout=(X[cut:], u[cut:], g[cut:], held))
+        else:
+            scores = SizeScores("bic", (X, u, L, A))
+        probe = Splitter(self.labels_phase1_[:cut], u[:cut], A, *episode_masks(cut, L),
+                         symbol=splitter.symbol, gds=splitter.gds,
+                         obs_entropy=splitter.obs_entropy, criterion=splitter.criterion)
+        stop = rule.probe_rule()
+        stop.check(probe.n_states)
+        scores.add(probe)
+        while (best := probe.best()) is not None and not stop.should_stop(probe.n_states,
+                                                                           best.score):
+            probe.apply(best)
+            scores.add(probe)
+        self.size_choice_ = {"criterion": rule.criterion, "chosen": scores.best(),
+                             "scores": {int(n): v for n, v in scores.scores.items()}}
+        return self.size_choice_["chosen"]
+
     def _refinement(self):
         """The refinement object (None: the paper's method alone)."""
         refine = self.refine
@@ -288,8 +323,10 @@ class MapLearner(BaseEstimator):
         clusters = self.clusters if self.clusters is not None else FixedClusters(self.n_clusters)
         # a stopping rule may keep state during a fit (e.g. its limit): fit works on a copy, so
         # the parameter itself is never changed
-        stopping = copy.deepcopy(self.stopping) if self.stopping is not None else TargetStates(
-            self.n_states)
+        if self.stopping is not None:
+            stopping = copy.deepcopy(self.stopping)
+        else:
+            stopping = AutoStates() if self.n_states == "auto" else TargetStates(self.n_states)
         criterion = self.criterion
         if isinstance(criterion, str):
             if criterion not in CRITERIA:
