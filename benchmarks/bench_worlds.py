@@ -1,114 +1,111 @@
-"""Map quality and fit time of MapLearner on every world with ground truth.
+"""Map quality, navigation and run time in every world, from the commands a user runs.
 
-    python benchmarks/bench_worlds.py                       # every world, T = 10,000 and 50,000
-    python benchmarks/bench_worlds.py --worlds gridroom random_graph --sizes 10000 --repeats 1
+    python benchmarks/bench_worlds.py                         # every world, seeds 0-2
+    python benchmarks/bench_worlds.py --worlds gridroom --seeds 0
+    python benchmarks/bench_worlds.py --variants "" "stop=auto" "stop=auto stop.criterion=bic"
+    python benchmarks/bench_worlds.py --no-navigation --worlds minigrid_fourrooms
 
-For each world and walk length T: a random walk (seed 0) is simulated, Gaussian sensor noise
-(``--sigma``, the app's default 0.01, seed 1) is added, and ``MapLearner`` is fitted with
-``ns`` = the number of distinct noise-free observations of the world (its symbols) and the
-stopping rule ``TargetStates`` set to the true number of places.  The table reports, against the
-ground-truth places, ARI and NMI after phase 1 and after splitting, three diagnostics, and the fit
-time (median of ``--repeats`` fits; phase 1 + phase 2, simulation excluded):
-
-* ``ideal p1`` -- ARI of the labelling "state = true symbol": what a perfect phase 1 gives;
-* ``sym ARI`` -- ARI of the phase-1 states against the true symbols (did K-means find them?);
-* ``compound`` -- states holding steps of more than one place after splitting (of all states);
-* ``spread`` -- places whose steps fall in more than one state after splitting (of all places).
-
-Prints a Markdown table.
+Every row is a ``topomap`` command (``COMMANDS``), run in this process exactly as the command
+line runs it (the same config composition, data, learner and evaluation; figures off), once per
+seed with ``seed=<s> evaluate=navigation`` added, and once more per ``--variants`` entry (extra
+overrides, e.g. ``stop=auto``).  So ``topomap <command> seed=0`` prints the figures of seed 0.
+The table gives the medians over the seeds of: ARI after phase 1, after the split and at the end
+(refined, with ``refine=em``), NMI at the end, the states at the end (every seed's count, and the
+split's own count where ``stop=auto`` chose it), the navigation success rate and path length over
+the true shortest path (``evaluate=navigation``, 100 episodes), and the fit time (phase 1, the
+split, the refinement; simulation, scoring and navigation excluded).  Prints a Markdown table.
 """
 
 from __future__ import annotations
 
 import argparse
+import shlex
 import statistics
-import time
+import tempfile
 
-import numpy as np
+from topomap.app.cli import compose
+from topomap.app.experiment import run
+from topomap.app.registry import Registry
 
-from topomap import MapLearner
-from topomap.worlds import GridRoom, MiniGridWorld, RandomGraphWorld
-from topomap.worlds.explorers import RandomExplorer
-from topomap.core.metrics import adjusted_rand, compound_states, nmi
-from topomap.worlds.noise import GaussianNoise
+TEN_K = "data.n_steps=10000"
+GRID12 = "env=gridroom env.width=12 env.height=12 env.n_symbols=8 clusters.ns=8 stop.n_states=144"
+RG60 = ("env=random_graph env.n_places=60 env.n_symbols=15 env.out_degree=3 clusters.ns=15 "
+        "stop.n_states=60")
+FOURROOMS = ("env=minigrid env.name=MiniGrid-FourRooms-v0 data.n_steps=50000 clusters.ns=450 "
+             "stop.n_states=1036")
 
-
-def _symbolic(world):
-    """True places, symbol of each place id (a dict) and ns, for gridroom / random_graph."""
-    return world.n_places, dict(enumerate(world.place_symbols.tolist())), world.n_symbols
-
-
-def _minigrid(world):
-    places = world.reachable_places()
-    views = np.array([world.observe(p) for p in places])
-    _, sym = np.unique(views, axis=0, return_inverse=True)
-    return places.size, dict(zip(places.tolist(), sym.ravel().tolist())), int(sym.max()) + 1
-
-
-WORLDS = {
-    "gridroom": ("gridroom 8x6, 4 symbols", lambda: GridRoom(8, 6, 4, seed=0), _symbolic),
-    "gridroom_12x12": ("gridroom 12x12, 8 symbols", lambda: GridRoom(12, 12, 8, seed=0), _symbolic),
-    "random_graph": ("random_graph 30 places, 20 symbols, 4 edges",
-                     lambda: RandomGraphWorld(30, 4, 20, seed=0), _symbolic),
-    "random_graph_60": ("random_graph 60 places, 15 symbols, 3 edges",
-                        lambda: RandomGraphWorld(60, 3, 15, seed=0), _symbolic),
-    "minigrid_empty": ("MiniGrid-Empty-8x8-v0", lambda: MiniGridWorld("MiniGrid-Empty-8x8-v0"),
-                       _minigrid),
-    "minigrid_fourrooms": ("MiniGrid-FourRooms-v0 (seed 0)",
-                           lambda: MiniGridWorld("MiniGrid-FourRooms-v0"), _minigrid),
+#: world -> the commands (overrides of ``topomap``) of its rows
+COMMANDS = {
+    "office": ["", "refine=em", f"{TEN_K}", f"{TEN_K} refine=em"],
+    "gridroom": [f"env=gridroom clusters.ns=4 stop.n_states=48 {TEN_K}", "experiment=gridroom"],
+    "gridroom_12x12": [f"{GRID12} {TEN_K}", f"{GRID12} {TEN_K} refine=em"],
+    "random_graph": ["env=random_graph", f"env=random_graph {TEN_K}",
+                     f"env=random_graph {TEN_K} refine=em"],
+    "random_graph_60": [f"{RG60} {TEN_K}", f"{RG60} {TEN_K} refine=em"],
+    "minigrid_empty": ["experiment=minigrid_empty refine=none", "experiment=minigrid_empty"],
+    "minigrid_fourrooms": [FOURROOMS, f"{FOURROOMS} refine=em"],
 }
 
 
-def bench(name, T, repeats, sigma):
-    label, make, truth = WORLDS[name]
-    world = make()
-    n_places, symbol_of, ns = truth(world)
-    traj = world.simulate(T, RandomExplorer(), np.random.default_rng(0))
-    X = GaussianNoise(sigma).apply(traj.observations, np.random.default_rng(1))
-    places = traj.places
-    symbols = np.array([symbol_of[p] for p in places.tolist()])
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        learner = MapLearner(n_clusters=ns, n_states=n_places, random_state=0).fit(
-            X, traj.actions, lengths=traj.lengths, n_actions=traj.n_actions)
-        times.append(time.perf_counter() - t0)
-    p1, p2 = learner.labels_phase1_, learner.labels_
+def run_command(command: str, seed: int, navigation: bool, registry: Registry) -> dict:
+    overrides = [*shlex.split(command), f"seed={seed}", "output.figures=false",
+                 "output.progress=false"]
+    if navigation:
+        overrides.append("evaluate=navigation")
+    with tempfile.TemporaryDirectory() as out:
+        results = run(compose(overrides, registry), out, registry=registry)
+    gt, nav = results["ground_truth"], results.get("navigation") or {}
+    t = results["timings"]
+    choice = results.get("size_choice") or {}
     return {
-        "world": label, "places": n_places, "ns": ns, "T": T,
-        "visited": int(np.unique(places).size),
-        "ari1": adjusted_rand(p1, places), "ari2": adjusted_rand(p2, places),
-        "nmi1": nmi(p1, places), "nmi2": nmi(p2, places),
-        "ideal": adjusted_rand(symbols, places), "sym": adjusted_rand(p1, symbols),
-        "compound": compound_states(p2, places), "states": learner.map_.n_states,
-        "spread": compound_states(places, p2),
-        "fit": statistics.median(times),
+        "ari1": gt["phase1"]["ari"], "ari_split": gt.get("split", gt["final"])["ari"],
+        "ari": gt["final"]["ari"], "nmi": gt["final"]["nmi"],
+        "states": results["n_states"]["final"], "chosen": choice.get("chosen"),
+        "nav": nav.get("success_rate"), "ratio": nav.get("path_ratio"),
+        "fit": t["phase1"] + t["phase2"] + t.get("refine", 0.0),
     }
 
 
-HEADER = ("| world | places | ns | T | visited | ARI p1 | ARI split | NMI p1 | NMI split | ideal p1 "
-          "| sym ARI | compound | spread | fit s |")
+def _median(runs, key, fmt):
+    values = [r[key] for r in runs if r[key] is not None]
+    return format(statistics.median(values), fmt) if values else "-"
 
 
-def row(r):
-    return (f"| {r['world']} | {r['places']} | {r['ns']} | {r['T']:,} | {r['visited']} | "
-            f"{r['ari1']:.3f} | {r['ari2']:.3f} | {r['nmi1']:.3f} | {r['nmi2']:.3f} | "
-            f"{r['ideal']:.3f} | {r['sym']:.3f} | {r['compound']}/{r['states']} | {r['spread']}/{r['places']} | {r['fit']:.2f} |")
+def row(command: str, runs: list) -> str:
+    states = "/".join(str(r["states"]) for r in runs)
+    if runs[0]["chosen"] is not None:
+        states += " (split to " + "/".join(str(r["chosen"]) for r in runs) + ")"
+    nav = _median(runs, "nav", ".0%")
+    cmd = f"topomap {command}".strip()
+    return (f"| `{cmd}` | {_median(runs, 'ari1', '.3f')} | "
+            f"{_median(runs, 'ari_split', '.3f')} | {_median(runs, 'ari', '.3f')} | "
+            f"{_median(runs, 'nmi', '.3f')} | {states} | {nav} | "
+            f"{_median(runs, 'ratio', '.2f')} | {_median(runs, 'fit', '.2f')} |")
+
+
+HEADER = ("| command | ARI p1 | ARI split | ARI final | NMI final | states (each seed) "
+          "| navigation | path / shortest | fit s |")
 
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--worlds", nargs="+", default=list(WORLDS), choices=list(WORLDS))
-    ap.add_argument("--sizes", nargs="+", type=int, default=[10_000, 50_000])
-    ap.add_argument("--repeats", type=int, default=3)
-    ap.add_argument("--sigma", type=float, default=0.01)
+    ap.add_argument("--worlds", nargs="+", default=list(COMMANDS), choices=list(COMMANDS))
+    ap.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2])
+    ap.add_argument("--variants", nargs="+", default=[""],
+                    help='extra overrides added to every command, one row each ("" = none)')
+    ap.add_argument("--no-navigation", action="store_true", help="skip evaluate=navigation")
     args = ap.parse_args()
-    print(f"noise sigma {args.sigma}; fit time: median of {args.repeats}")
+    registry = Registry.load()
+    run_command("data.n_steps=500 data.heldout_steps=0 refine=em", 0, False, registry)  # compile
+    print(f"medians over seeds {args.seeds}")
     print(HEADER)
     print("|" + "---|" * (HEADER.count("|") - 1))
-    for name in args.worlds:
-        for T in args.sizes:
-            print(row(bench(name, T, args.repeats, args.sigma)), flush=True)
+    for world in args.worlds:
+        for command in COMMANDS[world]:
+            for variant in args.variants:
+                full = f"{command} {variant}".strip()
+                runs = [run_command(full, s, not args.no_navigation, registry) for s in args.seeds]
+                print(row(full, runs), flush=True)
 
 
 if __name__ == "__main__":

@@ -56,7 +56,8 @@ def test_probe_rule_stops_at_its_limit_or_when_nothing_gains():
 
 @pytest.mark.parametrize("kwargs, field", [({"criterion": "aic"}, "stop.criterion"),
                                            ({"max_factor": 0.5}, "stop.max_factor"),
-                                           ({"holdout": 1.0}, "stop.holdout")])
+                                           ({"holdout": 1.0}, "stop.holdout"),
+                                           ({"patience": 0}, "stop.patience")])
 def test_bad_settings_name_their_field(kwargs, field):
     with pytest.raises(ValueError, match=field):
         AutoStates(**kwargs)
@@ -71,15 +72,26 @@ def test_heldout_picks_the_number_of_places_of_an_aliased_ring(seed):
     choice = learner.size_choice_
     assert choice["criterion"] == "heldout" and choice["chosen"] == 6 == learner.map_.n_states
     assert adjusted_rand_score(places, learner.labels_) == 1.0
-    # every size of the probe was scored, from phase 1 (5) up to the limit (10 x 5)
-    assert sorted(choice["scores"]) == list(range(5, 51))
+    # every size of the probe was scored, from phase 1 (5 states) until 10 splits (the default
+    # patience: at least 10) brought no better score than 6 states
+    assert sorted(choice["scores"]) == list(range(5, 17))
     assert max(choice["scores"], key=choice["scores"].get) == 6
     assert learner.map_.info["size_choice"] == {"criterion": "heldout", "chosen": 6}
 
 
+def test_patience_only_shortens_the_probe():
+    X, u, _ = ring(n_steps=2000, seed=1, aliased=((1, 4),), n_places=6)
+    full = MapLearner(n_clusters=5, stopping=AutoStates(patience=1000), random_state=1).fit(X, u)
+    short = MapLearner(n_clusters=5, stopping=AutoStates(patience=3), random_state=1).fit(X, u)
+    assert sorted(full.size_choice_["scores"]) == list(range(5, 51))  # up to 10 x 5 states
+    assert sorted(short.size_choice_["scores"]) == list(range(5, 10))
+    assert {n: full.size_choice_["scores"][n] for n in range(5, 10)} == short.size_choice_["scores"]
+    assert full.size_choice_["chosen"] == short.size_choice_["chosen"] == 6
+
+
 def test_bic_scores_every_size_and_picks_its_best():
     X, u, places = ring(n_steps=2000, seed=0, aliased=((1, 4),), n_places=6)
-    learner = MapLearner(n_clusters=5, stopping=AutoStates("bic", max_factor=3),
+    learner = MapLearner(n_clusters=5, stopping=AutoStates("bic", max_factor=3, patience=100),
                          random_state=0).fit(X, u)
     scores = learner.size_choice_["scores"]
     assert sorted(scores) == list(range(5, 16))

@@ -1,9 +1,10 @@
 """Choosing the number of states automatically (the paper's future work).
 
 ``stop=auto`` (:class:`AutoStates`, or ``MapLearner(n_states="auto")``) splits up to
-``max_factor`` (10) times the states phase 1 creates (or until no split gains anything), scores
-the map after every split, and keeps the best size; the learner then splits to that size.  Two
-criteria:
+``max_factor`` (10) times the states phase 1 creates (or until no split gains anything, or until
+``patience`` splits in a row -- by default as many as phase 1 has states, at least 10 -- have not
+improved the best score), scores the map after every split, and keeps the best size; the learner
+then splits to that size.  Two criteria:
 
 ``"heldout"`` (the default)
     the log-likelihood per step of a held-out final block of the data (``holdout``, 20 % of the
@@ -65,19 +66,28 @@ class AutoStates:
 
     name = "auto"
 
-    def __init__(self, criterion: str = "heldout", max_factor: float = 10.0, holdout: float = 0.2):
+    def __init__(self, criterion: str = "heldout", max_factor: float = 10.0, holdout: float = 0.2,
+                 patience: int | None = None):
         if criterion not in CRITERIA:
             raise ValueError(f"stop.criterion must be one of {', '.join(CRITERIA)}, got {criterion!r}")
         if not max_factor >= 1:
             raise ValueError(f"stop.max_factor must be >= 1, got {max_factor!r}")
         if not 0 < holdout < 1:
             raise ValueError(f"stop.holdout must lie in (0, 1), got {holdout!r}")
+        if patience is not None and (isinstance(patience, bool) or not isinstance(
+                patience, (int, np.integer)) or patience < 1):
+            raise ValueError(f"stop.patience must be a positive integer or null, got {patience!r}")
         self.criterion, self.max_factor, self.holdout = criterion, float(max_factor), float(holdout)
+        self.patience = None if patience is None else int(patience)
         self._probe = UpTo(self.max_factor)
 
     def probe_rule(self) -> UpTo:
         """The stopping rule of the probe fit that scores every size."""
         return UpTo(self.max_factor)
+
+    def patience_for(self, n_initial: int) -> int:
+        """Splits without a better score after which the probe stops."""
+        return self.patience if self.patience is not None else max(10, int(n_initial))
 
     def check(self, n_initial: int) -> None:
         self._probe.check(n_initial)
@@ -87,7 +97,7 @@ class AutoStates:
 
     def __repr__(self) -> str:
         return (f"AutoStates(criterion={self.criterion!r}, max_factor={self.max_factor}, "
-                f"holdout={self.holdout})")
+                f"holdout={self.holdout}, patience={self.patience})")
 
 
 def parameter_count(labels, actions, n_actions: int, has_next) -> int:
@@ -151,3 +161,7 @@ class SizeScores:
     def best(self) -> int:
         """The state count of the best score (the smallest on ties)."""
         return max(sorted(self.scores), key=lambda n: self.scores[n])
+
+    def stale(self, patience: int) -> bool:
+        """Whether the last ``patience`` sizes scored have not improved on the best."""
+        return max(self.scores) - self.best() >= patience

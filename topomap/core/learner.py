@@ -279,9 +279,9 @@ class MapLearner(BaseEstimator):
 
     def _choose_size(self, data: _Data, splitter: Splitter, rule: AutoStates) -> int:
         """The number of states ``stop=auto`` picks (:mod:`topomap.core.auto`): from the phase-1
-        labels, a probe splits up to the rule's limit -- on all steps for BIC, on all but the held
-        out final block for ``"heldout"`` -- and every size is scored; ``size_choice_`` keeps the
-        scores."""
+        labels, a probe splits up to the rule's limit or patience -- on all steps for BIC, on all
+        but the held out final block for ``"heldout"`` -- and every size is scored;
+        ``size_choice_`` keeps the scores."""
         X, u, g, L, A = data.X, data.u, data.gds, data.lengths, data.n_actions
         cut = u.size
         if rule.criterion == "heldout":
@@ -293,11 +293,11 @@ class MapLearner(BaseEstimator):
         probe = Splitter(self.labels_phase1_[:cut], u[:cut], A, *episode_masks(cut, L),
                          symbol=splitter.symbol, gds=splitter.gds,
                          obs_entropy=splitter.obs_entropy, criterion=splitter.criterion)
-        stop = rule.probe_rule()
+        stop, patience = rule.probe_rule(), rule.patience_for(probe.n_states)
         stop.check(probe.n_states)
         scores.add(probe)
-        while (best := probe.best()) is not None and not stop.should_stop(probe.n_states,
-                                                                           best.score):
+        while (best := probe.best()) is not None and not stop.should_stop(
+                probe.n_states, best.score) and not scores.stale(patience):
             probe.apply(best)
             scores.add(probe)
         self.size_choice_ = {"criterion": rule.criterion, "chosen": scores.best(),
