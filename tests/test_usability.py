@@ -49,6 +49,21 @@ def test_the_compose_api_refuses_unknown_keys_too(make_cfg):
         make_cfg(["+sed=3"])
 
 
+def test_a_preset_setting_the_replaced_component_names_the_command_to_give_instead(make_cfg):
+    """experiment=gridroom sets stop.n_states; with stop=auto that key has no home.  The message
+    spells out the preset's other settings, and that command composes to the same config."""
+    with pytest.raises(ValueError, match="experiment=gridroom sets stop.n_states, which "
+                                         "stop=auto does not have") as err:
+        make_cfg(["experiment=gridroom", "stop=auto"])
+    command = str(err.value).split("instead: topomap ")[1].split()
+    cfg = make_cfg(command)
+    preset = make_cfg(["experiment=gridroom"])
+    assert cfg.stop.component == "auto"
+    for key in ("env", "refine", "clusters", "data", "noise", "metric", "split"):
+        assert cfg[key] == preset[key], key
+    make_cfg(["experiment=gridroom", "refine=none"])  # a choice the preset fits still composes
+
+
 # ---------------------------------------------------------------- 2. a real help text
 def test_help_is_topomaps_own_and_lists_components_not_schemas(tmp_path):
     r = cli(["--help"], tmp_path)

@@ -273,6 +273,36 @@ def check_overrides(overrides, registry) -> None:
                 or key in groups or key in valid):
             continue
         raise _unknown(key, valid)
+    choices = {o.key_or_group: o.value() for o in parsed
+               if o.key_or_group in groups and not o.is_delete() and isinstance(o.value(), str)}
+    if "experiment" in choices:
+        _check_preset(choices.pop("experiment"), choices, registry)
+
+
+def _check_preset(name: str, choices: dict, registry) -> None:
+    """Refuse ``experiment=<name> <group>=<option>`` when the preset sets a field of ``group``
+    that the chosen component lacks (e.g. ``experiment=gridroom stop=auto``: the preset's
+    ``stop.n_states``), spelling out the preset's other settings to give instead."""
+    path = resources.files("topomap.conf") / "experiment" / f"{name}.yaml"
+    if not path.is_file():
+        return  # Hydra names the missing preset
+    preset = OmegaConf.to_container(OmegaConf.create(path.read_text()))
+    for group, option in choices.items():
+        if not isinstance(preset.get(group), dict) or option not in registry.names(group):
+            continue
+        fields = set(fields_of(schema_of(registry.get(group, option))))
+        lost = [k for k in preset[group] if k not in fields]
+        if lost:
+            rest = [f"{k.split('/')[-1]}={v}" for d in preset.get("defaults") or []
+                    if isinstance(d, dict) for k, v in d.items()
+                    if k.split("/")[-1] not in choices]
+            rest += [f"{sec}.{k}={v}" for sec, vals in preset.items()
+                     if sec not in ("defaults", *choices) and isinstance(vals, dict)
+                     for k, v in vals.items()]
+            raise ValueError(
+                f"experiment={name} sets {group}.{lost[0]}, which {group}={option} does not "
+                f"have; give the preset's other settings instead: topomap {' '.join(rest)} "
+                f"{group}={option}")
 
 
 def check_config(cfg, registry) -> None:

@@ -1,0 +1,190 @@
+"""The paper's split alone vs EM alone (CSCG's recipe) vs split + EM refinement, in every world.
+
+    python benchmarks/bench_em.py                            # every world, T = 10,000 and 50,000
+    python benchmarks/bench_em.py --worlds gridroom --sizes 10000 --seeds 0 --methods split em
+    python benchmarks/bench_em.py --report                   # the table of the runs logged so far
+
+The quantitative comparison with EM that the paper leaves to future work.  Every world is a
+``topomap`` command (``WORLDS``: ``ns`` = the world's symbols, the state target = its places; the
+paper's office also at its own T = 2,000); for each walk length T and seed the data are those of
+``topomap <command> data.n_steps=<T> data.heldout_steps=10000 seed=<seed>`` (the training walk
+with the app's sensor noise, and a held-out walk of 10,000 steps), and three learners are fitted:
+
+* ``split`` -- the paper's method (``refine=none``);
+* ``em`` -- EM alone from phase 1 with CSCG's recipe (``refine=cscg``: 70 clones per symbol,
+  pseudocount 2e-3, Baum-Welch to convergence, Viterbi training); its time is phase 1 + EM;
+* ``split+em`` -- the split, then the refinement (``refine=em``).
+
+Columns, medians over the seeds: ARI and NMI against the true places, the states used, the
+held-out log-likelihood per step (``TopologicalMap.score``, nats: a log-density, comparable
+between rows of one world and T) and the fit time (seconds; phase 1 included).  Every run is
+appended as JSON to ``--log`` (runs already there are not repeated, so an interrupted benchmark
+resumes); ``--figure`` draws ARI against fit time.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import time
+from pathlib import Path
+
+import numpy as np
+from omegaconf import OmegaConf
+
+from topomap.app.cli import compose
+from topomap.app.experiment import load_data
+from topomap.app.registry import Registry
+from topomap.core.learner import MapLearner
+from topomap.core.metrics import adjusted_rand, nmi
+
+from bench_worlds import FOURROOMS, GRID12, RG60
+
+WORLDS = {
+    "office": ("office (the paper's)", ""),
+    "gridroom": ("gridroom 8x6, 4 symbols", "env=gridroom clusters.ns=4 stop.n_states=48"),
+    "gridroom_12x12": ("gridroom 12x12, 8 symbols", GRID12),
+    "random_graph_60": ("random_graph 60 places, 15 symbols", RG60),
+    "minigrid_empty": ("MiniGrid Empty-8x8", "env=minigrid clusters.ns=86 stop.n_states=140"),
+    "minigrid_fourrooms": ("MiniGrid FourRooms (seed 0)",
+                           FOURROOMS.replace("data.n_steps=50000 ", "")),
+}
+METHODS = {"split": "none", "em": "cscg", "split+em": "em"}
+OFFICE_T = 2000
+HELDOUT = 10_000
+
+
+def fit(registry, command: str, T: int, seed: int, method: str, data=None):
+    """One fit; returns the record and the data (trajectory, held-out walk) for the next method."""
+    cfg = OmegaConf.to_container(compose(
+        [*command.split(), f"data.n_steps={T}", f"data.heldout_steps={HELDOUT}", f"seed={seed}",
+         f"refine={METHODS[method]}"], registry), resolve=True)
+    parts = registry.build(cfg)
+    if data is None:
+        data, _ = load_data(cfg, parts, registry)
+    traj, heldout = data
+    learner = MapLearner(clusters=parts.clusters, metric=parts.metric, criterion=parts.split,
+                         stopping=parts.stop, refine=parts.refine, random_state=seed,
+                         **cfg["learner"])
+    t0 = time.perf_counter()
+    learner.fit_trajectory(traj)
+    seconds = time.perf_counter() - t0
+    t = learner.timings_
+    if method == "em":  # EM alone: the split it was handed is not part of its work
+        seconds = t["phase1"] + t["refine"]
+    m = learner.map_
+    return {
+        "T": T, "seed": seed, "method": method, "places": int(np.unique(traj.places).size),
+        "ari": adjusted_rand(learner.labels_, traj.places), "nmi": nmi(learner.labels_, traj.places),
+        "states": m.n_states, "seconds": seconds,
+        "heldout": m.score(heldout.observations, heldout.actions, gds=heldout.gds,
+                           lengths=heldout.lengths),
+        "load": os.getloadavg()[0],
+    }, data
+
+
+def warm_up(registry) -> None:
+    """Compile (or load from numba's cache) every kernel before any timing."""
+    for method in METHODS:
+        fit(registry, "env=gridroom env.width=4 env.height=3 clusters.ns=4 stop.n_states=12",
+            600, 0, method)
+
+
+HEADER = ("| world | T | method | ARI | NMI | states (places) | held-out LL/step | fit s "
+          "| x faster than EM |")
+
+
+def table(records) -> list[str]:
+    """Markdown rows of the medians per (world, T, method), in the order first seen."""
+    groups: dict = {}
+    for r in records:
+        groups.setdefault((r["world"], r["T"], r["method"]), []).append(r)
+    rows = [HEADER, "|" + "---|" * (HEADER.count("|") - 1)]
+    for (world, T, method), rs in groups.items():
+        med = {k: statistics.median(r[k] for r in rs)
+               for k in ("ari", "nmi", "states", "heldout", "seconds")}
+        em = groups.get((world, T, "em"))
+        speed = statistics.median(r["seconds"] for r in em) / med["seconds"] if em else None
+        rows.append(f"| {WORLDS[world][0]} | {T:,} | {method} | {med['ari']:.3f} | "
+                    f"{med['nmi']:.3f} | {med['states']:g} ({rs[0]['places']}) | "
+                    f"{med['heldout']:.3f} | {med['seconds']:.2f} | "
+                    f"{f'{speed:.0f}' if speed and method == 'split+em' else ''} |")
+    return rows
+
+
+def figure(records, path) -> None:
+    """ARI against fit time, one panel per T, a marker per method and a colour per world."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    sizes = sorted({r["T"] for r in records if r["T"] != OFFICE_T})
+    fig, axes = plt.subplots(1, len(sizes), figsize=(5 * len(sizes) + 3, 4.2), squeeze=False,
+                             sharey=True)
+    markers = {"split": "o", "em": "s", "split+em": "*"}
+    colours = dict(zip(WORLDS, plt.get_cmap("tab10").colors))
+    for ax, T in zip(axes[0], sizes):
+        for world in WORLDS:
+            pts = []
+            for method in METHODS:
+                rs = [r for r in records if (r["world"], r["T"], r["method"]) == (world, T, method)]
+                if rs:
+                    pts.append((statistics.median(r["seconds"] for r in rs),
+                                statistics.median(r["ari"] for r in rs), method))
+            for x, y, method in pts:
+                ax.scatter(x, y, marker=markers[method], color=colours[world],
+                           s=90 if method == "split+em" else 35, zorder=3)
+        ax.set_xscale("log")
+        ax.set_xlabel("fit time (s, log scale)")
+        ax.set_title(f"T = {T:,}")
+        ax.grid(alpha=0.3)
+    axes[0][0].set_ylabel("ARI against the true places")
+    handles = [plt.Line2D([], [], color=colours[w], lw=2, label=WORLDS[w][0]) for w in WORLDS]
+    handles += [plt.Line2D([], [], color="k", ls="", marker=markers[m], label=m) for m in METHODS]
+    fig.legend(handles=handles, loc="center right", fontsize=8, frameon=False)
+    fig.tight_layout(rect=(0, 0, 1 - 3 / (5 * len(sizes) + 3), 1))
+    fig.savefig(path, dpi=120)
+    print(f"figure: {path}")
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--worlds", nargs="+", default=list(WORLDS), choices=list(WORLDS))
+    ap.add_argument("--sizes", nargs="+", type=int, default=[10_000, 50_000])
+    ap.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2])
+    ap.add_argument("--methods", nargs="+", default=list(METHODS), choices=list(METHODS))
+    ap.add_argument("--log", default="benchmarks/results/bench_em.jsonl")
+    ap.add_argument("--figure", default=None, help="write the ARI / fit time figure here")
+    ap.add_argument("--report", action="store_true", help="only print the table of --log")
+    args = ap.parse_args()
+    log = Path(args.log)
+    done = [json.loads(line) for line in log.read_text().splitlines()] if log.exists() else []
+    if not args.report:
+        registry = Registry.load()
+        warm_up(registry)
+        log.parent.mkdir(parents=True, exist_ok=True)
+        have = {(r["world"], r["T"], r["seed"], r["method"]) for r in done}
+        for world in args.worlds:
+            for T in sorted(set(args.sizes) | ({OFFICE_T} if world == "office" else set())):
+                for seed in args.seeds:
+                    data = None
+                    for method in args.methods:
+                        if (world, T, seed, method) in have:
+                            continue
+                        record, data = fit(registry, WORLDS[world][1], T, seed, method, data)
+                        record["world"] = world
+                        done.append(record)
+                        with log.open("a") as fh:
+                            fh.write(json.dumps(record) + "\n")
+                print("\n".join(table([r for r in done if (r["world"], r["T"]) == (world, T)])[2:]),
+                      flush=True)
+    print("\n".join(table(done)))
+    if args.figure:
+        figure(done, args.figure)
+
+
+if __name__ == "__main__":
+    main()
