@@ -24,6 +24,7 @@ import statistics
 import tempfile
 
 from topomap.app.cli import compose
+from topomap.app.config import preset_overrides
 from topomap.app.experiment import run
 from topomap.app.registry import Registry
 
@@ -45,6 +46,22 @@ COMMANDS = {
     "minigrid_empty": ["experiment=minigrid_empty refine=none", "experiment=minigrid_empty"],
     "minigrid_fourrooms": [FOURROOMS, f"{FOURROOMS} refine=em"],
 }
+
+
+def with_variant(command: str, variant: str) -> str:
+    """``command`` with ``variant`` added; a group the variant chooses (``stop=auto``) replaces the
+    command's settings of that group, and a preset (``experiment=X``) is spelled out without it."""
+    extra = shlex.split(variant)
+    groups = {t.split("=")[0] for t in extra if "=" in t and "." not in t.split("=")[0]}
+    out = []
+    for token in shlex.split(command):
+        key = token.split("=")[0]
+        if key == "experiment" and groups:
+            out += preset_overrides(token.split("=", 1)[1], without=groups)
+        elif key.split(".")[0] not in groups:
+            out.append(token)
+    last = {t.split("=")[0]: t for t in out + extra}  # a later setting of a key wins
+    return " ".join(last.values())
 
 
 def run_command(command: str, seed: int, navigation: bool, registry: Registry) -> dict:
@@ -103,7 +120,7 @@ def main():
     for world in args.worlds:
         for command in COMMANDS[world]:
             for variant in args.variants:
-                full = f"{command} {variant}".strip()
+                full = with_variant(command, variant)
                 runs = [run_command(full, s, not args.no_navigation, registry) for s in args.seeds]
                 print(row(full, runs), flush=True)
 

@@ -279,29 +279,41 @@ def check_overrides(overrides, registry) -> None:
         _check_preset(choices.pop("experiment"), choices, registry)
 
 
+def _load_preset(name: str) -> dict | None:
+    path = resources.files("topomap.conf") / "experiment" / f"{name}.yaml"
+    return OmegaConf.to_container(OmegaConf.create(path.read_text())) if path.is_file() else None
+
+
+def preset_overrides(name: str, without=()) -> list[str] | None:
+    """The command-line overrides that ``experiment=<name>`` stands for (its group choices, then
+    its values), leaving out the groups in ``without``; None if there is no such preset."""
+    preset = _load_preset(name)
+    if preset is None:
+        return None
+    out = [f"{k.split('/')[-1]}={v}" for d in preset.get("defaults") or []
+           if isinstance(d, dict) for k, v in d.items() if k.split("/")[-1] not in without]
+    return out + [f"{section}.{k}={v}" for section, values in preset.items()
+                  if section not in ("defaults", *without) and isinstance(values, dict)
+                  for k, v in values.items()]
+
+
 def _check_preset(name: str, choices: dict, registry) -> None:
     """Refuse ``experiment=<name> <group>=<option>`` when the preset sets a field of ``group``
     that the chosen component lacks (e.g. ``experiment=gridroom stop=auto``: the preset's
     ``stop.n_states``), spelling out the preset's other settings to give instead."""
-    path = resources.files("topomap.conf") / "experiment" / f"{name}.yaml"
-    if not path.is_file():
+    preset = _load_preset(name)
+    if preset is None:
         return  # Hydra names the missing preset
-    preset = OmegaConf.to_container(OmegaConf.create(path.read_text()))
     for group, option in choices.items():
         if not isinstance(preset.get(group), dict) or option not in registry.names(group):
             continue
         fields = set(fields_of(schema_of(registry.get(group, option))))
         lost = [k for k in preset[group] if k not in fields]
         if lost:
-            rest = [f"{k.split('/')[-1]}={v}" for d in preset.get("defaults") or []
-                    if isinstance(d, dict) for k, v in d.items()
-                    if k.split("/")[-1] not in choices]
-            rest += [f"{sec}.{k}={v}" for sec, vals in preset.items()
-                     if sec not in ("defaults", *choices) and isinstance(vals, dict)
-                     for k, v in vals.items()]
+            rest = " ".join(preset_overrides(name, without=choices))
             raise ValueError(
                 f"experiment={name} sets {group}.{lost[0]}, which {group}={option} does not "
-                f"have; give the preset's other settings instead: topomap {' '.join(rest)} "
+                f"have; give the preset's other settings instead: topomap {rest} "
                 f"{group}={option}")
 
 
