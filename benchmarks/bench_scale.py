@@ -15,6 +15,8 @@ Worlds:
 * ``aliased_walk`` of ``benchmarks/bench_fit.py`` (D = 15, 17 actions, Gaussian noise 0.02):
   ns 50 -> 100 states at T = 1e4 and 1e5, ns 100 -> 200 at T = 1e6 and 1e7.  The data are made in
   blocks (the same numbers as ``aliased_walk``), so that making them peaks at the size of the data.
+  Fitted with the split (rows ``new``) and with the split + ``refine="em"`` (rows ``em``, up to
+  ``--refine-max-T``, default 1e6).
 * MiniGrid FourRooms (``MiniGridWorld("MiniGrid-FourRooms-v0", 0)``, noise-free 147-D views):
   ns = the number of distinct views of the walk, stopping at 1036 states, at T = 10,000 and
   50,000; then held-out scoring (``map.score``) of a second 50,000-step walk on the T = 50,000 map
@@ -46,6 +48,8 @@ from numba import njit
 HERE = Path(__file__).resolve().parent
 #: this checkout's Python, and the label of its rows
 CURRENT = ("new", sys.executable)
+#: this checkout with the refinement after the split (``refine="em"``)
+REFINED = ("em", sys.executable)
 WALK_SIZES = {10**4: (50, 100), 10**5: (50, 100), 10**6: (100, 200), 10**7: (100, 200)}
 FOURROOMS = ("MiniGrid-FourRooms-v0", 0, 1036)
 TARGETS = {10**5: (1.0, None), 10**6: (8.0, 1.0), 10**7: (100.0, 6.0)}
@@ -96,27 +100,28 @@ def _learner(**kw):
     return MapLearner(**kw)
 
 
-def _fit_record(X, u, places, ns, S):
+def _fit_record(X, u, places, ns, S, **kw):
     from topomap.metrics import adjusted_rand  # the same name in every version
 
-    learner = _learner(n_clusters=ns, n_states=S, random_state=0)
+    learner = _learner(n_clusters=ns, n_states=S, random_state=0, **kw)
     t0 = time.perf_counter()
     learner.fit(X, u)
     total = time.perf_counter() - t0
     fit_rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024 / 1e9
-    return learner, {"time": total, **learner.timings_, "S": learner.map_.n_states,
+    return learner, {"time": total, "refine": 0.0, **learner.timings_, "S": learner.map_.n_states,
                      "fit_rss_gb": fit_rss,
                      "ari0": adjusted_rand(learner.labels_phase1_, places),
                      "ari1": adjusted_rand(learner.labels_, places),
                      "method": getattr(learner, "phase1_method_", "full")}
 
 
-def child_walk(T):
+def child_walk(T, refine=None):
     ns, S = WALK_SIZES[T]
     X, u, places = aliased_walk_blocks(T, 15, ns, S, 17)
     data_rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
-    _learner(n_clusters=20, n_states=30).fit(X[:2000], u[:2000])  # warm caches, compile
-    return {**_fit_record(X, u, places, ns, S)[1], "data_rss_kb": data_rss}
+    kw = {"refine": refine} if refine else {}
+    _learner(n_clusters=20, n_states=30, **kw).fit(X[:2000], u[:2000])  # warm caches, compile
+    return {**_fit_record(X, u, places, ns, S, **kw)[1], "data_rss_kb": data_rss}
 
 
 def child_fourrooms(T, data, score_steps):
@@ -169,13 +174,13 @@ def measure(repeats, python, *args) -> dict:
     return median_record(records)
 
 
-def walk_rows(sizes, repeats, versions, baseline_max_T):
+def walk_rows(sizes, repeats, versions, baseline_max_T, refine_max_T):
     rows = []
     for T in sizes:
         for impl, python in versions:
-            if impl == "old" and T > baseline_max_T:
+            if (impl == "old" and T > baseline_max_T) or (impl == "em" and T > refine_max_T):
                 continue
-            rec = measure(repeats, python, "walk", T)
+            rec = measure(repeats, python, "walk", T, *(["em"] if impl == "em" else []))
             rows.append({"world": "aliased_walk", "T": T, "impl": impl, **rec})
             print(format_row(rows[-1]), flush=True)
     return rows
@@ -185,6 +190,8 @@ def fourrooms_rows(repeats, data, versions):
     rows = []
     for T, score in ((10_000, 0), (50_000, 50_000)):
         for impl, python in versions:
+            if impl == "em":
+                continue
             steps = min(score, 1000) if impl == "old" else score
             rec = measure(repeats if T < 50_000 or impl == "new" else 1, python, "fourrooms", T,
                           data, steps)
@@ -196,7 +203,7 @@ def fourrooms_rows(repeats, data, versions):
 def format_row(r) -> str:
     text = (f"{r['world']:12s} T={r['T']:>10,} {r['impl']:3s} [{r['method']:8s}] "
             f"-> {r['S']:5d} states | phase1 {r['phase1']:7.2f} s  phase2 {r['phase2']:7.2f} s  "
-            f"fit {r['time']:7.2f} s  RSS {r['fit_rss_gb']:5.2f} GB | ARI {r['ari0']:.3f} -> "
+            f"refine {r.get('refine', 0.0):7.2f} s  fit {r['time']:7.2f} s  RSS {r['fit_rss_gb']:5.2f} GB | ARI {r['ari0']:.3f} -> "
             f"{r['ari1']:.3f} | load {r['load']:.1f}")
     if r.get("score_steps"):
         text += (f" | score {r['score_steps']:,} steps {r['score_time']:.2f} s, "
@@ -221,12 +228,12 @@ def figure(rows, path: Path) -> None:
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(figsize=(5.5, 4))
-    for impl, style in (("old", "o--"), ("new", "s-")):
+    for impl, style in (("old", "o--"), ("new", "s-"), ("em", "^-")):
         pts = sorted((r["T"], r["time"]) for r in rows
                      if r["world"] == "aliased_walk" and r["impl"] == impl)
         if pts:
             k = exponent(rows, impl)
-            name = "baseline" if impl == "old" else "this version"
+            name = {"old": "baseline", "new": "this version", "em": "split + refine=em"}[impl]
             ax.loglog(*zip(*pts), style, label=f"{name} (k = {k:.2f})" if k else name)
     ax.set_xlabel("steps T")
     ax.set_ylabel("fit time (s)")
@@ -279,6 +286,8 @@ def main():
     ap.add_argument("--sizes", nargs="+", type=float, default=sorted(WALK_SIZES))
     ap.add_argument("--baseline", help="another Python (virtual environment) to time beside this one")
     ap.add_argument("--baseline-max-T", type=float, default=1e6)
+    ap.add_argument("--refine-max-T", type=float, default=1e6,
+                    help="largest T also fitted with refine=em (0: none)")
     ap.add_argument("--no-fourrooms", action="store_true")
     ap.add_argument("--out", default=str(HERE / "results"))
     ap.add_argument("--report", action="store_true", help="reprint the last run's results")
@@ -297,8 +306,9 @@ def main():
         for row in rows:
             print(format_row(row))
         return report(rows, out)
-    versions = ([("old", args.baseline)] if args.baseline else []) + [CURRENT]
-    rows = walk_rows([int(s) for s in args.sizes], args.repeats, versions, args.baseline_max_T)
+    versions = ([("old", args.baseline)] if args.baseline else []) + [CURRENT, REFINED]
+    rows = walk_rows([int(s) for s in args.sizes], args.repeats, versions, args.baseline_max_T,
+                     args.refine_max_T)
     if not args.no_fourrooms:
         with tempfile.TemporaryDirectory() as tmp:
             data = Path(tmp) / "fourrooms.npz"
@@ -310,7 +320,7 @@ def main():
 
 def report(rows, out: Path) -> None:
     """Print the cost exponents and draw the log-log figure."""
-    for impl in ("old", "new"):
+    for impl in ("old", "new", "em"):
         for min_T in (0, 10**5):
             k = exponent(rows, impl, min_T)
             label = "all sizes" if not min_T else "T >= 1e5"
@@ -321,7 +331,7 @@ def report(rows, out: Path) -> None:
 def child_main(argv):
     kind, T, *rest = argv
     if kind == "walk":
-        rec = child_walk(int(T))
+        rec = child_walk(int(T), *rest)
     else:
         rec = child_fourrooms(int(T), rest[0], int(rest[1]))
     print(json.dumps(rec))

@@ -150,3 +150,41 @@ def test_unknown_refinements_are_refused():
     sym, u, _ = ring_walk(300, RING, 0)
     with pytest.raises(ValueError, match="refine 'magic' is unknown; choose one of none, cscg, em"):
         MapLearner(n_clusters=6, n_states=6, refine="magic").fit(noisy(sym, 6), u)
+
+
+class _Fragments:
+    """A refinement that cuts every phase-1 state in two by the parity of the step: noise."""
+
+    name = "fragments"
+
+    def __init__(self, guard):
+        self.guard = guard
+
+    def fit(self, seq, split_state_symbol, random_state):
+        from topomap.core.refine import CloneFit
+
+        labels = 2 * seq.sym + np.arange(seq.sym.size) % 2
+        return CloneFit(labels, np.repeat(np.arange(seq.n_ids), 2))
+
+
+@pytest.mark.parametrize("guard", [True, False])
+def test_the_guard_keeps_the_split_map_when_refinement_only_fragments_it(guard):
+    from topomap import MapLearner
+
+    sym, u, places = ring_walk(3000, RING, 0)
+    learner = MapLearner(n_clusters=6, n_states=8, refine=_Fragments(guard)).fit(noisy(sym, 6), u)
+    if guard:  # 12 parity halves explain nothing more and cost parameters: BIC is worse
+        info = learner.refine_info_
+        assert info["kept"] == "split" and info["bic"]["refined"] > info["bic"]["split"]
+        assert learner.map_ is learner.map_split_ and learner.map_.n_states == 8
+    else:
+        assert learner.map_.n_states == 12 and "kept" not in learner.refine_info_
+
+
+def test_the_guard_keeps_a_refinement_that_recovers_the_places():
+    from topomap import MapLearner
+
+    sym, u, places = ring_walk(3000, RING, 0)
+    learner = MapLearner(n_clusters=6, n_states=6, refine="em").fit(noisy(sym, 6), u)
+    info = learner.refine_info_
+    assert info["kept"] == "refined" and info["bic"]["refined"] < info["bic"]["split"]

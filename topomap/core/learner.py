@@ -10,7 +10,7 @@ import numpy as np
 from sklearn.base import BaseEstimator
 
 from .clustering import FixedClusters, cluster_observations, make_metric
-from .auto import AutoStates, SizeScores, split_holdout
+from .auto import AutoStates, SizeScores, bic, parameter_count, split_holdout
 from .map import TopologicalMap
 from .refine import REFINEMENTS, SymbolSequence
 from .splitting import CRITERIA, Splitter, TargetStates
@@ -176,6 +176,19 @@ class MapLearner(BaseEstimator):
         self._emit("done", labels=self.labels_, entropies=self.entropies_[-1], map=self.map_)
         return self
 
+    def _keep_refined(self, data: _Data, refined: TopologicalMap, labels) -> bool:
+        """Whether the refined map's BIC (actions and transitions, :func:`topomap.core.auto.bic`)
+        is no worse than the split map's; both BICs and the map kept go into ``refine_info_``."""
+        has_next = data.masks[1]
+        n_next = int(has_next.sum())
+        scores = {name: bic(m.entropies(), parameter_count(x, data.u, data.n_actions, has_next),
+                            data.u.size, n_next)
+                  for name, m, x in (("split", self.map_split_, self.labels_split_),
+                                     ("refined", refined, labels))}
+        keep = scores["refined"] <= scores["split"]
+        self.refine_info_.update(bic=scores, kept="refined" if keep else "split")
+        return keep
+
     def _refine(self, data: _Data, splitter: Splitter, refinement) -> None:
         """Re-estimate every state jointly (:mod:`topomap.core.refine`); the split map stays as
         ``map_split_``.  Refined states have no parent; ``map_.info["refined_from"]`` names, for
@@ -193,8 +206,7 @@ class MapLearner(BaseEstimator):
         origin = np.full(sym.size, -1, dtype=np.int64)
         for code, _ in sorted(zip(*pairs), key=lambda p: p[1]):  # the largest count wins
             origin[code // splitter.n_states] = code % splitter.n_states
-        self.labels_ = fit.labels
-        self.map_ = TopologicalMap.from_labels(
+        refined = TopologicalMap.from_labels(
             data.X, data.u, fit.labels, lengths=data.lengths,
             state_symbol=np.where(is_gds, -1, sym),
             state_gds=state_gds,
@@ -202,6 +214,10 @@ class MapLearner(BaseEstimator):
             reg_covar=self.reg_covar, action_names=data.action_names, gds_names=data.gds_names,
             split_history=self.split_history_, info=dict(self.map_split_.info))
         self.refine_info_ = dict(fit.info)
+        if getattr(refinement, "guard", False) and not self._keep_refined(data, refined, fit.labels):
+            self.map_.info.update({"refine": repr(refinement), "refine_info": self.refine_info_})
+            return
+        self.labels_, self.map_ = fit.labels, refined
         self.entropies_.append(dict(self.map_.entropies(), n_states=self.map_.n_states,
                                     iteration=len(self.split_history_) + 1, stage="refined"))
         self.map_.entropies_ = [dict(e) for e in self.entropies_]

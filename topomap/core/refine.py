@@ -259,7 +259,11 @@ class EMRefinement:
     ``tol`` / ``max_iter`` Baum-Welch's stop, ``prune`` the filtered probabilities dropped,
     ``merge_threshold`` the G test of merging bisimilar states (negative: never), ``split_z`` the
     normal score of splitting compound states (``inf``: never), ``spare`` clones added per symbol
-    at every warm start and ``init_noise`` the random counts added to a warm start.
+    at every warm start and ``init_noise`` the random counts added to a warm start.  With
+    ``guard`` (the default) the learner keeps the refined map only if its BIC (actions and
+    transitions) is no worse than the split map's: refinement never trades a good split map for a
+    fragmented one (with many actions and few visits per place and action, the split test of
+    :func:`topomap.core.structure.split_compounds` finds differences in noise).
     """
 
     name = "em"
@@ -267,7 +271,8 @@ class EMRefinement:
     def __init__(self, clone_factor: int = 2, prefix: int = 2000, prefix_visits: int = 40,
                  max_rounds: int = 8, row_prior: float = 0.5, tol: float = 1e-6,
                  max_iter: int = 50, prune: float = 1e-4, merge_threshold: float = 6.63,
-                 split_z: float = 3.09, spare: int = 2, init_noise: float = 1.0):
+                 split_z: float = 3.09, spare: int = 2, init_noise: float = 1.0,
+                 guard: bool = True):
         for key, value in (("clone_factor", clone_factor), ("prefix", prefix),
                            ("max_rounds", max_rounds), ("max_iter", max_iter)):
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
@@ -276,7 +281,7 @@ class EMRefinement:
             raise ValueError("refine.row_prior must be > 0, refine.tol >= 0, refine.prune in "
                              "[0, 1) and refine.spare >= 0")
         self.clone_factor, self.prefix, self.prefix_visits = clone_factor, prefix, prefix_visits
-        self.max_rounds = max_rounds
+        self.max_rounds, self.guard = max_rounds, bool(guard)
         self.settings = EMSettings(row_prior, tol, max_iter, prune, merge_threshold, split_z,
                                    spare, init_noise)
 
@@ -289,7 +294,7 @@ class EMRefinement:
     def __repr__(self) -> str:
         return (f"EMRefinement(clone_factor={self.clone_factor}, prefix={self.prefix}, "
                 f"prefix_visits={self.prefix_visits}, max_rounds={self.max_rounds}, "
-                f"settings={self.settings})")
+                f"guard={self.guard}, settings={self.settings})")
 
 
 class CSCGRefinement:
