@@ -99,8 +99,9 @@ def main() -> None:
     if sys.argv[1:2] == ["--read"]:
         return child_read(sys.argv[2])
     if sys.argv[1:2] == ["--import-only"]:
-        import rosbag  # measures the baseline RSS of the imports
-        rosbag._rosbags()
+        from topomap.core.rosbag.common import _rosbags  # the baseline RSS of the imports
+
+        _rosbags()
         return None
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--scale", type=int, nargs="+", default=[1, 10])
