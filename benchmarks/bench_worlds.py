@@ -11,9 +11,10 @@ seed with ``seed=<s> evaluate=navigation`` added, and once more per ``--variants
 overrides, e.g. ``stop=auto``).  So ``topomap <command> seed=0`` prints the figures of seed 0.
 The table gives the medians over the seeds of: ARI after phase 1, after the split and at the end
 (refined, with ``refine=em``), NMI at the end, the states at the end (every seed's count, and the
-split's own count where ``stop=auto`` chose it), the navigation success rate and path length over
-the true shortest path (``evaluate=navigation``, 100 episodes), and the fit time (phase 1, the
-split, the refinement; simulation, scoring and navigation excluded).  Prints a Markdown table.
+split's own count where ``stop=auto`` chose it), the navigation success rate of each seed and the
+median path length over the true shortest path (``evaluate=navigation``, 100 episodes), and the
+fit time (phase 1, the split, the refinement; simulation, scoring and navigation excluded).
+Prints a Markdown table.
 """
 
 from __future__ import annotations
@@ -92,7 +93,7 @@ def row(command: str, runs: list) -> str:
     states = "/".join(str(r["states"]) for r in runs)
     if runs[0]["chosen"] is not None:
         states += " (split to " + "/".join(str(r["chosen"]) for r in runs) + ")"
-    nav = _median(runs, "nav", ".0%")
+    nav = "-" if runs[0]["nav"] is None else "/".join(f"{r['nav']:.0%}" for r in runs)
     cmd = f"topomap {command}".strip()
     return (f"| `{cmd}` | {_median(runs, 'ari1', '.3f')} | "
             f"{_median(runs, 'ari_split', '.3f')} | {_median(runs, 'ari', '.3f')} | "
@@ -101,7 +102,7 @@ def row(command: str, runs: list) -> str:
 
 
 HEADER = ("| command | ARI p1 | ARI split | ARI final | NMI final | states (each seed) "
-          "| navigation | path / shortest | fit s |")
+          "| navigation (each seed) | path / shortest | fit s |")
 
 
 def main():
