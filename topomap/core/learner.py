@@ -202,10 +202,6 @@ class MapLearner(BaseEstimator):
         is_gds = sym >= ns
         state_gds = np.full(sym.size, -1, dtype=np.int64)
         state_gds[is_gds] = gds_ids[sym[is_gds] - ns]
-        pairs = np.unique(fit.labels * splitter.n_states + self.labels_split_, return_counts=True)
-        origin = np.full(sym.size, -1, dtype=np.int64)
-        for code, _ in sorted(zip(*pairs), key=lambda p: p[1]):  # the largest count wins
-            origin[code // splitter.n_states] = code % splitter.n_states
         refined = TopologicalMap.from_labels(
             data.X, data.u, fit.labels, lengths=data.lengths,
             state_symbol=np.where(is_gds, -1, sym),
@@ -218,6 +214,10 @@ class MapLearner(BaseEstimator):
             self.map_.info.update({"refine": repr(refinement), "refine_info": self.refine_info_})
             return
         self.labels_, self.map_ = fit.labels, refined
+        pairs = np.unique(fit.labels * splitter.n_states + self.labels_split_, return_counts=True)
+        origin = np.full(sym.size, -1, dtype=np.int64)
+        for code, _ in sorted(zip(*pairs), key=lambda p: p[1]):  # the largest count wins
+            origin[code // splitter.n_states] = code % splitter.n_states
         self.entropies_.append(dict(self.map_.entropies(), n_states=self.map_.n_states,
                                     iteration=len(self.split_history_) + 1, stage="refined"))
         self.map_.entropies_ = [dict(e) for e in self.entropies_]
