@@ -188,3 +188,17 @@ def test_the_guard_keeps_a_refinement_that_recovers_the_places():
     learner = MapLearner(n_clusters=6, n_states=6, refine="em").fit(noisy(sym, 6), u)
     info = learner.refine_info_
     assert info["kept"] == "refined" and info["bic"]["refined"] < info["bic"]["split"]
+
+
+@pytest.mark.parametrize("refine", ["em", "cscg"])
+def test_a_refined_map_is_the_same_bytes_for_the_same_seed(refine, tmp_path):
+    """Nothing run-dependent (such as CPU seconds) reaches map.json."""
+    from topomap import MapLearner
+    from topomap.core.refine import CSCGRefinement
+
+    sym, u, _ = ring_walk(2000, RING, 3)
+    X = noisy(sym, 6, 3)
+    component = "em" if refine == "em" else CSCGRefinement(clones_per_symbol=4, max_iter=30)
+    paths = [MapLearner(n_clusters=6, n_states=6, refine=component, random_state=1).fit(X, u)
+             .map_.save(tmp_path / f"map{i}.json") for i in range(2)]
+    assert paths[0].read_bytes() == paths[1].read_bytes()

@@ -20,7 +20,6 @@ components :class:`topomap.MapLearner` takes; their parameters are the knobs of 
 
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -50,7 +49,9 @@ class CloneFit:
     ----------
     labels : (T,) int -- state of every step (states ``0..n_states-1``, numbered by first use)
     state_symbol : (n_states,) int -- symbol id each state emits
-    info : dict -- iterations, log-likelihoods and CPU seconds of the stages
+    info : dict -- iterations and log-likelihoods of the stages (no times: it is stored in
+        ``map.json``, which the same config and seed must reproduce byte for byte; the learner's
+        ``timings_`` holds the refinement's seconds)
     """
 
     labels: np.ndarray
@@ -123,15 +124,13 @@ def cscg_fit(sym, u, lengths, n_actions: int, n_symbols: int, *, clones_per_symb
     seq = SymbolSequence.build(sym, u, lengths, n_actions, n_symbols)
     lay = seq.layout(clone_budget(n_symbols, seq.n_ids - n_symbols, clones_per_symbol))
     rng = np.random.default_rng(random_state)
-    t0 = time.process_time()
     counts, _, em_hist = baum_welch(lay, random_counts(lay, rng), pseudocount, joint,
                                     max_iter=max_iter, tol=tol)
-    t1 = time.process_time()
     path, _, vit_hist = viterbi_training(lay, counts, joint)
     labels, state_symbol, _ = compact_labels(path, lay.clone_symbol)
     info = {"em_iterations": len(em_hist), "em_loglik": em_hist[-1],
             "viterbi_iterations": len(vit_hist), "viterbi_logp": vit_hist[-1],
-            "clones": lay.n_clones, "cpu_em": t1 - t0, "cpu_viterbi": time.process_time() - t1}
+            "clones": lay.n_clones}
     return CloneFit(labels, state_symbol, info)
 
 
@@ -199,7 +198,7 @@ def split_budget(split_state_symbol, seq: SymbolSequence, factor: int, spare: in
 def _grow(seq: SymbolSequence, n: int, labels, state_symbol, cfg: EMSettings,
           max_rounds: int, rng, stages: list):
     """Stages 2 and 3 of :func:`refine_fit` from a labelling of the first ``n`` steps; appends
-    ``(steps, states, EM iterations, CPU s)`` per round to ``stages`` and returns the merged
+    ``(steps, states, EM iterations)`` per round to ``stages`` and returns the merged
     labelling of the last round."""
     rounds, previous = 0, None
     while True:
@@ -211,9 +210,8 @@ def _grow(seq: SymbolSequence, n: int, labels, state_symbol, cfg: EMSettings,
         previous = merged[0] if n == seq.T else None
         settled = len(stages) > 1 and stages[-1][1] == stages[-2][1]
         n = seq.T if settled else min(2 * n, seq.T)
-        t0 = time.process_time()
         labels, state_symbol, iters = _warm_round(seq.head(n), *split, cfg, rng)
-        stages.append((n, int(state_symbol.size), iters, time.process_time() - t0))
+        stages.append((n, int(state_symbol.size), iters))
 
 
 def refine_fit(sym, u, lengths, n_actions: int, n_symbols: int, split_state_symbol, *,
@@ -242,9 +240,8 @@ def refine_fit(sym, u, lengths, n_actions: int, n_symbols: int, split_state_symb
     n_split = int(np.sum(np.asarray(split_state_symbol) >= 0))
     n = min(max(prefix, prefix_visits * n_split), seq.T)
     lay = seq.head(n).layout(split_budget(split_state_symbol, seq, clone_factor, settings.spare))
-    t0 = time.process_time()
     labels, state_symbol, iters = _fit_layout(lay, random_counts(lay, rng), settings)
-    stages = [(n, int(state_symbol.size), iters, time.process_time() - t0)]
+    stages = [(n, int(state_symbol.size), iters)]
     (labels, state_symbol), rounds = _grow(seq, n, labels, state_symbol, settings, max_rounds,
                                            rng, stages)
     return CloneFit(labels, state_symbol, {"stages": stages, "rounds_on_all_steps": rounds})
