@@ -99,7 +99,7 @@ def main() -> None:
     if sys.argv[1:2] == ["--read"]:
         return child_read(sys.argv[2])
     if sys.argv[1:2] == ["--import-only"]:
-        from topomap.core.rosbag.common import _rosbags  # the baseline RSS of the imports
+        from topomap.core.data.rosbag.common import _rosbags  # the baseline RSS of the imports
 
         _rosbags()
         return None

@@ -1,4 +1,4 @@
-"""The dense inference :mod:`topomap.core.inference` replaced: every step multiplies an S x S
+"""The dense inference :mod:`topomap.core.map.inference` replaced: every step multiplies an S x S
 table.  Kept as the reference the compiled, pruned, chunked kernels are checked against."""
 
 import numpy as np

@@ -1,4 +1,4 @@
-"""The plain-numpy phase 2 that :mod:`topomap.core.splitting` replaced: every split rebuilds all
+"""The plain-numpy phase 2 that :mod:`topomap.core.split.engine` replaced: every split rebuilds all
 transition instances.  Kept as the reference the incremental engine and the compiled merge are
 checked against (same proposals, same labels, same floats)."""
 
@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from topomap.core.splitting import Proposal
+from topomap.core.split.engine import Proposal
 from topomap.core.stats import xlogx
 
 _TIE_DECIMALS = 9

@@ -102,7 +102,7 @@ def test_a_hand_written_config_that_disagrees_with_the_factory_is_caught():
 
     from topomap.app.config import fields_of, schema_of
     from topomap.app.hookspecs import Component
-    from topomap.core.clustering import FixedClusters
+    from topomap.core.phase1.clustering import FixedClusters
 
     @dataclass
     class Drifted:

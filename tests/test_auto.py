@@ -9,7 +9,7 @@ from sklearn.metrics import adjusted_rand_score
 
 from topomap import MapLearner
 from topomap.app.experiment import run
-from topomap.core.auto import AutoStates, SizeScores, UpTo, bic, parameter_count, split_holdout
+from topomap.core.size import AutoStates, SizeScores, UpTo, bic, parameter_count, split_holdout
 
 from worlds import ring
 

@@ -5,12 +5,12 @@ import itertools
 import numpy as np
 import pytest
 
-from topomap.core.clones import make_layout, m_step
-from topomap.core.kernels import clone_backward_counts as backward_counts
-from topomap.core.kernels import clone_forward as forward
-from topomap.core.kernels import clone_normalize_blocks as normalize_blocks
-from topomap.core.kernels import clone_path_counts as path_counts
-from topomap.core.kernels import clone_viterbi as viterbi
+from topomap.core.refine.clones import make_layout, m_step
+from topomap.core.refine.kernels import clone_backward_counts as backward_counts
+from topomap.core.refine.kernels import clone_forward as forward
+from topomap.core.refine.kernels import clone_normalize_blocks as normalize_blocks
+from topomap.core.refine.kernels import clone_path_counts as path_counts
+from topomap.core.refine.kernels import clone_viterbi as viterbi
 
 
 def tiny_case(seed, lengths=(4, 3), clones=(2, 3, 1), n_actions=2):

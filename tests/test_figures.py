@@ -16,7 +16,7 @@ from topomap import MapLearner
 from topomap.app import plots
 from topomap.app.sweep import _line
 from topomap.core.metrics import compound_states
-from topomap.core.trajectory import Trajectory
+from topomap.core.data.trajectory import Trajectory
 
 
 def _axes(size=(6, 4.5)):

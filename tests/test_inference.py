@@ -11,9 +11,9 @@ import pytest
 import reference_inference as ref
 
 from topomap import MapLearner, TopologicalMap
-from topomap.core import stats
-from topomap.core.stats import feature_variance
-from topomap.core.trajectory import check_sequences
+from topomap.core.map import observations as stats
+from topomap.core.map.observations import feature_variance
+from topomap.core.data.trajectory import check_sequences
 
 
 def random_map(rng, S=7, A=3, D=4, n_gds=1, cov="diag"):

@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 
 from topomap import MapLearner, TopologicalMap
-from topomap.core.clustering import BICClusters, Cosine, FixedClusters, Standardized
+from topomap.core.phase1.clustering import BICClusters, Cosine, FixedClusters, Standardized
 from topomap.core.metrics import adjusted_rand, compound_states, evaluate, purity
-from topomap.core.splitting import EntropyCriterion, MinGain, TargetStates, merge_groups
+from topomap.core.split.engine import EntropyCriterion, MinGain, TargetStates, merge_groups
 
 from worlds import ring
 

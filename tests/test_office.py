@@ -18,7 +18,7 @@ from topomap.worlds.office import (
     random_layout,
 )
 from topomap.worlds.explorers import RandomExplorer
-from topomap.core.trajectory import Trajectory
+from topomap.core.data.trajectory import Trajectory
 
 T = 2000
 

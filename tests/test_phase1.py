@@ -6,8 +6,9 @@ from sklearn.cluster import KMeans
 from sklearn.metrics import adjusted_rand_score
 
 from topomap import MapLearner
-from topomap.core.clustering import Euclidean, FixedClusters, choose_method, cluster_observations
-from topomap.core.stats import distinct_rows
+from topomap.core.phase1.clustering import (Euclidean, FixedClusters, choose_method,
+                                            cluster_observations)
+from topomap.core.phase1.distinct import distinct_rows
 from topomap.worlds import GaussianNoise, OfficeWorld, RandomExplorer
 
 

@@ -4,8 +4,9 @@ import numpy as np
 import pytest
 from sklearn.metrics import adjusted_rand_score
 
-from topomap.core.refine import cscg_fit, refine_fit
-from topomap.core.structure import episode_masks, merge_states, same_partition, split_compounds
+from topomap.core.refine.methods import cscg_fit, refine_fit
+from topomap.core.refine.structure import (episode_masks, merge_states, same_partition,
+                                           split_compounds)
 from topomap.worlds import GridRoom, RandomExplorer
 
 
@@ -161,7 +162,7 @@ class _Fragments:
         self.guard = guard
 
     def fit(self, seq, split_state_symbol, random_state):
-        from topomap.core.refine import CloneFit
+        from topomap.core.refine.methods import CloneFit
 
         labels = 2 * seq.sym + np.arange(seq.sym.size) % 2
         return CloneFit(labels, np.repeat(np.arange(seq.n_ids), 2))
@@ -194,7 +195,7 @@ def test_the_guard_keeps_a_refinement_that_recovers_the_places():
 def test_a_refined_map_is_the_same_bytes_for_the_same_seed(refine, tmp_path):
     """Nothing run-dependent (such as CPU seconds) reaches map.json."""
     from topomap import MapLearner
-    from topomap.core.refine import CSCGRefinement
+    from topomap.core.refine.methods import CSCGRefinement
 
     sym, u, _ = ring_walk(2000, RING, 3)
     X = noisy(sym, 6, 3)

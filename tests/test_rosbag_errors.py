@@ -20,7 +20,7 @@ from rosbag_helpers import (  # noqa: F401 (fmt is a fixture)
 )
 from rosbags.rosbag1 import Writer as Writer1
 
-from topomap.core.rosbag import read_rosbag
+from topomap.core.data.rosbag import read_rosbag
 
 
 def read_error(path, *args, **kw) -> str:

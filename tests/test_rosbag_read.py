@@ -16,8 +16,8 @@ from rosbag_helpers import (  # noqa: F401 (fmt is a fixture)
     write_bag,
 )
 
-from topomap.core.rosbag import read_rosbag, twist_action
-from topomap.core.rosbag.read import _Rows
+from topomap.core.data.rosbag import read_rosbag, twist_action
+from topomap.core.data.rosbag.read import _Rows
 
 
 def test_observation_is_the_latest_at_or_before_each_action(tmp_path, fmt):

@@ -18,10 +18,10 @@ from rosbag_helpers import FORMATS, bag_path, fmt  # noqa: F401 (fmt is a fixtur
 from pathlib import Path
 
 import topomap
-from topomap.core.rosbag import read_rosbag, write_rosbag
+from topomap.core.data.rosbag import read_rosbag, write_rosbag
 from topomap.worlds.gridroom import GridRoom
 from topomap.worlds.explorers import RandomExplorer
-from topomap.core.trajectory import Trajectory
+from topomap.core.data.trajectory import Trajectory
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "docs" / "examples"
 

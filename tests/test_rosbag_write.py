@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 from rosbags.highlevel import AnyReader
 
-from topomap.core.rosbag import write as rosbag_write
-from topomap.core.rosbag import read_rosbag, write_rosbag
-from topomap.core.trajectory import Trajectory
+from topomap.core.data.rosbag import write as rosbag_write
+from topomap.core.data.rosbag import read_rosbag, write_rosbag
+from topomap.core.data.trajectory import Trajectory
 
 
 def small(steps: int = 6, lengths=None, names=("go", "turn")) -> Trajectory:

@@ -12,7 +12,7 @@ import pytest
 
 from topomap import MapLearner, load_trajectory
 from topomap.app.experiment import run
-from topomap.core.trajectory import check_sequences
+from topomap.core.data.trajectory import check_sequences
 
 PLUGINS = Path(__file__).resolve().parents[1] / "plugins"
 TURNBACK = PLUGINS / "topomap-turnback" / "topomap_turnback.py"
@@ -100,7 +100,7 @@ def test_an_impossible_state_count_fails_before_simulating(make_cfg, tmp_path, m
 
 
 def test_check_params_uses_the_cluster_policys_least_count():
-    from topomap.core.clustering import BICClusters
+    from topomap.core.phase1.clustering import BICClusters
 
     MapLearner(n_clusters=10, n_states=12).check_params(n_gds=2)
     with pytest.raises(ValueError, match="stop.n_states=11 is below the 12 states"):

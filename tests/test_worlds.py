@@ -19,7 +19,7 @@ from topomap.worlds.random_graph import RandomGraphWorld, random_strong_digraph
 from topomap.app.experiment import run
 from topomap.app.outputs import FIGURE_FILES, OUTPUT_FILES
 from topomap.worlds.explorers import RandomExplorer
-from topomap.core.trajectory import Trajectory
+from topomap.core.data.trajectory import Trajectory
 
 
 def walk(world, n, seed=0):

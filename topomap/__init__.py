@@ -17,7 +17,7 @@ import sys as _sys
 
 from .core import MapLearner, TopologicalMap, Trajectory, load_trajectory, save_trajectory
 from .core import metrics
-from .core.rosbag import read_rosbag, write_rosbag
+from .core.data.rosbag import read_rosbag, write_rosbag
 
 # ``import topomap.metrics`` keeps working: the module lives in the core
 _sys.modules[f"{__name__}.metrics"] = metrics

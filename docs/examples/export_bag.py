@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from topomap import save_trajectory
-from topomap.core.rosbag import write_rosbag
+from topomap.core.data.rosbag import write_rosbag
 from topomap.worlds import GridRoom, RandomExplorer
 
 

@@ -6,14 +6,16 @@ see :mod:`topomap.app.config`), the name users write, and a line for ``topomap -
 
 from __future__ import annotations
 
-from ..core import clustering, splitting
+from ..core.phase1 import clustering
+from ..core.split import engine as splitting
 from ..worlds import explorers, noise
 from ..worlds.gridroom import GridRoom
 from ..worlds.minigrid import MiniGridWorld
 from ..worlds.navigation import Navigation
 from ..worlds.office import OfficeWorld
 from ..worlds.random_graph import RandomGraphWorld
-from ..core import auto, refine
+from ..core import size as auto
+from ..core.refine import methods as refine
 from . import data
 from .hookspecs import Component, hookimpl
 

@@ -15,8 +15,8 @@ from typing import Any
 
 import numpy as np
 
-from ..core.rosbag import read_rosbag
-from ..core.trajectory import Trajectory, load_trajectory, save_trajectory
+from ..core.data.rosbag import read_rosbag
+from ..core.data.trajectory import Trajectory, load_trajectory, save_trajectory
 
 log = logging.getLogger("topomap")
 

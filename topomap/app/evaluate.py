@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from ..core import metrics as M
 from ..core.learner import MapLearner
-from ..core.trajectory import Trajectory
+from ..core.data.trajectory import Trajectory
 
 __all__ = ["evaluate", "localization_scores"]
 

@@ -16,7 +16,7 @@ import traceback
 from pathlib import Path
 
 from ..core.learner import MapLearner
-from ..core.map import TopologicalMap
+from ..core.map.model import TopologicalMap
 from .config import check_config
 from .data import TrajectoryCache, trajectory_key
 from .evaluate import evaluate, localization_scores

@@ -21,7 +21,7 @@ kind           what the factory returns                                        c
 ``split``      ``propose(counts) -> (side, score) | None``                     ``split``
 ``stop``       ``check(n_initial)``; ``should_stop(n_states, best_score)``     ``stop``
 ``refine``     ``fit(sequence, split_state_symbol, random_state) -> CloneFit``  ``refine``
-               (:mod:`topomap.core.refine`), or None for none
+               (:mod:`topomap.core.refine.methods`), or None for none
 ``data``       ``simulates`` (bool); ``train(parts, seed, progress)`` and      ``data``
                ``heldout(parts, seed)`` return Trajectory objects (or None)
 ``evaluate``   ``evaluate(map, labels, places, world, noise) -> dict``, or      ``evaluate``

@@ -10,8 +10,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..core.files import atomic_write
-from ..core.trajectory import save_trajectory
+from ..core.data.files import atomic_write
+from ..core.data.trajectory import save_trajectory
 
 __all__ = ["OUTPUT_FILES", "FIGURE_FILES", "LOCALIZE_FILES", "write_outputs",
            "write_localization", "versions", "write_json"]

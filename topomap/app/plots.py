@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..core.files import atomic_write
+from ..core.data.files import atomic_write
 
 __all__ = ["write_figures", "plot_states", "plot_split", "plot_map", "plot_entropy",
            "state_styles", "compound_mask", "PALETTE", "MARKERS"]

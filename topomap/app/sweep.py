@@ -34,7 +34,7 @@ from typing import Any
 
 from hydra.experimental.callback import Callback
 
-from ..core.files import atomic_write
+from ..core.data.files import atomic_write
 from .experiment import CACHE_DIR, STATUS_FILE
 
 log = logging.getLogger("topomap")

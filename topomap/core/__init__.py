@@ -17,8 +17,8 @@ module              its one job
 """
 
 from .learner import MapLearner
-from .map import TopologicalMap
-from .trajectory import Trajectory, check_sequences, load_trajectory, save_trajectory
+from .map.model import TopologicalMap
+from .data.trajectory import Trajectory, check_sequences, load_trajectory, save_trajectory
 
 __all__ = ["MapLearner", "TopologicalMap", "Trajectory", "check_sequences", "load_trajectory",
            "save_trajectory"]

@@ -9,13 +9,13 @@ from dataclasses import dataclass
 import numpy as np
 from sklearn.base import BaseEstimator
 
-from .clustering import FixedClusters, cluster_observations, make_metric
-from .auto import AutoStates, SizeScores, bic, parameter_count, split_holdout
-from .map import TopologicalMap
-from .refine import REFINEMENTS, SymbolSequence
-from .splitting import CRITERIA, Splitter, TargetStates
+from .phase1.clustering import FixedClusters, cluster_observations, make_metric
+from .size import AutoStates, SizeScores, bic, parameter_count, split_holdout
+from .map.model import TopologicalMap
+from .refine.methods import REFINEMENTS, SymbolSequence
+from .split.engine import CRITERIA, Splitter, TargetStates
 from .stats import episode_masks
-from .trajectory import check_sequences
+from .data.trajectory import check_sequences
 
 __all__ = ["MapLearner"]
 
@@ -51,10 +51,10 @@ class MapLearner(BaseEstimator):
         ``ns``, the number of K-means clusters (used when ``clusters`` is None).
     n_states : int or "auto"
         Target state count (used when ``stopping`` is None); ``"auto"`` chooses it by the
-        held-out log-likelihood (:class:`topomap.core.auto.AutoStates`).
+        held-out log-likelihood (:class:`topomap.core.size.AutoStates`).
     clusters : object, optional
         Cluster-count policy with ``choose(Z, random_state)`` returning ``ns`` or ``(ns, details)``
-        (e.g. :class:`topomap.core.clustering.BICClusters`).  Default: ``FixedClusters(n_clusters)``.
+        (e.g. :class:`topomap.core.phase1.clustering.BICClusters`).  Default: ``FixedClusters(n_clusters)``.
     metric : str or object
         ``"euclidean"`` (default), ``"standardized"``, ``"cosine"`` or an object with
         ``fit_transform(X)``.
@@ -70,14 +70,14 @@ class MapLearner(BaseEstimator):
     n_init : int
         K-means restarts (k-means++ initialisations; the best inertia wins).
     phase1 : {"auto", "full", "distinct", "sample", "minibatch"}
-        How K-means runs (:data:`topomap.core.clustering.METHODS`): ``"full"`` is the paper's
+        How K-means runs (:data:`topomap.core.phase1.clustering.METHODS`): ``"full"`` is the paper's
         exact fit on every step, which ``"auto"`` picks for runs up to ``T * ns * D = 1e7`` (the
         paper's included); above that it clusters the distinct rows with their counts when
         observations repeat, else fits on a sample and assigns every step.
     sample_size : int, optional
         Rows K-means is fitted on with ``phase1="sample"`` (default ``max(20000, 64 ns)``).
     refine : None, "em", "cscg" or object
-        A refinement phase after the split (:mod:`topomap.core.refine`): ``"em"`` re-estimates
+        A refinement phase after the split (:mod:`topomap.core.refine.methods`): ``"em"`` re-estimates
         every state jointly with EM over a clone budget sized by the split, merges states that
         are one place and splits compound ones (maps that stay right under heavy aliasing);
         ``"cscg"`` is EM alone from phase 1 with CSCG's recipe, ignoring the split; an object
@@ -177,7 +177,7 @@ class MapLearner(BaseEstimator):
         return self
 
     def _keep_refined(self, data: _Data, refined: TopologicalMap, labels) -> bool:
-        """Whether the refined map's BIC (actions and transitions, :func:`topomap.core.auto.bic`)
+        """Whether the refined map's BIC (actions and transitions, :func:`topomap.core.size.bic`)
         is no worse than the split map's; both BICs and the map kept go into ``refine_info_``."""
         has_next = data.masks[1]
         n_next = int(has_next.sum())
@@ -190,7 +190,7 @@ class MapLearner(BaseEstimator):
         return keep
 
     def _refine(self, data: _Data, splitter: Splitter, refinement) -> None:
-        """Re-estimate every state jointly (:mod:`topomap.core.refine`); the split map stays as
+        """Re-estimate every state jointly (:mod:`topomap.core.refine.methods`); the split map stays as
         ``map_split_``.  Refined states have no parent; ``map_.info["refined_from"]`` names, for
         each, the split state most of its steps held."""
         ns = self.n_clusters_
@@ -294,7 +294,7 @@ class MapLearner(BaseEstimator):
         return _Data(X, u, g, L, A, action_names, gds_names)
 
     def _choose_size(self, data: _Data, splitter: Splitter, rule: AutoStates) -> int:
-        """The number of states ``stop=auto`` picks (:mod:`topomap.core.auto`): from the phase-1
+        """The number of states ``stop=auto`` picks (:mod:`topomap.core.size`): from the phase-1
         labels, a probe splits up to the rule's limit or patience -- on all steps for BIC, on all
         but the held out final block for ``"heldout"`` -- and every size is scored;
         ``size_choice_`` keeps the scores."""

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..core.trajectory import Trajectory
+from ..core.data.trajectory import Trajectory
 
 __all__ = ["positive_int", "check_no_extra_actions", "check_simulate_args", "check_choice", "walk",
            "symbol_embedding", "assign_symbols", "symbol_legend"]

@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..core.trajectory import Trajectory
+from ..core.data.trajectory import Trajectory
 from .common import check_choice, check_no_extra_actions, check_simulate_args
 
 __all__ = ["MiniGridWorld", "MissingDependencyError", "encode_view", "VIEW_CHANNELS",

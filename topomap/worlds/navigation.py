@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..core.map import TopologicalMap
+from ..core.map.model import TopologicalMap
 
 __all__ = ["PlaceGraph", "place_graph", "state_places", "Navigation"]
 

@@ -21,7 +21,7 @@ import math
 
 import numpy as np
 
-from ..core.trajectory import Trajectory
+from ..core.data.trajectory import Trajectory
 from .common import (assign_symbols, check_no_extra_actions, positive_int, symbol_embedding,
                      symbol_legend, walk)
 

@@ -21,7 +21,7 @@ from collections.abc import Iterable, Sequence
 
 import numpy as np
 
-from ...core.trajectory import Trajectory
+from ...core.data.trajectory import Trajectory
 from ..common import check_choice, check_simulate_args
 from .actions import Action, ApproachType, FollowWall, Pose
 from .geometry import CORNER_NAMES, TOL, check_positive, corner_points

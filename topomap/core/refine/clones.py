@@ -2,7 +2,7 @@
 
 A :class:`Layout` ties one discrete sequence (symbols, actions, episode lengths) to a clone budget
 (clones per symbol) and the sparse transition blocks that sequence needs (one per observed
-``(action, symbol, next symbol)`` triple; see :mod:`topomap.core.kernels`).  Parameters are plain count arrays
+``(action, symbol, next symbol)`` triple; see :mod:`topomap.core.map.kernels`).  Parameters are plain count arrays
 in the block layout; probabilities are derived from counts by :func:`m_step`.
 
 Two normalisations are offered (``joint``):
@@ -23,14 +23,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .kernels import (
-    clone_backward_counts,
-    clone_forward,
-    clone_normalize_blocks,
-    clone_path_counts,
-    clone_step_offsets,
-    clone_viterbi,
-)
+from .kernels import (clone_backward_counts, clone_forward, clone_normalize_blocks,
+                      clone_path_counts, clone_step_offsets, clone_viterbi)
 
 __all__ = [
     "Layout",
@@ -59,7 +53,7 @@ class Layout:
     triples : (B, 3) int64 -- ``(action, symbol, next symbol)`` of every block
     start : (K + 1,) int64 -- clones of symbol ``k`` are ``start[k] .. start[k + 1] - 1``
     boff : (B + 1,) int64 -- block ``b`` occupies ``boff[b] .. boff[b + 1] - 1`` of a count array
-    pos : (T + 1,) int64 -- per-step offsets of the clone vectors (:func:`topomap.core.kernels.clone_step_offsets`)
+    pos : (T + 1,) int64 -- per-step offsets of the clone vectors (:func:`topomap.core.map.kernels.clone_step_offsets`)
     n_actions : int
     """
 
@@ -132,7 +126,7 @@ def _row_keys(lay: Layout, joint: bool):
 
 
 def m_step(lay: Layout, counts, pseudocount: float, joint: bool) -> np.ndarray:
-    """Block probabilities from counts (see :func:`topomap.core.kernels.clone_normalize_blocks`)."""
+    """Block probabilities from counts (see :func:`topomap.core.map.kernels.clone_normalize_blocks`)."""
     key, n_keys, width = _row_keys(lay, joint)
     vals, _ = clone_normalize_blocks(counts, np.ascontiguousarray(lay.triples[:, 1]),
                                np.ascontiguousarray(lay.triples[:, 2]), key, n_keys, lay.start,
@@ -142,7 +136,7 @@ def m_step(lay: Layout, counts, pseudocount: float, joint: bool) -> np.ndarray:
 
 def e_step(lay: Layout, vals, prune: float = 0.0):
     """Expected counts, expected clone occupancy and log-likelihood under ``vals`` (``prune``: see
-    :func:`topomap.core.kernels.clone_forward`)."""
+    :func:`topomap.core.map.kernels.clone_forward`)."""
     alpha, log_c = clone_forward(lay.sym, lay.blk, lay.start, lay.boff, vals, lay.pos, prune)
     counts = np.zeros(vals.size)
     occupancy = np.zeros(lay.n_clones)

@@ -1,4 +1,4 @@
-"""Reading bags into a :class:`~topomap.core.trajectory.Trajectory` (see the package docstring)."""
+"""Reading bags into a :class:`~topomap.core.data.trajectory.Trajectory` (see the package docstring)."""
 
 from __future__ import annotations
 

@@ -1,17 +1,17 @@
 """Inference on a learned map in bounded memory: log-densities, forward, filtering, Viterbi.
 
-:class:`~topomap.core.map.TopologicalMap`'s ``score``, ``filter`` and ``predict`` call these.
+:class:`~topomap.core.map.model.TopologicalMap`'s ``score``, ``filter`` and ``predict`` call these.
 A sequence is processed in chunks of steps: the Gaussian log-densities of a chunk under every
 *observation model* (states split from one symbol share it) in the matmul form, then compiled
-recursions over the sparse smoothed transitions (:mod:`topomap.core.kernels`).  Memory: the
-chunk's (rows x models) log-densities (at most :data:`topomap.core.stats.CHUNK_BYTES`),
+recursions over the sparse smoothed transitions (:mod:`topomap.core.map.kernels`).  Memory: the
+chunk's (rows x models) log-densities (at most :data:`topomap.core.map.observations.CHUNK_BYTES`),
 O(S + seen transitions) tables, and for ``predict`` one chunk of back-pointers (rows x S int32)
 plus one ``delta`` per chunk (checkpointed Viterbi: the recursion runs twice, the second time
 chunk by chunk backwards).  Nothing grows with T but the outputs: the (T,) path of ``predict`` and
 the (T, S) beliefs of ``filter``.
 
 Emission pruning (``prune=True``, the default): at every step the states whose emission lies more
-than :func:`topomap.core.kernels.prune_threshold` nats below the step's best are skipped.  Every
+than :func:`topomap.core.map.kernels.prune_threshold` nats below the step's best are skipped.  Every
 smoothed transition is at least ``smoothing / S``, so Viterbi stays exact and a forward
 log-likelihood changes by less than 1e-20 relative.
 """
@@ -21,8 +21,8 @@ from __future__ import annotations
 import numpy as np
 
 from . import kernels as K
-from .stats import log_density_chunks
-from .trajectory import check_sequences
+from .observations import log_density_chunks
+from ..data.trajectory import check_sequences
 
 __all__ = ["observation_models", "log_densities", "setup", "forward", "filtered", "viterbi",
            "emission_row", "predicted"]

@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .map import TopologicalMap
+from .map.model import TopologicalMap
 from .stats import episode_masks
 
 __all__ = ["AutoStates", "UpTo", "bic", "parameter_count", "split_holdout", "SizeScores"]
@@ -131,7 +131,7 @@ def split_holdout(n_steps: int, lengths, holdout: float):
 
 class SizeScores:
     """The score of the map after phase 1 and after every split of a probe (a
-    :class:`topomap.core.splitting.Splitter`): ``scores`` maps a state count to its score
+    :class:`topomap.core.split.engine.Splitter`): ``scores`` maps a state count to its score
     (higher is better: BIC enters negated).
 
     ``criterion="bic"`` scores the labelling of the data being split, ``data = (X, u, lengths,

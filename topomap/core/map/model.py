@@ -20,10 +20,10 @@ from pathlib import Path
 import numpy as np
 
 from . import inference
-from .files import atomic_write
-from .stats import (conditional_entropy, count_tables, episode_masks, normalise,
-                    observation_models)
-from .trajectory import as_float_observations
+from ..data.files import atomic_write
+from ..stats import conditional_entropy, count_tables, episode_masks, normalise
+from .observations import observation_models
+from ..data.trajectory import as_float_observations
 
 __all__ = ["TopologicalMap", "FORMAT_VERSION"]
 
@@ -340,7 +340,7 @@ class TopologicalMap:
 
     # ------------------------------------------------------------------ inference
     def _log_obs(self, X: np.ndarray) -> np.ndarray:
-        """(T, S) Gaussian log-densities (:func:`topomap.core.inference.log_densities`)."""
+        """(T, S) Gaussian log-densities (:func:`topomap.core.map.inference.log_densities`)."""
         return inference.log_densities(self, np.asarray(X, dtype=np.float64))
 
     def predict(self, observations, actions, gds=None, lengths=None, *, smoothing=1e-6,
@@ -351,7 +351,7 @@ class TopologicalMap:
         a small uniform share into every table so unseen transitions are unlikely, not impossible.
         With ``gds`` given, GDS steps are clamped to their GDS state and other steps never take
         one.  ``prune`` skips states far below a step's best (exact; see
-        :mod:`topomap.core.inference`).  Memory does not grow with T beyond the path.
+        :mod:`topomap.core.map.inference`).  Memory does not grow with T beyond the path.
         """
         s = inference.setup(self, observations, actions, gds, lengths, smoothing, prune)
         return inference.viterbi(s)

@@ -12,7 +12,7 @@ Viterbi training.
 :func:`refine_fit` -- after the paper's split: EM learns the structure on a prefix with a clone
 budget sized by the split, the prefix grows until the structure settles, and every EM round is
 followed by hard re-assignment (Viterbi), removal of unused states, merging of bisimilar states
-and splitting of compound states (:mod:`topomap.core.structure`).
+and splitting of compound states (:mod:`topomap.core.refine.structure`).
 
 :class:`EMRefinement` (``refine="em"``) and :class:`CSCGRefinement` (``refine="cscg"``) are the
 components :class:`topomap.MapLearner` takes; their parameters are the knobs of the two fits.
@@ -24,17 +24,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .clones import (
-    Layout,
-    baum_welch,
-    clone_budget,
-    compact_labels,
-    init_from_path,
-    make_layout,
-    random_counts,
-    states_to_clones,
-    viterbi_training,
-)
+from .clones import (Layout, baum_welch, clone_budget, compact_labels, init_from_path, make_layout,
+                     random_counts, states_to_clones, viterbi_training)
 from .structure import episode_masks, merge_states, same_partition, split_compounds
 
 __all__ = ["CloneFit", "EMSettings", "SymbolSequence", "cscg_fit", "refine_fit", "EMRefinement",
@@ -143,7 +134,7 @@ class EMSettings:
     fixed 2e-3 per entry weighs 6 counts per row at 3,000 clones and folds FourRooms' congruent
     rooms onto each other).  Baum-Welch stops after ``max_iter`` iterations or when it gains less
     than ``tol`` nats per step (the structure moves, not EM's slow tail, finish the job);
-    ``prune`` drops filtered probabilities below it (:func:`topomap.core.kernels.clone_forward`);
+    ``prune`` drops filtered probabilities below it (:func:`topomap.core.map.kernels.clone_forward`);
     ``merge_threshold`` is the G-test threshold of merging (negative: never merge) and
     ``split_z`` the normal score of splitting (``inf``: never split); a warm-started round gives
     every K-means symbol ``spare`` extra clones and adds ``init_noise`` x uniform random counts.
@@ -260,7 +251,7 @@ class EMRefinement:
     ``guard`` (the default) the learner keeps the refined map only if its BIC (actions and
     transitions) is no worse than the split map's: refinement never trades a good split map for a
     fragmented one (with many actions and few visits per place and action, the split test of
-    :func:`topomap.core.structure.split_compounds` finds differences in noise).
+    :func:`topomap.core.refine.structure.split_compounds` finds differences in noise).
     """
 
     name = "em"

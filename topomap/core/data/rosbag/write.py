@@ -1,4 +1,4 @@
-"""Writing a :class:`~topomap.core.trajectory.Trajectory` as ROS bags, one per episode."""
+"""Writing a :class:`~topomap.core.data.trajectory.Trajectory` as ROS bags, one per episode."""
 
 from __future__ import annotations
 

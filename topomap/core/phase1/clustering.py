@@ -43,7 +43,7 @@ from sklearn.cluster import KMeans, MiniBatchKMeans
 from sklearn.mixture import GaussianMixture
 from threadpoolctl import threadpool_limits
 
-from .stats import distinct_rows
+from .distinct import distinct_rows
 
 __all__ = [
     "Euclidean",
@@ -199,7 +199,7 @@ def choose_method(n_rows: int, repeats: bool, n_clusters: int, n_features: int,
 
 def probe_distinct(Z: np.ndarray, n_clusters: int, random_state: int):
     """``(repeats, distinct)``: whether at most half of the rows are distinct, and the exact
-    :func:`topomap.core.stats.distinct_rows` of ``Z`` or None when they are not needed.
+    :func:`topomap.core.phase1.distinct.distinct_rows` of ``Z`` or None when they are not needed.
 
     Above :data:`PROBE_ROWS` rows a seeded sample of that size is looked at first; when more than
     half of its rows are distinct and they are at least ``n_clusters``, the rows are taken not to

@@ -22,8 +22,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .splitting import SplitEngine, merge_groups
-from .stats import episode_masks as _masks
+from ..split.engine import SplitEngine, merge_groups
+from ..stats import episode_masks as _masks
 
 __all__ = ["episode_masks", "bisimilar_blocks", "merge_states", "split_compounds",
            "same_partition"]

@@ -17,7 +17,7 @@ the sparse transition counts and the state and action counts, and after a split 
 split state's steps and their neighbours -- a split of ``q`` relabels some steps of ``q`` only, so
 an instance or a transition changes only where its centre or an end is such a step.  No
 ``S x A x S`` table is ever formed, and every number it reports is the same float the plain numpy
-expressions over all instances give (see :mod:`topomap.core.exact`).
+expressions over all instances give (see :mod:`topomap.core.sums`).
 
 Swappable pieces, each a small object:
 
@@ -35,8 +35,8 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from .exact import merge_groups_kernel
-from .stats import conditional_entropy, sparse_conditional_entropy, weighted_entropy, xlogx
+from .kernels import merge_groups_kernel
+from ..stats import conditional_entropy, sparse_conditional_entropy, weighted_entropy, xlogx
 
 __all__ = ["EntropyCriterion", "TargetStates", "MinGain", "CRITERIA", "merge_groups", "Proposal",
            "SplitEngine", "Splitter"]
@@ -95,7 +95,7 @@ _TABLE = _XlogxTable()
 def merge_groups(counts: np.ndarray) -> np.ndarray:
     """Agglomerate the rows of an integer count matrix into two clusters, each time merging the
     pair whose union increases the weighted entropy ``n H`` least (costs rounded to 1e-9 bits;
-    ties: smallest indices).  Compiled (:func:`topomap.core.exact.merge_groups_kernel`).
+    ties: smallest indices).  Compiled (:func:`topomap.core.sums.merge_groups_kernel`).
 
     Returns a boolean array: False for the rows in the cluster holding row 0, True for the others.
     """

@@ -1,0 +1,1 @@
+"""The data: trajectories and their files (``.npz``, ``.csv``), ROS bags, atomic writes."""

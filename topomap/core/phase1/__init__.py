@@ -1,0 +1,1 @@
+"""Phase 1: K-means symbols of the observations (distance metrics, cluster-count policies)."""

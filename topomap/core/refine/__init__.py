@@ -1,0 +1,1 @@
+"""The refinement after the split: EM over clones of the symbols, and structure moves."""

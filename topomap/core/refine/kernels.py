@@ -1,0 +1,271 @@
+"""Compiled kernels of the clone EM: forward-backward, Viterbi and counts over clone blocks."""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+__all__ = ["clone_step_offsets", "clone_forward", "clone_backward_counts", "clone_viterbi",
+           "clone_path_counts", "clone_normalize_blocks"]
+
+# ======================================================================================
+# Clone-structured, action-conditioned HMMs (the refinement phase, topomap.core.refine.clones)
+# ======================================================================================
+# Model
+# -----
+# Every hidden state (a *clone*) emits exactly one discrete symbol.  Clones are numbered so that the
+# clones of symbol ``k`` are ``start[k] .. start[k + 1] - 1``.  At step ``t`` the symbol ``sym[t]``
+# is observed, so only its clones can be occupied, and the transition ``t -> t + 1`` under action
+# ``u[t]`` only involves the clones of ``sym[t]`` (rows) and of ``sym[t + 1]`` (columns).
+#
+# Sparse transition storage
+# -------------------------
+# Transitions are stored as dense *blocks*, one per ``(action, symbol, next symbol)`` triple that
+# occurs in the data: block ``b`` is an ``n(src) x n(dst)`` row-major matrix at
+# ``vals[boff[b] : boff[b + 1]]``, where ``n(k) = start[k + 1] - start[k]``.  ``blk[t]`` is the block
+# of the transition ``t -> t + 1``, or ``-1`` when step ``t`` ends its episode (no transition crosses
+# an episode boundary).  Memory is ``sum_b n(src_b) n(dst_b)``, a small fraction of the dense
+# ``S x A x S`` tensor when clones are many and each symbol is followed by few symbols.
+#
+# What a block entry means (``P(x'|x,u)`` or the joint ``P(u,x'|x)``) is up to the caller: the
+# kernels only need ``vals[b][i, j]`` to be the factor of moving from clone ``i`` of ``src_b`` to
+# clone ``j`` of ``dst_b`` at a step with that block.
+#
+# Conventions
+# -----------
+# * The first step of every episode has a uniform distribution over the clones of its symbol; all
+#   likelihoods are conditional on the first symbol of each episode.
+# * Forward messages are normalised at every step (scaling factors ``c_t``), so
+#   ``log P = sum_t log c_t`` never underflows however long the sequence is.
+# * Per-step vectors are stored back to back in one flat array: the vector of step ``t`` starts at
+#   ``pos[t]`` (see :func:`clone_step_offsets`).
+#
+# All arrays are contiguous ``int64`` / ``float64``; no Python objects are used inside the kernels.
+
+
+@njit(cache=True)
+def clone_step_offsets(sym, start):
+    """Offsets ``pos`` (T + 1,) of the per-step clone vectors: step ``t`` owns
+    ``pos[t] .. pos[t + 1] - 1``, one entry per clone of ``sym[t]``."""
+    T = sym.size
+    pos = np.empty(T + 1, dtype=np.int64)
+    pos[0] = 0
+    for t in range(T):
+        k = sym[t]
+        pos[t + 1] = pos[t] + start[k + 1] - start[k]
+    return pos
+
+
+@njit(cache=True)
+def clone_forward(sym, blk, start, boff, vals, pos, prune):
+    """Scaled forward pass.
+
+    Returns ``(alpha, log_c)``: ``alpha`` (pos[-1],) holds the filtered distribution
+    ``P(x_t | s_1..s_t, u_1..u_{t-1})`` of every step over the clones of ``sym[t]``; ``log_c`` (T,)
+    the log scaling factors, whose sum is the log-likelihood (0 at episode starts).  Filtered
+    probabilities below ``prune`` are set to exactly 0 (0: exact inference), which lets both passes
+    skip the clones a confident model has ruled out.  A step the model gives probability zero
+    yields ``log_c = -inf`` and a zero message.
+    """
+    T = sym.size
+    alpha = np.zeros(pos[T])
+    log_c = np.zeros(T)
+    for t in range(T):
+        a0 = pos[t]
+        n = pos[t + 1] - a0
+        if t == 0 or blk[t - 1] < 0:
+            for j in range(n):
+                alpha[a0 + j] = 1.0 / n
+            continue
+        p0 = pos[t - 1]
+        o = boff[blk[t - 1]]
+        for i in range(a0 - p0):
+            ai = alpha[p0 + i]
+            if ai == 0.0:
+                continue
+            row = o + i * n
+            for j in range(n):
+                alpha[a0 + j] += ai * vals[row + j]
+        c = 0.0
+        for j in range(n):
+            c += alpha[a0 + j]
+        if c > 0.0:
+            for j in range(n):
+                a = alpha[a0 + j] / c
+                alpha[a0 + j] = a if a >= prune else 0.0
+        log_c[t] = np.log(c)
+    return alpha, log_c
+
+
+@njit(cache=True)
+def _clone_active(alpha, a0, n, out):
+    """Write the local indices ``j < n`` with ``alpha[a0 + j] > 0`` into ``out``; return how many."""
+    k = 0
+    for j in range(n):
+        if alpha[a0 + j] > 0.0:
+            out[k] = j
+            k += 1
+    return k
+
+
+@njit(cache=True)
+def clone_backward_counts(sym, blk, start, boff, vals, pos, alpha, log_c, counts, occupancy):
+    """Scaled backward pass that accumulates the E-step statistics in place.
+
+    ``counts`` (same layout as ``vals``) receives the expected transition counts
+    ``sum_t P(x_t = i, x_{t+1} = j | data)`` and ``occupancy`` (S,) the expected number of steps
+    spent in every clone.  ``alpha`` and ``log_c`` come from :func:`clone_forward` on the same model;
+    clones with ``alpha = 0`` are skipped (their backward message is never needed), so a step
+    costs (active clones at t) x (active clones at t + 1).
+    """
+    width = 0
+    for k in range(start.size - 1):
+        width = max(width, start[k + 1] - start[k])
+    beta, beta_next = np.zeros(width), np.zeros(width)
+    act, act_next = np.empty(width, dtype=np.int64), np.empty(width, dtype=np.int64)
+    n_next = 0
+    for t in range(sym.size - 1, -1, -1):
+        a0 = pos[t]
+        n_act = _clone_active(alpha, a0, pos[t + 1] - a0, act)
+        if blk[t] < 0:
+            for k in range(n_act):
+                beta[act[k]] = 1.0
+        else:
+            nn = pos[t + 2] - pos[t + 1]
+            inv_c = np.exp(-log_c[t + 1])
+            o = boff[blk[t]]
+            for k in range(n_act):
+                i = act[k]
+                row = o + i * nn
+                w = alpha[a0 + i] * inv_c
+                acc = 0.0
+                for kk in range(n_next):
+                    j = act_next[kk]
+                    v = vals[row + j] * beta_next[j]
+                    acc += v
+                    counts[row + j] += w * v
+                beta[i] = acc * inv_c
+        c0 = start[sym[t]]
+        for k in range(n_act):
+            i = act[k]
+            occupancy[c0 + i] += alpha[a0 + i] * beta[i]
+        beta, beta_next = beta_next, beta
+        act, act_next = act_next, act
+        n_next = n_act
+    return counts, occupancy
+
+
+@njit(cache=True)
+def _clone_backtrace(psi, pos, start, sym, t0, t1, last, path):
+    """Write the best path of steps ``t0 .. t1`` (inclusive) ending in local clone ``last``."""
+    k = last
+    for t in range(t1, t0 - 1, -1):
+        path[t] = start[sym[t]] + k
+        if t > t0:
+            k = psi[pos[t] + k]
+
+
+@njit(cache=True)
+def clone_viterbi(sym, blk, start, boff, log_vals, pos):
+    """Most probable clone sequence (max-product in log space; ties go to the lowest clone).
+
+    ``log_vals`` is ``log(vals)`` (``-inf`` for zeros).  Returns ``(path, log_p)``: ``path`` (T,)
+    global clone ids and ``log_p`` the summed log-probability of the best path of every episode,
+    including the uniform start ``-log n(sym[t0])``.
+    """
+    T = sym.size
+    psi = np.zeros(pos[T], dtype=np.int64)
+    width = 0
+    for k in range(start.size - 1):
+        width = max(width, start[k + 1] - start[k])
+    delta = np.empty(width)
+    delta_next = np.empty(width)
+    path = np.empty(T, dtype=np.int64)
+    log_p = 0.0
+    t0 = 0
+    for t in range(T):
+        n = pos[t + 1] - pos[t]
+        if t == t0:
+            for j in range(n):
+                delta[j] = -np.log(n)
+        else:
+            m = pos[t] - pos[t - 1]
+            o = boff[blk[t - 1]]
+            for j in range(n):
+                delta_next[j] = -np.inf
+                psi[pos[t] + j] = 0
+            for i in range(m):
+                di = delta[i]
+                if di == -np.inf:
+                    continue
+                row = o + i * n
+                for j in range(n):
+                    v = di + log_vals[row + j]
+                    if v > delta_next[j]:
+                        delta_next[j] = v
+                        psi[pos[t] + j] = i
+            delta, delta_next = delta_next, delta
+        if blk[t] < 0:
+            best = 0
+            for j in range(1, n):
+                if delta[j] > delta[best]:
+                    best = j
+            log_p += delta[best]
+            _clone_backtrace(psi, pos, start, sym, t0, t, best, path)
+            t0 = t + 1
+    return path, log_p
+
+
+@njit(cache=True)
+def clone_path_counts(path, sym, blk, start, boff, counts):
+    """Add the transitions of a hard clone path to ``counts`` (layout of ``vals``), in place."""
+    for t in range(sym.size):
+        b = blk[t]
+        if b < 0:
+            continue
+        s, s2 = sym[t], sym[t + 1]
+        nn = start[s2 + 1] - start[s2]
+        counts[boff[b] + (path[t] - start[s]) * nn + (path[t + 1] - start[s2])] += 1.0
+    return counts
+
+
+@njit(cache=True)
+def clone_normalize_blocks(counts, bsrc, bdst, bkey, n_keys, start, boff, pseudocount, smooth):
+    """M-step: turn counts into block probabilities.
+
+    Rows are grouped by a *row key*: row ``i`` of block ``b`` belongs to group
+    ``(bkey[b], start[bsrc[b]] + i)`` -- for ``P(x'|x,u)`` the key is the action, for the joint
+    ``P(u,x'|x)`` it is 0 for all blocks.  Every stored entry becomes
+    ``(count + pseudocount) / Z`` with ``Z = (group's count total) + smooth``; ``smooth`` stands for
+    the pseudocount mass of all entries that are not stored (``pseudocount`` times the number of
+    columns of a dense row).  Rows with ``Z = 0`` become 0.  Returns ``(vals, Z)``, ``Z`` of shape
+    ``(n_keys, S)``.
+    """
+    S = start[start.size - 1]
+    Z = np.zeros((n_keys, S))
+    B = bsrc.size
+    for b in range(B):
+        c0 = start[bsrc[b]]
+        n = start[bsrc[b] + 1] - c0
+        nn = start[bdst[b] + 1] - start[bdst[b]]
+        for i in range(n):
+            acc = 0.0
+            for j in range(nn):
+                acc += counts[boff[b] + i * nn + j]
+            Z[bkey[b], c0 + i] += acc
+    for key in range(n_keys):
+        for x in range(S):
+            Z[key, x] += smooth
+    vals = np.zeros(counts.size)
+    for b in range(B):
+        c0 = start[bsrc[b]]
+        n = start[bsrc[b] + 1] - c0
+        nn = start[bdst[b] + 1] - start[bdst[b]]
+        for i in range(n):
+            z = Z[bkey[b], c0 + i]
+            if z <= 0.0:
+                continue
+            row = boff[b] + i * nn
+            for j in range(nn):
+                vals[row + j] = (counts[row + j] + pseudocount) / z
+    return vals, Z
