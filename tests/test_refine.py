@@ -139,7 +139,7 @@ def test_gds_states_stay_fixed_through_refinement():
     gds = np.where(places == 7, 0, -1)  # place 7 (the only one showing symbol 5) is a GDS
     learner = MapLearner(n_clusters=5, n_states=6, refine="em").fit(noisy(sym, 6, 2), u, gds=gds)
     m = learner.map_
-    (gds_state,) = np.flatnonzero(m.state_gds_ == 0)
+    (gds_state,) = np.flatnonzero(m.state_gds == 0)
     assert np.all(learner.labels_[gds == 0] == gds_state)
     assert not np.any(learner.labels_[gds < 0] == gds_state)
     assert adjusted_rand_score(places, learner.labels_) == 1.0

@@ -32,13 +32,13 @@ def observation_models(m):
     """``(model_of_state, means, covariances)``: one Gaussian per observation model.  States with
     the same symbol (or GDS) share one, as the learner builds them; a map whose tied states differ
     is treated as one model per state."""
-    symbol, gds = m.state_symbol_, m.state_gds_
+    symbol, gds = m.state_symbol, m.state_gds
     key = np.where(symbol >= 0, symbol, max(int(symbol.max()) + 1, 0) + gds)
     _, first, model = np.unique(key, return_index=True, return_inverse=True)
-    means, cov = m.means_[first], m.covariances_[first]
-    if not (np.array_equal(means[model], m.means_)
-            and np.array_equal(cov[model], m.covariances_)):
-        return np.arange(m.n_states), m.means_, m.covariances_
+    means, cov = m.means[first], m.covariances[first]
+    if not (np.array_equal(means[model], m.means)
+            and np.array_equal(cov[model], m.covariances)):
+        return np.arange(m.n_states), m.means, m.covariances
     return model.ravel(), means, cov
 
 
@@ -55,7 +55,7 @@ def _transition_tables(m, smoothing: float) -> dict:
     """CSR over rows ``i * A + a`` of the seen transitions: probabilities ``(1 - eps) P`` and
     logs of ``(1 - eps) P + eps / S``, plus the row-constant terms of the smoothing."""
     S, A = m.n_states, m.n_actions
-    counts = m.transition_counts_.reshape(S * A, S)
+    counts = m.transition_counts.reshape(S * A, S)
     rows, cols = np.nonzero(counts)
     c = counts[rows, cols].astype(np.float64)
     total = counts.sum(axis=1).astype(np.float64)
@@ -80,7 +80,7 @@ def setup(m, observations, actions, gds, lengths, smoothing: float, prune: bool)
     if gds is None:
         g = np.full(X.shape[0], -2, dtype=np.int64)  # -2: no GDS labels at all
     else:
-        known = set(m.state_gds_[m.state_gds_ >= 0].tolist())
+        known = set(m.state_gds[m.state_gds >= 0].tolist())
         unknown = sorted(set(np.unique(g[g >= 0]).tolist()) - known)
         if unknown:
             raise ValueError(f"gds ids {unknown} are not states of this map")
@@ -90,9 +90,9 @@ def setup(m, observations, actions, gds, lengths, smoothing: float, prune: bool)
     model, means, cov = observation_models(m)
     S = m.n_states
     s = dict(X=X, u=u, g=g, is_start=is_start, is_end=is_end, model=model, means=means, cov=cov,
-             state_gds=m.state_gds_,
-             log_act=np.log((1 - smoothing) * m.action_probs_ + smoothing / m.n_actions),
-             log_init=np.log((1 - smoothing) * m.state_probs_ + smoothing / S),
+             state_gds=m.state_gds,
+             log_act=np.log((1 - smoothing) * m.action_probs + smoothing / m.n_actions),
+             log_init=np.log((1 - smoothing) * m.state_probs + smoothing / S),
              prune=K.prune_threshold(S, smoothing) if prune else np.inf)
     s.update(_transition_tables(m, smoothing))
     return s
