@@ -200,7 +200,7 @@ class TopologicalMap:
         s = inference.setup(self, X, [0], g, None, smoothing, prune=False)
         emit = inference.emission_row(s)
         if belief is None:
-            return _normalised(s["log_init"] + emit)
+            return _normalised(s.tables.log_init + emit)
         belief = np.asarray(belief, dtype=np.float64)
         if belief.shape != (self.n_states,) or not np.isclose(belief.sum(), 1.0):
             raise ValueError(f"belief must be a probability vector over the {self.n_states} states")
