@@ -1,3 +1,4 @@
+import dataclasses
 import math
 
 import numpy as np
@@ -104,6 +105,25 @@ def test_entropies_behave_as_the_paper_says():
     assert final["H_o"] == pytest.approx(learner.map_phase1_.entropies()["H_o"])
     for key in ("H_o", "H_u", "H_x"):
         assert final[key] == pytest.approx(e[-1][key])
+
+
+def test_maps_record_what_the_learner_knew_when_it_made_them():
+    X, u, _ = ring(n_steps=800, n_places=8, aliased=[(1, 5), (3, 7)])
+    learner = MapLearner(n_clusters=6, n_states=10).fit(X, u)
+    m1, m = learner.map_phase1_, learner.map_
+    assert m1.entropy_history == learner.entropies_[:1] and m1.split_history == []
+    assert m.entropy_history == learner.entropies_ and m.split_history == learner.split_history_
+    assert m1.info == {"covariance_type": "diag"}
+    assert m.info["stop_reason"] == learner.stop_reason_ and m.info["n_clusters"] == 6
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        m.info = {}
+    with pytest.raises(ValueError, match=r"states\[\*\]\.count must be one integer"):
+        dataclasses.replace(m, state_counts=m.state_counts[:-1])
+    changed = dataclasses.replace(m, info={"note": 1})
+    assert changed.info == {"note": 1} and "note" not in m.info
+    assert m.state_gds_ is m.state_gds  # the names the README once showed still read
+    assert np.array_equal(m.action_probs_, m.action_probs)
+    assert np.array_equal(m.transition_probs_, m.transition_probs)
 
 
 def test_probability_tables_sum_to_one():
