@@ -9,14 +9,14 @@ LOG2PI = np.log(2 * np.pi)
 def log_obs(m, X):
     """(T, S) Gaussian log-densities, computed directly (no matmul form)."""
     if m.covariance_type == "diag":
-        var = m.covariances_
-        d = X[:, None, :] - m.means_[None]
+        var = m.covariances
+        d = X[:, None, :] - m.means[None]
         return -0.5 * ((d**2 / var[None]).sum(-1) + np.log(var).sum(-1)[None]
                        + m.n_features * LOG2PI)
     out = np.empty((X.shape[0], m.n_states))
     for s in range(m.n_states):
-        chol = np.linalg.cholesky(m.covariances_[s])
-        z = np.linalg.solve(chol, (X - m.means_[s]).T)
+        chol = np.linalg.cholesky(m.covariances[s])
+        z = np.linalg.solve(chol, (X - m.means[s]).T)
         out[:, s] = -0.5 * ((z**2).sum(0) + 2 * np.log(np.diag(chol)).sum()
                             + m.n_features * LOG2PI)
     return out
@@ -25,14 +25,14 @@ def log_obs(m, X):
 def tables(m, X, u, g, smoothing):
     """Emissions (observation, GDS clamp, action term), log transitions and initial logs."""
     S, A = m.n_states, m.n_actions
-    log_act = np.log((1 - smoothing) * m.action_probs_ + smoothing / A)
+    log_act = np.log((1 - smoothing) * m.action_probs + smoothing / A)
     emit = log_obs(m, X)
     if g is not None:
-        is_gds = m.state_gds_ >= 0
-        allowed = np.where(g[:, None] >= 0, m.state_gds_[None] == g[:, None], ~is_gds[None])
+        is_gds = m.state_gds >= 0
+        allowed = np.where(g[:, None] >= 0, m.state_gds[None] == g[:, None], ~is_gds[None])
         emit = np.where(allowed, emit, -np.inf)
-    log_trans = np.log((1 - smoothing) * m.transition_probs_ + smoothing / S)
-    log_init = np.log((1 - smoothing) * m.state_probs_ + smoothing / S)
+    log_trans = np.log((1 - smoothing) * m.transition_probs + smoothing / S)
+    log_init = np.log((1 - smoothing) * m.state_probs + smoothing / S)
     return emit, log_act, log_trans, log_init
 
 

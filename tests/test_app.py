@@ -159,7 +159,7 @@ def test_run_in_process_writes_every_output(tmp_path, make_cfg):
     states = np.loadtxt(tmp_path / "states.csv", delimiter=",", skiprows=1, dtype=int)
     assert states.shape == (300, 4) and np.array_equal(states[:, 0], np.arange(300))
     assert np.array_equal(states[:, 3], traj.places)
-    assert np.array_equal(np.bincount(states[:, 2], minlength=12), m.state_counts_)
+    assert np.array_equal(np.bincount(states[:, 2], minlength=12), m.state_counts)
     metrics = json.loads((tmp_path / "metrics.json").read_text())
     for stage in ("phase1", "final"):
         assert set(metrics["ground_truth"][stage]) >= {"ari", "nmi", "purity", "compound_states"}

@@ -154,7 +154,7 @@ def test_map_marks_compound_states_in_its_legend(small_run):
     assert any(label.startswith("compound state") for label in labels)
     assert any(label.startswith("symbol") for label in labels)  # the room's tints, explained
     (coll,) = [c for c in ax.collections if c.get_label().startswith("compound state")]
-    assert (learner.map_.state_gds_ < 0).all()  # no GDS in a gridroom: every compound is drawn so
+    assert (learner.map_.state_gds < 0).all()  # no GDS in a gridroom: every compound is drawn so
     assert len(coll.get_offsets()) == compound_states(learner.labels_, traj.places) > 0
 
 

@@ -32,7 +32,7 @@ def random_map(rng, S=7, A=3, D=4, n_gds=1, cov="diag"):
 
 
 def random_sequence(rng, m, T):
-    X = m.means_[rng.integers(0, m.n_states, T)] + 0.5 * rng.standard_normal((T, m.n_features))
+    X = m.means[rng.integers(0, m.n_states, T)] + 0.5 * rng.standard_normal((T, m.n_features))
     u = rng.integers(0, m.n_actions, T)
     g = np.where(rng.random(T) < 0.1, 0, -1)
     return X, u, g

@@ -1,3 +1,4 @@
+import dataclasses
 import math
 
 import numpy as np
@@ -75,7 +76,7 @@ def test_gds_states_are_never_split():
     gds = np.where(places == 0, 0, -1)
     learner = MapLearner(n_clusters=4, n_states=6).fit(X, u, gds=gds)
     m = learner.map_
-    gds_states = np.flatnonzero(m.state_gds_ >= 0)
+    gds_states = np.flatnonzero(m.state_gds >= 0)
     assert gds_states.size == 1
     assert all(r["state"] not in gds_states for r in learner.split_history_)
     assert set(learner.labels_[places == 0]) == {gds_states[0]}
@@ -87,8 +88,8 @@ def test_gds_state_stays_whole_even_when_it_is_the_only_candidate():
     X, u, places = ring(n_steps=300, aliased=[])
     gds = np.where(places == 2, 0, -1)
     learner = MapLearner(n_clusters=5, stopping=MinGain(0.0, max_states=20)).fit(X, u, gds=gds)
-    assert all(learner.map_.state_gds_[r["state"]] < 0 for r in learner.split_history_)
-    assert (learner.map_.state_parent_[learner.map_.state_gds_ >= 0] == -1).all()
+    assert all(learner.map_.state_gds[r["state"]] < 0 for r in learner.split_history_)
+    assert (learner.map_.state_parent[learner.map_.state_gds >= 0] == -1).all()
 
 
 def test_entropies_behave_as_the_paper_says():
@@ -106,13 +107,32 @@ def test_entropies_behave_as_the_paper_says():
         assert final[key] == pytest.approx(e[-1][key])
 
 
+def test_maps_record_what_the_learner_knew_when_it_made_them():
+    X, u, _ = ring(n_steps=800, n_places=8, aliased=[(1, 5), (3, 7)])
+    learner = MapLearner(n_clusters=6, n_states=10).fit(X, u)
+    m1, m = learner.map_phase1_, learner.map_
+    assert m1.entropy_history == learner.entropies_[:1] and m1.split_history == []
+    assert m.entropy_history == learner.entropies_ and m.split_history == learner.split_history_
+    assert m1.info == {"covariance_type": "diag"}
+    assert m.info["stop_reason"] == learner.stop_reason_ and m.info["n_clusters"] == 6
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        m.info = {}
+    with pytest.raises(ValueError, match=r"states\[\*\]\.count must be one integer"):
+        dataclasses.replace(m, state_counts=m.state_counts[:-1])
+    changed = dataclasses.replace(m, info={"note": 1})
+    assert changed.info == {"note": 1} and "note" not in m.info
+    assert m.state_gds_ is m.state_gds  # the names the README once showed still read
+    assert np.array_equal(m.action_probs_, m.action_probs)
+    assert np.array_equal(m.transition_probs_, m.transition_probs)
+
+
 def test_probability_tables_sum_to_one():
     X, u, _ = ring(n_steps=300)
     m = MapLearner(n_clusters=5, n_states=7).fit(X, u).map_
-    assert np.allclose(m.action_probs_.sum(axis=1), 1)
-    assert np.allclose(m.transition_probs_.sum(axis=2), 1)
-    assert m.transition_probs_.shape == (7, 2, 7) and m.action_probs_.shape == (7, 2)
-    assert m.state_probs_.sum() == pytest.approx(1)
+    assert np.allclose(m.action_probs.sum(axis=1), 1)
+    assert np.allclose(m.transition_probs.sum(axis=2), 1)
+    assert m.transition_probs.shape == (7, 2, 7) and m.action_probs.shape == (7, 2)
+    assert m.state_probs.sum() == pytest.approx(1)
 
 
 def test_same_seed_gives_identical_map(tmp_path):
@@ -128,8 +148,8 @@ def test_no_transition_is_counted_across_episodes():
     X, u, _ = ring(n_steps=300)
     lengths = [100, 120, 80]
     m = MapLearner(n_clusters=5, n_states=6).fit(X, u, lengths=lengths).map_
-    assert m.transition_counts_.sum() == 300 - 3
-    assert m.action_counts_.sum() == 300
+    assert m.transition_counts.sum() == 300 - 3
+    assert m.action_counts.sum() == 300
 
 
 def test_target_state_count_is_reached_and_stop_rules_are_swappable():
@@ -232,14 +252,14 @@ def test_save_load_roundtrip_and_graph_exports(tmp_path):
     m = MapLearner(n_clusters=5, n_states=6).fit(X, u, action_names=["fwd", "back"]).map_
     m.save(tmp_path / "map.json")
     m2 = TopologicalMap.load(tmp_path / "map.json")
-    assert np.array_equal(m2.transition_counts_, m.transition_counts_)
-    assert np.allclose(m2.means_, m.means_) and np.allclose(m2.covariances_, m.covariances_)
-    assert m2.split_history_ == m.split_history_ and m2.action_names == ["fwd", "back"]
+    assert np.array_equal(m2.transition_counts, m.transition_counts)
+    assert np.allclose(m2.means, m.means) and np.allclose(m2.covariances, m.covariances)
+    assert m2.split_history == m.split_history and m2.action_names == ["fwd", "back"]
     assert np.array_equal(m2.predict(X, u), m.predict(X, u))
     G = m.to_networkx(min_prob=0.8)
     assert G.number_of_nodes() == 6
     for a, b, d in G.edges(data=True):
-        assert all(m.transition_probs_[a, act, b] > 0.8 for act in d["actions"])
+        assert all(m.transition_probs[a, act, b] > 0.8 for act in d["actions"])
         assert set(d["action_names"]) <= {"fwd", "back"}
     # on a clean ring every state has exactly one successor per action
     assert G.number_of_edges() == 12

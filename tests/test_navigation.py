@@ -30,10 +30,10 @@ def tiny_map():
 def brute_force_beliefs(m, X, u):
     """P(x_t | o_1..t, u_1..t-1) by summing over every state path (smoothed tables)."""
     S, A = m.n_states, m.n_actions
-    P0 = (1 - SMOOTH) * m.state_probs_ + SMOOTH / S
-    PU = (1 - SMOOTH) * m.action_probs_ + SMOOTH / A
-    PT = (1 - SMOOTH) * m.transition_probs_ + SMOOTH / S
-    var, mean = m.covariances_[:, 0], m.means_[:, 0]
+    P0 = (1 - SMOOTH) * m.state_probs + SMOOTH / S
+    PU = (1 - SMOOTH) * m.action_probs + SMOOTH / A
+    PT = (1 - SMOOTH) * m.transition_probs + SMOOTH / S
+    var, mean = m.covariances[:, 0], m.means[:, 0]
     dens = np.exp(-0.5 * (X[:, :1] - mean) ** 2 / var) / np.sqrt(2 * np.pi * var)  # (T, S)
     out = []
     for t in range(len(X)):

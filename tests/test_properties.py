@@ -111,20 +111,20 @@ def test_splitting_refines_phase_one_along_the_parent_links(case):
     assert m.n_states == learner.n_states or learner.stop_reason_ == "no state can be split"
     for s in range(m.n_states):
         root = s
-        while m.state_parent_[root] >= 0:
-            assert m.state_parent_[root] < root  # a state is split from an older one
-            root = int(m.state_parent_[root])
+        while m.state_parent[root] >= 0:
+            assert m.state_parent[root] < root  # a state is split from an older one
+            root = int(m.state_parent[root])
         assert root < m1.n_states
         # every step of a final state had the same phase-1 state: the root of its parent links
         assert set(x1[x == s].tolist()) <= {root}
-        assert m.state_symbol_[s] == m1.state_symbol_[root]
-        assert m.state_gds_[s] == m1.state_gds_[root]
+        assert m.state_symbol[s] == m1.state_symbol[root]
+        assert m.state_gds[s] == m1.state_gds[root]
     # the phase-1 state of a step is its K-means symbol, or its GDS state
     plain = x1 < learner.n_clusters_
-    assert np.array_equal(m1.state_symbol_[x1[plain]], x1[plain])
+    assert np.array_equal(m1.state_symbol[x1[plain]], x1[plain])
     if w.gds is not None:
         assert np.array_equal(plain, w.gds < 0)
-        assert np.all(m.state_parent_[m.state_gds_ >= 0] == -1)  # GDS states are never split
+        assert np.all(m.state_parent[m.state_gds >= 0] == -1)  # GDS states are never split
 
 
 @LEARN

@@ -139,7 +139,7 @@ def test_gds_states_stay_fixed_through_refinement():
     gds = np.where(places == 7, 0, -1)  # place 7 (the only one showing symbol 5) is a GDS
     learner = MapLearner(n_clusters=5, n_states=6, refine="em").fit(noisy(sym, 6, 2), u, gds=gds)
     m = learner.map_
-    (gds_state,) = np.flatnonzero(m.state_gds_ == 0)
+    (gds_state,) = np.flatnonzero(m.state_gds == 0)
     assert np.all(learner.labels_[gds == 0] == gds_state)
     assert not np.any(learner.labels_[gds < 0] == gds_state)
     assert adjusted_rand_score(places, learner.labels_) == 1.0
@@ -180,6 +180,23 @@ def test_the_guard_keeps_the_split_map_when_refinement_only_fragments_it(guard):
         assert learner.map_ is learner.map_split_ and learner.map_.n_states == 8
     else:
         assert learner.map_.n_states == 12 and "kept" not in learner.refine_info_
+
+
+@pytest.mark.parametrize("guard", [True, False])
+def test_the_map_kept_records_the_refinement(guard):
+    from topomap import MapLearner
+
+    sym, u, places = ring_walk(3000, RING, 0)
+    learner = MapLearner(n_clusters=6, n_states=8, refine=_Fragments(guard)).fit(noisy(sym, 6), u)
+    m = learner.map_
+    assert m.info["refine_info"] == learner.refine_info_ and "_Fragments" in m.info["refine"]
+    assert m.entropy_history == learner.entropies_
+    if guard:
+        assert m is learner.map_split_ and "refined_from" not in m.info
+    else:
+        assert m.entropy_history[-1]["stage"] == "refined" and len(m.info["refined_from"]) == 12
+        assert "refine" not in learner.map_split_.info
+        assert learner.map_split_.entropy_history == learner.entropies_[:-1]
 
 
 def test_the_guard_keeps_a_refinement_that_recovers_the_places():

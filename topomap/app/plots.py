@@ -229,8 +229,8 @@ def plot_states(ax, traj, labels, world=None, title=""):
 
 def _table(ax, m, s, title):
     """P(x'|x=s, u) for the actions state ``s`` took, as a text table."""
-    P = m.transition_probs_[s]
-    C = m.transition_counts_[s]
+    P = m.transition_probs[s]
+    C = m.transition_counts[s]
     rows = []
     for a in np.flatnonzero(C.sum(axis=1)):
         nxt = np.flatnonzero(C[a])
@@ -365,7 +365,7 @@ def plot_map(ax, traj, learner, world=None, min_prob=0.8):
     diameter = 11.0 if numbered else 4.0  # points
     P = _spread(means[keep], 1.1 * diameter * _data_per_point(ax)) if numbered else means[keep]
     _arcs(ax, G, dict(zip(keep.tolist(), P)), diameter)
-    kinds = np.where(m.state_gds_[keep] >= 0, 2, 0)
+    kinds = np.where(m.state_gds[keep] >= 0, 2, 0)
     if traj.places is not None:
         compound = compound_mask(learner.labels_, traj.places, m.n_states)
         kinds[(kinds == 0) & compound[keep]] = 1

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import copy
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from sklearn.base import BaseEstimator
@@ -161,15 +161,15 @@ class MapLearner(BaseEstimator):
             self._record_split(splitter, best)
         t2 = time.perf_counter()
         self.labels_ = self.labels_split_ = splitter.labels
-        self.map_ = self.map_split_ = self._make_map(data, splitter)
-        self.map_.info.update({
+        info = {
             "n_clusters": self.n_clusters_, "stop_reason": self.stop_reason_,
             "criterion": repr(criterion), "stopping": repr(stopping),
             "clusters": repr(clusters), "metric": getattr(metric, "name", repr(metric)),
-        })
-        self.timings_ = {"phase1": t1 - t0, "phase2": t2 - t1}
+        }
         if hasattr(self, "size_choice_"):
-            self.map_.info["size_choice"] = {k: self.size_choice_[k] for k in ("criterion", "chosen")}
+            info["size_choice"] = {k: self.size_choice_[k] for k in ("criterion", "chosen")}
+        self.map_ = self.map_split_ = self._make_map(data, splitter, info)
+        self.timings_ = {"phase1": t1 - t0, "phase2": t2 - t1}
         if refinement is not None:
             self._refine(data, splitter, refinement)
             self.timings_["refine"] = time.perf_counter() - t2
@@ -211,7 +211,8 @@ class MapLearner(BaseEstimator):
             split_history=self.split_history_, info=dict(self.map_split_.info))
         self.refine_info_ = dict(fit.info)
         if getattr(refinement, "guard", False) and not self._keep_refined(data, refined, fit.labels):
-            self.map_.info.update({"refine": repr(refinement), "refine_info": self.refine_info_})
+            self.map_ = self.map_split_ = replace(self.map_split_, info=dict(
+                self.map_split_.info, refine=repr(refinement), refine_info=self.refine_info_))
             return
         self.labels_, self.map_ = fit.labels, refined
         pairs = np.unique(fit.labels * splitter.n_states + self.labels_split_, return_counts=True)
@@ -220,9 +221,9 @@ class MapLearner(BaseEstimator):
             origin[code // splitter.n_states] = code % splitter.n_states
         self.entropies_.append(dict(self.map_.entropies(), n_states=self.map_.n_states,
                                     iteration=len(self.split_history_) + 1, stage="refined"))
-        self.map_.entropies_ = [dict(e) for e in self.entropies_]
-        self.map_.info.update({"refine": repr(refinement), "refine_info": self.refine_info_,
-                               "refined_from": origin.tolist()})
+        self.map_ = replace(self.map_, entropy_history=self.entropies_, info=dict(
+            self.map_.info, refine=repr(refinement), refine_info=self.refine_info_,
+            refined_from=origin.tolist()))
         self._emit("refine", labels=self.labels_, entropies=self.entropies_[-1], map=self.map_)
 
     def _phase1(self, data: _Data, clusters, metric, criterion, stopping) -> Splitter:
@@ -247,9 +248,9 @@ class MapLearner(BaseEstimator):
                             symbol=list(range(ns)) + [-1] * gds_ids.size,
                             gds=[-1] * ns + gds_ids.tolist(), obs_entropy=np.zeros(0),
                             criterion=criterion, recompute_all=self._recompute_all)
-        m = self.map_phase1_ = self._make_map(data, splitter)
+        m = self._make_map(data, splitter)
         self.entropies_.append(dict(m.entropies(), n_states=m.n_states, iteration=0))
-        m.entropies_ = [dict(e) for e in self.entropies_]
+        m = self.map_phase1_ = replace(m, entropy_history=self.entropies_)
         splitter.obs_entropy = m.state_entropies()
         self._emit("phase1", labels=labels, entropies=self.entropies_[-1], map=m)
         return splitter
@@ -359,13 +360,13 @@ class MapLearner(BaseEstimator):
         for cb in self.callbacks:
             cb(event, dict(info, learner=self))
 
-    def _make_map(self, data: _Data, splitter: Splitter) -> TopologicalMap:
+    def _make_map(self, data: _Data, splitter: Splitter, info=None) -> TopologicalMap:
         return TopologicalMap.from_labels(
             data.X, data.u, splitter.labels, lengths=data.lengths, state_symbol=splitter.symbol,
             state_gds=splitter.gds, state_parent=splitter.parent, n_actions=data.n_actions,
             covariance_type=self.covariance_type, reg_covar=self.reg_covar,
             action_names=data.action_names, gds_names=data.gds_names,
-            split_history=self.split_history_, entropies=self.entropies_,
+            split_history=self.split_history_, entropy_history=self.entropies_, info=info,
         )
 
     # ------------------------------------------------------------------ conveniences

@@ -1,4 +1,6 @@
-"""The map: its data, its files (JSON, GraphML), inference on it (forward, filter, Viterbi), planning."""
+"""The map: its data, estimation and entropies (``model``), its files (``files``: JSON, GraphML,
+networkx), inference on it (``inference`` over the compiled ``kernels``: forward, filter, Viterbi),
+its Gaussian observation models (``observations``) and planning (``planning``)."""
 
 from .model import TopologicalMap
 

@@ -1,7 +1,9 @@
-"""Compiled kernels: inference on a learned map, and EM on clone-structured models.
+"""Compiled kernels of inference on a learned map: forward (score, filter) and Viterbi (predict)
+over sparse, smoothed transitions, one chunk of steps at a time (``*_chunk``).
 
-Inference on a map (``*_chunk``): forward (score, filter) and Viterbi (predict) over sparse,
-smoothed transitions.
+The tables the kernels share come as named tuples: :class:`Steps` (one chunk's actions, GDS
+labels and episode marks), :class:`StateTables` (the per-state terms) and :class:`Transitions`
+(the smoothed transitions), all made by :func:`topomap.core.map.inference.setup`.
 
 The smoothed transition matrix of action ``a`` is
 
@@ -28,11 +30,49 @@ the initial distribution.  All kernels work on one chunk of steps at a time and 
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 from numba import njit
 
-__all__ = ["prune_threshold", "emissions", "forward_chunk", "filter_chunk", "viterbi_chunk",
-           "backtrack_chunk"]
+__all__ = ["Steps", "StateTables", "Transitions", "prune_threshold", "emissions",
+           "predict_forward", "forward_chunk", "filter_chunk", "viterbi_chunk", "backtrack_chunk"]
+
+
+class Steps(NamedTuple):
+    """Per-step inputs of a chunk (or of a whole sequence)."""
+
+    u: np.ndarray  # (T,) int64 action of every step
+    g: np.ndarray  # (T,) int64 GDS of every step: -2 no GDS labels at all, -1 none, >= 0 that GDS
+    is_start: np.ndarray  # (T,) bool: the first step of an episode
+    is_end: np.ndarray  # (T,) bool: the last step of an episode
+
+
+class StateTables(NamedTuple):
+    """Per-state terms of the recursions (smoothed as :func:`~topomap.core.map.inference.setup`
+    says)."""
+
+    log_act: np.ndarray  # (S, A) log P(u|x)
+    model: np.ndarray  # (S,) int64 observation model of each state (a column of the densities)
+    state_gds: np.ndarray  # (S,) int64 GDS id of each state, -1 for ordinary states
+    init: np.ndarray  # (S,) initial distribution of an episode
+    log_init: np.ndarray  # (S,) its log
+    prune: float  # pruning distance in nats (inf: no pruning)
+
+
+class Transitions(NamedTuple):
+    """The smoothed transitions (see above): the seen ones as CSR over rows ``i * A + a``."""
+
+    indptr: np.ndarray  # (S * A + 1,) int64
+    indices: np.ndarray  # next state of every seen transition
+    data: np.ndarray  # its (1 - eps) P
+    logdata: np.ndarray  # log((1 - eps) P + eps / S)
+    seen: np.ndarray  # (S * A,) bool: whether row i * A + a was seen in training
+    n_actions: int  # A
+    eps_s: float  # eps / S
+    uni: float  # (1 - eps) / S
+    log_eps_s: float  # log(eps / S)
+    log_uni: float  # log((1 - eps) / S + eps / S)
 
 
 def prune_threshold(n_states: int, smoothing: float, margin: float = 50.0) -> float:
@@ -64,29 +104,34 @@ def emissions(logp_row, log_act, model, state_gds, u_t, g_t, prune, out, live):
 
 
 @njit(cache=True)
-def _predict_forward(alpha, live, n_live, a, A, indptr, indices, data, seen, eps_s, uni, pred):
-    """``pred = alpha @ T_a`` for a normalised ``alpha`` that is zero outside ``live``."""
+def predict_forward(alpha, live, n_live, a, trans, pred):
+    """``pred = alpha @ T_a`` for a normalised ``alpha`` that is zero outside ``live``
+    (``trans``: :class:`Transitions`)."""
+    indptr, indices, data, seen = trans.indptr, trans.indices, trans.data, trans.seen
     unseen_mass = 0.0
     pred[:] = 0.0
     for k in range(n_live):
         i = live[k]
-        r = i * A + a
+        r = i * trans.n_actions + a
         if not seen[r]:
             unseen_mass += alpha[i]
             continue
         for p in range(indptr[r], indptr[r + 1]):
             pred[indices[p]] += alpha[i] * data[p]
-    base = eps_s + uni * unseen_mass
+    base = trans.eps_s + trans.uni * unseen_mass
     for j in range(pred.size):
         pred[j] += base
 
 
 @njit(cache=True)
-def forward_chunk(logp, u, g, is_start, log_act, model, state_gds, init, indptr, indices, data,
-                  seen, eps_s, uni, prune, alpha, live, n_live, prev_action):
-    """Scaled forward pass over one chunk.  ``alpha``/``live``/``n_live``/``prev_action`` carry the
-    state between chunks.  Returns ``(sum of log-likelihood increments, n_live, prev_action)``."""
-    S, A = alpha.size, log_act.shape[1]
+def forward_chunk(logp, steps, tables, trans, alpha, live, n_live, prev_action):
+    """Scaled forward pass over one chunk: ``logp`` its (rows, models) log-densities, ``steps``
+    its :class:`Steps`, ``tables`` the :class:`StateTables`, ``trans`` the :class:`Transitions`.
+    ``alpha``/``live``/``n_live``/``prev_action`` carry the state between chunks.  Returns
+    ``(sum of log-likelihood increments, n_live, prev_action)``."""
+    u, g, is_start = steps.u, steps.g, steps.is_start
+    log_act, model, state_gds, prune = tables.log_act, tables.model, tables.state_gds, tables.prune
+    S = alpha.size
     e = np.empty(S)
     pred = np.empty(S)
     new_live = np.empty(S, dtype=np.int64)
@@ -94,10 +139,9 @@ def forward_chunk(logp, u, g, is_start, log_act, model, state_gds, init, indptr,
     for t in range(logp.shape[0]):
         best, n_new = emissions(logp[t], log_act, model, state_gds, u[t], g[t], prune, e, new_live)
         if is_start[t]:
-            pred[:] = init
+            pred[:] = tables.init
         else:
-            _predict_forward(alpha, live, n_live, prev_action, A, indptr, indices, data, seen,
-                             eps_s, uni, pred)
+            predict_forward(alpha, live, n_live, prev_action, trans, pred)
         c = 0.0
         alpha[:] = 0.0
         for k in range(n_new):
@@ -136,9 +180,11 @@ def _argmax_unseen(delta, live, n_live, seen, a, A):
 
 
 @njit(cache=True)
-def _predict_viterbi(delta, live, n_live, a, A, indptr, indices, logdata, seen, log_eps_s,
-                     log_uni, best, arg):
-    """``best[j] = max_i delta[i] + log T_a[i, j]`` and its smallest argmax ``arg[j]``."""
+def _predict_viterbi(delta, live, n_live, a, trans, best, arg):
+    """``best[j] = max_i delta[i] + log T_a[i, j]`` and its smallest argmax ``arg[j]``
+    (``trans``: :class:`Transitions`)."""
+    indptr, indices, logdata, seen = trans.indptr, trans.indices, trans.logdata, trans.seen
+    A, log_eps_s, log_uni = trans.n_actions, trans.log_eps_s, trans.log_uni
     best[:] = -np.inf
     arg[:] = -1
     for k in range(n_live):  # live is sorted: increasing i, so '>' keeps the smallest index
@@ -163,14 +209,15 @@ def _predict_viterbi(delta, live, n_live, a, A, indptr, indices, logdata, seen, 
 
 
 @njit(cache=True)
-def viterbi_chunk(logp, u, g, is_start, is_end, log_act, model, state_gds, log_init, indptr,
-                  indices, logdata, seen, log_eps_s, log_uni, prune, delta, live, n_live,
-                  prev_action, back, end_state):
-    """Viterbi recursion over one chunk (log space).  ``delta``/``live``/``n_live``/``prev_action``
-    carry the state between chunks.  With ``back.shape[0] > 0`` the best predecessor of every
-    state at every step is written to ``back`` and, at the last step of an episode, the best
-    final state to ``end_state``.  Returns ``(n_live, prev_action)``."""
-    S, A = delta.size, log_act.shape[1]
+def viterbi_chunk(logp, steps, tables, trans, delta, live, n_live, prev_action, back, end_state):
+    """Viterbi recursion over one chunk (log space); arguments as :func:`forward_chunk`.
+    ``delta``/``live``/``n_live``/``prev_action`` carry the state between chunks.  With
+    ``back.shape[0] > 0`` the best predecessor of every state at every step is written to
+    ``back`` and, at the last step of an episode, the best final state to ``end_state``.
+    Returns ``(n_live, prev_action)``."""
+    u, g, is_start, is_end = steps.u, steps.g, steps.is_start, steps.is_end
+    log_act, model, state_gds, prune = tables.log_act, tables.model, tables.state_gds, tables.prune
+    S = delta.size
     e = np.empty(S)
     best = np.empty(S)
     arg = np.empty(S, dtype=np.int64)
@@ -179,10 +226,9 @@ def viterbi_chunk(logp, u, g, is_start, is_end, log_act, model, state_gds, log_i
     for t in range(logp.shape[0]):
         _, n_new = emissions(logp[t], log_act, model, state_gds, u[t], g[t], prune, e, new_live)
         if is_start[t]:
-            best[:] = log_init
+            best[:] = tables.log_init
         else:
-            _predict_viterbi(delta, live, n_live, prev_action, A, indptr, indices, logdata, seen,
-                             log_eps_s, log_uni, best, arg)
+            _predict_viterbi(delta, live, n_live, prev_action, trans, best, arg)
             if store:
                 back[t, :] = arg
         for k in range(n_new):
@@ -211,14 +257,14 @@ def backtrack_chunk(back, is_start, is_end, end_state, carry, path):
 
 
 @njit(cache=True)
-def filter_chunk(logp, u, g, is_start, log_act, model, state_gds, init, indptr, indices, data,
-                 seen, eps_s, uni, prune, alpha, live, n_live, prev_action, out):
+def filter_chunk(logp, steps, tables, trans, alpha, live, n_live, prev_action, out):
     """Forward filtering over one chunk: ``out[t]`` is the belief ``P(x_t | o_1..o_t,
     u_1..u_{t-1})`` (the step's action, chosen after it, is not evidence yet).  ``alpha`` carries
     the belief times ``P(u_t|x)`` between steps and chunks; arguments as :func:`forward_chunk`.
     Returns ``(n_live, prev_action)``."""
+    u, g, is_start = steps.u, steps.g, steps.is_start
+    log_act, model, state_gds, prune = tables.log_act, tables.model, tables.state_gds, tables.prune
     S = alpha.size
-    A = log_act.shape[1]
     no_act = np.zeros((S, 1))
     e = np.empty(S)
     pred = np.empty(S)
@@ -226,10 +272,9 @@ def filter_chunk(logp, u, g, is_start, log_act, model, state_gds, init, indptr, 
     for t in range(logp.shape[0]):
         best, n_new = emissions(logp[t], no_act, model, state_gds, 0, g[t], prune, e, new_live)
         if is_start[t]:
-            pred[:] = init
+            pred[:] = tables.init
         else:
-            _predict_forward(alpha, live, n_live, prev_action, A, indptr, indices, data, seen,
-                             eps_s, uni, pred)
+            predict_forward(alpha, live, n_live, prev_action, trans, pred)
         out[t, :] = 0.0
         c = 0.0
         for k in range(n_new):

@@ -72,7 +72,7 @@ def _full_covariances(X, model, means, n_models, reg):
 
 def observation_models(X, model, n_models, covariance_type="diag", reg_covar=1e-3):
     """Gaussian of every model id: ``(means (M, D), covariances (M, D[, D]), counts (M,))``,
-    the same floats as ``topomap.map.TopologicalMap.from_labels``."""
+    the same floats as ``TopologicalMap.from_labels`` (:mod:`topomap.core.map.model`)."""
     T = X.shape[0]
     n_m = np.bincount(model, minlength=n_models).astype(np.float64)
     means = model_sums(X, model, n_models) / np.maximum(n_m, 1)[:, None]

@@ -211,7 +211,7 @@ def refine_fit(sym, u, lengths, n_actions: int, n_symbols: int, split_state_symb
                random_state: int = 0) -> CloneFit:
     """The refinement phase after the paper's split.
 
-    ``split_state_symbol`` is the symbol of every split state (``map_.state_symbol_``, -1 for GDS).
+    ``split_state_symbol`` is the symbol of every split state (``map_.state_symbol``, -1 for GDS).
 
     1. Structure on a prefix of ``max(prefix, prefix_visits x split states)`` steps (about
        ``prefix_visits`` visits per place): ``clone_factor`` x (split states of the symbol) + spare
