@@ -2,8 +2,8 @@
 
 A :class:`Layout` ties one discrete sequence (symbols, actions, episode lengths) to a clone budget
 (clones per symbol) and the sparse transition blocks that sequence needs (one per observed
-``(action, symbol, next symbol)`` triple; see :mod:`topomap.core.map.kernels`).  Parameters are plain count arrays
-in the block layout; probabilities are derived from counts by :func:`m_step`.
+``(action, symbol, next symbol)`` triple; see :mod:`topomap.core.refine.kernels`).  Parameters are
+plain count arrays in the block layout; probabilities are derived from counts by :func:`m_step`.
 
 Two normalisations are offered (``joint``):
 
@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .kernels import (clone_backward_counts, clone_forward, clone_normalize_blocks,
+from .kernels import (CloneTables, clone_backward_counts, clone_forward, clone_normalize_blocks,
                       clone_path_counts, clone_step_offsets, clone_viterbi)
 
 __all__ = [
@@ -53,8 +53,11 @@ class Layout:
     triples : (B, 3) int64 -- ``(action, symbol, next symbol)`` of every block
     start : (K + 1,) int64 -- clones of symbol ``k`` are ``start[k] .. start[k + 1] - 1``
     boff : (B + 1,) int64 -- block ``b`` occupies ``boff[b] .. boff[b + 1] - 1`` of a count array
-    pos : (T + 1,) int64 -- per-step offsets of the clone vectors (:func:`topomap.core.map.kernels.clone_step_offsets`)
+    pos : (T + 1,) int64 -- per-step offsets of the clone vectors
+        (:func:`topomap.core.refine.kernels.clone_step_offsets`)
     n_actions : int
+
+    ``tables`` bundles what the kernels read (:class:`topomap.core.refine.kernels.CloneTables`).
     """
 
     sym: np.ndarray
@@ -65,6 +68,11 @@ class Layout:
     boff: np.ndarray
     pos: np.ndarray
     n_actions: int
+
+    @property
+    def tables(self) -> CloneTables:
+        """``sym``, ``blk``, ``start``, ``boff`` and ``pos``, as the kernels take them."""
+        return CloneTables(self.sym, self.blk, self.start, self.boff, self.pos)
 
     @property
     def n_clones(self) -> int:
@@ -126,22 +134,23 @@ def _row_keys(lay: Layout, joint: bool):
 
 
 def m_step(lay: Layout, counts, pseudocount: float, joint: bool) -> np.ndarray:
-    """Block probabilities from counts (see :func:`topomap.core.map.kernels.clone_normalize_blocks`)."""
+    """Block probabilities from counts (see
+    :func:`topomap.core.refine.kernels.clone_normalize_blocks`)."""
     key, n_keys, width = _row_keys(lay, joint)
-    vals, _ = clone_normalize_blocks(counts, np.ascontiguousarray(lay.triples[:, 1]),
-                               np.ascontiguousarray(lay.triples[:, 2]), key, n_keys, lay.start,
-                               lay.boff, pseudocount, pseudocount * width)
+    vals, _ = clone_normalize_blocks(lay.tables, counts, np.ascontiguousarray(lay.triples[:, 1]),
+                                     np.ascontiguousarray(lay.triples[:, 2]), key, n_keys,
+                                     pseudocount, pseudocount * width)
     return vals
 
 
 def e_step(lay: Layout, vals, prune: float = 0.0):
     """Expected counts, expected clone occupancy and log-likelihood under ``vals`` (``prune``: see
-    :func:`topomap.core.map.kernels.clone_forward`)."""
-    alpha, log_c = clone_forward(lay.sym, lay.blk, lay.start, lay.boff, vals, lay.pos, prune)
+    :func:`topomap.core.refine.kernels.clone_forward`)."""
+    tables = lay.tables
+    alpha, log_c = clone_forward(tables, vals, prune)
     counts = np.zeros(vals.size)
     occupancy = np.zeros(lay.n_clones)
-    clone_backward_counts(lay.sym, lay.blk, lay.start, lay.boff, vals, lay.pos, alpha, log_c, counts,
-                    occupancy)
+    clone_backward_counts(tables, vals, alpha, log_c, counts, occupancy)
     return counts, occupancy, float(log_c.sum())
 
 
@@ -170,7 +179,7 @@ def decode(lay: Layout, counts, pseudocount: float, joint: bool):
     vals = m_step(lay, counts, pseudocount, joint)
     with np.errstate(divide="ignore"):
         log_vals = np.log(vals)
-    return clone_viterbi(lay.sym, lay.blk, lay.start, lay.boff, log_vals, lay.pos)
+    return clone_viterbi(lay.tables, log_vals)
 
 
 def viterbi_training(lay: Layout, counts, joint: bool, *, pseudocount: float = 0.0,
@@ -186,7 +195,7 @@ def viterbi_training(lay: Layout, counts, joint: bool, *, pseudocount: float = 0
         if history and log_p <= history[-1] + 1e-9 * abs(history[-1]):
             break
         path, history = new_path, history + [log_p]
-        counts = clone_path_counts(path, lay.sym, lay.blk, lay.start, lay.boff, np.zeros(counts.size))
+        counts = clone_path_counts(path, lay.tables, np.zeros(counts.size))
     return path, counts, history
 
 
@@ -212,8 +221,9 @@ def init_from_path(lay: Layout, path, n_steps: int, rng, noise: float = 1.0) -> 
     """
     blk = lay.blk[:n_steps].copy()
     blk[n_steps - 1] = -1
-    counts = clone_path_counts(np.ascontiguousarray(path[:n_steps]), lay.sym[:n_steps], blk, lay.start,
-                         lay.boff, np.zeros(int(lay.boff[-1])))
+    prefix = CloneTables(lay.sym[:n_steps], blk, lay.start, lay.boff, lay.pos[:n_steps + 1])
+    counts = clone_path_counts(np.ascontiguousarray(path[:n_steps]), prefix,
+                               np.zeros(int(lay.boff[-1])))
     return counts * (lay.sym.size / n_steps) + noise * rng.random(counts.size)
 
 
