@@ -23,6 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .convergence import ConvergenceMonitor
 from .kernels import (CloneTables, clone_backward_counts, clone_forward, clone_normalize_blocks,
                       clone_path_counts, clone_step_offsets, clone_viterbi)
 
@@ -154,24 +155,21 @@ def e_step(lay: Layout, vals, prune: float = 0.0):
     return counts, occupancy, float(log_c.sum())
 
 
-def baum_welch(lay: Layout, counts, pseudocount: float, joint: bool, *, max_iter: int = 1000,
-               tol: float = 1e-6, min_iter: int = 10, prune: float = 0.0):
+def baum_welch(lay: Layout, counts, pseudocount: float, joint: bool, *, max_iter: int,
+               tol: float, min_iter: int = 10, prune: float = 0.0):
     """Baum-Welch from ``counts`` until the log-likelihood gains less than ``tol`` nats per step
-    (checked from iteration ``min_iter`` on: from a random start the first iterations barely move).
+    (checked from iteration ``min_iter`` on: from a random start the first iterations barely move)
+    or ``max_iter`` iterations.
 
     Returns ``(counts, occupancy, history)``: the last expected counts (whose M-step is the fitted
     model), the clone occupancy and the log-likelihood of every iteration.
     """
-    history = []
+    monitor = ConvergenceMonitor(tol * lay.sym.size, max_iter, min_iter=min_iter)
     occupancy = np.zeros(lay.n_clones)
-    T = lay.sym.size
-    for _ in range(max_iter):
-        new, occupancy, ll = e_step(lay, m_step(lay, counts, pseudocount, joint), prune)
-        counts = new
-        history.append(ll)
-        if len(history) > min_iter and history[-1] - history[-2] < tol * T:
-            break
-    return counts, occupancy, history
+    while not monitor.converged:
+        counts, occupancy, ll = e_step(lay, m_step(lay, counts, pseudocount, joint), prune)
+        monitor.report(ll)
+    return counts, occupancy, monitor.history
 
 
 def decode(lay: Layout, counts, pseudocount: float, joint: bool):
@@ -184,18 +182,21 @@ def decode(lay: Layout, counts, pseudocount: float, joint: bool):
 
 def viterbi_training(lay: Layout, counts, joint: bool, *, pseudocount: float = 0.0,
                      max_iter: int = 100):
-    """Hard EM: decode, re-count the path, repeat until the path's probability stops rising.
+    """Hard EM: decode, re-count the path, repeat until the path's probability stops rising (a
+    path no more probable than the last one, by 1e-9 of it, is not taken) or ``max_iter`` paths.
 
-    Returns ``(path, counts, history)``; ``counts`` are the hard counts of ``path``.
+    Returns ``(path, counts, history)``; ``counts`` are the hard counts of ``path`` and
+    ``history`` the log-probabilities of the paths taken.
     """
-    history = []
+    monitor = ConvergenceMonitor(n_iter=max_iter, rtol=1e-9)
     path = None
-    for _ in range(max_iter):
+    while not monitor.converged:
         new_path, log_p = decode(lay, counts, pseudocount, joint)
-        if history and log_p <= history[-1] + 1e-9 * abs(history[-1]):
-            break
-        path, history = new_path, history + [log_p]
-        counts = clone_path_counts(path, lay.tables, np.zeros(counts.size))
+        monitor.report(log_p)
+        if not monitor.stalled:
+            path = new_path
+            counts = clone_path_counts(path, lay.tables, np.zeros(counts.size))
+    history = monitor.history[:-1] if monitor.stalled else monitor.history
     return path, counts, history
 
 
