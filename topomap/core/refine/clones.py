@@ -4,6 +4,8 @@ A :class:`Layout` ties one discrete sequence (symbols, actions, episode lengths)
 (clones per symbol) and the sparse transition blocks that sequence needs (one per observed
 ``(action, symbol, next symbol)`` triple; see :mod:`topomap.core.refine.kernels`).  Parameters are
 plain count arrays in the block layout; probabilities are derived from counts by :func:`m_step`.
+:func:`fit_clones` is the fit both refinements make: Baum-Welch, then Viterbi training, then the
+clones the path uses become the states.
 
 Two normalisations are offered (``joint``):
 
@@ -34,6 +36,7 @@ __all__ = [
     "e_step",
     "baum_welch",
     "viterbi_training",
+    "fit_clones",
     "decode",
     "random_counts",
     "clone_budget",
@@ -198,6 +201,22 @@ def viterbi_training(lay: Layout, counts, joint: bool, *, pseudocount: float = 0
             counts = clone_path_counts(path, lay.tables, np.zeros(counts.size))
     history = monitor.history[:-1] if monitor.stalled else monitor.history
     return path, counts, history
+
+
+def fit_clones(lay: Layout, init, pseudocount: float, *, max_iter: int, tol: float,
+               prune: float = 0.0, joint: bool = False):
+    """Baum-Welch from the counts ``init`` (:func:`baum_welch`), then Viterbi training without
+    pseudocount (:func:`viterbi_training`); the clones the final path uses become the states.
+
+    Returns ``(labels, state_symbol, em_history, viterbi_history)``: the state of every step
+    (numbered by first use), the symbol of every state, and the log-likelihoods of Baum-Welch's
+    iterations and of the Viterbi paths.
+    """
+    counts, _, em_history = baum_welch(lay, init, pseudocount, joint, max_iter=max_iter, tol=tol,
+                                       prune=prune)
+    path, _, viterbi_history = viterbi_training(lay, counts, joint)
+    labels, state_symbol, _ = compact_labels(path, lay.clone_symbol)
+    return labels, state_symbol, em_history, viterbi_history
 
 
 def random_counts(lay: Layout, rng: np.random.Generator) -> np.ndarray:
