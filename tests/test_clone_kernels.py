@@ -10,6 +10,7 @@ from topomap.core.refine.kernels import clone_backward_counts as backward_counts
 from topomap.core.refine.kernels import clone_forward as forward
 from topomap.core.refine.kernels import clone_normalize_blocks as normalize_blocks
 from topomap.core.refine.kernels import clone_path_counts as path_counts
+from topomap.core.refine.kernels import clone_step_offsets as step_offsets
 from topomap.core.refine.kernels import clone_viterbi as viterbi
 
 
@@ -53,7 +54,7 @@ def brute_force(lay, vals):
         total += p
         if p > best_p:
             best, best_p = path, p
-        path_counts(path, lay.sym, lay.blk, lay.start, lay.boff, counts_p := np.zeros(vals.size))
+        path_counts(path, lay.tables, counts_p := np.zeros(vals.size))
         counts += p * counts_p
         np.add.at(occ, path, p)
     return total, counts / total, occ / total, best, best_p
@@ -62,10 +63,10 @@ def brute_force(lay, vals):
 def assert_forward_backward_match(lay, vals, total, counts, occ):
     """The compiled forward pass gives the enumerated likelihood, and the backward pass the
     enumerated expected transition counts and clone occupancies."""
-    alpha, log_c = forward(lay.sym, lay.blk, lay.start, lay.boff, vals, lay.pos, 0.0)
+    alpha, log_c = forward(lay.tables, vals, 0.0)
     assert log_c.sum() == pytest.approx(np.log(total), rel=1e-10)
     got, got_occ = np.zeros(vals.size), np.zeros(lay.n_clones)
-    backward_counts(lay.sym, lay.blk, lay.start, lay.boff, vals, lay.pos, alpha, log_c, got, got_occ)
+    backward_counts(lay.tables, vals, alpha, log_c, got, got_occ)
     np.testing.assert_allclose(got, counts, rtol=1e-10, atol=1e-14)
     np.testing.assert_allclose(got_occ, occ, rtol=1e-10, atol=1e-14)
 
@@ -81,7 +82,7 @@ def test_forward_backward_match_enumeration(seed):
 def test_viterbi_matches_enumeration(seed):
     lay, vals = tiny_case(seed)
     _, _, _, best, best_p = brute_force(lay, vals)
-    path, log_p = viterbi(lay.sym, lay.blk, lay.start, lay.boff, np.log(vals), lay.pos)
+    path, log_p = viterbi(lay.tables, np.log(vals))
     assert log_p == pytest.approx(np.log(best_p), rel=1e-10)
     np.testing.assert_array_equal(path, best)
 
@@ -115,13 +116,13 @@ def test_pruning_approximates_exact_statistics():
     T = 3000
     sym, u, path = deterministic_walk(T, [4, 4, 4], 2, seed=1)
     lay = make_layout(sym, u, np.array([T]), np.array([4, 4, 4]), 2)
-    counts = path_counts(path, lay.sym, lay.blk, lay.start, lay.boff, np.zeros(int(lay.boff[-1])))
+    counts = path_counts(path, lay.tables, np.zeros(int(lay.boff[-1])))
     vals = m_step(lay, counts, 1e-9, joint=False)
     stats = []
     for prune in (0.0, 1e-6):
-        alpha, log_c = forward(lay.sym, lay.blk, lay.start, lay.boff, vals, lay.pos, prune)
+        alpha, log_c = forward(lay.tables, vals, prune)
         got, occ = np.zeros(vals.size), np.zeros(lay.n_clones)
-        backward_counts(lay.sym, lay.blk, lay.start, lay.boff, vals, lay.pos, alpha, log_c, got, occ)
+        backward_counts(lay.tables, vals, alpha, log_c, got, occ)
         stats.append((log_c.sum(), got, occ, (alpha == 0).mean()))
     (ll0, c0, o0, _), (ll1, c1, o1, zero_share) = stats
     assert zero_share > 0.5
@@ -133,9 +134,9 @@ def test_pruning_approximates_exact_statistics():
 def test_single_episode_and_single_clone_symbols():
     lay, vals = tiny_case(7, lengths=(6,), clones=(1, 2, 2))
     total, counts, _, best, _ = brute_force(lay, vals)
-    alpha, log_c = forward(lay.sym, lay.blk, lay.start, lay.boff, vals, lay.pos, 0.0)
+    alpha, log_c = forward(lay.tables, vals, 0.0)
     assert log_c.sum() == pytest.approx(np.log(total), rel=1e-10)
-    path, _ = viterbi(lay.sym, lay.blk, lay.start, lay.boff, np.log(vals), lay.pos)
+    path, _ = viterbi(lay.tables, np.log(vals))
     np.testing.assert_array_equal(path, best)
 
 
@@ -150,20 +151,25 @@ def test_long_sequence_does_not_underflow():
     sym, u = rng.integers(0, 3, T), rng.integers(0, 2, T)
     lay = make_layout(sym, u, np.array([T]), np.array([4, 4, 4]), 2)
     vals = m_step(lay, rng.random(int(lay.boff[-1])), 1e-3, joint=False)
-    alpha, log_c = forward(lay.sym, lay.blk, lay.start, lay.boff, vals, lay.pos, 0.0)
+    alpha, log_c = forward(lay.tables, vals, 0.0)
     assert np.isfinite(log_c.sum()) and log_c.sum() < -1e4
-    path, log_p = viterbi(lay.sym, lay.blk, lay.start, lay.boff, np.log(vals), lay.pos)
+    path, log_p = viterbi(lay.tables, np.log(vals))
     assert np.isfinite(log_p) and log_p <= log_c.sum()
 
 
-def dense_transitions(lay, counts, pseudocount, joint):
-    """The dense (A, S, S) model a count array stands for, normalised by brute force."""
+def dense_counts(lay, counts):
+    """The dense (A, S, S) table a count array in the block layout stands for."""
     A, S = lay.n_actions, lay.n_clones
     C = np.zeros((A, S, S))
     for b, (a, s, s2) in enumerate(lay.triples):
         block = counts[lay.boff[b]:lay.boff[b + 1]].reshape(lay.start[s + 1] - lay.start[s], -1)
         C[a, lay.start[s]:lay.start[s + 1], lay.start[s2]:lay.start[s2 + 1]] = block
-    C += pseudocount
+    return C
+
+
+def dense_transitions(lay, counts, pseudocount, joint):
+    """The dense (A, S, S) model a count array stands for, normalised by brute force."""
+    C = dense_counts(lay, counts) + pseudocount
     if joint:
         return C / C.sum(axis=(0, 2), keepdims=True)
     return C / C.sum(axis=2, keepdims=True)
@@ -182,6 +188,31 @@ def test_normalize_matches_dense_model(joint):
 def test_normalize_zero_rows_stay_zero():
     lay, counts = tiny_case(4)
     counts[:] = 0.0
-    vals, Z = normalize_blocks(counts, lay.triples[:, 1].copy(), lay.triples[:, 2].copy(),
-                               lay.triples[:, 0].copy(), lay.n_actions, lay.start, lay.boff, 0.0, 0.0)
+    vals, Z = normalize_blocks(lay.tables, counts, lay.triples[:, 1].copy(),
+                               lay.triples[:, 2].copy(), lay.triples[:, 0].copy(), lay.n_actions,
+                               0.0, 0.0)
     assert (vals == 0).all() and (Z == 0).all()
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_path_counts_match_a_dense_count(seed):
+    """A hard path's transitions, counted in the block layout, are its dense (u, x, x') counts;
+    none crosses an episode start."""
+    lengths = (4, 3, 5)
+    lay, vals = tiny_case(seed, lengths=lengths)
+    rng = np.random.default_rng(seed)
+    path = np.array([rng.integers(lay.start[s], lay.start[s + 1]) for s in lay.sym])
+    ends = set(np.cumsum(lengths) - 1)
+    expect = np.zeros((lay.n_actions, lay.n_clones, lay.n_clones))
+    for t in range(lay.sym.size - 1):
+        if t not in ends:
+            expect[lay.u[t], path[t], path[t + 1]] += 1
+    got = path_counts(path, lay.tables, np.zeros(vals.size))
+    np.testing.assert_array_equal(dense_counts(lay, got), expect)
+
+
+def test_step_offsets_give_every_step_the_clones_of_its_symbol():
+    lay, _ = tiny_case(2, clones=(2, 3, 1))
+    sizes = [lay.start[s + 1] - lay.start[s] for s in lay.sym]
+    np.testing.assert_array_equal(lay.pos, np.concatenate([[0], np.cumsum(sizes)]))
+    np.testing.assert_array_equal(step_offsets(lay.sym, lay.start), lay.pos)

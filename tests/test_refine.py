@@ -4,10 +4,24 @@ import numpy as np
 import pytest
 from sklearn.metrics import adjusted_rand_score
 
-from topomap.core.refine.methods import cscg_fit, refine_fit
-from topomap.core.refine.structure import (episode_masks, merge_states, same_partition,
-                                           split_compounds)
+from topomap.core.checks import ParameterError
+from topomap.core.refine.methods import CSCGRefinement, EMRefinement, SymbolSequence
+from topomap.core.refine.structure import merge_states, same_partition, split_compounds
+from topomap.core.stats import episode_masks
 from topomap.worlds import GridRoom, RandomExplorer
+
+
+def refine_fit(sym, u, lengths, n_actions, n_symbols, split_state_symbol, random_state=0,
+               **params):
+    """``refine="em"`` on a symbol sequence."""
+    seq = SymbolSequence.build(sym, u, lengths, n_actions, n_symbols)
+    return EMRefinement(**params).fit(seq, split_state_symbol, random_state)
+
+
+def cscg_fit(sym, u, lengths, n_actions, n_symbols, random_state=0, **params):
+    """``refine="cscg"`` on a symbol sequence."""
+    seq = SymbolSequence.build(sym, u, lengths, n_actions, n_symbols)
+    return CSCGRefinement(**params).fit(seq, None, random_state)
 
 
 def ring_walk(T, symbols, seed=0):
@@ -75,25 +89,25 @@ def test_merge_joins_duplicates_of_one_place():
     """Duplicate every place: each visit goes to one of two copies at random."""
     sym, u, places = ring_walk(4000, RING, 3)
     labels = places * 2 + np.random.default_rng(0).integers(0, 2, places.size)
-    _, has_next = episode_masks([places.size], places.size)
-    merged, merged_symbol = merge_states(labels, np.repeat(RING, 2), u, has_next)
+    _, has_next = episode_masks(places.size, [places.size])
+    merged, merged_symbol = merge_states(labels, np.repeat(RING, 2), u, has_next, 6.63)
     assert same_partition(merged, places) and merged_symbol.size == 8
 
 
 def test_merge_keeps_places_that_allow_different_moves():
     """Two wall cells of one symbol that no shared move tells apart stay two states."""
     sym, u, places = grid_walk(4000, 0)
-    _, has_next = episode_masks([places.size], places.size)
-    merged, _ = merge_states(places, ROOM.place_symbols, u, has_next)
+    _, has_next = episode_masks(places.size, [places.size])
+    merged, _ = merge_states(places, ROOM.place_symbols, u, has_next, 6.63)
     assert same_partition(merged, places)
 
 
 def test_split_separates_a_compound_state():
     sym, u, places = ring_walk(4000, RING, 4)
     labels = np.where(places == 4, 1, places)  # places 1 and 4 folded into state 1
-    has_prev, has_next = episode_masks([places.size], places.size)
+    has_prev, has_next = episode_masks(places.size, [places.size])
     state_symbol = np.array([0, 1, 2, 3, -9, 4, 2, 5])
-    split, split_symbol = split_compounds(labels, state_symbol, u, has_prev, has_next, 2)
+    split, split_symbol = split_compounds(labels, state_symbol, u, has_prev, has_next, 2, z=3.09)
     assert split_symbol.size == 9
     assert adjusted_rand_score(places, split) > 0.99
 
@@ -212,7 +226,6 @@ def test_the_guard_keeps_a_refinement_that_recovers_the_places():
 def test_a_refined_map_is_the_same_bytes_for_the_same_seed(refine, tmp_path):
     """Nothing run-dependent (such as CPU seconds) reaches map.json."""
     from topomap import MapLearner
-    from topomap.core.refine.methods import CSCGRefinement
 
     sym, u, _ = ring_walk(2000, RING, 3)
     X = noisy(sym, 6, 3)
@@ -220,3 +233,72 @@ def test_a_refined_map_is_the_same_bytes_for_the_same_seed(refine, tmp_path):
     paths = [MapLearner(n_clusters=6, n_states=6, refine=component, random_state=1).fit(X, u)
              .map_.save(tmp_path / f"map{i}.json") for i in range(2)]
     assert paths[0].read_bytes() == paths[1].read_bytes()
+
+
+# ---------------------------------------------------------------- the components themselves
+def test_the_refinements_store_their_parameters_as_given():
+    from sklearn.base import clone
+
+    em = EMRefinement(prefix=np.int64(3000), tol=0, guard=False)
+    assert type(em.prefix) is np.int64 and type(em.tol) is int and em.guard is False
+    params = em.get_params()
+    assert params["clone_factor"] == 2 and params["prefix"] is em.prefix
+    assert set(params) == {"clone_factor", "prefix", "prefix_visits", "max_rounds", "row_prior",
+                           "tol", "max_iter", "prune", "merge_threshold", "split_z", "spare",
+                           "init_noise", "guard"}
+    twin = clone(em)
+    assert twin is not em and twin.get_params() == params
+    assert CSCGRefinement(clones_per_symbol=5).set_params(tol=0.5).get_params() == {
+        "clones_per_symbol": 5, "pseudocount": 2e-3, "max_iter": 1000, "tol": 0.5}
+
+
+def test_the_refinements_repr_is_the_form_map_json_stores():
+    assert repr(EMRefinement()) == (
+        "EMRefinement(clone_factor=2, prefix=2000, prefix_visits=40, max_rounds=8, guard=True, "
+        "settings=EMSettings(row_prior=0.5, tol=1e-06, max_iter=50, prune=0.0001, "
+        "merge_threshold=6.63, split_z=3.09, spare=2, init_noise=1.0))")
+    assert repr(CSCGRefinement(clones_per_symbol=4, tol=0)) == (
+        "CSCGRefinement(clones_per_symbol=4, pseudocount=0.002, max_iter=1000, tol=0.0)")
+
+
+@pytest.mark.parametrize("cls, params, message", [
+    (EMRefinement, dict(clone_factor=0), "clone_factor must be a positive integer, got 0"),
+    (EMRefinement, dict(prefix=2.5), "prefix must be a positive integer, got 2.5"),
+    (EMRefinement, dict(max_rounds=True), "max_rounds must be a positive integer, got True"),
+    (EMRefinement, dict(max_iter=0), "max_iter must be a positive integer, got 0"),
+    (EMRefinement, dict(prefix_visits=-1), "prefix_visits must be a non-negative integer, got -1"),
+    (EMRefinement, dict(spare=-2), "spare must be a non-negative integer, got -2"),
+    (EMRefinement, dict(row_prior=0.0), "row_prior must be > 0, got 0.0"),
+    (EMRefinement, dict(tol=-1e-3), "tol must be >= 0, got -0.001"),
+    (EMRefinement, dict(prune=1.0), r"prune must be in \[0, 1\), got 1.0"),
+    (CSCGRefinement, dict(clones_per_symbol=0), "clones_per_symbol must be a positive integer"),
+    (CSCGRefinement, dict(max_iter=0), "max_iter must be a positive integer, got 0"),
+    (CSCGRefinement, dict(pseudocount=float("nan")), "pseudocount must be > 0, got nan"),
+    (CSCGRefinement, dict(tol=-1.0), "tol must be >= 0, got -1.0"),
+])
+def test_bad_parameters_are_refused_by_name(cls, params, message):
+    """The error names the core parameter; the app says it as its config key."""
+    with pytest.raises(ParameterError, match=f"^{message}") as err:
+        cls(**params)
+    assert err.value.param == next(iter(params))
+    assert "refine." not in str(err.value)
+    assert str(err.value.renamed(f"refine.{err.value.param}")).startswith("refine.")
+
+
+def test_parameters_set_after_construction_are_checked_by_fit():
+    sym, u, _ = ring_walk(300, RING, 0)
+    seq = SymbolSequence.build(sym, u, [300], 2, 6)
+    with pytest.raises(ParameterError, match="clone_factor must be a positive integer"):
+        EMRefinement().set_params(clone_factor=0).fit(seq, np.arange(6))
+    with pytest.raises(ParameterError, match="pseudocount must be > 0"):
+        CSCGRefinement().set_params(pseudocount=-1.0).fit(seq)
+
+
+def test_a_sequence_head_keeps_the_episodes_it_covers():
+    seq = SymbolSequence.build(np.arange(10) % 3, np.zeros(10), [4, 6], 1, 3)
+    head = seq.head(7)
+    assert head.T == 7 and head.lengths.tolist() == [4, 3] and head.n_ids == seq.n_ids
+    assert seq.head(10) is seq
+    has_prev, has_next = head.masks()
+    assert has_prev.tolist() == [False, True, True, True, False, True, True]
+    assert has_next.tolist() == [True, True, True, False, True, True, False]

@@ -2,8 +2,10 @@
 
 A :class:`Layout` ties one discrete sequence (symbols, actions, episode lengths) to a clone budget
 (clones per symbol) and the sparse transition blocks that sequence needs (one per observed
-``(action, symbol, next symbol)`` triple; see :mod:`topomap.core.map.kernels`).  Parameters are plain count arrays
-in the block layout; probabilities are derived from counts by :func:`m_step`.
+``(action, symbol, next symbol)`` triple; see :mod:`topomap.core.refine.kernels`).  Parameters are
+plain count arrays in the block layout; probabilities are derived from counts by :func:`m_step`.
+:func:`fit_clones` is the fit both refinements make: Baum-Welch, then Viterbi training, then the
+clones the path uses become the states.
 
 Two normalisations are offered (``joint``):
 
@@ -23,7 +25,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .kernels import (clone_backward_counts, clone_forward, clone_normalize_blocks,
+from .convergence import ConvergenceMonitor
+from .kernels import (CloneTables, clone_backward_counts, clone_forward, clone_normalize_blocks,
                       clone_path_counts, clone_step_offsets, clone_viterbi)
 
 __all__ = [
@@ -33,6 +36,7 @@ __all__ = [
     "e_step",
     "baum_welch",
     "viterbi_training",
+    "fit_clones",
     "decode",
     "random_counts",
     "clone_budget",
@@ -53,8 +57,11 @@ class Layout:
     triples : (B, 3) int64 -- ``(action, symbol, next symbol)`` of every block
     start : (K + 1,) int64 -- clones of symbol ``k`` are ``start[k] .. start[k + 1] - 1``
     boff : (B + 1,) int64 -- block ``b`` occupies ``boff[b] .. boff[b + 1] - 1`` of a count array
-    pos : (T + 1,) int64 -- per-step offsets of the clone vectors (:func:`topomap.core.map.kernels.clone_step_offsets`)
+    pos : (T + 1,) int64 -- per-step offsets of the clone vectors
+        (:func:`topomap.core.refine.kernels.clone_step_offsets`)
     n_actions : int
+
+    ``tables`` bundles what the kernels read (:class:`topomap.core.refine.kernels.CloneTables`).
     """
 
     sym: np.ndarray
@@ -65,6 +72,11 @@ class Layout:
     boff: np.ndarray
     pos: np.ndarray
     n_actions: int
+
+    @property
+    def tables(self) -> CloneTables:
+        """``sym``, ``blk``, ``start``, ``boff`` and ``pos``, as the kernels take them."""
+        return CloneTables(self.sym, self.blk, self.start, self.boff, self.pos)
 
     @property
     def n_clones(self) -> int:
@@ -126,43 +138,41 @@ def _row_keys(lay: Layout, joint: bool):
 
 
 def m_step(lay: Layout, counts, pseudocount: float, joint: bool) -> np.ndarray:
-    """Block probabilities from counts (see :func:`topomap.core.map.kernels.clone_normalize_blocks`)."""
+    """Block probabilities from counts (see
+    :func:`topomap.core.refine.kernels.clone_normalize_blocks`)."""
     key, n_keys, width = _row_keys(lay, joint)
-    vals, _ = clone_normalize_blocks(counts, np.ascontiguousarray(lay.triples[:, 1]),
-                               np.ascontiguousarray(lay.triples[:, 2]), key, n_keys, lay.start,
-                               lay.boff, pseudocount, pseudocount * width)
+    vals, _ = clone_normalize_blocks(lay.tables, counts, np.ascontiguousarray(lay.triples[:, 1]),
+                                     np.ascontiguousarray(lay.triples[:, 2]), key, n_keys,
+                                     pseudocount, pseudocount * width)
     return vals
 
 
 def e_step(lay: Layout, vals, prune: float = 0.0):
     """Expected counts, expected clone occupancy and log-likelihood under ``vals`` (``prune``: see
-    :func:`topomap.core.map.kernels.clone_forward`)."""
-    alpha, log_c = clone_forward(lay.sym, lay.blk, lay.start, lay.boff, vals, lay.pos, prune)
+    :func:`topomap.core.refine.kernels.clone_forward`)."""
+    tables = lay.tables
+    alpha, log_c = clone_forward(tables, vals, prune)
     counts = np.zeros(vals.size)
     occupancy = np.zeros(lay.n_clones)
-    clone_backward_counts(lay.sym, lay.blk, lay.start, lay.boff, vals, lay.pos, alpha, log_c, counts,
-                    occupancy)
+    clone_backward_counts(tables, vals, alpha, log_c, counts, occupancy)
     return counts, occupancy, float(log_c.sum())
 
 
-def baum_welch(lay: Layout, counts, pseudocount: float, joint: bool, *, max_iter: int = 1000,
-               tol: float = 1e-6, min_iter: int = 10, prune: float = 0.0):
+def baum_welch(lay: Layout, counts, pseudocount: float, joint: bool, *, max_iter: int,
+               tol: float, min_iter: int = 10, prune: float = 0.0):
     """Baum-Welch from ``counts`` until the log-likelihood gains less than ``tol`` nats per step
-    (checked from iteration ``min_iter`` on: from a random start the first iterations barely move).
+    (checked from iteration ``min_iter`` on: from a random start the first iterations barely move)
+    or ``max_iter`` iterations.
 
     Returns ``(counts, occupancy, history)``: the last expected counts (whose M-step is the fitted
     model), the clone occupancy and the log-likelihood of every iteration.
     """
-    history = []
+    monitor = ConvergenceMonitor(tol * lay.sym.size, max_iter, min_iter=min_iter)
     occupancy = np.zeros(lay.n_clones)
-    T = lay.sym.size
-    for _ in range(max_iter):
-        new, occupancy, ll = e_step(lay, m_step(lay, counts, pseudocount, joint), prune)
-        counts = new
-        history.append(ll)
-        if len(history) > min_iter and history[-1] - history[-2] < tol * T:
-            break
-    return counts, occupancy, history
+    while not monitor.converged:
+        counts, occupancy, ll = e_step(lay, m_step(lay, counts, pseudocount, joint), prune)
+        monitor.report(ll)
+    return counts, occupancy, monitor.history
 
 
 def decode(lay: Layout, counts, pseudocount: float, joint: bool):
@@ -170,24 +180,43 @@ def decode(lay: Layout, counts, pseudocount: float, joint: bool):
     vals = m_step(lay, counts, pseudocount, joint)
     with np.errstate(divide="ignore"):
         log_vals = np.log(vals)
-    return clone_viterbi(lay.sym, lay.blk, lay.start, lay.boff, log_vals, lay.pos)
+    return clone_viterbi(lay.tables, log_vals)
 
 
 def viterbi_training(lay: Layout, counts, joint: bool, *, pseudocount: float = 0.0,
                      max_iter: int = 100):
-    """Hard EM: decode, re-count the path, repeat until the path's probability stops rising.
+    """Hard EM: decode, re-count the path, repeat until the path's probability stops rising (a
+    path no more probable than the last one, by 1e-9 of it, is not taken) or ``max_iter`` paths.
 
-    Returns ``(path, counts, history)``; ``counts`` are the hard counts of ``path``.
+    Returns ``(path, counts, history)``; ``counts`` are the hard counts of ``path`` and
+    ``history`` the log-probabilities of the paths taken.
     """
-    history = []
+    monitor = ConvergenceMonitor(n_iter=max_iter, rtol=1e-9)
     path = None
-    for _ in range(max_iter):
+    while not monitor.converged:
         new_path, log_p = decode(lay, counts, pseudocount, joint)
-        if history and log_p <= history[-1] + 1e-9 * abs(history[-1]):
-            break
-        path, history = new_path, history + [log_p]
-        counts = clone_path_counts(path, lay.sym, lay.blk, lay.start, lay.boff, np.zeros(counts.size))
+        monitor.report(log_p)
+        if not monitor.stalled:
+            path = new_path
+            counts = clone_path_counts(path, lay.tables, np.zeros(counts.size))
+    history = monitor.history[:-1] if monitor.stalled else monitor.history
     return path, counts, history
+
+
+def fit_clones(lay: Layout, init, pseudocount: float, *, max_iter: int, tol: float,
+               prune: float = 0.0, joint: bool = False):
+    """Baum-Welch from the counts ``init`` (:func:`baum_welch`), then Viterbi training without
+    pseudocount (:func:`viterbi_training`); the clones the final path uses become the states.
+
+    Returns ``(labels, state_symbol, em_history, viterbi_history)``: the state of every step
+    (numbered by first use), the symbol of every state, and the log-likelihoods of Baum-Welch's
+    iterations and of the Viterbi paths.
+    """
+    counts, _, em_history = baum_welch(lay, init, pseudocount, joint, max_iter=max_iter, tol=tol,
+                                       prune=prune)
+    path, _, viterbi_history = viterbi_training(lay, counts, joint)
+    labels, state_symbol, _ = compact_labels(path, lay.clone_symbol)
+    return labels, state_symbol, em_history, viterbi_history
 
 
 def random_counts(lay: Layout, rng: np.random.Generator) -> np.ndarray:
@@ -212,8 +241,9 @@ def init_from_path(lay: Layout, path, n_steps: int, rng, noise: float = 1.0) -> 
     """
     blk = lay.blk[:n_steps].copy()
     blk[n_steps - 1] = -1
-    counts = clone_path_counts(np.ascontiguousarray(path[:n_steps]), lay.sym[:n_steps], blk, lay.start,
-                         lay.boff, np.zeros(int(lay.boff[-1])))
+    prefix = CloneTables(lay.sym[:n_steps], blk, lay.start, lay.boff, lay.pos[:n_steps + 1])
+    counts = clone_path_counts(np.ascontiguousarray(path[:n_steps]), prefix,
+                               np.zeros(int(lay.boff[-1])))
     return counts * (lay.sym.size / n_steps) + noise * rng.random(counts.size)
 
 

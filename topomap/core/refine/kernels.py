@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 from numba import njit
 
-__all__ = ["clone_step_offsets", "clone_forward", "clone_backward_counts", "clone_viterbi",
-           "clone_path_counts", "clone_normalize_blocks"]
+__all__ = ["CloneTables", "clone_step_offsets", "clone_forward", "clone_backward_counts",
+           "clone_viterbi", "clone_path_counts", "clone_normalize_blocks"]
 
 # ======================================================================================
 # Clone-structured, action-conditioned HMMs (the refinement phase, topomap.core.refine.clones)
@@ -41,6 +43,25 @@ __all__ = ["clone_step_offsets", "clone_forward", "clone_backward_counts", "clon
 #   ``pos[t]`` (see :func:`clone_step_offsets`).
 #
 # All arrays are contiguous ``int64`` / ``float64``; no Python objects are used inside the kernels.
+# The tables that place a sequence on its clones (``sym``, ``blk``, ``start``, ``boff``, ``pos``)
+# travel together as one :class:`CloneTables`.
+
+
+class CloneTables(NamedTuple):
+    """The clone layout of a sequence, as the kernels read it (all ``int64``).
+
+    ``sym`` (T,) the symbol of every step; ``blk`` (T,) the block of the transition ``t -> t + 1``
+    (-1 at an episode's last step); ``start`` (K + 1,) the clones of symbol ``k`` are
+    ``start[k] .. start[k + 1] - 1``; ``boff`` (B + 1,) block ``b`` occupies
+    ``boff[b] .. boff[b + 1] - 1`` of a count or probability array; ``pos`` (T + 1,) the offsets of
+    the per-step clone vectors (:func:`clone_step_offsets`).
+    """
+
+    sym: np.ndarray
+    blk: np.ndarray
+    start: np.ndarray
+    boff: np.ndarray
+    pos: np.ndarray
 
 
 @njit(cache=True)
@@ -57,8 +78,8 @@ def clone_step_offsets(sym, start):
 
 
 @njit(cache=True)
-def clone_forward(sym, blk, start, boff, vals, pos, prune):
-    """Scaled forward pass.
+def clone_forward(tables, vals, prune):
+    """Scaled forward pass over the clone layout ``tables`` (:class:`CloneTables`).
 
     Returns ``(alpha, log_c)``: ``alpha`` (pos[-1],) holds the filtered distribution
     ``P(x_t | s_1..s_t, u_1..u_{t-1})`` of every step over the clones of ``sym[t]``; ``log_c`` (T,)
@@ -67,6 +88,7 @@ def clone_forward(sym, blk, start, boff, vals, pos, prune):
     skip the clones a confident model has ruled out.  A step the model gives probability zero
     yields ``log_c = -inf`` and a zero message.
     """
+    sym, blk, _, boff, pos = tables
     T = sym.size
     alpha = np.zeros(pos[T])
     log_c = np.zeros(T)
@@ -109,7 +131,7 @@ def _clone_active(alpha, a0, n, out):
 
 
 @njit(cache=True)
-def clone_backward_counts(sym, blk, start, boff, vals, pos, alpha, log_c, counts, occupancy):
+def clone_backward_counts(tables, vals, alpha, log_c, counts, occupancy):
     """Scaled backward pass that accumulates the E-step statistics in place.
 
     ``counts`` (same layout as ``vals``) receives the expected transition counts
@@ -118,6 +140,7 @@ def clone_backward_counts(sym, blk, start, boff, vals, pos, alpha, log_c, counts
     clones with ``alpha = 0`` are skipped (their backward message is never needed), so a step
     costs (active clones at t) x (active clones at t + 1).
     """
+    sym, blk, start, boff, pos = tables
     width = 0
     for k in range(start.size - 1):
         width = max(width, start[k + 1] - start[k])
@@ -156,8 +179,9 @@ def clone_backward_counts(sym, blk, start, boff, vals, pos, alpha, log_c, counts
 
 
 @njit(cache=True)
-def _clone_backtrace(psi, pos, start, sym, t0, t1, last, path):
+def _clone_backtrace(tables, psi, t0, t1, last, path):
     """Write the best path of steps ``t0 .. t1`` (inclusive) ending in local clone ``last``."""
+    sym, _, start, _, pos = tables
     k = last
     for t in range(t1, t0 - 1, -1):
         path[t] = start[sym[t]] + k
@@ -166,13 +190,14 @@ def _clone_backtrace(psi, pos, start, sym, t0, t1, last, path):
 
 
 @njit(cache=True)
-def clone_viterbi(sym, blk, start, boff, log_vals, pos):
+def clone_viterbi(tables, log_vals):
     """Most probable clone sequence (max-product in log space; ties go to the lowest clone).
 
     ``log_vals`` is ``log(vals)`` (``-inf`` for zeros).  Returns ``(path, log_p)``: ``path`` (T,)
     global clone ids and ``log_p`` the summed log-probability of the best path of every episode,
     including the uniform start ``-log n(sym[t0])``.
     """
+    sym, blk, start, boff, pos = tables
     T = sym.size
     psi = np.zeros(pos[T], dtype=np.int64)
     width = 0
@@ -211,14 +236,15 @@ def clone_viterbi(sym, blk, start, boff, log_vals, pos):
                 if delta[j] > delta[best]:
                     best = j
             log_p += delta[best]
-            _clone_backtrace(psi, pos, start, sym, t0, t, best, path)
+            _clone_backtrace(tables, psi, t0, t, best, path)
             t0 = t + 1
     return path, log_p
 
 
 @njit(cache=True)
-def clone_path_counts(path, sym, blk, start, boff, counts):
+def clone_path_counts(path, tables, counts):
     """Add the transitions of a hard clone path to ``counts`` (layout of ``vals``), in place."""
+    sym, blk, start, boff, _ = tables
     for t in range(sym.size):
         b = blk[t]
         if b < 0:
@@ -230,8 +256,9 @@ def clone_path_counts(path, sym, blk, start, boff, counts):
 
 
 @njit(cache=True)
-def clone_normalize_blocks(counts, bsrc, bdst, bkey, n_keys, start, boff, pseudocount, smooth):
-    """M-step: turn counts into block probabilities.
+def clone_normalize_blocks(tables, counts, bsrc, bdst, bkey, n_keys, pseudocount, smooth):
+    """M-step: turn counts into block probabilities (blocks ``b`` from clones of ``bsrc[b]`` to
+    clones of ``bdst[b]``, laid out by ``tables.start`` and ``tables.boff``).
 
     Rows are grouped by a *row key*: row ``i`` of block ``b`` belongs to group
     ``(bkey[b], start[bsrc[b]] + i)`` -- for ``P(x'|x,u)`` the key is the action, for the joint
@@ -241,6 +268,7 @@ def clone_normalize_blocks(counts, bsrc, bdst, bkey, n_keys, start, boff, pseudo
     columns of a dense row).  Rows with ``Z = 0`` become 0.  Returns ``(vals, Z)``, ``Z`` of shape
     ``(n_keys, S)``.
     """
+    start, boff = tables.start, tables.boff
     S = start[start.size - 1]
     Z = np.zeros((n_keys, S))
     B = bsrc.size

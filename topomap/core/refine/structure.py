@@ -23,15 +23,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..split.engine import SplitEngine, merge_groups
-from ..stats import episode_masks as _masks
 
-__all__ = ["episode_masks", "bisimilar_blocks", "merge_states", "split_compounds",
-           "same_partition"]
-
-
-def episode_masks(lengths, T: int):
-    """``(has_prev, has_next)`` of every step for episodes of the given ``lengths``."""
-    return _masks(T, lengths)
+__all__ = ["bisimilar_blocks", "merge_states", "split_compounds", "same_partition"]
 
 
 def _g_statistic(c1: dict, c2: dict) -> float:
@@ -115,12 +108,12 @@ def _split_block(members, sig, threshold):
     return groups
 
 
-def bisimilar_blocks(labels, state_symbol, u, has_next, threshold: float = 6.63) -> np.ndarray:
+def bisimilar_blocks(labels, state_symbol, u, has_next, threshold: float) -> np.ndarray:
     """Coarsest partition of the states into blocks of forward-bisimilar states on the data.
 
     Moore-style partition refinement: blocks start as the symbols (GDS states are symbols of their
     own); a block is split while its states disagree about the block reached under some action
-    they both took (G test at ``threshold``, 6.63 = chi-square(1) at 1 %) or, being reached
+    they both took (G test at ``threshold``, e.g. 6.63 = chi-square(1) at 1 %) or, being reached
     differently, about which actions they allow (:func:`_compatible`).  Returns the block of every
     state (``0..n-1``).
     """
@@ -142,7 +135,7 @@ def bisimilar_blocks(labels, state_symbol, u, has_next, threshold: float = 6.63)
         block = new
 
 
-def merge_states(labels, state_symbol, u, has_next, threshold: float = 6.63):
+def merge_states(labels, state_symbol, u, has_next, threshold: float):
     """Merge forward-bisimilar states (:func:`bisimilar_blocks`); returns the merged labels and
     the symbol of every merged state."""
     blocks = bisimilar_blocks(labels, state_symbol, u, has_next, threshold)
@@ -157,7 +150,7 @@ def same_partition(a, b) -> bool:
     return pairs == np.unique(a).size == np.unique(b).size
 
 
-def _chi2_quantile(df: int, z: float = 3.09) -> float:
+def _chi2_quantile(df: int, z: float) -> float:
     """Upper quantile of chi-square(df) at the standard-normal score ``z`` (3.09: p = 0.001),
     by the Wilson-Hilferty approximation."""
     h = 2.0 / (9.0 * df)
@@ -178,8 +171,8 @@ def _g_test(rows: np.ndarray):
 
 def _best_split(engine: SplitEngine, q: int, z: float):
     """The paper's split of state ``q`` (predecessor groups merged bottom-up into two halves) if
-    the halves differ significantly (normal score ``z``) in ``(u, x')``; ``None`` otherwise.  Returns the predecessor
-    keys ``x[t-1] * A + u[t-1]`` of the smaller half."""
+    the halves differ significantly (normal score ``z``) in ``(u, x')``; ``None`` otherwise.
+    Returns the predecessor keys ``x[t-1] * A + u[t-1]`` of the smaller half."""
     if engine.tables[q][1].sum() < 2:
         return None
     counts, keys, _ = engine.count_matrix(q)
@@ -194,13 +187,13 @@ def _best_split(engine: SplitEngine, q: int, z: float):
     return keys[side]
 
 
-def split_compounds(labels, state_symbol, u, has_prev, has_next, n_actions: int,
-                    splittable=None, z: float = 3.09):
+def split_compounds(labels, state_symbol, u, has_prev, has_next, n_actions: int, *,
+                    z: float, splittable=None):
     """Split every state that holds two places, once, by the paper's criterion.
 
     A state is split when the two predecessor-defined halves of its steps (Section 3.3 of the
     paper) differ significantly in what follows them, the pair (action, next state): G test at
-    the normal score ``z`` (3.09: p = 0.001; ``inf`` never splits); the action is evidence, as in
+    the normal score ``z`` (e.g. 3.09: p = 0.001; ``inf`` never splits); the action is evidence, as in
     the paper's ``H(u|x)``.  All proposals are computed on the input labelling; a step moves to the
     new state when its predecessor key is in the smaller half.  ``splittable`` (S,) bool excludes
     states (GDS).  Returns ``(labels, state_symbol)`` with new states appended.
