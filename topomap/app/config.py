@@ -39,7 +39,7 @@ from ..core.learner import MapLearner
 from .kinds import KINDS
 
 __all__ = ["Config", "RunConf", "LearnerConf", "OutputConf", "RUNTIME_ARGS", "schema_of",
-           "learner_schema", "store_configs", "read_yaml_options", "check_overrides",
+           "learner_schema", "learner_key", "store_configs", "read_yaml_options", "check_overrides",
            "check_config"]
 
 #: factory arguments the app passes itself; never config fields
@@ -240,6 +240,17 @@ def fields_of(schema) -> dict:
         else:
             out[f.name] = MISSING
     return out
+
+
+def learner_key(param: str) -> str:
+    """The config key of a :class:`MapLearner` parameter an error names: a component's parameter
+    under its group (``stopping.n_states`` -> ``stop.n_states``), the learner's own settings under
+    ``learner`` (``reg_covar`` -> ``learner.reg_covar``); any other name is kept."""
+    head, dot, rest = param.partition(".")
+    groups = {kind.learner_arg: name for name, kind in KINDS.items() if kind.learner_arg}
+    if head in groups:
+        return groups[head] + dot + rest
+    return f"learner.{param}" if param in fields_of(LearnerConf) else param
 
 
 # ------------------------------------------------------------------------------ closed configs

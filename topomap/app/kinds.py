@@ -3,8 +3,9 @@
 Every list of kinds in the app is :data:`KINDS` or derived from it: the kinds a plugin's
 :class:`~topomap.app.hookspecs.Component` may have, the config groups of the top-level config
 (:class:`topomap.app.config.Config`), the components of a run and the order they are built in
-(:class:`topomap.app.registry.Parts`), the :class:`~topomap.MapLearner` arguments they fill, and
-the plugin behind each in ``metrics.json``.
+(:class:`topomap.app.registry.Parts`), the :class:`~topomap.MapLearner` arguments they fill (and
+the config keys the learner's errors are reported under), and the plugins behind the learner's
+components in ``metrics.json``.
 """
 
 from __future__ import annotations

@@ -22,6 +22,7 @@ from pathlib import Path
 import pluggy
 
 from . import builtins, hookspecs
+from ..core.checks import ParameterError
 from .hookspecs import Component
 from .kinds import KINDS
 
@@ -210,6 +211,8 @@ class Registry:
         params.update(extra)
         try:
             return comp.factory(**params)
+        except ParameterError as err:  # named by the factory's parameter: say the config key
+            raise ValueError(f"{kind}={name}: {err.renamed(f'{kind}.{err.param}')}") from None
         except (TypeError, ValueError) as exc:
             raise ValueError(f"{kind}={name}: {exc}") from None
 
