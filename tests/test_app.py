@@ -196,6 +196,20 @@ def test_bad_settings_fail_before_any_output(tmp_path, make_cfg):
         run(small(make_cfg, ["data=file", "data.path=nope.npz"]), tmp_path / "b")
     with pytest.raises(ValueError, match="clusters=fixed: clusters.ns must be a positive integer"):
         run(small(make_cfg, ["clusters.ns=0"]), tmp_path / "c")
+    with pytest.raises(ValueError, match="stop=auto: stop.patience must be a positive integer"):
+        run(make_cfg(["data.n_steps=300", "stop=auto", "stop.patience=0"]), tmp_path / "d")
+    with pytest.raises(ValueError, match="^learner.reg_covar must be a positive number"):
+        run(small(make_cfg, ["learner.reg_covar=0"]), tmp_path / "e")
+    assert not any(tmp_path.iterdir())
+
+
+def test_the_cores_errors_found_while_learning_name_the_config_keys(tmp_path, make_cfg):
+    """The core names its own parameters (``ns``, ``method``); a run names the config keys."""
+    cfg = small(make_cfg, ["env=gridroom", "env.n_symbols=4", "noise=none", "clusters.ns=5"])
+    with pytest.raises(ValueError, match="^clusters.ns=5 is more than the 4 distinct observations"):
+        run(cfg, tmp_path / "a")
+    with pytest.raises(ValueError, match="^learner.phase1='fast' is unknown"):
+        run(small(make_cfg, ["learner.phase1=fast"]), tmp_path / "b")
     assert not any(tmp_path.iterdir())
 
 

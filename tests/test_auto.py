@@ -54,10 +54,10 @@ def test_probe_rule_stops_at_its_limit_or_when_nothing_gains():
     assert rule.should_stop(25, 0.1) and rule.should_stop(12, 0.0)
 
 
-@pytest.mark.parametrize("kwargs, field", [({"criterion": "aic"}, "stop.criterion"),
-                                           ({"max_factor": 0.5}, "stop.max_factor"),
-                                           ({"holdout": 1.0}, "stop.holdout"),
-                                           ({"patience": 0}, "stop.patience")])
+@pytest.mark.parametrize("kwargs, field", [({"criterion": "aic"}, "^criterion"),
+                                           ({"max_factor": 0.5}, "^max_factor"),
+                                           ({"holdout": 1.0}, "^holdout"),
+                                           ({"patience": 0}, "^patience")])
 def test_bad_settings_name_their_field(kwargs, field):
     with pytest.raises(ValueError, match=field):
         AutoStates(**kwargs)

@@ -8,7 +8,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from topomap.core.sums import pairwise_sum, sparse_pairwise_sum
-from topomap.core.split.engine import EntropyCriterion, Splitter, merge_groups
+from topomap.core.split.criteria import EntropyCriterion
+from topomap.core.split.engine import Splitter, merge_groups
 from topomap.core.stats import (conditional_entropy, count_tables, episode_masks,
                                 sparse_conditional_entropy, weighted_entropy)
 

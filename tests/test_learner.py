@@ -7,7 +7,9 @@ import pytest
 from topomap import MapLearner, TopologicalMap
 from topomap.core.phase1.clustering import BICClusters, Cosine, FixedClusters, Standardized
 from topomap.core.metrics import adjusted_rand, compound_states, evaluate, purity
-from topomap.core.split.engine import EntropyCriterion, MinGain, TargetStates, merge_groups
+from topomap.core.split.criteria import EntropyCriterion
+from topomap.core.split.engine import merge_groups
+from topomap.core.split.stopping import MinGain, TargetStates
 
 from worlds import ring
 
@@ -285,10 +287,18 @@ def test_bad_input_is_named(mutate, match):
 
 def test_bad_settings_are_named():
     X, u, _ = ring(n_steps=50)
-    with pytest.raises(ValueError, match="stop.n_states=4 is below the 5 states"):
+    with pytest.raises(ValueError, match="^n_states=4 is below the 5 states"):
         MapLearner(n_clusters=5, n_states=4).fit(X, u)
-    with pytest.raises(ValueError, match="clusters.ns=60 is more than the 50 distinct"):
+    with pytest.raises(ValueError, match="^stopping.n_states=4 is below the 5 states"):
+        MapLearner(n_clusters=5, stopping=TargetStates(4)).fit(X, u)
+    with pytest.raises(ValueError, match="^n_clusters=60 is more than the 50 distinct"):
         MapLearner(n_clusters=60, n_states=70).fit(X, u)
+    with pytest.raises(ValueError, match="^clusters.ns=60 is more than the 50 distinct"):
+        MapLearner(clusters=FixedClusters(60), n_states=70).fit(X, u)
+    with pytest.raises(ValueError, match="^n_clusters must be a positive integer, got 0"):
+        MapLearner(n_clusters=0).fit(X, u)
+    with pytest.raises(ValueError, match="^phase1='fast' is unknown"):
+        MapLearner(n_clusters=3, phase1="fast").fit(X, u)
     with pytest.raises(ValueError, match="gds ids must be -1"):
         MapLearner(n_clusters=3, n_states=5).fit(X, u, gds=np.full(50, -2))
     with pytest.raises(ValueError, match="gds id 3 is out of range"):
@@ -297,9 +307,9 @@ def test_bad_settings_are_named():
         MapLearner(n_clusters=3, n_states=5).fit(X, u, lengths=[20, 20])
     with pytest.raises(ValueError, match="metric 'manhattan' is unknown"):
         MapLearner(n_clusters=3, metric="manhattan").fit(X, u)
-    with pytest.raises(ValueError, match="stop.n_states must be a positive integer"):
+    with pytest.raises(ValueError, match="^n_states must be a positive integer"):
         TargetStates(0)
-    with pytest.raises(ValueError, match="stop.min_gain"):
+    with pytest.raises(ValueError, match="^min_gain"):
         MinGain(-1)
 
 

@@ -74,7 +74,7 @@ def test_too_many_clusters_and_unknown_methods_are_errors():
     X = np.repeat(np.eye(3), 10, axis=0)
     with pytest.raises(ValueError, match="more than the 3 distinct observations"):
         symbols(X, 4)
-    with pytest.raises(ValueError, match="phase1='fast' is unknown"):
+    with pytest.raises(ValueError, match="^method='fast' is unknown"):
         symbols(X, 2, method="fast")
 
 

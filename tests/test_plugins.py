@@ -179,7 +179,7 @@ def write_plugin(path: Path, body: str) -> Path:
 COMPONENT = """
 from topomap import hookimpl
 from topomap.app.hookspecs import Component
-from topomap.core.split.engine import EntropyCriterion
+from topomap.core.split.criteria import EntropyCriterion
 
 @hookimpl
 def topomap_register_components():

@@ -103,7 +103,7 @@ def test_check_params_uses_the_cluster_policys_least_count():
     from topomap.core.phase1.clustering import BICClusters
 
     MapLearner(n_clusters=10, n_states=12).check_params(n_gds=2)
-    with pytest.raises(ValueError, match="stop.n_states=11 is below the 12 states"):
+    with pytest.raises(ValueError, match="^n_states=11 is below the 12 states"):
         MapLearner(n_clusters=10, n_states=11).check_params(n_gds=2)
     with pytest.raises(ValueError, match="below the 7 states"):
         MapLearner(clusters=BICClusters(min_ns=7), n_states=6).check_params()

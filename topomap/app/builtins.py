@@ -7,7 +7,7 @@ see :mod:`topomap.app.config`), the name users write, and a line for ``topomap -
 from __future__ import annotations
 
 from ..core.phase1 import clustering
-from ..core.split import engine as splitting
+from ..core.split import criteria, stopping
 from ..worlds import explorers, noise
 from ..worlds.gridroom import GridRoom
 from ..worlds.minigrid import MiniGridWorld
@@ -54,11 +54,11 @@ def topomap_register_components():
            "a fixed number ns of K-means clusters (the paper's)"),
         _c("clusters", "bic", clustering.BICClusters,
            "ns in [min_ns, max_ns] with the lowest Gaussian-mixture BIC"),
-        _c("split", "entropy", splitting.EntropyCriterion,
+        _c("split", "entropy", criteria.EntropyCriterion,
            "bottom-up merge and entropy gain of H(u) + H(x'|u) (the paper's)"),
-        _c("stop", "n_states", splitting.TargetStates,
+        _c("stop", "n_states", stopping.TargetStates,
            "split until the map has n_states states (the paper's)"),
-        _c("stop", "min_gain", splitting.MinGain,
+        _c("stop", "min_gain", stopping.MinGain,
            "split while the best gain is at least min_gain (bits)"),
         _c("stop", "auto", auto.AutoStates,
            "choose the number of states: the held-out log-likelihood (or BIC) of every split size"),

@@ -6,9 +6,11 @@
     topomap -m clusters.ns=10,20,30 stop.n_states=25,30,40
     topomap --list-plugins                    # every component by kind, with its plugin
 
-The line from the command to the work: :func:`main` reads the plugins named on the command line
-(with Hydra's own parsers), loads the :class:`~topomap.app.registry.Registry` once, stores every
-component's typed config, and hands the registry to the task Hydra runs for each job.
+The line from the command to the work, each step once: :func:`main` reads the plugins named on the
+command line (with Hydra's own parsers), loads the :class:`~topomap.app.registry.Registry`,
+screens the command line and stores every component's typed config (:func:`prepare`); Hydra
+composes the config of each job and :func:`~topomap.app.experiment.run` takes it from there:
+the config is checked, the components are built, the map is learned, evaluated and written.
 """
 
 from __future__ import annotations
@@ -23,7 +25,7 @@ from .registry import Registry
 
 log = logging.getLogger("topomap")
 
-__all__ = ["main", "overrides_of", "plugins_named", "compose", "list_plugins"]
+__all__ = ["main", "overrides_of", "plugins_named", "prepare", "compose", "list_plugins"]
 
 CONFIG_MODULE = "topomap.conf"
 
@@ -55,15 +57,24 @@ def plugins_named(overrides) -> list[str]:
     return []
 
 
+def prepare(overrides, registry: Registry | None = None) -> Registry:
+    """What must happen before Hydra composes the config of ``topomap <overrides>``: the registry
+    (of the plugins the overrides name, unless given), the command line screened
+    (:func:`~topomap.app.config.check_overrides`: Hydra would refuse an unknown key or a preset
+    that does not fit with its own message) and every component's config stored."""
+    registry = registry or Registry.load(plugins_named(overrides))
+    check_overrides(overrides, registry)
+    store_configs(registry)
+    return registry
+
+
 def compose(overrides=(), registry: Registry | None = None, *, return_hydra_config=False):
     """The composed config of ``topomap <overrides>`` (Hydra's compose API; for notebooks and
-    tests).  The registry's component configs are stored first."""
+    tests).  The registry's component configs are stored first (:func:`prepare`)."""
     from hydra import compose as hydra_compose
     from hydra import initialize_config_module
 
-    registry = registry or Registry.load()
-    check_overrides(overrides, registry)
-    store_configs(registry)
+    prepare(overrides, registry)
     with initialize_config_module(version_base="1.3", config_module=CONFIG_MODULE):
         return hydra_compose(config_name="config", overrides=list(overrides),
                              return_hydra_config=return_hydra_config)
@@ -158,10 +169,7 @@ def main() -> None:
         list_plugins(Registry.load(argv[1:]))
         return
     try:
-        overrides = overrides_of(argv)
-        registry = Registry.load(plugins_named(overrides))
-        check_overrides(overrides, registry)
-        store_configs(registry)
+        registry = prepare(overrides_of(argv))
     except ValueError as exc:
         sys.exit(f"topomap: error: {exc}")
 

@@ -10,6 +10,14 @@ itself (:data:`RUNTIME_ARGS`) are not config fields.
 :func:`store_configs` puts every component's config into Hydra's ConfigStore as ``<kind>/<name>``
 (with the values of a plugin's own YAML file for it, if it ships one) and the top-level schema as
 ``topomap_schema``; ``conf/config.yaml`` composes them.
+
+Closed configs: Hydra checks the types; :func:`check_config` checks the composed config once,
+before anything is built (a key no schema of the selected components declares, added with ``+``
+or by a YAML file; a required value left out), naming the nearest valid key.  The command line is
+screened before Hydra composes it (:func:`check_overrides`), in the same words: Hydra itself
+refuses a key it does not know or a preset setting a field the chosen component lacks, before
+there is a config to check, with a message that does not name the key meant; and a sweep with a
+misspelt key stops before its first job.
 """
 
 from __future__ import annotations
@@ -28,16 +36,18 @@ from typing import Any, Optional
 from omegaconf import II, MISSING, OmegaConf
 
 from ..core.learner import MapLearner
-from .hookspecs import KINDS
+from .kinds import KINDS
 
-__all__ = ["Config", "LearnerConf", "OutputConf", "RUNTIME_ARGS", "schema_of", "learner_schema",
-           "store_configs", "read_yaml_options"]
+__all__ = ["Config", "RunConf", "LearnerConf", "OutputConf", "RUNTIME_ARGS", "schema_of",
+           "learner_schema", "learner_key", "store_configs", "read_yaml_options", "check_overrides",
+           "check_config"]
 
 #: factory arguments the app passes itself; never config fields
 RUNTIME_ARGS = frozenset({"extra_actions"})
-#: MapLearner arguments that are components or run settings, not ``learner.*`` fields
-_LEARNER_COMPONENT_ARGS = frozenset({"n_clusters", "n_states", "clusters", "metric", "criterion",
-                                     "stopping", "refine", "random_state", "callbacks"})
+#: MapLearner arguments that are not ``learner.*`` fields: the components, the run's seed and
+#: callbacks, and the settings the components stand for (``n_clusters``: ``clusters.ns``, ...)
+_LEARNER_COMPONENT_ARGS = frozenset({kind.learner_arg for kind in KINDS.values() if kind.learner_arg}
+                                    | {"n_clusters", "n_states", "random_state", "callbacks"})
 _PRIMITIVES = (int, float, bool, str)
 
 
@@ -130,8 +140,8 @@ class Task(Enum):
 
 
 @dataclass
-class Config:
-    """The top level of a run's config; each component group holds a ``<kind>/<name>`` config."""
+class RunConf:
+    """The run settings at the top level of a config (:class:`Config` adds the groups)."""
 
     seed: int = 0
     plugins: list[str] = field(default_factory=list)
@@ -139,18 +149,16 @@ class Config:
     task: Task = Task.learn
     #: the map.json a ``task=localize`` run applies
     map: Optional[str] = None
-    env: Any = MISSING
-    noise: Any = MISSING
-    explorer: Any = MISSING
-    metric: Any = MISSING
-    clusters: Any = MISSING
-    split: Any = MISSING
-    stop: Any = MISSING
-    refine: Any = MISSING
-    data: Any = MISSING
-    evaluate: Any = MISSING
-    learner: LearnerConf = field(default_factory=LearnerConf)
-    output: OutputConf = field(default_factory=OutputConf)
+
+
+#: The top level of a run's config: the run settings, one group per kind of component
+#: (:data:`~topomap.app.kinds.KINDS`; each holds a ``<kind>/<name>`` config), ``learner`` and
+#: ``output``.
+Config = make_dataclass("Config", [
+    *((kind, Any, field(default=MISSING)) for kind in KINDS),
+    ("learner", LearnerConf, field(default_factory=LearnerConf)),
+    ("output", OutputConf, field(default_factory=OutputConf)),
+], bases=(RunConf,))
 
 
 # ------------------------------------------------------------------------------ plugin YAML files
@@ -232,6 +240,17 @@ def fields_of(schema) -> dict:
         else:
             out[f.name] = MISSING
     return out
+
+
+def learner_key(param: str) -> str:
+    """The config key of a :class:`MapLearner` parameter an error names: a component's parameter
+    under its group (``stopping.n_states`` -> ``stop.n_states``), the learner's own settings under
+    ``learner`` (``reg_covar`` -> ``learner.reg_covar``); any other name is kept."""
+    head, dot, rest = param.partition(".")
+    groups = {kind.learner_arg: name for name, kind in KINDS.items() if kind.learner_arg}
+    if head in groups:
+        return groups[head] + dot + rest
+    return f"learner.{param}" if param in fields_of(LearnerConf) else param
 
 
 # ------------------------------------------------------------------------------ closed configs

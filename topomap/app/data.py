@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from ..core.checks import ParameterError, check_count
 from ..core.data.rosbag import read_rosbag
 from ..core.data.trajectory import Trajectory, load_trajectory, save_trajectory
 
@@ -28,15 +29,6 @@ def seed_streams(seed: int):
     """Independent generators for the simulation, the sensor noise and the held-out walk."""
     ss = np.random.SeedSequence(int(seed))
     return [np.random.default_rng(s) for s in ss.spawn(3)]
-
-
-def _non_negative_int(name: str, value, allow_none: bool = False):
-    if value is None and allow_none:
-        return None
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
-        raise ValueError(f"data.{name} must be a non-negative integer"
-                         f"{' or null' if allow_none else ''}, got {value!r}")
-    return int(value)
 
 
 class Simulate:
@@ -55,10 +47,8 @@ class Simulate:
     simulates = True
 
     def __init__(self, n_steps: int = 2000, heldout_steps: int | None = None):
-        self.n_steps = _non_negative_int("n_steps", n_steps)
-        if self.n_steps < 1:
-            raise ValueError(f"data.n_steps must be a positive integer, got {n_steps!r}")
-        hold = _non_negative_int("heldout_steps", heldout_steps, allow_none=True)
+        self.n_steps = check_count(n_steps, "n_steps")
+        hold = check_count(heldout_steps, "heldout_steps", minimum=0, allow_none=True)
         self.heldout_steps = self.n_steps if hold is None else hold
 
     def train(self, parts, seed: int, progress=None) -> Trajectory:
@@ -133,7 +123,10 @@ class FromRosbag:
     def heldout(self, parts, seed: int) -> Trajectory | None:
         if self.heldout_path in (None, "", []):
             return None
-        return read_rosbag(self.heldout_path, **self.options)
+        try:
+            return read_rosbag(self.heldout_path, **self.options)
+        except ParameterError as err:  # read_rosbag's path is this heldout_path
+            raise (err.renamed("heldout_path") if err.param == "path" else err) from None
 
 
 def trajectory_key(cfg, kind: str = "train", plugins=()) -> str:

@@ -13,19 +13,23 @@ import socket
 import sys
 import time
 import traceback
+from contextlib import contextmanager
 from pathlib import Path
 
+from ..core.checks import ParameterError
 from ..core.learner import MapLearner
 from ..core.map.model import TopologicalMap
-from .config import check_config
+from .config import check_config, learner_key
 from .data import TrajectoryCache, trajectory_key
 from .evaluate import evaluate, localization_scores
 from .outputs import versions, write_json, write_localization, write_outputs
+from .kinds import KINDS
 from .registry import Parts, Registry
 
 log = logging.getLogger("topomap")
 
-__all__ = ["run", "run_job", "make_learner", "load_data", "Progress", "STATUS_FILE", "CACHE_DIR"]
+__all__ = ["run", "run_job", "make_learner", "load_data", "config_keys", "Progress", "STATUS_FILE",
+           "CACHE_DIR"]
 
 #: a sweep job's status file (``completed`` or ``failed`` with the error)
 STATUS_FILE = "status.json"
@@ -45,33 +49,40 @@ UNITS = {
 def run(cfg, output_dir, *, registry: Registry | None = None, cache_dir=None) -> dict:
     """Run one experiment described by ``cfg`` and write its outputs into ``output_dir``.
 
-    ``task=learn`` (the default) learns a map (:func:`learn`); ``task=localize`` applies the
-    saved ``map`` to the data (:func:`localize`).  Returns the metrics dict.
+    The config is checked (:func:`~topomap.app.config.check_config`), every component is built
+    from it (:meth:`Registry.build <topomap.app.registry.Registry.build>`), before any data is
+    read; then ``task=learn`` (the default) learns a map (:func:`learn`) and ``task=localize``
+    applies the saved ``map`` to the data (:func:`localize`).  Returns the metrics dict.
     """
     cfg = _as_dict(cfg)
     registry = registry or Registry.load(cfg.get("plugins") or ())
     for err in registry.errors:
         log.warning("%s", err)
     check_config(cfg, registry)
-    if cfg.get("task", "learn") == "localize":
-        return localize(cfg, output_dir, registry)
-    return learn(cfg, output_dir, registry, cache_dir)
-
-
-def learn(cfg: dict, output_dir, registry: Registry, cache_dir=None) -> dict:
-    """Learn a map: components -> data -> learner -> evaluation -> outputs.
-
-    Every component is built before any data is simulated, so a bad setting fails first; every
-    file is written atomically.  ``cache_dir``: where simulated trajectories are shared between
-    runs (the jobs of a sweep).
-    """
+    localizing = cfg.get("task", "learn") == "localize"
+    if localizing and not cfg.get("map"):
+        raise ValueError("task=localize needs the map to apply: map=path/to/map.json")
     parts = registry.build(cfg)
+    if localizing:
+        return localize(cfg, parts, output_dir)
+    return learn(cfg, parts, output_dir, registry, cache_dir)
+
+
+def learn(cfg: dict, parts: Parts, output_dir, registry: Registry, cache_dir=None) -> dict:
+    """Learn a map: data -> learner -> evaluation -> outputs.
+
+    The learner's settings are checked before any data is simulated, so a bad setting fails
+    first; every file is written atomically.  ``cache_dir``: where simulated trajectories are
+    shared between runs (the jobs of a sweep).
+    """
     plugin_metrics: dict = {}
     with Progress(cfg["output"].get("progress", True) and sys.stderr.isatty()) as progress:
         learner = make_learner(cfg, parts, [progress.on_event, registry.learner_events(plugin_metrics)])
-        learner.check_params(n_gds=getattr(parts.world, "n_gds", 0))  # before any simulation
+        with config_keys():
+            learner.check_params(n_gds=getattr(parts.world, "n_gds", 0))  # before any simulation
         (traj, heldout), t_data = load_data(cfg, parts, registry, cache_dir, progress)
-        learner.fit_trajectory(traj)
+        with config_keys():
+            learner.fit_trajectory(traj)
     t0 = time.perf_counter()
     results = evaluate(learner, traj, heldout, parts)
     t_data["evaluate"] = time.perf_counter() - t0
@@ -80,21 +91,19 @@ def learn(cfg: dict, output_dir, registry: Registry, cache_dir=None) -> dict:
         "stop_reason": learner.stop_reason_, "timings": {**t_data, **learner.timings_},
         "size_choice": getattr(learner, "size_choice_", None),
         "versions": versions(), "config": cfg, "plugin_metrics": plugin_metrics, "units": UNITS,
-        "providers": {k: registry.provider(k, cfg[k]["component"])
-                      for k in ("clusters", "metric", "split", "stop")},
+        "providers": {name: registry.provider(name, cfg[name]["component"])
+                      for name, kind in KINDS.items() if kind.learner_arg},  # the learner's
     })
     write_outputs(Path(output_dir), traj, learner, results, cfg, parts.world)
     return results
 
 
-def localize(cfg: dict, output_dir, registry: Registry) -> dict:
+def localize(cfg: dict, parts: Parts, output_dir) -> dict:
     """Apply the saved map ``cfg["map"]`` to the data: the belief over states at every step
     (forward filtering), the Viterbi states and, with ground truth, their scores."""
-    if not cfg.get("map"):
-        raise ValueError("task=localize needs the map to apply: map=path/to/map.json")
     m = TopologicalMap.load(cfg["map"])
-    parts = registry.build(cfg)
-    traj = parts.data.train(parts, int(cfg["seed"]))
+    with config_keys("data"):
+        traj = parts.data.train(parts, int(cfg["seed"]))
     args = (traj.observations, traj.actions)
     kw = {"gds": traj.gds, "lengths": traj.lengths}
     beliefs, viterbi = m.filter(*args, **kw), m.predict(*args, **kw)
@@ -106,9 +115,22 @@ def localize(cfg: dict, output_dir, registry: Registry) -> dict:
 
 def make_learner(cfg, parts: Parts, callbacks=()) -> MapLearner:
     """A :class:`MapLearner` with the run's components and ``learner.*`` settings."""
-    return MapLearner(clusters=parts.clusters, metric=parts.metric, criterion=parts.split,
-                      stopping=parts.stop, refine=parts.refine, random_state=int(cfg["seed"]),
-                      callbacks=callbacks, **cfg["learner"])
+    components = {kind.learner_arg: getattr(parts, name) for name, kind in KINDS.items()
+                  if kind.learner_arg}
+    return MapLearner(**components, random_state=int(cfg["seed"]), callbacks=callbacks,
+                      **cfg["learner"])
+
+
+@contextmanager
+def config_keys(group: str | None = None):
+    """Name the parameter of a :class:`~topomap.core.checks.ParameterError` raised inside by its
+    config key: ``<group>.<param>`` for a component of ``group``, else the key of a
+    :class:`MapLearner` parameter (:func:`~topomap.app.config.learner_key`)."""
+    try:
+        yield
+    except ParameterError as err:
+        key = f"{group}.{err.param}" if group else learner_key(err.param)
+        raise err.renamed(key) from err.__cause__
 
 
 def load_data(cfg, parts: Parts, registry: Registry, cache_dir=None, progress=None):
@@ -125,9 +147,10 @@ def load_data(cfg, parts: Parts, registry: Registry, cache_dir=None, progress=No
                                               build)
 
     t0 = time.perf_counter()
-    traj = get("train", lambda: data.train(parts, seed, progress))
-    t1 = time.perf_counter()
-    heldout = get("heldout", lambda: data.heldout(parts, seed))
+    with config_keys("data"):
+        traj = get("train", lambda: data.train(parts, seed, progress))
+        t1 = time.perf_counter()
+        heldout = get("heldout", lambda: data.heldout(parts, seed))
     t2 = time.perf_counter()
     log.info("trajectory: %d steps, %d features, %d actions", len(traj),
              traj.observations.shape[1], traj.n_actions)

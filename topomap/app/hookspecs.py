@@ -9,24 +9,9 @@ the specifications below.  It is found through the setuptools entry-point group 
 
 Component kinds
 ---------------
-=============  ==============================================================  ==================
-kind           what the factory returns                                        config group
-=============  ==============================================================  ==================
-``env``        a world: ``simulate(n_steps, explorer, rng) -> Trajectory``      ``env``
-               (optional: ``plot_room(ax)``, ``extra_actions=`` argument)
-``noise``      ``apply(observations, rng) -> observations`` (a new array)      ``noise``
-``explorer``   ``choose(executable_mask, rng) -> action id``                   ``explorer``
-``metric``     ``fit_transform(X) -> Z``; K-means runs on ``Z``                ``metric``
-``clusters``   ``choose(Z, random_state) -> ns``                               ``clusters``
-``split``      ``propose(counts) -> (side, score) | None``                     ``split``
-``stop``       ``check(n_initial)``; ``should_stop(n_states, best_score)``     ``stop``
-``refine``     ``fit(sequence, split_state_symbol, random_state) -> CloneFit``  ``refine``
-               (:mod:`topomap.core.refine.methods`), or None for none
-``data``       ``simulates`` (bool); ``train(parts, seed, progress)`` and      ``data``
-               ``heldout(parts, seed)`` return Trajectory objects (or None)
-``evaluate``   ``evaluate(map, labels, places, world, noise) -> dict``, or      ``evaluate``
-               None for no extra evaluation
-=============  ==============================================================  ==================
+A component has one of the kinds declared in :mod:`topomap.app.kinds`
+(:data:`~topomap.app.kinds.KINDS`, with what the factory of each kind returns); the kind is also
+the config group that selects the component (``topomap split=<name>``).
 """
 
 from __future__ import annotations
@@ -36,14 +21,12 @@ from typing import Any, Callable
 
 import pluggy
 
+from .kinds import KINDS
+
 __all__ = ["hookspec", "hookimpl", "Component", "KINDS", "TopomapSpecs"]
 
 hookspec = pluggy.HookspecMarker("topomap")
 hookimpl = pluggy.HookimplMarker("topomap")
-
-#: every kind of component a plugin can provide, in the order the app builds them
-KINDS = ("env", "noise", "explorer", "metric", "clusters", "split", "stop", "refine", "data",
-         "evaluate")
 
 
 @dataclass(frozen=True)

@@ -18,12 +18,13 @@ import sys
 from dataclasses import dataclass
 from importlib.metadata import entry_points
 from pathlib import Path
-from typing import Any
 
 import pluggy
 
 from . import builtins, hookspecs
-from .hookspecs import KINDS, Component
+from ..core.checks import ParameterError
+from .hookspecs import Component
+from .kinds import KINDS
 
 __all__ = ["Registry", "Parts", "PluginError", "ENTRY_POINT_GROUP", "AUTOLOAD_ENV"]
 
@@ -37,23 +38,28 @@ def autoload_disabled() -> bool:
     return os.environ.get(AUTOLOAD_ENV, "") not in ("", "0")
 
 
-@dataclass
 class Parts:
-    """The components of one run, each built once from its config.
+    """The components of one run, each built once from its config: one attribute per kind of
+    component (:data:`~topomap.app.kinds.KINDS`), ``world`` standing for ``env``.
 
-    ``world`` is None when the data component does not simulate (``data=file``).
+    The parts of the world (``env``, ``noise``, ``explorer``) are None when the data component
+    does not simulate (``data=file``).
     """
 
-    world: Any
-    noise: Any
-    explorer: Any
-    metric: Any
-    clusters: Any
-    split: Any
-    stop: Any
-    refine: Any
-    data: Any
-    evaluate: Any
+    def __init__(self, **built):
+        unknown = set(built) - set(KINDS)
+        if unknown:
+            raise TypeError(f"Parts has no kind {', '.join(sorted(unknown))}")
+        for kind in KINDS:
+            setattr(self, kind, built.get(kind))
+
+    @property
+    def world(self):
+        """The world the data component simulates (the ``env`` component), or None."""
+        return self.env
+
+    def __repr__(self) -> str:
+        return f"Parts({', '.join(f'{k}={getattr(self, k)!r}' for k in KINDS)})"
 
 
 @dataclass(frozen=True)
@@ -93,27 +99,43 @@ class Registry:
         self.pm = pm
         self.errors: list[PluginError] = list(errors)
         self._components: dict[str, dict[str, tuple[Component, str]]] = {k: {} for k in KINDS}
-        for impl in pm.hook.topomap_register_components.get_hookimpls():  # registration order
-            provider = pm.get_name(impl.plugin) or repr(impl.plugin)
-            try:
-                returned = impl.function() or []
-            except Exception as exc:  # a plugin's hook failing must not hide the others
-                self.errors.append(PluginError(provider, _module_of(impl.plugin), repr(exc)))
+        for provider, plugin, returned in self._call_each("topomap_register_components"):
+            if isinstance(returned, Exception):  # a plugin's hook failing must not hide the others
+                self.errors.append(PluginError(provider, _module_of(plugin), repr(returned)))
                 continue
-            for comp in returned:
-                if not isinstance(comp, Component):
-                    raise ValueError(
-                        f"plugin {provider!r} returned {comp!r} from topomap_register_components; "
-                        "expected topomap.hookspecs.Component objects"
-                    )
-                known = self._components[comp.kind]
-                if comp.name in known:
-                    other = known[comp.name][1]
-                    raise ValueError(
-                        f"{comp.kind} component {comp.name!r} is registered by two plugins: "
-                        f"{other!r} and {provider!r}; uninstall or rename one of them"
-                    )
-                known[comp.name] = (comp, provider)
+            for comp in returned or []:
+                self._add(comp, provider)
+
+    def _add(self, comp: Component, provider: str) -> None:
+        if not isinstance(comp, Component):
+            raise ValueError(
+                f"plugin {provider!r} returned {comp!r} from topomap_register_components; "
+                "expected topomap.hookspecs.Component objects"
+            )
+        known = self._components[comp.kind]
+        if comp.name in known:
+            other = known[comp.name][1]
+            raise ValueError(
+                f"{comp.kind} component {comp.name!r} is registered by two plugins: "
+                f"{other!r} and {provider!r}; uninstall or rename one of them"
+            )
+        known[comp.name] = (comp, provider)
+
+    def _call_each(self, hook: str, **kwargs):
+        """Call the hook ``hook`` of one plugin at a time (through pluggy, which passes each the
+        arguments it takes) and yield ``(provider, plugin, result)`` in registration order;
+        ``result`` is the exception the plugin raised, if it raised.  (``pm.hook.<hook>(...)``
+        calls them all at once: its results do not say which plugin gave them, and the first
+        plugin that raises stops it.)"""
+        plugins = [impl.plugin for impl in getattr(self.pm.hook, hook).get_hookimpls()]
+        for plugin in plugins:
+            alone = self.pm.subset_hook_caller(hook, [p for p in plugins if p is not plugin])
+            try:
+                results = alone(**kwargs)
+            except Exception as exc:
+                results = [exc]
+            yield (self.pm.get_name(plugin) or repr(plugin), plugin,
+                   results[0] if results else None)
 
     # ------------------------------------------------------------------ loading
     @classmethod
@@ -189,21 +211,19 @@ class Registry:
         params.update(extra)
         try:
             return comp.factory(**params)
+        except ParameterError as err:  # named by the factory's parameter: say the config key
+            raise ValueError(f"{kind}={name}: {err.renamed(f'{kind}.{err.param}')}") from None
         except (TypeError, ValueError) as exc:
             raise ValueError(f"{kind}={name}: {exc}") from None
 
     def config_paths(self) -> list[tuple[str, str]]:
         """``(folder, provider)`` of every plugin that ships config-group YAML files."""
         paths = []
-        for impl in self.pm.hook.topomap_config_path.get_hookimpls():
-            try:
-                path = impl.function()
-            except Exception as exc:
-                provider = self.pm.get_name(impl.plugin)
-                self.errors.append(PluginError(provider, _module_of(impl.plugin), repr(exc)))
-                continue
-            if path and str(path) not in [p for p, _ in paths]:
-                paths.append((str(path), self.pm.get_name(impl.plugin)))
+        for provider, plugin, path in self._call_each("topomap_config_path"):
+            if isinstance(path, Exception):
+                self.errors.append(PluginError(provider, _module_of(plugin), repr(path)))
+            elif path and str(path) not in [p for p, _ in paths]:
+                paths.append((str(path), provider))
         return paths
 
     def plugin_names(self) -> list[str]:
@@ -212,35 +232,37 @@ class Registry:
 
     # ------------------------------------------------------------------ building a run
     def world_actions(self, env: dict) -> list:
-        """The actions plugins add to the world ``env["component"]``, in plugin order."""
-        return [a for _, actions in self.world_action_providers(env) for a in actions]
+        """The actions plugins add to the world ``env["component"]``, in the order pluggy calls
+        them (they are appended to the world's own)."""
+        added = self.pm.hook.topomap_world_actions(world=env["component"], params=dict(env))
+        return [action for actions in added for action in actions or ()]
 
     def world_action_providers(self, env: dict) -> list[tuple[str, list]]:
-        """``(provider, actions)`` of every plugin adding actions to the world ``env["component"]``
-        (the order in which they are appended to the world's own)."""
+        """``(provider, actions)`` of every plugin adding actions to the world ``env["component"]``,
+        in the order of :meth:`world_actions`."""
         out = []
-        for impl in reversed(self.pm.hook.topomap_world_actions.get_hookimpls()):  # call order
-            actions = impl.function(world=env["component"], params=dict(env))
+        called = self._call_each("topomap_world_actions", world=env["component"], params=dict(env))
+        for provider, _, actions in reversed(list(called)):  # pluggy calls the last registered first
+            if isinstance(actions, Exception):
+                raise actions
             if actions:
-                out.append((self.pm.get_name(impl.plugin), list(actions)))
+                out.append((provider, list(actions)))
         return out
 
     def build(self, cfg) -> Parts:
-        """Every component of the run ``cfg`` (a mapping), each built once.
-
-        The world, its noise and explorer are built only when the data component simulates.
-        """
+        """Every component of the run ``cfg`` (a mapping), each built once, in the order of
+        :data:`~topomap.app.kinds.KINDS` -- the data component first: the parts of the world are
+        built only when it simulates."""
         data = self.make("data", cfg["data"])
-        world = noise = explorer = None
-        if getattr(data, "simulates", False):
-            extra = self.world_actions(cfg["env"])
-            world = self.make("env", cfg["env"], **({"extra_actions": extra} if extra else {}))
-            noise = self.make("noise", cfg["noise"])
-            explorer = self.make("explorer", cfg["explorer"])
-        return Parts(world=world, noise=noise, explorer=explorer,
-                     **{k: self.make(k, cfg[k])
-                        for k in ("metric", "clusters", "split", "stop", "refine", "evaluate")},
-                     data=data)
+        simulates = bool(getattr(data, "simulates", False))
+        built = {"data": data}
+        for kind in KINDS.values():
+            if kind.name in built or (kind.world and not simulates):
+                continue
+            extra = self.world_actions(cfg["env"]) if kind.name == "env" else None
+            built[kind.name] = self.make(kind.name, cfg[kind.name],
+                                         **({"extra_actions": extra} if extra else {}))
+        return Parts(**built)
 
     def learner_events(self, metrics: dict):
         """A learner callback that passes every event to the plugins' ``topomap_learner_event``;

@@ -4,20 +4,28 @@ from __future__ import annotations
 
 import copy
 import time
+from contextlib import contextmanager
 from dataclasses import dataclass, replace
 
 import numpy as np
 from sklearn.base import BaseEstimator
 
+from .checks import ParameterError
 from .phase1.clustering import FixedClusters, cluster_observations, make_metric
 from .size import AutoStates, SizeScores, bic, parameter_count, split_holdout
 from .map.model import TopologicalMap
 from .refine.methods import REFINEMENTS, SymbolSequence
-from .split.engine import CRITERIA, Splitter, TargetStates
+from .split.criteria import CRITERIA
+from .split.engine import Splitter
+from .split.stopping import TargetStates
 from .stats import episode_masks
 from .data.trajectory import check_sequences
 
 __all__ = ["MapLearner"]
+
+#: the learner's own parameter behind a parameter of a component it makes itself
+#: (``FixedClusters(n_clusters)``, ``TargetStates(n_states)``)
+_MADE_FROM = {("clusters", "ns"): "n_clusters", ("stopping", "n_states"): "n_states"}
 
 
 @dataclass
@@ -231,9 +239,10 @@ class MapLearner(BaseEstimator):
         plain = data.gds < 0
         if plain.sum() < 1:
             raise ValueError("every step is labelled as a GDS; no observations are left to cluster")
-        symbols, choice = cluster_observations(
-            data.X if plain.all() else data.X[plain], clusters, metric, n_init=self.n_init,
-            random_state=self.random_state, method=self.phase1, sample_size=self.sample_size)
+        with self._naming("clusters", method="phase1"):
+            symbols, choice = cluster_observations(
+                data.X if plain.all() else data.X[plain], clusters, metric, n_init=self.n_init,
+                random_state=self.random_state, method=self.phase1, sample_size=self.sample_size)
         self.phase1_method_ = choice.pop("method")
         self.cluster_choice_ = choice
         ns = self.n_clusters_ = int(symbols.max()) + 1
@@ -241,7 +250,8 @@ class MapLearner(BaseEstimator):
         labels = np.empty(data.X.shape[0], dtype=np.int64)
         labels[plain] = symbols
         labels[~plain] = ns + np.searchsorted(gds_ids, data.gds[~plain])
-        stopping.check(ns + gds_ids.size)
+        with self._naming("stopping"):
+            stopping.check(ns + gds_ids.size)
         self.labels_phase1_ = labels.copy()
         self.split_history_, self.entropies_ = [], []
         splitter = Splitter(labels, data.u, data.n_actions, *data.masks,
@@ -265,7 +275,9 @@ class MapLearner(BaseEstimator):
         self._emit("split", labels=splitter.labels, entropies=self.entropies_[-1], record=record)
 
     def check_params(self, n_gds: int = 0) -> None:
-        """Check what can be checked before any data is seen; raise ValueError naming the field.
+        """Check what can be checked before any data is seen; raise a
+        :class:`~topomap.core.checks.ParameterError` naming the parameter (``n_states``, or
+        ``stopping.n_states`` for a stopping rule passed as ``stopping``).
 
         Besides the parameters themselves, the stopping rule is checked against the states
         phase 1 will create: at least ``min_clusters`` of the cluster-count policy (when it tells)
@@ -275,7 +287,8 @@ class MapLearner(BaseEstimator):
         clusters, _, _, stopping = self._components()
         least = getattr(clusters, "min_clusters", None)
         if least is not None:
-            stopping.check(int(least) + int(n_gds))
+            with self._naming("stopping"):
+                stopping.check(int(least) + int(n_gds))
 
     # ------------------------------------------------------------------ helpers
     def _validate(self, observations, actions, gds, lengths, n_actions, action_names,
@@ -328,16 +341,17 @@ class MapLearner(BaseEstimator):
             if refine == "none":
                 return None
             if refine not in REFINEMENTS:
-                raise ValueError(f"refine {refine!r} is unknown; choose one of none, "
-                                 f"{', '.join(sorted(REFINEMENTS))}")
+                raise ParameterError("refine", f"{refine!r} is unknown; choose one of none, "
+                                               f"{', '.join(sorted(REFINEMENTS))}")
             return REFINEMENTS[refine]()
         if refine is not None and not callable(getattr(refine, "fit", None)):
-            raise ValueError(f"refine {refine!r} has no fit(sequence, split_state_symbol, "
-                             "random_state) method")
+            raise ParameterError("refine", f"{refine!r} has no fit(sequence, split_state_symbol, "
+                                           "random_state) method")
         return refine
 
     def _components(self):
-        clusters = self.clusters if self.clusters is not None else FixedClusters(self.n_clusters)
+        with self._naming("clusters"):
+            clusters = self.clusters if self.clusters is not None else FixedClusters(self.n_clusters)
         # a stopping rule may keep state during a fit (e.g. its limit): fit works on a copy, so
         # the parameter itself is never changed
         if self.stopping is not None:
@@ -347,14 +361,33 @@ class MapLearner(BaseEstimator):
         criterion = self.criterion
         if isinstance(criterion, str):
             if criterion not in CRITERIA:
-                raise ValueError(f"criterion {criterion!r} is unknown; choose one of "
-                                 f"{', '.join(sorted(CRITERIA))}")
+                raise ParameterError("criterion", f"{criterion!r} is unknown; choose one of "
+                                                  f"{', '.join(sorted(CRITERIA))}")
             criterion = CRITERIA[criterion]()
         if self.covariance_type not in ("diag", "full"):
-            raise ValueError(f"covariance_type must be 'diag' or 'full', got {self.covariance_type!r}")
+            raise ParameterError("covariance_type",
+                                 f"must be 'diag' or 'full', got {self.covariance_type!r}")
         if not (isinstance(self.reg_covar, (int, float)) and self.reg_covar > 0):
-            raise ValueError(f"reg_covar must be a positive number, got {self.reg_covar!r}")
+            raise ParameterError("reg_covar", f"must be a positive number, got {self.reg_covar!r}")
         return clusters, make_metric(self.metric), criterion, stopping
+
+    @contextmanager
+    def _naming(self, arg: str, **own: str):
+        """Name the parameter of a :class:`ParameterError` raised inside as this learner's:
+        ``<arg>.<param>`` for a parameter of the component passed as ``arg`` (``clusters.ns``),
+        the learner's own parameter when the learner made the component from it
+        (``n_clusters``), and ``own[param]`` for a setting passed on under another name
+        (``method`` is ``phase1``)."""
+        try:
+            yield
+        except ParameterError as err:
+            if err.param in own:
+                name = own[err.param]
+            elif getattr(self, arg) is None:
+                name = _MADE_FROM.get((arg, err.param), err.param)
+            else:
+                name = f"{arg}.{err.param}"
+            raise err.renamed(name) from err.__cause__
 
     def _emit(self, event: str, **info) -> None:
         for cb in self.callbacks:

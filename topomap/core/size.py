@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .checks import ParameterError, check_count
 from .map.model import TopologicalMap
 from .stats import episode_masks
 
@@ -69,16 +70,13 @@ class AutoStates:
     def __init__(self, criterion: str = "heldout", max_factor: float = 10.0, holdout: float = 0.2,
                  patience: int | None = None):
         if criterion not in CRITERIA:
-            raise ValueError(f"stop.criterion must be one of {', '.join(CRITERIA)}, got {criterion!r}")
+            raise ParameterError("criterion", f"must be one of {', '.join(CRITERIA)}, got {criterion!r}")
         if not max_factor >= 1:
-            raise ValueError(f"stop.max_factor must be >= 1, got {max_factor!r}")
+            raise ParameterError("max_factor", f"must be >= 1, got {max_factor!r}")
         if not 0 < holdout < 1:
-            raise ValueError(f"stop.holdout must lie in (0, 1), got {holdout!r}")
-        if patience is not None and (isinstance(patience, bool) or not isinstance(
-                patience, (int, np.integer)) or patience < 1):
-            raise ValueError(f"stop.patience must be a positive integer or null, got {patience!r}")
+            raise ParameterError("holdout", f"must lie in (0, 1), got {holdout!r}")
+        self.patience = check_count(patience, "patience", allow_none=True)
         self.criterion, self.max_factor, self.holdout = criterion, float(max_factor), float(holdout)
-        self.patience = None if patience is None else int(patience)
         self._probe = UpTo(self.max_factor)
 
     def probe_rule(self) -> UpTo:

@@ -10,16 +10,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..core.checks import check_count
 from ..core.data.trajectory import Trajectory
 
-__all__ = ["positive_int", "check_no_extra_actions", "check_simulate_args", "check_choice", "walk",
+__all__ = ["check_no_extra_actions", "check_simulate_args", "check_choice", "walk",
            "symbol_embedding", "assign_symbols", "symbol_legend"]
-
-
-def positive_int(name: str, value, low: int = 1) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
-        raise ValueError(f"{name} must be an integer >= {low}, got {value!r}")
-    return int(value)
 
 
 def check_no_extra_actions(world: str, extra_actions) -> None:
@@ -32,11 +27,10 @@ def check_no_extra_actions(world: str, extra_actions) -> None:
 
 def check_simulate_args(n_steps, explorer) -> int:
     """Validate the arguments of ``simulate`` and return ``n_steps`` as an int."""
-    if isinstance(n_steps, bool) or not isinstance(n_steps, (int, np.integer)) or n_steps < 1:
-        raise ValueError(f"n_steps must be a positive integer, got {n_steps!r}")
+    n_steps = check_count(n_steps, "n_steps")
     if not callable(getattr(explorer, "choose", None)):
         raise ValueError("explorer must have a choose(executable_mask, rng) method")
-    return int(n_steps)
+    return n_steps
 
 
 def check_choice(a, mask: np.ndarray, t: int) -> int:

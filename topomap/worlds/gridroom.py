@@ -23,8 +23,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..core.checks import check_count
 from ..core.data.trajectory import Trajectory
-from .common import (assign_symbols, check_no_extra_actions, positive_int, symbol_embedding,
+from .common import (assign_symbols, check_no_extra_actions, symbol_embedding,
                      symbol_legend, walk)
 
 __all__ = ["GridRoom"]
@@ -52,15 +53,15 @@ class GridRoom:
 
     def __init__(self, width: int = 8, height: int = 6, n_symbols: int = 4, obs_dim: int = 0,
                  seed: int = 0, extra_actions=None):
-        self.width = positive_int("width", width)
-        self.height = positive_int("height", height)
+        self.width = check_count(width, "width")
+        self.height = check_count(height, "height")
         if self.width * self.height < 2:
             raise ValueError(f"the room needs at least two cells, got width={width}, height={height}")
         self.n_places = self.width * self.height
-        self.n_symbols = positive_int("n_symbols", n_symbols)
+        self.n_symbols = check_count(n_symbols, "n_symbols")
         if self.n_symbols > self.n_places:
             raise ValueError(f"n_symbols={n_symbols} exceeds the {self.n_places} cells of the room")
-        self.obs_dim = positive_int("obs_dim", obs_dim, low=0)
+        self.obs_dim = check_count(obs_dim, "obs_dim", minimum=0)
         self.seed = int(seed)
         check_no_extra_actions("gridroom", extra_actions)
         rng = np.random.default_rng(self.seed)

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..core.checks import ParameterError, check_count
 from ..core.map.model import TopologicalMap
 
 __all__ = ["PlaceGraph", "place_graph", "state_places", "Navigation"]
@@ -153,12 +154,10 @@ class Navigation:
 
     def __init__(self, episodes: int = 100, localise_steps: int = 10, step_factor: float = 3.0,
                  seed: int = 0):
-        for name, value in (("episodes", episodes), ("localise_steps", localise_steps)):
-            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
-                raise ValueError(f"evaluate.{name} must be a non-negative integer, got {value!r}")
+        self.episodes = check_count(episodes, "episodes", minimum=0)
+        self.localise_steps = check_count(localise_steps, "localise_steps", minimum=0)
         if not step_factor >= 1:
-            raise ValueError(f"evaluate.step_factor must be >= 1, got {step_factor!r}")
-        self.episodes, self.localise_steps = int(episodes), int(localise_steps)
+            raise ParameterError("step_factor", f"must be >= 1, got {step_factor!r}")
         self.step_factor, self.seed = float(step_factor), int(seed)
 
     def evaluate(self, m: TopologicalMap, labels, places, world, noise=None) -> dict:

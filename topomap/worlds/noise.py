@@ -11,6 +11,8 @@ import math
 
 import numpy as np
 
+from ..core.checks import ParameterError
+
 __all__ = ["NoNoise", "GaussianNoise", "DropoutNoise", "MultiplicativeNoise"]
 
 
@@ -20,11 +22,11 @@ def _as_float(observations) -> np.ndarray:
 
 def _check(name: str, value, low: float, high: float | None = None) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise ValueError(f"{name} must be a number, got {value!r}")
+        raise ParameterError(name, f"must be a number, got {value!r}")
     value = float(value)
     if not math.isfinite(value) or value < low or (high is not None and value >= high):
         bound = f">= {low}" if high is None else f"in [{low}, {high})"
-        raise ValueError(f"{name} must be {bound}, got {value!r}")
+        raise ParameterError(name, f"must be {bound}, got {value!r}")
     return value
 
 

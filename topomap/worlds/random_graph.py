@@ -21,8 +21,9 @@ import math
 
 import numpy as np
 
+from ..core.checks import check_count
 from ..core.data.trajectory import Trajectory
-from .common import (assign_symbols, check_no_extra_actions, positive_int, symbol_embedding,
+from .common import (assign_symbols, check_no_extra_actions, symbol_embedding,
                      symbol_legend, walk)
 
 __all__ = ["RandomGraphWorld", "random_strong_digraph"]
@@ -70,15 +71,15 @@ class RandomGraphWorld:
 
     def __init__(self, n_places: int = 30, out_degree: int = 4, n_symbols: int = 20,
                  obs_dim: int = 0, layout: str = "spring", seed: int = 0, extra_actions=None):
-        self.n_places = positive_int("n_places", n_places, low=2)
-        self.out_degree = positive_int("out_degree", out_degree)
+        self.n_places = check_count(n_places, "n_places", minimum=2)
+        self.out_degree = check_count(out_degree, "out_degree")
         if self.out_degree > self.n_places - 1:
             raise ValueError(f"out_degree={out_degree} needs more than {self.n_places} places "
                              "(out-edges go to distinct other places)")
-        self.n_symbols = positive_int("n_symbols", n_symbols)
+        self.n_symbols = check_count(n_symbols, "n_symbols")
         if self.n_symbols > self.n_places:
             raise ValueError(f"n_symbols={n_symbols} exceeds n_places={self.n_places}")
-        self.obs_dim = positive_int("obs_dim", obs_dim, low=0)
+        self.obs_dim = check_count(obs_dim, "obs_dim", minimum=0)
         if layout not in LAYOUTS:
             raise ValueError(f"layout must be one of {', '.join(LAYOUTS)}, got {layout!r}")
         self.layout = layout

@@ -15,7 +15,7 @@ from scipy.stats import chi2
 
 from topomap import hookimpl
 from topomap.app.hookspecs import Component
-from topomap.core.split.engine import EntropyCriterion
+from topomap.core.split.criteria import EntropyCriterion
 
 
 class GTestCriterion:

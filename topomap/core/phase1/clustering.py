@@ -43,6 +43,7 @@ from sklearn.cluster import KMeans, MiniBatchKMeans
 from sklearn.mixture import GaussianMixture
 from threadpoolctl import threadpool_limits
 
+from ..checks import ParameterError, check_count
 from .distinct import distinct_rows
 
 __all__ = [
@@ -101,11 +102,11 @@ def make_metric(metric):
         try:
             return METRICS[metric]()
         except KeyError:
-            raise ValueError(
-                f"metric {metric!r} is unknown; choose one of {', '.join(sorted(METRICS))}"
+            raise ParameterError(
+                "metric", f"{metric!r} is unknown; choose one of {', '.join(sorted(METRICS))}"
             ) from None
     if not hasattr(metric, "fit_transform"):
-        raise ValueError(f"metric {metric!r} has no fit_transform(X) method")
+        raise ParameterError("metric", f"{metric!r} has no fit_transform(X) method")
     return metric
 
 
@@ -115,9 +116,7 @@ class FixedClusters:
     name = "fixed"
 
     def __init__(self, ns: int = 20):
-        if isinstance(ns, bool) or not isinstance(ns, (int, np.integer)) or ns < 1:
-            raise ValueError(f"clusters.ns must be a positive integer, got {ns!r}")
-        self.ns = int(ns)
+        self.ns = check_count(ns, "ns")
 
     @property
     def min_clusters(self) -> int:
@@ -144,17 +143,14 @@ class BICClusters:
 
     def __init__(self, min_ns: int = 5, max_ns: int = 40, step: int = 1,
                  covariance_type: str = "diag", n_init: int = 1):
-        for key, value in (("min_ns", min_ns), ("max_ns", max_ns), ("step", step), ("n_init", n_init)):
-            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
-                raise ValueError(f"clusters.{key} must be a positive integer, got {value!r}")
+        self.min_ns, self.max_ns = check_count(min_ns, "min_ns"), check_count(max_ns, "max_ns")
+        self.step, self.n_init = check_count(step, "step"), check_count(n_init, "n_init")
         if max_ns < min_ns:
-            raise ValueError(f"clusters.max_ns ({max_ns}) is below clusters.min_ns ({min_ns})")
+            raise ParameterError("max_ns", f"({max_ns}) is below min_ns ({min_ns})")
         if covariance_type not in ("full", "diag", "tied", "spherical"):
-            raise ValueError(
-                f"clusters.covariance_type must be full, diag, tied or spherical, got {covariance_type!r}"
-            )
-        self.min_ns, self.max_ns, self.step = int(min_ns), int(max_ns), int(step)
-        self.covariance_type, self.n_init = covariance_type, int(n_init)
+            raise ParameterError("covariance_type", "must be full, diag, tied or spherical, "
+                                                    f"got {covariance_type!r}")
+        self.covariance_type = covariance_type
 
     @property
     def min_clusters(self) -> int:
@@ -165,9 +161,8 @@ class BICClusters:
         n_distinct = np.unique(Z, axis=0).shape[0]
         candidates = [k for k in range(self.min_ns, self.max_ns + 1, self.step) if k <= n_distinct]
         if not candidates:
-            raise ValueError(
-                f"clusters.min_ns={self.min_ns} exceeds the {n_distinct} distinct observations"
-            )
+            raise ParameterError(
+                "min_ns", f"={self.min_ns} exceeds the {n_distinct} distinct observations")
         bic = {}
         for k in candidates:
             gm = GaussianMixture(k, covariance_type=self.covariance_type, n_init=self.n_init,
@@ -279,11 +274,12 @@ def cluster_observations(X: np.ndarray, policy, metric, *, n_init: int = 10,
     Returns ``(symbols, details)``: int64 symbols in ``[0, ns)`` numbered by first appearance in
     time (a cluster left empty by ``"sample"`` or ``"minibatch"`` is dropped, so ``ns`` may
     shrink) and what the cluster-count policy reported plus ``"method"``, the phase-1 method that
-    ran (``"auto"`` resolved; see :data:`METHODS`).  Raises ValueError when more clusters are
-    asked for than there are distinct observations.
+    ran (``"auto"`` resolved; see :data:`METHODS`).  Raises a
+    :class:`~topomap.core.checks.ParameterError` naming ``ns`` (the count the policy chose) when
+    more clusters are asked for than there are distinct observations.
     """
     if method not in METHODS:
-        raise ValueError(f"phase1={method!r} is unknown; choose one of {', '.join(METHODS)}")
+        raise ParameterError("method", f"={method!r} is unknown; choose one of {', '.join(METHODS)}")
     Z = np.ascontiguousarray(metric.fit_transform(X), dtype=np.float64)
     choice = policy.choose(Z, random_state)
     ns, details = choice if isinstance(choice, tuple) else (choice, {})
@@ -291,10 +287,8 @@ def cluster_observations(X: np.ndarray, policy, metric, *, n_init: int = 10,
     repeats, distinct = probe_distinct(Z, ns, random_state)
     n_distinct = distinct[0].size if distinct is not None else None
     if n_distinct is not None and ns > n_distinct:
-        raise ValueError(
-            f"clusters.ns={ns} is more than the {n_distinct} distinct observations "
-            "(GDS steps excluded); lower the cluster count"
-        )
+        raise ParameterError("ns", f"={ns} is more than the {n_distinct} distinct observations "
+                                   "(GDS steps excluded); lower the cluster count")
     if method == "auto":
         method = choose_method(Z.shape[0], repeats, ns, Z.shape[1])
     if method == "distinct" and distinct is None:

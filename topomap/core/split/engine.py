@@ -19,13 +19,10 @@ an instance or a transition changes only where its centre or an end is such a st
 ``S x A x S`` table is ever formed, and every number it reports is the same float the plain numpy
 expressions over all instances give (see :mod:`topomap.core.sums`).
 
-Swappable pieces, each a small object:
-
-* split criteria -- ``propose(counts) -> (side, score)`` or ``None``: :class:`EntropyCriterion`
-  (the paper's bottom-up merge and entropy gain);
-* stopping rules -- ``check(n_initial)`` and ``should_stop(n_states, best_score)``:
-  :class:`TargetStates` (the paper's "until the number of states reaches a specified number") and
-  :class:`MinGain`.
+:class:`Splitter` asks a split criterion for every state's best split (``propose(counts) ->
+(side, score)`` or ``None``; :mod:`topomap.core.split.criteria`) and performs the best; when to
+stop is a stopping rule's call (:mod:`topomap.core.split.stopping`).  :func:`merge_groups`, the
+paper's bottom-up merge, is shared by the entropy criterion and the refinement.
 """
 
 from __future__ import annotations
@@ -36,41 +33,15 @@ import numpy as np
 from numba import njit
 
 from .kernels import merge_groups_kernel
-from ..stats import conditional_entropy, sparse_conditional_entropy, weighted_entropy, xlogx
+from ..stats import conditional_entropy, sparse_conditional_entropy, xlogx
 
-__all__ = ["EntropyCriterion", "TargetStates", "MinGain", "CRITERIA", "merge_groups", "Proposal",
-           "SplitEngine", "Splitter"]
+__all__ = ["merge_groups", "Proposal", "SplitEngine", "Splitter"]
 
 #: merge costs are rounded to this many decimals so that ties that are exact in real arithmetic
 #: are exact in floating point too and are broken by index order, not by rounding noise
 _TIE_DECIMALS = 9
 _SHIFT = np.int64(32)
 _MASK = np.int64((1 << 32) - 1)
-
-
-class EntropyCriterion:
-    """The paper's split test.
-
-    Groups (rows of ``counts``) are merged bottom-up, each time the pair whose union increases the
-    instance-weighted entropy ``n H`` least (ties: the pair of smallest indices), until two remain.
-    The score is the entropy gain ``H(I) - (|I'|/|I| H(I') + |I''|/|I| H(I''))`` in bits.
-    """
-
-    name = "entropy"
-
-    def propose(self, counts: np.ndarray):
-        """Return ``(side, gain)`` -- ``side[g]`` is True for the groups of the second half -- or
-        ``None`` when the state has fewer than two groups."""
-        counts = np.asarray(counts)
-        if counts.shape[0] < 2:
-            return None
-        side = merge_groups(counts)
-        halves = np.stack([counts[~side].sum(axis=0), counts[side].sum(axis=0)])
-        gain = (weighted_entropy(halves.sum(axis=0))[0] - weighted_entropy(halves).sum()) / counts.sum()
-        return side, float(max(gain, 0.0))
-
-    def __repr__(self) -> str:
-        return "EntropyCriterion()"
 
 
 class _XlogxTable:
@@ -106,65 +77,6 @@ def merge_groups(counts: np.ndarray) -> np.ndarray:
         return np.zeros(work.shape[0], dtype=bool)
     table = _TABLE.upto(2 * int(work.sum()))  # 2x: a row is also paired with itself
     return merge_groups_kernel(work, table, _TIE_DECIMALS)
-
-
-class TargetStates:
-    """Stop when the map has ``n_states`` states (the paper: 30)."""
-
-    name = "n_states"
-
-    def __init__(self, n_states: int = 30):
-        if isinstance(n_states, bool) or not isinstance(n_states, (int, np.integer)) or n_states < 1:
-            raise ValueError(f"stop.n_states must be a positive integer, got {n_states!r}")
-        self.n_states = int(n_states)
-
-    def check(self, n_initial: int) -> None:
-        if self.n_states < n_initial:
-            raise ValueError(
-                f"stop.n_states={self.n_states} is below the {n_initial} states that phase 1 "
-                "creates (clusters plus GDS); splitting can only add states"
-            )
-
-    def should_stop(self, n_states: int, best_score: float) -> bool:
-        return n_states >= self.n_states
-
-    def __repr__(self) -> str:
-        return f"TargetStates(n_states={self.n_states})"
-
-
-class MinGain:
-    """Stop when the best split scores below ``min_gain`` (bits), or when the map reaches
-    ``max_states`` states (None: three times the states phase 1 creates, so that a small
-    ``min_gain`` cannot split a map into fragments without end)."""
-
-    name = "min_gain"
-
-    def __init__(self, min_gain: float = 0.05, max_states: int | None = None):
-        if not np.isfinite(min_gain) or min_gain < 0:
-            raise ValueError(f"stop.min_gain must be a finite number >= 0, got {min_gain!r}")
-        if max_states is not None and (not isinstance(max_states, (int, np.integer)) or max_states < 1):
-            raise ValueError(f"stop.max_states must be a positive integer or None, got {max_states!r}")
-        self.min_gain = float(min_gain)
-        self.max_states = None if max_states is None else int(max_states)
-        self._limit = self.max_states
-
-    def check(self, n_initial: int) -> None:
-        if self.max_states is not None and self.max_states < n_initial:
-            raise ValueError(
-                f"stop.max_states={self.max_states} is below the {n_initial} states that phase 1 creates"
-            )
-        self._limit = self.max_states if self.max_states is not None else 3 * int(n_initial)
-
-    def should_stop(self, n_states: int, best_score: float) -> bool:
-        if self._limit is not None and n_states >= self._limit:
-            return True
-        return best_score < self.min_gain
-
-    def __repr__(self) -> str:
-        return f"MinGain(min_gain={self.min_gain}, max_states={self.max_states})"
-
-
-CRITERIA = {EntropyCriterion.name: EntropyCriterion}
 
 
 @dataclass

@@ -6,6 +6,8 @@ import math
 
 import numpy as np
 
+from ...core.checks import ParameterError, check_count
+
 #: distances closer than this count as equal
 TOL = 1e-7
 #: outward normals of the south, east, north and west walls
@@ -35,10 +37,13 @@ def surface_gaps(centers: np.ndarray, radii: np.ndarray) -> np.ndarray:
 
 
 def check_positive(name: str, value, integer: bool = False, allow_inf: bool = False) -> None:
-    """Raise a ValueError naming ``name`` unless ``value`` is a positive number (or integer)."""
-    kinds = (int, np.integer) if integer else (int, float, np.integer, np.floating)
-    if isinstance(value, bool) or not isinstance(value, kinds):
-        kind = "an integer" if integer else "a number"
-        raise ValueError(f"{name} must be {kind}, got {value!r}")
+    """Raise a :class:`~topomap.core.checks.ParameterError` naming ``name`` unless ``value`` is a
+    positive number (or integer)."""
+    if integer:
+        check_count(value, name)
+        return
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise ParameterError(name, f"must be a number, got {value!r}")
     if not (value > 0) or (not allow_inf and not math.isfinite(value)) or math.isnan(value):
-        raise ValueError(f"{name} must be positive{'' if allow_inf else ' and finite'}, got {value!r}")
+        raise ParameterError(name, f"must be positive{'' if allow_inf else ' and finite'}, "
+                                   f"got {value!r}")

@@ -21,6 +21,7 @@ from collections.abc import Iterable, Sequence
 
 import numpy as np
 
+from ...core.checks import ParameterError, check_count
 from ...core.data.trajectory import Trajectory
 from ..common import check_choice, check_simulate_args
 from .actions import Action, ApproachType, FollowWall, Pose
@@ -45,8 +46,7 @@ def make_layout(layout, n_objects, n_types, n_gds, width, height, reach, seed):
         raise ValueError(f"layout must be 'paper', 'random' or an OfficeLayout, got {layout!r}")
     for name, value in (("n_objects", n_objects), ("n_types", n_types)):
         check_positive(name, value, integer=True)
-    if isinstance(n_gds, bool) or not isinstance(n_gds, (int, np.integer)) or n_gds < 0:
-        raise ValueError(f"n_gds must be a non-negative integer, got {n_gds!r}")
+    check_count(n_gds, "n_gds", minimum=0)
     check_positive("width", width)
     check_positive("height", height)
     if n_types > n_objects:
@@ -138,7 +138,7 @@ class OfficeWorld:
         check_positive("max_turn_deg", max_turn_deg)
         check_positive("max_action_steps", max_action_steps, integer=True)
         if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)):
-            raise ValueError(f"seed must be an integer, got {seed!r}")
+            raise ParameterError("seed", f"must be an integer, got {seed!r}")
         lay, self.layout_name = make_layout(layout, n_objects, n_types, n_gds, width, height,
                                             reach, seed)
         self.layout = lay

@@ -29,12 +29,14 @@ Actions
 
 Every problem with a bag is a one-line :class:`ValueError` naming the file.
 
-Modules: ``read`` (:func:`read_rosbag`, :func:`twist_action`), ``write`` (:func:`write_rosbag`),
+Modules: ``read`` (:func:`read_rosbag`) with ``options`` (its arguments, checked) and
+``decode`` (messages into values, :func:`twist_action`), ``write`` (:func:`write_rosbag`),
 ``common`` (the rosbags import, message types, error messages).
 """
 
 from .common import ACTION_TYPES, GDS_TYPES
-from .read import read_rosbag, twist_action
+from .decode import twist_action
+from .read import read_rosbag
 from .write import write_rosbag
 
 __all__ = ["read_rosbag", "write_rosbag", "twist_action", "ACTION_TYPES", "GDS_TYPES"]

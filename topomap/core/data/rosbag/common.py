@@ -8,6 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ...checks import ParameterError
+
 LASER_SCAN = "sensor_msgs/msg/LaserScan"
 STRING = "std_msgs/msg/String"
 INT32 = "std_msgs/msg/Int32"
@@ -99,12 +101,12 @@ def _check_bag_path(path: Path) -> None:
                      "or a ROS 2 .db3 or .mcap file")
 
 
-def _positive(name: str, value, *, integer: bool = False, zero: bool = False):
-    """Return ``value`` if it is a positive (or, with ``zero``, non-negative) number."""
-    kinds = (int, np.integer) if integer else (int, float, np.integer, np.floating)
+def _positive(name: str, value, *, zero: bool = False) -> float:
+    """``value`` as a float if it is a finite positive (or, with ``zero``, non-negative) number,
+    else a :class:`~topomap.core.checks.ParameterError` naming ``name``."""
+    kinds = (int, float, np.integer, np.floating)
     ok = isinstance(value, kinds) and not isinstance(value, bool) and math.isfinite(value)
     if not ok or value < 0 or (value == 0 and not zero):
-        what = "integer" if integer else "number"
-        raise ValueError(f"{name} must be a {'non-negative' if zero else 'positive'} {what}, "
-                         f"got {value!r}")
-    return int(value) if integer else float(value)
+        raise ParameterError(name, f"must be a {'non-negative' if zero else 'positive'} number, "
+                                   f"got {value!r}")
+    return float(value)

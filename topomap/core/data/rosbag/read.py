@@ -8,192 +8,12 @@ from pathlib import Path
 import numpy as np
 
 from ..trajectory import Trajectory
-from .common import (ACTION_TYPES, GDS_TYPES, INT32, LASER_SCAN, STRING, TWIST, TWIST_STAMPED,
-                     _check_bag_path, _describe_failure, _one_line, _positive, _read_errors,
-                     _rosbags)
+from ...checks import ParameterError
+from .common import _check_bag_path, _describe_failure, _one_line, _read_errors, _rosbags
+from .decode import action_decoder, gds_decoder, observation_decoder
+from .options import Options, make_options
 
-__all__ = ["read_rosbag", "twist_action"]
-
-
-# ---------------------------------------------------------------------------------- options
-
-
-@dataclasses.dataclass(frozen=True)
-class _Options:
-    """The validated keyword arguments of :func:`read_rosbag`."""
-
-    observation_topic: str
-    action_topic: str
-    observation_fields: tuple | None
-    scan_bins: int | None
-    max_range: float | None
-    gds_topic: str | None
-    gds_window: float
-    action_names: list | None
-    gds_names: list | None
-    linear_threshold: float
-    angular_threshold: float
-    action_rule: object
-
-    def roles(self) -> list[tuple[str, str]]:
-        """``(role, topic)`` of each topic read: observation, action and, if any, GDS."""
-        extra = [] if self.gds_topic is None else [("GDS", self.gds_topic)]
-        return [("observation", self.observation_topic), ("action", self.action_topic), *extra]
-
-
-def _name_list(name: str, values) -> list | None:
-    """``values`` as a list of distinct strings, or None."""
-    if values is None:
-        return None
-    if isinstance(values, str) or not all(isinstance(v, str) for v in values):
-        raise ValueError(f"{name} must be a list of strings, got {values!r}")
-    values = list(values)
-    if not values or len(set(values)) != len(values):
-        raise ValueError(f"{name} must be a non-empty list of distinct names, got {values!r}")
-    return values
-
-
-def _field_list(fields) -> tuple | None:
-    """``observation_fields`` as a tuple of dotted field paths, or None."""
-    if fields is None:
-        return None
-    if isinstance(fields, str):
-        fields = [fields]
-    fields = tuple(fields)
-    if not fields or not all(isinstance(f, str) and f.strip(".") for f in fields):
-        raise ValueError(f"observation_fields must be a non-empty list of field names such as "
-                         f"'pose.position.x', got {list(fields)!r}")
-    return fields
-
-
-def _make_options(observation_topic, action_topic, kw: dict) -> _Options:
-    """Validate the arguments of :func:`read_rosbag`."""
-    topics = [observation_topic, action_topic] + ([kw["gds_topic"]] if kw["gds_topic"] else [])
-    if not all(isinstance(t, str) and t for t in topics):
-        raise ValueError(f"topics must be non-empty strings, got {topics!r}")
-    if len(set(topics)) != len(topics):
-        raise ValueError(f"the observation, action and GDS topics must differ, got {topics!r}")
-    if kw["action_rule"] is not None and not callable(kw["action_rule"]):
-        raise ValueError(f"action_rule must be callable, got {kw['action_rule']!r}")
-    return _Options(
-        observation_topic=observation_topic, action_topic=action_topic,
-        observation_fields=_field_list(kw["observation_fields"]),
-        scan_bins=None if kw["scan_bins"] is None else _positive("scan_bins", kw["scan_bins"],
-                                                                  integer=True),
-        max_range=None if kw["max_range"] is None else _positive("max_range", kw["max_range"]),
-        gds_topic=kw["gds_topic"] or None,
-        gds_window=_positive("gds_window", kw["gds_window"], zero=True),
-        action_names=_name_list("action_names", kw["action_names"]),
-        gds_names=_name_list("gds_names", kw["gds_names"]),
-        linear_threshold=_positive("linear_threshold", kw["linear_threshold"]),
-        angular_threshold=_positive("angular_threshold", kw["angular_threshold"]),
-        action_rule=kw["action_rule"],
-    )
-
-
-# ---------------------------------------------------------------------------------- decoders
-
-
-def twist_action(linear_x: float, angular_z: float, linear_threshold: float = 0.05,
-                 angular_threshold: float = 0.1) -> str:
-    """Name of the discrete action for a velocity command (m/s, rad/s; REP 103 axes).
-
-    Turning wins over driving: ``angular_z >= angular_threshold`` is ``"turn_left"``,
-    ``angular_z <= -angular_threshold`` is ``"turn_right"``; otherwise
-    ``linear_x >= linear_threshold`` is ``"forward"``, ``linear_x <= -linear_threshold`` is
-    ``"backward"``, and anything slower is ``"stop"``.
-    """
-    if angular_z >= angular_threshold:
-        return "turn_left"
-    if angular_z <= -angular_threshold:
-        return "turn_right"
-    if linear_x >= linear_threshold:
-        return "forward"
-    if linear_x <= -linear_threshold:
-        return "backward"
-    return "stop"
-
-
-def _field_value(msg, dotted: str, msgtype: str):
-    """The value at the dotted field path ``dotted`` of ``msg``."""
-    value = msg
-    for depth, part in enumerate(dotted.split(".")):
-        is_message = dataclasses.is_dataclass(value)
-        names = [f.name for f in dataclasses.fields(value)] if is_message else []
-        if part not in names:
-            where = ".".join(dotted.split(".")[:depth]) or msgtype
-            raise ValueError(f"field {dotted!r} not found in {msgtype}: {where} has fields "
-                             f"{', '.join(names) or '(none: it is a value)'}")
-        value = getattr(value, part)
-    return value
-
-
-def _numeric(value, dotted: str, msgtype: str) -> np.ndarray:
-    """A field's value as a flat float64 array, or a ValueError if it is not numeric."""
-    arr = np.asarray(value)
-    if arr.dtype.kind not in "biuf":
-        raise ValueError(f"field {dotted!r} of {msgtype} is not numeric (it holds "
-                         f"{type(value).__name__} values)")
-    return arr.astype(np.float64).ravel()
-
-
-def _fields_decoder(fields: tuple, msgtype: str):
-    """A function turning a message of ``msgtype`` into the vector of its ``fields``."""
-    def decode(msg) -> np.ndarray:
-        """The concatenated values of the fields of ``msg``."""
-        parts = [_numeric(_field_value(msg, f, msgtype), f, msgtype) for f in fields]
-        return np.concatenate(parts)
-    return decode
-
-
-def _scan_decoder(max_range: float | None):
-    """A function turning a LaserScan into its float32 ranges (inf/nan -> range_max, clipped)."""
-    def decode(msg) -> np.ndarray:
-        """The processed ranges of scan ``msg``."""
-        ranges = np.array(msg.ranges, dtype=np.float32)
-        ranges[~np.isfinite(ranges)] = msg.range_max
-        if max_range is not None:
-            np.fmin(ranges, np.float32(max_range), out=ranges)
-        return ranges
-    return decode
-
-
-def _observation_decoder(msgtype: str, opts: _Options):
-    """The decoder for observation messages of ``msgtype``, or a ValueError."""
-    if opts.observation_fields is not None:
-        if opts.scan_bins is not None or opts.max_range is not None:
-            raise ValueError("scan_bins and max_range apply to LaserScan ranges; they cannot be "
-                             "combined with observation_fields")
-        return _fields_decoder(opts.observation_fields, msgtype)
-    if msgtype == LASER_SCAN:
-        return _scan_decoder(opts.max_range)
-    raise ValueError(f"observation topic {opts.observation_topic} has type {msgtype}, which is not "
-                     f"supported: without observation_fields only {LASER_SCAN} is read; pass "
-                     "observation_fields=[...] to read numeric fields by name (e.g. "
-                     "'pose.position.x')")
-
-
-def _action_decoder(msgtype: str, opts: _Options):
-    """The decoder for action messages of ``msgtype`` (message -> name or id), or a ValueError."""
-    if opts.action_rule is not None:
-        return opts.action_rule
-    if msgtype in (STRING, INT32):
-        return lambda msg: msg.data
-    lin, ang = opts.linear_threshold, opts.angular_threshold
-    if msgtype == TWIST:
-        return lambda msg: twist_action(msg.linear.x, msg.angular.z, lin, ang)
-    if msgtype == TWIST_STAMPED:
-        return lambda msg: twist_action(msg.twist.linear.x, msg.twist.angular.z, lin, ang)
-    raise ValueError(f"action topic {opts.action_topic} has type {msgtype}, which is not "
-                     f"supported; supported types: {', '.join(ACTION_TYPES)} (or pass action_rule)")
-
-
-def _gds_decoder(msgtype: str, opts: _Options):
-    """The decoder for GDS messages of ``msgtype`` (message -> name or id), or a ValueError."""
-    if msgtype in GDS_TYPES:
-        return lambda msg: msg.data
-    raise ValueError(f"GDS topic {opts.gds_topic} has type {msgtype}, which is not supported; "
-                     f"supported types: {', '.join(GDS_TYPES)}")
+__all__ = ["read_rosbag"]
 
 
 # ---------------------------------------------------------------------------------- one bag
@@ -217,7 +37,7 @@ def _topic_listing(topics: dict) -> str:
                      for name, info in sorted(topics.items()))
 
 
-def _topic_types(reader, opts: _Options) -> dict:
+def _topic_types(reader, opts: Options) -> dict:
     """Map each topic read to its message type, checking that it exists with one type."""
     topics = reader.topics
     if reader.message_count == 0:
@@ -287,7 +107,7 @@ def _collect(reader, types: dict, decoders: dict, obs_topic: str) -> dict:
     return result
 
 
-def _read_streams(path: Path, opts: _Options):
+def _read_streams(path: Path, opts: Options):
     """Open the bag at ``path`` and return its topic types and decoded message streams.
 
     Every error becomes a one-line ValueError starting with ``bag PATH``.
@@ -298,10 +118,10 @@ def _read_streams(path: Path, opts: _Options):
         with rb.highlevel.AnyReader([path], default_typestore=default) as reader:
             types = _topic_types(reader, opts)
             obs, act = opts.observation_topic, opts.action_topic
-            decoders = {obs: _observation_decoder(types[obs], opts),
-                        act: _action_decoder(types[act], opts)}
+            decoders = {obs: observation_decoder(types[obs], opts),
+                        act: action_decoder(types[act], opts)}
             if opts.gds_topic is not None:
-                decoders[opts.gds_topic] = _gds_decoder(types[opts.gds_topic], opts)
+                decoders[opts.gds_topic] = gds_decoder(types[opts.gds_topic], opts)
             return types, _collect(reader, types, decoders, obs)
     except _read_errors() as exc:  # first: UnicodeDecodeError is a ValueError too
         raise ValueError(_describe_failure(path, exc)) from None
@@ -334,7 +154,7 @@ def _match_gds(step_t: np.ndarray, gds_t: np.ndarray, window_ns: float) -> np.nd
     return np.where(np.minimum(d_left, d_right) <= window_ns, nearest, -1)
 
 
-def _read_episode(path: Path, opts: _Options) -> _Episode:
+def _read_episode(path: Path, opts: Options) -> _Episode:
     """Read one bag into the steps of one episode."""
     _check_bag_path(path)
     types, streams = _read_streams(path, opts)
@@ -390,7 +210,7 @@ def _encode(values: list, names: list | None, what: str, source: str):
     return ids, names
 
 
-def _assemble(episodes: list, opts: _Options, many: bool) -> Trajectory:
+def _assemble(episodes: list, opts: Options, many: bool) -> Trajectory:
     """Concatenate the episodes into one :class:`Trajectory`."""
     source = f"bag {episodes[0].path}" if len(episodes) == 1 else \
         f"bags {', '.join(str(e.path) for e in episodes)}"
@@ -428,7 +248,7 @@ def _bag_list(path) -> tuple[list[Path], bool]:
     """The bag paths of ``path`` and whether a list (one episode per bag) was given."""
     if isinstance(path, (list, tuple)):
         if not path:
-            raise ValueError("path is an empty list; give at least one bag")
+            raise ParameterError("path", "is an empty list; give at least one bag")
         return [Path(p) for p in path], True
     return [Path(path)], False
 
@@ -462,7 +282,8 @@ def read_rosbag(path, observation_topic: str, action_topic: str, *, observation_
     action_names, gds_names : list of str, optional
         Fix the id of each name (other names are an error); for Int32 topics, name the ids.
     linear_threshold, angular_threshold : float
-        Thresholds in m/s and rad/s of :func:`twist_action` for Twist action topics.
+        Thresholds in m/s and rad/s of
+        :func:`~topomap.core.data.rosbag.decode.twist_action` for Twist action topics.
     action_rule : callable, optional
         ``action_rule(message) -> name or id`` for action messages of any type.
 
@@ -480,7 +301,7 @@ def read_rosbag(path, observation_topic: str, action_topic: str, *, observation_
         One line naming the file: missing topics (listing the bag's topics, types and counts),
         unsupported message types, empty, truncated or corrupt bags, no step with an observation.
     """
-    opts = _make_options(observation_topic, action_topic, dict(
+    opts = make_options(observation_topic, action_topic, dict(
         observation_fields=observation_fields, scan_bins=scan_bins, max_range=max_range,
         gds_topic=gds_topic, gds_window=gds_window, action_names=action_names,
         gds_names=gds_names, linear_threshold=linear_threshold,

@@ -1,0 +1,61 @@
+"""The kinds of component a run is made of, declared once.
+
+Every list of kinds in the app is :data:`KINDS` or derived from it: the kinds a plugin's
+:class:`~topomap.app.hookspecs.Component` may have, the config groups of the top-level config
+(:class:`topomap.app.config.Config`), the components of a run and the order they are built in
+(:class:`topomap.app.registry.Parts`), the :class:`~topomap.MapLearner` arguments they fill (and
+the config keys the learner's errors are reported under), and the plugins behind the learner's
+components in ``metrics.json``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from types import MappingProxyType
+
+__all__ = ["Kind", "KINDS"]
+
+
+@dataclass(frozen=True)
+class Kind:
+    """One kind of component.
+
+    Attributes
+    ----------
+    name : str
+        The kind's name: ``Component.kind``, the config group that selects the component
+        (``topomap split=<name>``) and the attribute of :class:`~topomap.app.registry.Parts`
+        holding the built object.
+    returns : str
+        What the component's factory returns (the interface the app relies on).
+    world : bool
+        A part of the simulated world: built only when the data component simulates.
+    learner_arg : str or None
+        The :class:`~topomap.MapLearner` argument the built object is passed as.
+    """
+
+    name: str
+    returns: str
+    world: bool = False
+    learner_arg: str | None = None
+
+
+#: every kind, by name, in the order the app builds them -- but for ``data``, built first of all
+#: (it tells whether the world is built)
+KINDS = MappingProxyType({kind.name: kind for kind in (
+    Kind("env", "a world: ``simulate(n_steps, explorer, rng) -> Trajectory`` (optional: "
+                "``plot_room(ax)``, an ``extra_actions=`` argument)", world=True),
+    Kind("noise", "``apply(observations, rng) -> observations`` (a new array)", world=True),
+    Kind("explorer", "``choose(executable_mask, rng) -> action id``", world=True),
+    Kind("metric", "``fit_transform(X) -> Z``; K-means runs on ``Z``", learner_arg="metric"),
+    Kind("clusters", "``choose(Z, random_state) -> ns``", learner_arg="clusters"),
+    Kind("split", "``propose(counts) -> (side, score) | None``", learner_arg="criterion"),
+    Kind("stop", "``check(n_initial)``; ``should_stop(n_states, best_score)``",
+         learner_arg="stopping"),
+    Kind("refine", "``fit(sequence, split_state_symbol, random_state) -> CloneFit`` "
+                   "(:mod:`topomap.core.refine.methods`), or None for none", learner_arg="refine"),
+    Kind("data", "``simulates`` (bool); ``train(parts, seed, progress)`` and "
+                 "``heldout(parts, seed)`` return Trajectory objects (or None)"),
+    Kind("evaluate", "``evaluate(map, labels, places, world, noise) -> dict``, or None for no "
+                     "extra evaluation"),
+)})
