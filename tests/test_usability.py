@@ -153,11 +153,11 @@ def test_one_dimensional_observations_are_refused_with_a_reshape_hint():
 
 
 def test_a_sweep_cell_without_a_completed_job_says_why():
-    from topomap.app.sweep import _no_value
+    from topomap.app.sweep_columns import no_value
 
-    assert _no_value([{"status": "incomplete"}]) == "incomplete"
-    assert _no_value([{"status": "failed"}, {"status": "incomplete"}]) == "failed/incomplete"
-    assert _no_value([{"status": "failed"}, {"status": "completed"}]) == ""
+    assert no_value([{"status": "incomplete"}]) == "incomplete"
+    assert no_value([{"status": "failed"}, {"status": "incomplete"}]) == "failed/incomplete"
+    assert no_value([{"status": "failed"}, {"status": "completed"}]) == ""
 
 
 def test_too_few_action_names_fail_before_any_work():
