@@ -218,6 +218,7 @@ def cli(args, cwd):
                           text=True, timeout=300)
 
 
+@pytest.mark.slow
 def test_cli_end_to_end(tmp_path):
     r = cli(["data.n_steps=250", "clusters.ns=8", "stop.n_states=11"], tmp_path)
     assert r.returncode == 0, r.stderr
@@ -228,6 +229,7 @@ def test_cli_end_to_end(tmp_path):
     assert json.loads((run_dir / "metrics.json").read_text())["config"]["data"]["n_steps"] == 250
 
 
+@pytest.mark.slow
 def test_cli_errors_are_one_clear_line(tmp_path):
     r = cli(["clusters.ns=abc"], tmp_path)
     assert r.returncode == 1 and "could not be converted to Integer" in r.stderr

@@ -14,7 +14,7 @@ from matplotlib.figure import Figure
 
 from topomap import MapLearner
 from topomap.app import plots
-from topomap.app.sweep import _line
+from topomap.app.sweep_plots import plot_sweep_line
 from topomap.core.metrics import compound_states
 from topomap.core.data.trajectory import Trajectory
 
@@ -222,7 +222,7 @@ ROWS = [{"job": 0, "clusters.ns": "10", "status": "completed", "ari": 0.958},
 
 def test_sweep_line_draws_no_value_for_a_failed_job():
     ax = _axes()
-    _line(ax, ROWS, "clusters.ns", "ari", "final ARI", best=ROWS[1])
+    plot_sweep_line(ax, ROWS, "clusters.ns", "ari", "final ARI", best=ROWS[1])
     for line in ax.lines:
         x, y = (np.asarray(v, dtype=float) for v in line.get_data())
         assert not np.isfinite(y[x == 30]).any(), line.get_label()

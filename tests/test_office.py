@@ -291,6 +291,8 @@ def test_random_layout_reproducible_and_valid():
     assert set(tr.places[np.isin(tr.places, np.arange(w.n_objects))].tolist()) == set(range(12))
     lay = random_layout(np.random.default_rng(7))
     assert np.array_equal(lay.centers, a.object_positions)
+    with pytest.raises(TypeError, match="positional"):  # the spacings are given by keyword
+        random_layout(np.random.default_rng(7), 25, 15, 2, 20.0, 14.0, 1.0)
 
 
 @pytest.mark.parametrize(

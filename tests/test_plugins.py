@@ -83,6 +83,7 @@ def history(cwd):
     return json.loads((run_dir(cwd) / "metrics.json").read_text())["split_history"]
 
 
+@pytest.mark.slow
 def test_gtest_criterion_plugin_changes_which_state_splits(tmp_path, recording):
     base = ["data=file", f"data.path={recording}", "clusters.ns=10", "stop.n_states=11"]
     (tmp_path / "a").mkdir()
@@ -103,6 +104,7 @@ def test_gtest_criterion_plugin_changes_which_state_splits(tmp_path, recording):
     assert r.returncode == 1 and "could not be converted to Float" in r.stderr
 
 
+@pytest.mark.slow
 def test_stopping_rule_plugin_from_an_entry_point_changes_the_state_count(tmp_path, recording):
     site = tmp_path / "site"
     fake_install(site, "topomap_gainratio", {"gain_ratio": "topomap_gainratio"},
@@ -124,6 +126,7 @@ def test_stopping_rule_plugin_from_an_entry_point_changes_the_state_count(tmp_pa
     assert "gain_ratio" in line.split()[1]  # provider column: the entry point's name
 
 
+@pytest.mark.slow
 def test_action_plugin_from_a_file_adds_an_action(tmp_path):
     r = cli([f"plugins=[{TURNBACK}]", "data.n_steps=300", "clusters.ns=8", "stop.n_states=12"],
             tmp_path)
@@ -135,6 +138,7 @@ def test_action_plugin_from_a_file_adds_an_action(tmp_path):
     assert (actions == 17).any()
 
 
+@pytest.mark.slow
 def test_autoload_switch_keeps_installed_action_plugins_out(tmp_path):
     """An installed action plugin adds its action to the office world; with
     TOPOMAP_DISABLE_PLUGIN_AUTOLOAD=1 the paper's run keeps its 17 actions."""
@@ -161,6 +165,7 @@ def test_cached_trajectory_key_names_the_loaded_plugins(make_cfg):
     assert trajectory_key(cfg, plugins=["turnback"]) == trajectory_key(cfg, plugins=["turnback"])
 
 
+@pytest.mark.slow
 def test_list_plugins_shows_every_kind_and_provider(tmp_path):
     r = cli(["--list-plugins", str(TURNBACK)], tmp_path)
     assert r.returncode == 0, r.stderr
@@ -210,6 +215,7 @@ def test_a_broken_plugin_is_reported_and_does_not_hide_the_others(tmp_path):
         reg.get("split", "nope")
 
 
+@pytest.mark.slow
 def test_a_broken_entry_point_is_reported_by_name(tmp_path):
     site = tmp_path / "site"
     fake_install(site, "brokenplug", {"brokenplug": "brokenplug_mod"},
@@ -256,6 +262,7 @@ def test_progress_hook_sees_every_split_and_records_metrics(tmp_path, make_cfg):
     assert saved["gains"] == [h["gain"] for h in results["split_history"]]
 
 
+@pytest.mark.slow
 def test_pip_installed_plugin_is_found_through_its_entry_point(tmp_path, recording):
     import shutil
 

@@ -92,6 +92,7 @@ def test_configuration_examples_run(command, make_cfg, tmp_path):
     assert (tmp_path / "map.json").is_file()
 
 
+@pytest.mark.slow
 def test_first_sweep_example_runs_every_job(tmp_path):
     (command,) = [c for c in readme_commands("Sweeps") if " -m " in c][:1]
     args = shlex.split(command)[1:]
@@ -103,6 +104,7 @@ def test_first_sweep_example_runs_every_job(tmp_path):
     assert len(rows) == 9 and all(",completed," in r for r in rows), rows
 
 
+@pytest.mark.slow
 def test_cfg_resolve_prints_the_config_with_the_seed_filled_in(tmp_path):
     assert "topomap --cfg job --resolve" in readme_commands("Configuration")
     proc = subprocess.run([sys.executable, "-m", "topomap", "--cfg", "job", "--resolve", "seed=7"],

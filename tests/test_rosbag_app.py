@@ -48,6 +48,7 @@ def test_a_list_of_bags_is_one_episode_each(walk, tmp_path, make_cfg):
     assert results["heldout_steps"] == len(traj) and results["heldout_loglik"] is not None
 
 
+@pytest.mark.slow
 def test_bag_errors_are_one_line_and_write_nothing(walk, tmp_path):
     traj, _ = walk
     bag = write_rosbag(traj, tmp_path / "walk.bag")
@@ -60,6 +61,7 @@ def test_bag_errors_are_one_line_and_write_nothing(walk, tmp_path):
     assert not list((tmp_path / "outputs" / "runs").rglob("map.json"))
 
 
+@pytest.mark.slow
 def test_without_rosbags_installed_the_message_says_how_to_get_it(walk, tmp_path):
     write_rosbag(walk[0], tmp_path / "x.bag")
     code = ("import sys; sys.modules['rosbags'] = None\n"

@@ -16,6 +16,8 @@ import pytest
 
 from topomap.app.sweep import main as report_main
 
+pytestmark = pytest.mark.slow  # every test reads a real sweep, started (and killed) as a process
+
 SMALL = ["data.n_steps=200", "data.heldout_steps=0", "output.figures=false",
          "output.progress=false", "clusters.ns=6"]
 N_STATES = ["8", "9", "10"]  # job 1 (n_states=9) is killed; job 2 never starts

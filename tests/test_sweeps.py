@@ -64,6 +64,7 @@ def basic(tmp_path_factory):
 
 
 # ---------------------------------------------------------------- the basic launcher
+@pytest.mark.slow
 def test_sweep_report_has_one_row_per_job_with_its_metrics(basic):
     result, pid, sweep = basic
     assert sweep.parents[1].name == "sweeps" and sweep.parents[2].name == "outputs"
@@ -104,6 +105,7 @@ def test_sweep_report_has_one_row_per_job_with_its_metrics(basic):
     assert h > 100 and w > 100
 
 
+@pytest.mark.slow
 def test_sweep_jobs_learn_from_one_shared_trajectory(basic, tmp_path, make_cfg):
     _, _, sweep = basic
     cache = sweep / ".cache"
@@ -129,6 +131,7 @@ def test_sweep_jobs_learn_from_one_shared_trajectory(basic, tmp_path, make_cfg):
 
 
 # ---------------------------------------------------------------- other launchers
+@pytest.mark.slow
 def test_joblib_two_workers_give_the_same_report_and_maps(basic, tmp_path):
     pytest.importorskip("hydra_plugins.hydra_joblib_launcher")
     _, _, sweep0 = basic
@@ -153,6 +156,7 @@ def test_joblib_two_workers_give_the_same_report_and_maps(basic, tmp_path):
     assert (sweep / "summary_ari.png").read_bytes()[:8] == PNG
 
 
+@pytest.mark.slow
 def test_submitit_local_gives_the_same_maps_and_a_line_for_one_swept_key(basic, tmp_path):
     pytest.importorskip("hydra_plugins.hydra_submitit_launcher")
     _, _, sweep0 = basic
@@ -203,6 +207,7 @@ def test_report_lists_crashed_and_unfinished_jobs(tmp_path, monkeypatch, make_cf
     assert report.rows[0]["nmi"] == m["ground_truth"]["final"]["nmi"]
 
 
+@pytest.mark.slow
 def test_report_callback_options_and_command(basic, capsys):
     _, _, sweep = basic
     config = OmegaConf.create({"hydra": {"sweep": {"dir": str(sweep)},

@@ -26,6 +26,7 @@ def cli(args, cwd, timeout=120, pythonpath=()):
 
 
 # ---------------------------------------------------------------- 1. unknown keys fail
+@pytest.mark.slow
 @pytest.mark.parametrize("override, message", [
     ("+typo=1", "unknown config key 'typo'"),
     ("cluster.ns=5", "unknown config key 'cluster.ns'; did you mean clusters.ns?"),
@@ -65,6 +66,7 @@ def test_a_preset_setting_the_replaced_component_names_the_command_to_give_inste
 
 
 # ---------------------------------------------------------------- 2. a real help text
+@pytest.mark.slow
 def test_help_is_topomaps_own_and_lists_components_not_schemas(tmp_path):
     r = cli(["--help"], tmp_path)
     assert r.returncode == 0
@@ -75,6 +77,7 @@ def test_help_is_topomaps_own_and_lists_components_not_schemas(tmp_path):
     assert "split: entropy, gtest" in r.stdout and "_schema" not in r.stdout
 
 
+@pytest.mark.slow
 def test_a_plugin_whose_config_folder_cannot_be_found_is_one_clear_line(tmp_path):
     gtest_file = PLUGINS / "topomap-gtest" / "topomap_gtest" / "__init__.py"
     r = cli([f"plugins=[{gtest_file}]"], tmp_path)  # its pkg://topomap_gtest.conf is not importable
@@ -82,6 +85,7 @@ def test_a_plugin_whose_config_folder_cannot_be_found_is_one_clear_line(tmp_path
     assert "config folder pkg://topomap_gtest.conf cannot be imported" in r.stderr
 
 
+@pytest.mark.slow
 def test_a_schema_is_not_a_selectable_option(tmp_path):
     r = cli(["clusters=fixed_schema"], tmp_path)
     assert r.returncode == 1 and "Could not find 'clusters/fixed_schema'" in r.stderr
@@ -110,6 +114,7 @@ def test_check_params_uses_the_cluster_policys_least_count():
 
 
 # ---------------------------------------------------------------- 6. where a relative path points
+@pytest.mark.slow
 def test_a_missing_relative_file_names_the_folder_it_was_looked_for_in(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     with pytest.raises(ValueError, match=rf"missing.npz does not exist \(relative to {tmp_path}\)"):
@@ -131,6 +136,7 @@ def test_continuous_quantities_say_what_they_are(make_cfg, tmp_path, caplog):
 
 
 # ---------------------------------------------------------------- 10. plugin actions are listed
+@pytest.mark.slow
 def test_list_plugins_shows_actions_added_by_plugins_with_their_provider(tmp_path):
     r = cli(["--list-plugins", str(TURNBACK)], tmp_path)
     assert r.returncode == 0
@@ -153,11 +159,11 @@ def test_one_dimensional_observations_are_refused_with_a_reshape_hint():
 
 
 def test_a_sweep_cell_without_a_completed_job_says_why():
-    from topomap.app.sweep import _no_value
+    from topomap.app.sweep_columns import no_value
 
-    assert _no_value([{"status": "incomplete"}]) == "incomplete"
-    assert _no_value([{"status": "failed"}, {"status": "incomplete"}]) == "failed/incomplete"
-    assert _no_value([{"status": "failed"}, {"status": "completed"}]) == ""
+    assert no_value([{"status": "incomplete"}]) == "incomplete"
+    assert no_value([{"status": "failed"}, {"status": "incomplete"}]) == "failed/incomplete"
+    assert no_value([{"status": "failed"}, {"status": "completed"}]) == ""
 
 
 def test_too_few_action_names_fail_before_any_work():

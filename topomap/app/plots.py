@@ -3,7 +3,9 @@
 Every ``plot_*`` function draws on the Axes (or Figure) it is given and returns it, so a figure can
 be composed and inspected without reading PNG files; :func:`write_figures` writes a run's PNGs.
 A state has the same style in every figure (:func:`state_styles`): a colour of :data:`PALETTE`
-and, once the palette is used up, the next marker of :data:`MARKERS`.
+and, once the palette is used up, the next marker of :data:`MARKERS`.  The sweep figures
+(:mod:`topomap.app.sweep_plots`) share the style: palette, font sizes, :func:`pyplot` and
+:func:`save_figure`.
 """
 
 from __future__ import annotations
@@ -15,7 +17,8 @@ import numpy as np
 from ..core.data.files import atomic_write
 
 __all__ = ["write_figures", "plot_states", "plot_split", "plot_map", "plot_entropy",
-           "state_styles", "compound_mask", "PALETTE", "MARKERS"]
+           "state_styles", "compound_mask", "pyplot", "save_figure", "PALETTE", "MARKERS",
+           "TITLE_SIZE", "LEGEND_SIZE"]
 
 #: qualitative colours of states: saturated, none near white, every two at least 24 CIELAB
 #: units apart (tab10 without its gray, then darker and brighter hues)
@@ -24,13 +27,15 @@ PALETTE = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e
            "#000000", "#0165fc", "#ff0789", "#82a67d", "#b15928", "#5f6f81")
 #: marker of the states of the palette's first, second, ... round
 MARKERS = ("o", "s", "^", "D", "v", "P", "X", "*")
+#: font sizes (points) of the titles and of the legends
+TITLE_SIZE, LEGEND_SIZE = 9, 7
 #: most numbers written on the states figure, and most states whose map nodes are numbered
 MAX_STATE_NUMBERS, MAX_MAP_NUMBERS = 300, 60
 #: width (points) of the white outline that keeps a number readable on any background
 _HALO = 2.0
 
 
-def _plt():
+def pyplot():
     """pyplot on the Agg backend (unless a backend was chosen already)."""
     import matplotlib
 
@@ -38,6 +43,13 @@ def _plt():
     import matplotlib.pyplot as plt
 
     return plt
+
+
+def save_figure(fig, path: Path):
+    """Write ``fig`` as a PNG file atomically and close it."""
+    plt = pyplot()
+    atomic_write(path, lambda tmp: fig.savefig(tmp, dpi=130, bbox_inches="tight", format="png"))
+    plt.close(fig)
 
 
 def state_styles(n: int) -> list[tuple[str, str]]:
@@ -211,7 +223,7 @@ def plot_states(ax, traj, labels, world=None, title=""):
         title += f" (every {labels.size // keep.sum()}th step drawn)"
     if len(states) > MAX_STATE_NUMBERS:
         ax.set_title(f"{title}\n(numbers and compound-state rings left out: {len(states)} numbers "
-                     "would not be legible)", fontsize=9)
+                     "would not be legible)", fontsize=TITLE_SIZE)
         return ax
     size = 6.5 if len(states) <= 60 else 5.5  # of the numbers, points
     if traj.places is not None:
@@ -220,10 +232,10 @@ def plot_states(ax, traj, labels, world=None, title=""):
                    edgecolors="black", lw=1.2, zorder=5,
                    label=f"compound state ({n}): steps of more than one true place, "
                          "numbered at each")
-        ax.legend(loc="upper center", bbox_to_anchor=(0.5, 0.0), fontsize=7, frameon=False,
-                  handletextpad=0.3)
+        ax.legend(loc="upper center", bbox_to_anchor=(0.5, 0.0), fontsize=LEGEND_SIZE,
+                  frameon=False, handletextpad=0.3)
     _numbers(ax, spots, states, fontsize=size)
-    ax.set_title(title, fontsize=9)
+    ax.set_title(title, fontsize=TITLE_SIZE)
     return ax
 
 
@@ -238,7 +250,7 @@ def _table(ax, m, s, title):
         name = m.action_names[a] if m.action_names else str(a)
         rows.append([name[:22], ", ".join(f"{m.state_label(y)}:{P[a, y]:.2f}" for y in order[:4])])
     ax.axis("off")
-    ax.set_title(title, fontsize=9)
+    ax.set_title(title, fontsize=TITLE_SIZE)
     if rows:
         tab = ax.table(cellText=rows, colLabels=["u", "P(x'|x,u)"], loc="upper center",
                        cellLoc="left", colWidths=[0.4, 0.6])
@@ -261,9 +273,9 @@ def _clouds(ax, traj, P, labels, sel, names):
     places = None if traj.places is None else traj.places[sel]
     states, spots, _ = _spots(labels[sel], traj.positions[sel], places, int(shown.max()) + 1)
     _numbers(ax, spots, states, fontsize=7)
-    ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, 0.0), frameon=False,
-              ncol=min(len(shown), 6), markerscale=1.5, title="state (steps)", title_fontsize=7,
-              columnspacing=1.0, handletextpad=0.2)
+    ax.legend(fontsize=LEGEND_SIZE, loc="upper center", bbox_to_anchor=(0.5, 0.0), frameon=False,
+              ncol=min(len(shown), 6), markerscale=1.5, title="state (steps)",
+              title_fontsize=LEGEND_SIZE, columnspacing=1.0, handletextpad=0.2)
 
 
 def plot_split(fig, traj, learner, world=None, state=None):
@@ -285,8 +297,8 @@ def plot_split(fig, traj, learner, world=None, state=None):
     for ax, labels, m in zip(top, (learner.labels_phase1_, learner.labels_), (m0, m1)):
         _room(ax, world, traj.positions, faint=True)
         _clouds(ax, traj, P, labels, sel, m.state_label)
-    top[0].set_title(f"state {state} after clustering ({sel.sum()} steps)", fontsize=9)
-    top[1].set_title(f"after splitting: states {', '.join(map(str, after))}", fontsize=9)
+    top[0].set_title(f"state {state} after clustering ({sel.sum()} steps)", fontsize=TITLE_SIZE)
+    top[1].set_title(f"after splitting: states {', '.join(map(str, after))}", fontsize=TITLE_SIZE)
     _table(fig.add_subplot(grid[1, :2]), m0, state, f"P(x'|x={state}, u) before")
     for k, s in enumerate(after[:2]):
         _table(fig.add_subplot(grid[1, 2 + 2 * k:4 + 2 * k]), m1, s, f"P(x'|x={s}, u) after")
@@ -378,7 +390,7 @@ def plot_map(ax, traj, learner, world=None, min_prob=0.8):
               frameon=False)
     ax.set_title(f"learned map: {m.n_states} states, {G.number_of_edges()} arcs with "
                  f"P(x'|x,u) > {min_prob}" + ("" if numbered else "; numbers omitted"),
-                 fontsize=9)
+                 fontsize=TITLE_SIZE)
     return ax
 
 
@@ -398,21 +410,14 @@ def plot_entropy(ax, learner):
     ax.set_ylabel("bits")
     ax.legend(fontsize=8, loc="center right")
     ax.grid(alpha=0.3)
-    ax.set_title("entropies after each split", fontsize=9)
+    ax.set_title("entropies after each split", fontsize=TITLE_SIZE)
     return ax
-
-
-def _save(fig, path: Path):
-    """Write ``fig`` as a PNG file atomically and close it."""
-    plt = _plt()
-    atomic_write(path, lambda tmp: fig.savefig(tmp, dpi=130, bbox_inches="tight", format="png"))
-    plt.close(fig)
 
 
 def write_figures(out: Path, traj, learner, world=None, *, min_prob=0.8, compound_state=None):
     """Write the figures of :data:`topomap.app.outputs.FIGURE_FILES` that the data allows
     (the room figures need ground-truth positions)."""
-    plt = _plt()
+    plt = pyplot()
     out = Path(out)
     written = []
     if traj.positions is not None:
@@ -421,20 +426,20 @@ def write_figures(out: Path, traj, learner, world=None, *, min_prob=0.8, compoun
                     f"after clustering: {learner.map_phase1_.n_states} states")
         plot_states(axes[1], traj, learner.labels_, world,
                     f"after splitting: {learner.map_.n_states} states")
-        _save(fig, out / "fig_states.png")
+        save_figure(fig, out / "fig_states.png")
         written.append("fig_states.png")
         fig = plt.figure(figsize=(13, 6.6))
         if plot_split(fig, traj, learner, world, compound_state):
-            _save(fig, out / "fig_split.png")
+            save_figure(fig, out / "fig_split.png")
             written.append("fig_split.png")
         else:
             plt.close(fig)
         fig, ax = plt.subplots(figsize=(8, 6))
         plot_map(ax, traj, learner, world, min_prob)
-        _save(fig, out / "fig_map.png")
+        save_figure(fig, out / "fig_map.png")
         written.append("fig_map.png")
     fig, ax = plt.subplots(figsize=(5, 3.5))
     plot_entropy(ax, learner)
-    _save(fig, out / "fig_entropy.png")
+    save_figure(fig, out / "fig_entropy.png")
     written.append("fig_entropy.png")
     return written

@@ -247,6 +247,7 @@ def random_layout(
     n_gds: int = 2,
     width: float = 20.0,
     height: float = 14.0,
+    *,
     reach: float = 1.0,
     wall_offset: float = 1.5,
     interior_wall_gap: float = 2.0,
@@ -260,7 +261,7 @@ def random_layout(
     corner; the other objects keep ``interior_wall_gap`` to the walls.  Object surfaces are at least
     ``min_gap`` apart, GDS objects at least ``2 * reach + 0.2`` from every other object, and no
     object is within reach of a corner place, so every object can be approached and GDS labels are
-    unambiguous.
+    unambiguous.  The settings from ``reach`` on are keyword-only.
 
     Raises
     ------

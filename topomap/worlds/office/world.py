@@ -58,8 +58,8 @@ def make_layout(layout, n_objects, n_types, n_gds, width, height, reach, seed):
         raise ValueError(f"width and height must be at least {min_size} m, got {width} x {height}")
     if layout == "random":
         return random_layout(np.random.default_rng(int(seed)), int(n_objects), int(n_types),
-                             int(n_gds), float(width), float(height), float(reach), WALL_OFFSET,
-                             INTERIOR_WALL_GAP), layout
+                             int(n_gds), float(width), float(height), reach=float(reach),
+                             wall_offset=WALL_OFFSET, interior_wall_gap=INTERIOR_WALL_GAP), layout
     given = dict(n_objects=n_objects, n_types=n_types, n_gds=n_gds, width=width, height=height)
     for key, value in given.items():
         if value != _PAPER_SIZE[key]:

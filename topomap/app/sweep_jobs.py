@@ -1,0 +1,175 @@
+"""Reading a sweep: the job folders that ``topomap -m ...`` left, and the keys the sweep varies.
+
+Every job of a sweep writes its folder (Hydra's ``.hydra/``, then ``status.json`` and
+``metrics.json``, see :func:`topomap.app.experiment.run_job`); :func:`read_jobs` reads them back
+as :class:`Job` records, whatever a crash or a kill left behind, and :func:`swept_keys` names the
+keys whose values tell the jobs apart.  :mod:`topomap.app.sweep` builds the report from them.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from .experiment import CACHE_DIR, STATUS_FILE
+
+__all__ = ["Job", "read_jobs", "swept_keys"]
+
+
+@dataclass
+class Job:
+    """What one job folder of a sweep holds: its number and folder, its overrides (``{key:
+    value}``), its ``status`` (``completed``, ``failed`` or ``incomplete``) and ``error``, its
+    ``metrics.json`` (``{}`` unless completed) and its ``status.json`` (``{}`` if none)."""
+
+    num: int
+    path: Path
+    overrides: dict[str, str]
+    status: str
+    error: str | None = None
+    metrics: dict = field(default_factory=dict)
+    status_file: dict = field(default_factory=dict)
+
+    @property
+    def job_time(self) -> float | None:
+        """The job's wall time in seconds (from ``status.json``), None if not recorded."""
+        return self.status_file.get("job_time")
+
+
+def _key_value(override: str) -> tuple[str, str]:
+    key, _, value = str(override).partition("=")
+    return key.lstrip("+~"), value
+
+
+def _job_num(path: Path, fallback: int) -> int:
+    from omegaconf import OmegaConf
+
+    try:
+        return int(OmegaConf.load(path / ".hydra" / "hydra.yaml").hydra.job.num)
+    except Exception:
+        try:
+            return int(path.name)
+        except ValueError:
+            return fallback
+
+
+def read_jobs(sweep_dir) -> list[Job]:
+    """Every job folder under ``sweep_dir`` (a folder holding ``.hydra/``), by job number.
+
+    A job's status is that of its ``status.json``; without one it is ``completed`` if it wrote
+    ``metrics.json`` and ``incomplete`` otherwise (still running, killed or lost).  Reading never
+    fails on what a crash or a kill leaves behind: a ``.hydra`` folder without ``overrides.yaml``,
+    a truncated ``status.json`` or ``metrics.json``; the job's error says what is wrong, and a job
+    without a readable ``metrics.json`` is never ``completed``.
+    """
+    sweep_dir = Path(sweep_dir)
+    jobs = []
+    for i, hydra_dir in enumerate(sorted(sweep_dir.rglob(".hydra"))):
+        path = hydra_dir.parent
+        if hydra_dir.is_dir() and CACHE_DIR not in path.relative_to(sweep_dir).parts:
+            jobs.append(_read_job(path, i))
+    return sorted(jobs, key=lambda j: j.num)
+
+
+def _read_job(path: Path, index: int) -> Job:
+    """The job in folder ``path`` (``index``: its number if Hydra's files do not tell)."""
+    problems: list[str] = []
+    overrides = _read_overrides(path, problems)
+    status = _read_json(path / STATUS_FILE, problems)
+    metrics = _read_json(path / "metrics.json", problems)
+    state = status.get("status")
+    if state is None:  # no status.json: the job ended (or was stopped) before writing it
+        state = "completed" if metrics else "incomplete"
+        if not (path / STATUS_FILE).exists() and not (path / "metrics.json").exists():
+            problems.append(f"no {STATUS_FILE} or metrics.json: the job is still running, or "
+                            "was killed or lost")
+    elif state not in ("completed", "failed"):
+        problems.append(f"{STATUS_FILE} gives the unknown status {state!r}")
+        state = "incomplete"
+    if state == "completed" and not metrics:
+        state = "incomplete"
+        if not (path / "metrics.json").is_file():
+            problems.append("metrics.json is missing")
+    errors = [str(status["error"])] if status.get("error") else []
+    return Job(num=_job_num(path, index), path=path, overrides=overrides, status=state,
+               error="; ".join(errors + problems) or None,
+               metrics=metrics if state == "completed" else {}, status_file=status)
+
+
+def _read_overrides(path: Path, problems: list[str]) -> dict[str, str]:
+    """The job's ``.hydra/overrides.yaml`` as ``{key: value}``; ``{}`` (and a note in
+    ``problems``) when it is missing or unreadable."""
+    from omegaconf import OmegaConf
+
+    file = path / ".hydra" / "overrides.yaml"
+    if not file.is_file():
+        problems.append(f"{file.relative_to(path)} is missing")
+        return {}
+    try:
+        overrides = OmegaConf.to_container(OmegaConf.load(file))
+        if not isinstance(overrides, list):
+            raise ValueError("it is not a list of overrides")
+        return dict(_key_value(o) for o in overrides)
+    except Exception as exc:  # a YAML or OmegaConf error: the file was cut short
+        problems.append(f"{file.relative_to(path)} is unreadable ({_one_line(exc)})")
+        return {}
+
+
+def _read_json(path: Path, problems: list[str]) -> dict:
+    """The JSON object in ``path``; ``{}`` when there is no such file, and also (with a note in
+    ``problems``) when it is unreadable, e.g. cut short by a kill."""
+    if not path.is_file():
+        return {}
+    try:
+        value = json.loads(path.read_text())
+    except (OSError, UnicodeDecodeError, RecursionError, ValueError) as exc:
+        problems.append(f"{path.name} is unreadable ({_one_line(exc)})")
+        return {}
+    if not isinstance(value, dict):
+        problems.append(f"{path.name} does not hold a JSON object")
+        return {}
+    return value
+
+
+def _one_line(exc: BaseException) -> str:
+    """An exception's message on one line, cut to 120 characters."""
+    text = " ".join(str(exc).split()) or type(exc).__name__
+    return text if len(text) <= 120 else text[:117] + "..."
+
+
+def _sweep_overrides(multirun_cfg) -> list[str]:
+    """The task overrides of a multirun config and its sweeper's ``params``, as ``key=value``."""
+    from omegaconf import OmegaConf
+
+    if multirun_cfg is None:
+        return []
+    task = OmegaConf.select(multirun_cfg, "hydra.overrides.task", default=None)
+    params = OmegaConf.select(multirun_cfg, "hydra.sweeper.params", default=None)
+    out = [str(o) for o in (OmegaConf.to_container(task) if task is not None else [])]
+    if params is not None:
+        out += [f"{k}={v}" for k, v in OmegaConf.to_container(params).items()]
+    return out
+
+
+def swept_keys(multirun_cfg=None, jobs=()) -> list[str]:
+    """The keys a sweep varies: the sweep overrides of ``multirun_cfg`` (``a=1,2``,
+    ``range(...)``, ``choice(...)``, sweeper ``params``) plus every key whose value differs
+    between ``jobs``; ordered as in the first job's overrides."""
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+
+    keys: list[str] = []
+    parser = OverridesParser.create()
+    for text in _sweep_overrides(multirun_cfg):
+        try:
+            (override,) = parser.parse_overrides([text])
+        except Exception:  # a sweeper-specific syntax: the job values below still find it
+            continue
+        if override.is_sweep_override() and override.key_or_group not in keys:
+            keys.append(override.key_or_group)
+    for job in jobs:
+        for key, value in job.overrides.items():
+            if key not in keys and any(j.overrides.get(key) != value for j in jobs):
+                keys.append(key)
+    order = list(jobs[0].overrides) if jobs else []
+    return sorted(keys, key=lambda k: (order.index(k) if k in order else len(order), keys.index(k)))
