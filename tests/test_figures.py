@@ -14,7 +14,7 @@ from matplotlib.figure import Figure
 
 from topomap import MapLearner
 from topomap.app import plots
-from topomap.app.sweep_plots import plot_sweep_line
+from topomap.app.plots.sweep import plot_sweep_line
 from topomap.core.metrics import compound_states
 from topomap.core.data.trajectory import Trajectory
 
@@ -139,7 +139,7 @@ def test_map_nodes_are_numbered_and_never_overlap(small_run):
     ax.figure.canvas.draw()
     assert {t.get_text() for t in ax.texts} == {str(s) for s in range(learner.map_.n_states)}
     nodes = np.vstack([c.get_offsets() for c in ax.collections if c.get_label() in
-                       {label for *_, label in plots._NODE_KINDS}])
+                       {label for *_, label in plots.run._NODE_KINDS}])
     assert len(nodes) == learner.map_.n_states
     pixels = ax.transData.transform(nodes)
     diameter = 11.0 * ax.figure.dpi / 72  # the numbered nodes' diameter, in pixels

@@ -20,7 +20,7 @@ or after an interrupted sweep::
     python -m topomap.app.sweep outputs/sweeps/2026-01-01/12-00-00-000000 --metric heldout_loglik
 
 The job folders are read by :mod:`topomap.app.sweep_jobs`, the figures drawn by
-:mod:`topomap.app.sweep_plots`; the CSV's columns, the table's and the figures' labels and the best
+:mod:`topomap.app.plots.sweep`; the CSV's columns, the table's and the figures' labels and the best
 job all follow the column list :data:`topomap.app.sweep_columns.COLUMNS`.
 """
 
@@ -89,7 +89,7 @@ def write_report(sweep_dir, *, metric: str = "ari", figure: bool = True,
         if all(math.isnan(number(r[metric])) for r in rows):
             log.warning("sweep report: no job has a value for %s; no figure", metric)
         else:
-            from .sweep_plots import write_sweep_figure
+            from .plots.sweep import write_sweep_figure
 
             fig_path = sweep_dir / f"summary_{metric}.png"
             write_sweep_figure(fig_path, rows, keys, metric, best)

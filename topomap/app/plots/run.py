@@ -3,9 +3,8 @@
 Every ``plot_*`` function draws on the Axes (or Figure) it is given and returns it, so a figure can
 be composed and inspected without reading PNG files; :func:`write_figures` writes a run's PNGs.
 A state has the same style in every figure (:func:`state_styles`): a colour of :data:`PALETTE`
-and, once the palette is used up, the next marker of :data:`MARKERS`.  The sweep figures
-(:mod:`topomap.app.sweep_plots`) share the style: palette, font sizes, :func:`pyplot` and
-:func:`save_figure`.
+and, once the palette is used up, the next marker of :data:`MARKERS`.  The style they share with
+the sweep figures is in :mod:`topomap.app.plots.style`.
 """
 
 from __future__ import annotations
@@ -14,49 +13,11 @@ from pathlib import Path
 
 import numpy as np
 
-from ..core.data.files import atomic_write
+from .style import (HALO, LEGEND_SIZE, MAX_MAP_NUMBERS, MAX_STATE_NUMBERS, TITLE_SIZE, pyplot,
+                    save_figure, state_styles)
 
 __all__ = ["write_figures", "plot_states", "plot_split", "plot_map", "plot_entropy",
-           "state_styles", "compound_mask", "pyplot", "save_figure", "PALETTE", "MARKERS",
-           "TITLE_SIZE", "LEGEND_SIZE"]
-
-#: qualitative colours of states: saturated, none near white, every two at least 24 CIELAB
-#: units apart (tab10 without its gray, then darker and brighter hues)
-PALETTE = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2",
-           "#17becf", "#bcbd22", "#393b79", "#05472a", "#be03fd", "#7b4173", "#e6ab02",
-           "#000000", "#0165fc", "#ff0789", "#82a67d", "#b15928", "#5f6f81")
-#: marker of the states of the palette's first, second, ... round
-MARKERS = ("o", "s", "^", "D", "v", "P", "X", "*")
-#: font sizes (points) of the titles and of the legends
-TITLE_SIZE, LEGEND_SIZE = 9, 7
-#: most numbers written on the states figure, and most states whose map nodes are numbered
-MAX_STATE_NUMBERS, MAX_MAP_NUMBERS = 300, 60
-#: width (points) of the white outline that keeps a number readable on any background
-_HALO = 2.0
-
-
-def pyplot():
-    """pyplot on the Agg backend (unless a backend was chosen already)."""
-    import matplotlib
-
-    matplotlib.use("Agg", force=False)
-    import matplotlib.pyplot as plt
-
-    return plt
-
-
-def save_figure(fig, path: Path):
-    """Write ``fig`` as a PNG file atomically and close it."""
-    plt = pyplot()
-    atomic_write(path, lambda tmp: fig.savefig(tmp, dpi=130, bbox_inches="tight", format="png"))
-    plt.close(fig)
-
-
-def state_styles(n: int) -> list[tuple[str, str]]:
-    """``(colour, marker)`` of states ``0..n-1``: the palette's colours in turn, the marker
-    changing each time the palette starts again (distinct for up to 160 states)."""
-    k = len(PALETTE)
-    return [(PALETTE[s % k], MARKERS[(s // k) % len(MARKERS)]) for s in range(n)]
+           "compound_mask"]
 
 
 def _pairs(labels, places, **kw):
@@ -169,7 +130,7 @@ def _numbers(ax, P, states, fontsize):
     close for two numbers are spread apart first)."""
     import matplotlib.patheffects as pe
 
-    halo = [pe.withStroke(linewidth=_HALO, foreground="white")]
+    halo = [pe.withStroke(linewidth=HALO, foreground="white")]
     Q = _spread(P, 1.4 * fontsize * _data_per_point(ax)) if len(P) > 1 else P
     for s, (x, y) in zip(states, Q):
         ax.text(x, y, str(s), ha="center", va="center", fontsize=fontsize, zorder=6,

@@ -15,8 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .plots import LEGEND_SIZE, PALETTE, TITLE_SIZE, pyplot, save_figure
-from .sweep_columns import METRICS, axis_values, cell_value, no_value, number, short
+from ..sweep_columns import METRICS, axis_values, cell_value, no_value, number, short
+from .style import LEGEND_SIZE, PALETTE, TITLE_SIZE, pyplot, save_figure
 
 __all__ = ["write_sweep_figure", "plot_sweep_line", "plot_sweep_heat_map"]
 
