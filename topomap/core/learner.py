@@ -155,7 +155,7 @@ class MapLearner(BaseEstimator):
                               gds_names)
         clusters, metric, criterion, stopping = self._components()
         refinement = self._refinement()
-        self.__dict__.pop("size_choice_", None)
+        self._forget_fit()
         t0 = time.perf_counter()
         splitter = self._phase1(data, clusters, metric, criterion, stopping)
         if isinstance(stopping, AutoStates):
@@ -403,6 +403,13 @@ class MapLearner(BaseEstimator):
         )
 
     # ------------------------------------------------------------------ conveniences
+    def _forget_fit(self) -> None:
+        """Drop every attribute a previous ``fit`` learned (names ending in ``_``), so a refit
+        never shows the last fit's refinement, size choice or split map as its own."""
+        for name in [k for k in vars(self) if k.endswith("_") and not k.startswith("_")
+                     and k != "n_features_in_"]:
+            delattr(self, name)
+
     def fit_trajectory(self, traj):
         """Fit on a :class:`topomap.Trajectory`, carrying its names and episode lengths."""
         return self.fit(traj.observations, traj.actions, gds=traj.gds, lengths=traj.lengths,
