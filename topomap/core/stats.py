@@ -1,13 +1,9 @@
-"""Counts, entropies and one-pass statistics shared by both phases and the map.
+"""Counts and entropies shared by the phases and the map.
 
 Everything the method measures of the discrete model is a function of integer counts: how often
-each state occurs, takes each action, and reaches each next state; entropies are in bits.  The
-statistics over all T steps (observation models, distinct rows, Gaussian log-densities) make one
-or two passes over the (T, D) observations and allocate O(D), O(M D) or O(chunk x M) memory, never
-T x D.  Where a result is stored in ``map.json`` the compiled loops add the same numbers in the
-same order as the plain numpy expressions (``np.add.at`` adds rows in step order; ``X.var(axis=0)``
-of a C-contiguous array accumulates rows in step order), so the bytes never depend on which
-implementation ran.
+each state occurs, takes each action, and reaches each next state; entropies are in bits.  Where a
+result is stored in ``map.json`` the sums are taken in numpy's pairwise order
+(:mod:`topomap.core.sums`), so the bytes never depend on which implementation ran.
 """
 
 from __future__ import annotations
@@ -19,9 +15,6 @@ from .sums import sparse_pairwise_sum
 __all__ = ["xlogx", "weighted_entropy", "conditional_entropy", "sparse_conditional_entropy",
            "normalise", "episode_masks", "count_tables"]
 
-LOG2PI = np.log(2 * np.pi)
-#: size of the (rows x models) blocks of log-densities computed at once
-CHUNK_BYTES = 32 * 2**20
 _SHIFT = np.int64(32)
 _MASK = np.int64((1 << 32) - 1)
 
