@@ -14,7 +14,8 @@ from .checks import ParameterError
 from .phase1.clustering import FixedClusters, cluster_observations, make_metric
 from .size import AutoStates, SizeScores, bic, parameter_count, split_holdout
 from .map.model import TopologicalMap
-from .refine.methods import REFINEMENTS, SymbolSequence
+from .refine.methods import REFINEMENTS, CloneFit, SymbolSequence
+from .refine.resize import resize
 from .split.criteria import CRITERIA
 from .split.engine import Splitter
 from .split.stopping import TargetStates
@@ -91,6 +92,11 @@ class MapLearner(BaseEstimator):
         ``"cscg"`` is EM alone from phase 1 with CSCG's recipe, ignoring the split; an object
         with ``fit(sequence, split_state_symbol, random_state) -> CloneFit``.  None (default):
         the paper's method alone.
+    refined_size : "told" or "free"
+        With a refinement and a told number of states (``n_states`` an int, or a
+        :class:`~topomap.core.split.stopping.TargetStates` rule): ``"told"`` (default) brings the
+        refined map to that number (:mod:`topomap.core.refine.resize`: the least costly merges of
+        same-symbol states, or further splits); ``"free"`` keeps the number the refinement chose.
     random_state : int
         Seed of K-means (the only random part of the method).
     callbacks : sequence of callables
@@ -127,7 +133,7 @@ class MapLearner(BaseEstimator):
                  metric="euclidean", criterion="entropy", stopping=None,
                  covariance_type: str = "diag", reg_covar: float = 1e-3, n_init: int = 3,
                  phase1: str = "auto", sample_size: int | None = None, refine=None,
-                 random_state: int = 0, callbacks=()):
+                 refined_size: str = "told", random_state: int = 0, callbacks=()):
         self.n_clusters = n_clusters
         self.n_states = n_states
         self.clusters = clusters
@@ -140,6 +146,7 @@ class MapLearner(BaseEstimator):
         self.phase1 = phase1
         self.sample_size = sample_size
         self.refine = refine
+        self.refined_size = refined_size
         self.random_state = random_state
         self.callbacks = callbacks
 
@@ -158,6 +165,7 @@ class MapLearner(BaseEstimator):
         self._forget_fit()
         t0 = time.perf_counter()
         splitter = self._phase1(data, clusters, metric, criterion, stopping)
+        told = stopping.n_states if isinstance(stopping, TargetStates) else None
         if isinstance(stopping, AutoStates):
             stopping = TargetStates(self._choose_size(data, splitter, stopping))
         t1 = time.perf_counter()
@@ -179,7 +187,7 @@ class MapLearner(BaseEstimator):
         self.map_ = self.map_split_ = self._make_map(data, splitter, info)
         self.timings_ = {"phase1": t1 - t0, "phase2": t2 - t1}
         if refinement is not None:
-            self._refine(data, splitter, refinement)
+            self._refine(data, splitter, refinement, told)
             self.timings_["refine"] = time.perf_counter() - t2
         self._emit("done", labels=self.labels_, entropies=self.entropies_[-1], map=self.map_)
         return self
@@ -197,7 +205,7 @@ class MapLearner(BaseEstimator):
         self.refine_info_.update(bic=scores, kept="refined" if keep else "split")
         return keep
 
-    def _refine(self, data: _Data, splitter: Splitter, refinement) -> None:
+    def _refine(self, data: _Data, splitter: Splitter, refinement, told: int | None) -> None:
         """Re-estimate every state jointly (:mod:`topomap.core.refine.methods`); the split map stays as
         ``map_split_``.  Refined states have no parent; ``map_.info["refined_from"]`` names, for
         each, the split state most of its steps held."""
@@ -206,6 +214,11 @@ class MapLearner(BaseEstimator):
         seq = SymbolSequence.build(self.labels_phase1_, data.u, data.lengths, data.n_actions, ns)
         split_symbol = np.where(np.asarray(splitter.gds) < 0, splitter.symbol, -1)
         fit = refinement.fit(seq, split_symbol, self.random_state)
+        if told is not None and self.refined_size == "told" and fit.n_states != told:
+            labels, state_symbol, resized = resize(fit.labels, fit.state_symbol, data.u,
+                                                   data.n_actions, data.masks, told,
+                                                   fit.state_symbol >= ns, splitter.criterion)
+            fit = CloneFit(labels, state_symbol, dict(fit.info, resized=resized))
         sym = fit.state_symbol
         is_gds = sym >= ns
         state_gds = np.full(sym.size, -1, dtype=np.int64)
@@ -364,6 +377,8 @@ class MapLearner(BaseEstimator):
                 raise ParameterError("criterion", f"{criterion!r} is unknown; choose one of "
                                                   f"{', '.join(sorted(CRITERIA))}")
             criterion = CRITERIA[criterion]()
+        if self.refined_size not in ("told", "free"):
+            raise ParameterError("refined_size", f"must be 'told' or 'free', got {self.refined_size!r}")
         if self.covariance_type not in ("diag", "full"):
             raise ParameterError("covariance_type",
                                  f"must be 'diag' or 'full', got {self.covariance_type!r}")

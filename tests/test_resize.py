@@ -1,0 +1,114 @@
+"""Bringing a refined labelling to the told number of states (topomap.core.refine.resize)."""
+
+import numpy as np
+import pytest
+
+from topomap import MapLearner
+from topomap.core.metrics import adjusted_rand
+from topomap.core.refine.resize import _merge_loss, _pairs, _relabel, merge_to, resize, split_to
+from topomap.core.split.criteria import EntropyCriterion
+from topomap.core.stats import count_tables, episode_masks
+
+
+#: the symbols of a 6-place ring: each symbol at two places, told apart by their neighbours
+#: (no rotation maps the ring onto itself)
+SYMS = np.array([0, 1, 0, 2, 1, 2])
+
+
+def ring_walk(n_places=6, T=800, seed=0):
+    """Places 0..n-1 on a ring, walked at random: action 0 steps forward, 1 back."""
+    rng = np.random.default_rng(seed)
+    x, places, acts = 0, [], []
+    for _ in range(T):
+        a = int(rng.integers(2))
+        places.append(x)
+        acts.append(a)
+        x = (x + (1 if a == 0 else -1)) % n_places
+    return np.array(places), np.array(acts)
+
+
+def test_merging_rejoins_the_duplicates_of_a_place():
+    places, u = ring_walk()
+    # each place's steps dealt at random to two states of its symbol: 12 states for 6 places
+    rng = np.random.default_rng(1)
+    labels = places * 2 + rng.integers(2, size=places.size)
+    state_symbol = SYMS[np.arange(12) // 2]
+    has_next = episode_masks(places.size, [places.size])[1]
+    out, sym, merged = merge_to(labels, state_symbol, u, 2, has_next, 6, np.zeros(12, bool))
+    assert merged == 6 and sym.size == 6
+    assert adjusted_rand(places, out) == 1.0
+    assert all(sym[out[t]] == SYMS[places[t]] for t in range(places.size))
+
+
+def test_merging_never_joins_symbols_or_fixed_states():
+    places, u = ring_walk()
+    has_next = episode_masks(places.size, [places.size])[1]
+    fixed = np.zeros(6, bool)
+    fixed[[0, 2]] = True  # the two places of symbol 0 are fixed: never merged
+    out, sym, merged = merge_to(places, SYMS, u, 2, has_next, 1, fixed)
+    assert merged == 2 and sorted(sym.tolist()) == [0, 0, 1, 2]
+    assert len(np.unique(out[places == 0])) == 1 and out[places == 0][0] != out[places == 2][0]
+
+
+def _brute_force_merges(labels, state_symbol, u, has_next, n_target):
+    """Every pair's loss recomputed after every merge; the least (then the smallest pair) wins."""
+    fixed = np.zeros(state_symbol.size, bool)
+    while state_symbol.size > n_target:
+        _, N, C = count_tables(labels, u, state_symbol.size, 2, has_next)
+        pairs = _pairs(state_symbol, fixed)
+        if not pairs:
+            break
+        i, j = min(pairs, key=lambda p: (_merge_loss(C, N, *p), p))
+        labels, state_symbol = _relabel(labels, state_symbol, i, j)
+        fixed = np.delete(fixed, j)
+    return labels, state_symbol
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_cached_losses_give_the_brute_force_merges(seed):
+    places, u = ring_walk(n_places=9, T=600, seed=seed)
+    rng = np.random.default_rng(seed)
+    labels = places * 3 + rng.integers(3, size=places.size)  # 27 states, 3 per place
+    state_symbol = (np.arange(27) // 3) % 3
+    has_next = episode_masks(places.size, [places.size])[1]
+    want = _brute_force_merges(labels, state_symbol, u, has_next, 5)
+    got = merge_to(labels, state_symbol, u, 2, has_next, 5, np.zeros(27, bool))
+    assert np.array_equal(got[0], want[0]) and np.array_equal(got[1], want[1])
+
+
+def test_splitting_separates_a_compound_state():
+    places, u = ring_walk()
+    labels = SYMS[places]  # the aliased pairs share a state: 3 states for 6 places
+    masks = episode_masks(places.size, [places.size])
+    out, sym, n_split = split_to(labels, np.arange(3), u, 2, masks, 6, np.zeros(3, bool),
+                                 EntropyCriterion())
+    assert n_split == 3 and adjusted_rand(places, out) == 1.0
+
+
+def test_resize_says_what_it_did():
+    places, u = ring_walk()
+    masks = episode_masks(places.size, [places.size])
+    _, sym, info = resize(places, SYMS, u, 2, masks, 6, np.zeros(6, bool), EntropyCriterion())
+    assert info == {"from": 6, "to": 6, "merged": 0, "split": 0} and sym.size == 6
+
+
+def _ring_observations(places, seed=0):
+    rng = np.random.default_rng(seed)
+    return np.eye(3)[SYMS[places]] + 0.01 * rng.standard_normal((places.size, 3))
+
+
+@pytest.mark.parametrize("told", [5, 8])
+def test_the_refined_map_has_the_told_size(told):
+    places, u = ring_walk()
+    X = _ring_observations(places)
+    learner = MapLearner(n_clusters=3, n_states=told, refine="em", random_state=0).fit(X, u)
+    assert learner.map_.n_states == told
+    free = MapLearner(n_clusters=3, n_states=told, refine="em", refined_size="free",
+                      random_state=0).fit(X, u)
+    assert free.map_.n_states == 6  # the refinement alone finds the six places
+    assert adjusted_rand(places, free.labels_) == 1.0
+
+
+def test_refined_size_is_checked():
+    with pytest.raises(ValueError, match="^refined_size must be 'told' or 'free'"):
+        MapLearner(refined_size="exact").fit(np.zeros((5, 2)), np.zeros(5, int))
