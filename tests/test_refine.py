@@ -124,7 +124,8 @@ def test_the_learner_refines_the_split_and_keeps_it_beside():
 
     sym, u, places = ring_walk(3000, RING, 0)
     split = MapLearner(n_clusters=6, n_states=6).fit(noisy(sym, 6), u)
-    learner = MapLearner(n_clusters=6, n_states=6, refine="em").fit(noisy(sym, 6), u)
+    learner = MapLearner(n_clusters=6, n_states=6, refine="em", refined_size="free").fit(
+        noisy(sym, 6), u)
     assert adjusted_rand_score(places, split.labels_) < 0.9  # the split alone cannot tell them
     assert adjusted_rand_score(places, learner.labels_) == 1.0 and learner.map_.n_states == 8
     assert np.array_equal(learner.labels_split_, split.labels_)
@@ -151,7 +152,8 @@ def test_gds_states_stay_fixed_through_refinement():
 
     sym, u, places = ring_walk(3000, RING, 2)
     gds = np.where(places == 7, 0, -1)  # place 7 (the only one showing symbol 5) is a GDS
-    learner = MapLearner(n_clusters=5, n_states=6, refine="em").fit(noisy(sym, 6, 2), u, gds=gds)
+    learner = MapLearner(n_clusters=5, n_states=6, refine="em", refined_size="free").fit(
+        noisy(sym, 6, 2), u, gds=gds)
     m = learner.map_
     (gds_state,) = np.flatnonzero(m.state_gds == 0)
     assert np.all(learner.labels_[gds == 0] == gds_state)
@@ -187,7 +189,8 @@ def test_the_guard_keeps_the_split_map_when_refinement_only_fragments_it(guard):
     from topomap import MapLearner
 
     sym, u, places = ring_walk(3000, RING, 0)
-    learner = MapLearner(n_clusters=6, n_states=8, refine=_Fragments(guard)).fit(noisy(sym, 6), u)
+    learner = MapLearner(n_clusters=6, n_states=8, refine=_Fragments(guard),
+                         refined_size="free").fit(noisy(sym, 6), u)
     if guard:  # 12 parity halves explain nothing more and cost parameters: BIC is worse
         info = learner.refine_info_
         assert info["kept"] == "split" and info["bic"]["refined"] > info["bic"]["split"]
@@ -201,7 +204,8 @@ def test_the_map_kept_records_the_refinement(guard):
     from topomap import MapLearner
 
     sym, u, places = ring_walk(3000, RING, 0)
-    learner = MapLearner(n_clusters=6, n_states=8, refine=_Fragments(guard)).fit(noisy(sym, 6), u)
+    learner = MapLearner(n_clusters=6, n_states=8, refine=_Fragments(guard),
+                         refined_size="free").fit(noisy(sym, 6), u)
     m = learner.map_
     assert m.info["refine_info"] == learner.refine_info_ and "_Fragments" in m.info["refine"]
     assert m.entropy_history == learner.entropies_
@@ -217,7 +221,8 @@ def test_the_guard_keeps_a_refinement_that_recovers_the_places():
     from topomap import MapLearner
 
     sym, u, places = ring_walk(3000, RING, 0)
-    learner = MapLearner(n_clusters=6, n_states=6, refine="em").fit(noisy(sym, 6), u)
+    learner = MapLearner(n_clusters=6, n_states=6, refine="em", refined_size="free").fit(
+        noisy(sym, 6), u)
     info = learner.refine_info_
     assert info["kept"] == "refined" and info["bic"]["refined"] < info["bic"]["split"]
 
@@ -245,7 +250,7 @@ def test_the_refinements_store_their_parameters_as_given():
     assert params["clone_factor"] == 2 and params["prefix"] is em.prefix
     assert set(params) == {"clone_factor", "prefix", "prefix_visits", "max_rounds", "row_prior",
                            "tol", "max_iter", "prune", "merge_threshold", "split_z", "spare",
-                           "init_noise", "guard"}
+                           "init_noise", "guard", "budget"}
     twin = clone(em)
     assert twin is not em and twin.get_params() == params
     assert CSCGRefinement(clones_per_symbol=5).set_params(tol=0.5).get_params() == {

@@ -120,6 +120,10 @@ def _summary(results: dict, out) -> str:
     choice = results.get("size_choice")
     if choice:
         line += f" (split to {choice['chosen']}, the size {choice['criterion']} chose)"
+    resized = results.get("resized")
+    if resized:
+        line += (f" (the refinement found {resized['from']}, brought to the {resized['to']} of "
+                 f"stop.n_states; learner.refined_size=free keeps its own)")
     if gt:
         stages = [gt[k] for k in ("phase1", "split", "final") if k in gt]
         label = " (phase 1 -> split -> refined)" if "split" in gt else ""

@@ -89,7 +89,7 @@ def learn(cfg: dict, parts: Parts, output_dir, registry: Registry, cache_dir=Non
     results.update({
         "split_history": learner.split_history_, "entropy_trace": learner.entropies_,
         "stop_reason": learner.stop_reason_, "timings": {**t_data, **learner.timings_},
-        "size_choice": getattr(learner, "size_choice_", None),
+        "size_choice": getattr(learner, "size_choice_", None), "resized": _resized(learner),
         "versions": versions(), "config": cfg, "plugin_metrics": plugin_metrics, "units": UNITS,
         "providers": {name: registry.provider(name, cfg[name]["component"])
                       for name, kind in KINDS.items() if kind.learner_arg},  # the learner's
@@ -111,6 +111,15 @@ def localize(cfg: dict, parts: Parts, output_dir) -> dict:
                "versions": versions(), "units": UNITS}
     write_localization(Path(output_dir), traj, beliefs, viterbi, results)
     return results
+
+
+def _resized(learner) -> dict | None:
+    """How the kept refined map was brought to the told size (None: it was not)."""
+    info = getattr(learner, "refine_info_", {})
+    resized = info.get("resized")
+    if resized is None or info.get("kept", "refined") != "refined" or resized["from"] == resized["to"]:
+        return None
+    return resized
 
 
 def make_learner(cfg, parts: Parts, callbacks=()) -> MapLearner:

@@ -31,6 +31,7 @@ from sklearn.base import BaseEstimator
 
 from ..checks import ParameterError, check_count
 from ..stats import episode_masks
+from .budget import BUDGETS
 from .clones import (Layout, clone_budget, fit_clones, init_from_path, make_layout, random_counts,
                      states_to_clones)
 from .structure import merge_states, same_partition, split_compounds
@@ -149,6 +150,11 @@ class EMRefinement(BaseEstimator):
     ``split_z`` the normal score of splitting compound states (``inf``: never split; 3.09:
     p = 0.001).
 
+    ``budget`` sizes the first stage's clones (:data:`topomap.core.refine.budget.BUDGETS`):
+    ``"evidence"`` (default) gives a view at least as many clones as the data's lower bound on the
+    places showing it (the same action sequence from the view followed by that many different
+    symbol sequences), ``"split"`` only ``clone_factor`` x its split states + ``spare``.
+
     With ``guard`` (the default) the learner keeps the refined map only if its BIC (actions and
     transitions) is no worse than the split map's: refinement never trades a good split map for a
     fragmented one (with many actions and few visits per place and action, the split test of
@@ -161,7 +167,7 @@ class EMRefinement(BaseEstimator):
                  max_rounds: int = 8, row_prior: float = 0.5, tol: float = 1e-6,
                  max_iter: int = 50, prune: float = 1e-4, merge_threshold: float = 6.63,
                  split_z: float = 3.09, spare: int = 2, init_noise: float = 1.0,
-                 guard: bool = True):
+                 guard: bool = True, budget: str = "evidence"):
         self.clone_factor = clone_factor
         self.prefix = prefix
         self.prefix_visits = prefix_visits
@@ -175,6 +181,7 @@ class EMRefinement(BaseEstimator):
         self.spare = spare
         self.init_noise = init_noise
         self.guard = guard
+        self.budget = budget
         self._check_params()
 
     def _check_params(self) -> None:
@@ -185,13 +192,15 @@ class EMRefinement(BaseEstimator):
         _check(self.row_prior > 0, "row_prior", self.row_prior, "> 0")
         _check(self.tol >= 0, "tol", self.tol, ">= 0")
         _check(0 <= self.prune < 1, "prune", self.prune, "in [0, 1)")
+        _check(self.budget in BUDGETS, "budget", self.budget, f"one of {', '.join(BUDGETS)}")
 
     def __repr__(self) -> str:
         # the form map.json stores (info["refine"]): the EM round's knobs grouped as "settings"
         rounds = ", ".join(f"{k}={getattr(self, k)!r}" for k in _EM_ROUND)
+        budget = "" if self.budget == "evidence" else f"budget={self.budget!r}, "
         return (f"EMRefinement(clone_factor={self.clone_factor}, prefix={self.prefix}, "
                 f"prefix_visits={self.prefix_visits}, max_rounds={self.max_rounds}, "
-                f"guard={bool(self.guard)}, settings=EMSettings({rounds}))")
+                f"guard={bool(self.guard)}, {budget}settings=EMSettings({rounds}))")
 
     def fit(self, seq: SymbolSequence, split_state_symbol, random_state: int = 0) -> CloneFit:
         """Refine the split of ``seq``; ``split_state_symbol`` is the symbol of every split state
@@ -216,11 +225,10 @@ class EMRefinement(BaseEstimator):
         return CloneFit(labels, state_symbol, {"stages": stages, "rounds_on_all_steps": rounds})
 
     def _first_round(self, seq: SymbolSequence, split_state_symbol, rng):
-        """Stage 1: ``clone_factor`` x (split states of the symbol) + ``spare`` clones for every
-        K-means symbol, one per GDS id, from random counts."""
-        per = np.bincount(split_state_symbol[split_state_symbol >= 0], minlength=seq.n_symbols)
-        lay = seq.layout(clone_budget(seq.n_symbols, seq.n_gds,
-                                      self.clone_factor * per + self.spare))
+        """Stage 1: the clones of ``budget`` (:mod:`topomap.core.refine.budget`), from random
+        counts."""
+        lay = seq.layout(BUDGETS[self.budget](split_state_symbol, seq, self.clone_factor,
+                                              self.spare))
         return self._fit_layout(lay, random_counts(lay, rng))
 
     def _warm_round(self, seq: SymbolSequence, labels, state_symbol, rng):
