@@ -250,11 +250,12 @@ def test_the_refinements_store_their_parameters_as_given():
     assert params["clone_factor"] == 2 and params["prefix"] is em.prefix
     assert set(params) == {"clone_factor", "prefix", "prefix_visits", "max_rounds", "row_prior",
                            "tol", "max_iter", "prune", "merge_threshold", "split_z", "spare",
-                           "init_noise", "guard", "budget"}
+                           "init_noise", "guard", "budget", "evidence"}
     twin = clone(em)
     assert twin is not em and twin.get_params() == params
     assert CSCGRefinement(clones_per_symbol=5).set_params(tol=0.5).get_params() == {
-        "clones_per_symbol": 5, "pseudocount": 2e-3, "max_iter": 1000, "tol": 0.5}
+        "clones_per_symbol": 5, "pseudocount": 2e-3, "max_iter": 1000, "tol": 0.5,
+        "evidence": "auto"}
 
 
 def test_the_refinements_repr_is_the_form_map_json_stores():

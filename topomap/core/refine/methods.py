@@ -34,6 +34,7 @@ from ..stats import episode_masks
 from .budget import BUDGETS
 from .clones import (Layout, clone_budget, fit_clones, init_from_path, make_layout, random_counts,
                      states_to_clones)
+from .soft import apply_evidence, check_evidence
 from .structure import merge_states, same_partition, split_compounds
 
 __all__ = ["CloneFit", "SymbolSequence", "EMRefinement", "CSCGRefinement", "REFINEMENTS"]
@@ -167,7 +168,7 @@ class EMRefinement(BaseEstimator):
                  max_rounds: int = 8, row_prior: float = 0.5, tol: float = 1e-6,
                  max_iter: int = 50, prune: float = 1e-4, merge_threshold: float = 6.63,
                  split_z: float = 3.09, spare: int = 2, init_noise: float = 1.0,
-                 guard: bool = True, budget: str = "evidence"):
+                 guard: bool = True, budget: str = "evidence", evidence: str = "auto"):
         self.clone_factor = clone_factor
         self.prefix = prefix
         self.prefix_visits = prefix_visits
@@ -182,6 +183,7 @@ class EMRefinement(BaseEstimator):
         self.init_noise = init_noise
         self.guard = guard
         self.budget = budget
+        self.evidence = evidence
         self._check_params()
 
     def _check_params(self) -> None:
@@ -193,11 +195,13 @@ class EMRefinement(BaseEstimator):
         _check(self.tol >= 0, "tol", self.tol, ">= 0")
         _check(0 <= self.prune < 1, "prune", self.prune, "in [0, 1)")
         _check(self.budget in BUDGETS, "budget", self.budget, f"one of {', '.join(BUDGETS)}")
+        check_evidence(self.evidence)
 
     def __repr__(self) -> str:
         # the form map.json stores (info["refine"]): the EM round's knobs grouped as "settings"
         rounds = ", ".join(f"{k}={getattr(self, k)!r}" for k in _EM_ROUND)
         budget = "" if self.budget == "evidence" else f"budget={self.budget!r}, "
+        budget += "" if self.evidence == "auto" else f"evidence={self.evidence!r}, "
         return (f"EMRefinement(clone_factor={self.clone_factor}, prefix={self.prefix}, "
                 f"prefix_visits={self.prefix_visits}, max_rounds={self.max_rounds}, "
                 f"guard={bool(self.guard)}, {budget}settings=EMSettings({rounds}))")
@@ -206,8 +210,18 @@ class EMRefinement(BaseEstimator):
         """Refine the split of ``seq``; ``split_state_symbol`` is the symbol of every split state
         (``map_.state_symbol``, -1 for GDS).  Returns a :class:`CloneFit` whose labels are the
         last merged Viterbi labelling; its info holds ``(steps, states, EM iterations)`` of every
-        stage and the number of rounds on all steps."""
+        stage and the number of rounds on all steps; with ``evidence`` other than ``"hard"`` it
+        is the soft-evidence refinement's (:func:`topomap.core.refine.soft.apply_evidence`)."""
         self._check_params()
+
+        def hard(s: SymbolSequence, state_symbol) -> CloneFit:
+            return self._fit_symbols(s, state_symbol, random_state)
+
+        return apply_evidence(self.evidence, seq, hard(seq, split_state_symbol), hard,
+                              len(split_state_symbol), random_state)
+
+    def _fit_symbols(self, seq: SymbolSequence, split_state_symbol, random_state: int) -> CloneFit:
+        """The refinement taking every step's symbol as exact."""
         rng = np.random.default_rng(random_state)
         split_state_symbol = np.asarray(split_state_symbol)
         n_split = int(np.sum(split_state_symbol >= 0))
@@ -289,14 +303,16 @@ class CSCGRefinement(BaseEstimator):
     name = "cscg"
 
     def __init__(self, clones_per_symbol: int = 70, pseudocount: float = 2e-3,
-                 max_iter: int = 1000, tol: float = 0.0):
+                 max_iter: int = 1000, tol: float = 0.0, evidence: str = "auto"):
         self.clones_per_symbol = clones_per_symbol
         self.pseudocount = pseudocount
         self.max_iter = max_iter
         self.tol = tol
+        self.evidence = evidence
         self._check_params()
 
     def _check_params(self) -> None:
+        check_evidence(self.evidence)
         check_count(self.clones_per_symbol, "clones_per_symbol")
         check_count(self.max_iter, "max_iter")
         _check(self.pseudocount > 0, "pseudocount", self.pseudocount, "> 0")
@@ -305,13 +321,24 @@ class CSCGRefinement(BaseEstimator):
     def __repr__(self) -> str:
         return (f"CSCGRefinement(clones_per_symbol={int(self.clones_per_symbol)}, "
                 f"pseudocount={float(self.pseudocount)}, max_iter={int(self.max_iter)}, "
-                f"tol={float(self.tol)})")
+                f"tol={float(self.tol)}"
+                f"{'' if self.evidence == 'auto' else f', evidence={self.evidence!r}'})")
 
     def fit(self, seq: SymbolSequence, split_state_symbol=None, random_state: int = 0) -> CloneFit:
-        """Fit ``seq`` (``split_state_symbol`` is not used).  Returns a :class:`CloneFit` whose
-        info holds Baum-Welch's iterations and last log-likelihood, Viterbi training's and the
-        number of clones."""
+        """Fit ``seq`` (``split_state_symbol`` only sizes the soft-evidence pruning).  Returns a
+        :class:`CloneFit` whose info holds Baum-Welch's iterations and last log-likelihood,
+        Viterbi training's and the number of clones (and the soft rounds, with ``evidence``)."""
         self._check_params()
+
+        def hard(s: SymbolSequence, _state_symbol) -> CloneFit:
+            return self._fit_symbols(s, random_state)
+
+        n_reference = None if split_state_symbol is None else len(split_state_symbol)
+        return apply_evidence(self.evidence, seq, hard(seq, split_state_symbol), hard,
+                              n_reference, random_state)
+
+    def _fit_symbols(self, seq: SymbolSequence, random_state: int) -> CloneFit:
+        """EM alone taking every step's symbol as exact."""
         lay = seq.layout(clone_budget(seq.n_symbols, seq.n_gds, self.clones_per_symbol))
         rng = np.random.default_rng(random_state)
         labels, state_symbol, em, viterbi = fit_clones(

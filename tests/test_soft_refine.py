@@ -1,0 +1,186 @@
+"""Soft symbol evidence (topomap.core.refine.soft, soft_kernels): kernels against enumeration of
+every path on a tiny model, and the refinement on a hand-built aliased world with misreads."""
+
+import itertools
+
+import numpy as np
+import pytest
+
+from topomap.core.refine.methods import CSCGRefinement, EMRefinement, SymbolSequence
+from topomap.core.refine.soft import SoftSettings, initial_confusion, soft_round
+from topomap.core.refine.soft_kernels import (SoftData, SoftModel, SoftStats, soft_backward,
+                                              soft_candidates, soft_forward, soft_offsets,
+                                              soft_viterbi)
+from topomap.core.refine.structure import same_partition
+
+
+def _tiny(seed=0):
+    """3 clones (symbols 0, 0, 1), 2 read symbols, 2 actions, episodes of 3 and 2 steps; clone 2
+    never reads symbol 0 (a zero of the evidence: the sparse candidates skip it)."""
+    rng = np.random.default_rng(seed)
+    A, S = 2, 3
+    trans = rng.random((A, S, S)) + 0.1
+    trans /= trans.sum(axis=2, keepdims=True)
+    emit = np.array([[0.8, 0.2], [0.7, 0.3], [0.0, 1.0]])
+    init = np.array([0.5, 0.3, 0.2])
+    read = np.array([0, 1, 0, 1, 1], dtype=np.int64)
+    u = np.array([0, 1, 0, 1, 0], dtype=np.int64)
+    has_next = np.array([True, True, False, True, False])
+    cptr, cidx = soft_candidates(emit)
+    return SoftData(read, u, has_next), SoftModel(trans, emit, init, cptr, cidx)
+
+
+def _enumerate(data, model):
+    """Every clone path: log-likelihood, expected counts and the best path (brute force)."""
+    T, S = data.read.size, model.init.size
+    starts = [0] + [t + 1 for t in range(T - 1) if not data.has_next[t]]
+    total, tr = 0.0, np.zeros_like(model.trans)
+    em, ini = np.zeros_like(model.emit), np.zeros(S)
+    best_path, best_lp = [], 0.0
+    bounds = list(zip(starts, starts[1:] + [T]))
+    for t0, t1 in bounds:  # episodes are independent
+        probs = {}
+        for path in itertools.product(range(S), repeat=t1 - t0):
+            p = model.init[path[0]]
+            for k, c in enumerate(path):
+                t = t0 + k
+                p *= model.emit[c, data.read[t]]
+                if k:
+                    p *= model.trans[data.u[t - 1], path[k - 1], c]
+            probs[path] = p
+        z = sum(probs.values())
+        total += np.log(z)
+        for path, p in probs.items():
+            w = p / z
+            ini[path[0]] += w
+            for k, c in enumerate(path):
+                em[c, data.read[t0 + k]] += w
+                if k:
+                    tr[data.u[t0 + k - 1], path[k - 1], c] += w
+        path = max(probs, key=probs.get)
+        best_path += list(path)
+        best_lp += np.log(probs[path])
+    return total, tr, em, ini, np.array(best_path), best_lp
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_kernels_match_enumeration(seed):
+    data, model = _tiny(seed)
+    ll, tr, em, ini, best, best_lp = _enumerate(data, model)
+    pos = soft_offsets(data, model)
+    alpha, log_c = soft_forward(data, model, pos, 0.0)
+    assert log_c.sum() == pytest.approx(ll, rel=1e-10)
+    stats = SoftStats(np.zeros_like(model.trans), np.zeros_like(model.emit), np.zeros(3))
+    soft_backward(data, model, pos, alpha, log_c, stats)
+    np.testing.assert_allclose(stats.trans, tr, atol=1e-12)
+    np.testing.assert_allclose(stats.emit, em, atol=1e-12)
+    np.testing.assert_allclose(stats.init, ini, atol=1e-12)
+    with np.errstate(divide="ignore"):
+        log_model = SoftModel(np.log(model.trans), np.log(model.emit), np.log(model.init),
+                              model.cptr, model.cidx)
+    path, lp = soft_viterbi(data, log_model, pos)
+    np.testing.assert_array_equal(path, best)
+    assert lp == pytest.approx(best_lp, rel=1e-10)
+
+
+def test_candidates_skip_zero_evidence():
+    data, model = _tiny()
+    # read symbol 0 allows clones 0 and 1 only; read symbol 1 all three
+    assert model.cidx[model.cptr[0]:model.cptr[1]].tolist() == [0, 1]
+    assert model.cidx[model.cptr[1]:model.cptr[2]].tolist() == [0, 1, 2]
+    assert soft_offsets(data, model).tolist() == [0, 2, 5, 7, 10, 13]
+
+
+# ----------------------------------------------------------------- an aliased ring with misreads
+RING = np.array([0, 1, 0, 2, 1, 0, 0, 2, 1, 2])  # symbol of each of 10 places, aliased
+
+
+def _ring_walk(T=6000, misread=0.04, seed=0, episodes=3):
+    """A random walk on the ring (actions: 0 = forward, 1 = back, 2 = stay), the symbol of each
+    step's place read wrong at a known set of steps."""
+    rng = np.random.default_rng(seed)
+    n = RING.size
+    u = rng.integers(0, 3, T)
+    place = np.empty(T, dtype=np.int64)
+    x = 0
+    for t in range(T):
+        place[t] = x
+        x = (x + (1, -1, 0)[u[t]]) % n
+    sym = RING[place].copy()
+    wrong = np.flatnonzero(rng.random(T) < misread)
+    sym[wrong] = (sym[wrong] + rng.integers(1, 3, wrong.size)) % 3
+    lengths = np.full(episodes, T // episodes)
+    lengths[-1] += T - lengths.sum()
+    return sym, u, lengths, place, wrong
+
+
+def _seq(sym, u, lengths):
+    return SymbolSequence.build(sym, u, lengths, 3, 3)
+
+
+def test_soft_refinement_recovers_ring_with_misreads():
+    sym, u, lengths, place, wrong = _ring_walk()
+    seq = _seq(sym, u, lengths)
+    hard = EMRefinement(evidence="hard").fit(seq, RING, 0)
+    assert hard.n_states > RING.size  # misreads multiply the hard refinement's states
+    fit = EMRefinement(evidence="soft").fit(seq, RING, 0)
+    assert fit.n_states == RING.size
+    assert same_partition(fit.labels, place)  # every step, misread ones too, in its place's state
+    # the state of every misread step emits the place's true symbol
+    np.testing.assert_array_equal(fit.state_symbol[fit.labels[wrong]], RING[place[wrong]])
+    assert fit.info["soft"] == "on"
+
+
+def test_auto_keeps_hard_result_without_misreads():
+    sym, u, lengths, place, _ = _ring_walk(misread=0.0)
+    seq = _seq(sym, u, lengths)
+    hard = EMRefinement(evidence="hard").fit(seq, RING, 0)
+    auto = EMRefinement().fit(seq, RING, 0)
+    np.testing.assert_array_equal(auto.labels, hard.labels)
+    assert auto.info["soft"] == "skipped"
+    assert same_partition(auto.labels, place)
+
+
+def test_soft_round_learns_confusion():
+    sym, u, lengths, place, wrong = _ring_walk(misread=0.06, seed=1)
+    seq = _seq(sym, u, lengths)
+    # the true map as a warm start: one state per place
+    fit = soft_round(seq, place, RING, settings=SoftSettings())
+    # 6 % of steps misread, each to one of the two other symbols: off-diagonal mass ~0.06
+    assert 0.03 < fit.info["conf_offdiag"] < 0.09
+    assert np.mean(fit.sym != RING[place]) < 0.01  # the readings are corrected
+
+
+def test_cscg_soft_evidence_runs():
+    sym, u, lengths, place, _ = _ring_walk(T=3000, misread=0.04)
+    fit = CSCGRefinement(clones_per_symbol=8, max_iter=100, evidence="soft").fit(
+        _seq(sym, u, lengths), RING, 0)
+    assert fit.info["soft"] == "on" and fit.labels.size == sym.size
+
+
+def test_gds_never_confused():
+    C = initial_confusion(5, 3, 0.2)
+    assert np.all(C[3:, :3] == 0) and np.all(C[:3, 3:] == 0)
+    np.testing.assert_array_equal(C[3:, 3:], np.eye(2))
+
+
+def test_bad_evidence_rejected():
+    with pytest.raises(ValueError, match="evidence"):
+        EMRefinement(evidence="fuzzy")
+
+
+def test_gds_steps_stay_in_their_state():
+    """A GDS place (symbol id 3 past the 3 K-means symbols) is never confused: its steps, and only
+    they, form one state."""
+    sym, u, lengths, place, wrong = _ring_walk(misread=0.04, seed=3)
+    sym = sym.copy()
+    sym[place == 0] = 3  # place 0 is recognised as GDS 0 every time
+    seq = SymbolSequence.build(sym, u, lengths, 3, 3)
+    split_symbol = np.where(np.arange(RING.size) == 0, -1, RING)
+    fit = EMRefinement(evidence="soft").fit(seq, split_symbol, 0)
+    gds_states = np.flatnonzero(fit.state_symbol == 3)
+    assert gds_states.size == 1
+    np.testing.assert_array_equal(fit.labels == gds_states[0], place == 0)
+    assert fit.n_states == RING.size
+    # every step in its place's state but the last two, both misread (nothing follows them)
+    assert same_partition(fit.labels[:-2], place[:-2])

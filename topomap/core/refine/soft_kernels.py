@@ -1,0 +1,226 @@
+"""Compiled kernels of the soft-evidence clone EM (:mod:`topomap.core.refine.soft`).
+
+Model
+-----
+Clones ``0..S-1`` each belong to one symbol id (``clone_symbol``); the symbol *read* at step ``t``
+(``read[t]``, the K-means symbol or GDS id phase 1 gave the step) is evidence about the clone, not
+its identity: ``P(read = r | clone c) = emit[c, r]`` (``emit[c, r] = C[clone_symbol[c], r]``, C the
+confusion matrix).  Transitions are dense, ``trans[u, i, j] = P(x' = j | x = i, u)``.  The first
+step of an episode has the prior ``init[c]``.
+
+Sparsity: the clones allowed at a step that reads ``r`` are the candidates
+``cidx[cptr[r] : cptr[r + 1]]`` (the clones with ``emit[c, r] > 0``), so a step costs
+(candidates at t) x (candidates at t + 1), not ``S^2``.  Per-step vectors are stored back to back
+(step ``t`` owns ``pos[t] .. pos[t + 1] - 1``, one entry per candidate of ``read[t]``, see
+:func:`soft_offsets`).  Forward messages are scaled at every step; ``log P = sum_t log c_t``.
+Episodes: ``has_next[t]`` is False at an episode's last step (no transition leaves it).
+
+Arguments are grouped in named tuples so that no kernel takes more than a few positional
+parameters: :data:`SoftData` (the sequence), :data:`SoftModel` (probabilities, or their logs for
+:func:`soft_viterbi`) and :data:`SoftStats` (the E-step's accumulators).
+"""
+
+from __future__ import annotations
+
+from collections import namedtuple
+
+import numpy as np
+from numba import njit
+
+__all__ = ["SoftData", "SoftModel", "SoftStats", "soft_offsets", "soft_forward",
+           "soft_backward", "soft_viterbi", "soft_candidates"]
+
+SoftData = namedtuple("SoftData", ["read", "u", "has_next"])
+"""``read`` (T,) int64 symbol read at every step, ``u`` (T,) int64 actions, ``has_next`` (T,) bool."""
+
+SoftModel = namedtuple("SoftModel", ["trans", "emit", "init", "cptr", "cidx"])
+"""``trans`` (A, S, S), ``emit`` (S, K), ``init`` (S,) float64 (or their logs), ``cptr`` (K + 1,)
+and ``cidx`` int64: the candidate clones of every read symbol (CSR)."""
+
+SoftStats = namedtuple("SoftStats", ["trans", "emit", "init"])
+"""Expected counts: ``trans`` (A, S, S) transitions, ``emit`` (S, K) clone x read symbol
+occupancy, ``init`` (S,) episode starts."""
+
+
+def soft_candidates(emit):
+    """CSR ``(cptr, cidx)`` of the clones with ``emit[c, r] > 0`` for every read symbol ``r``."""
+    emit = np.asarray(emit)
+    allowed = emit.T > 0
+    cptr = np.concatenate([[0], np.cumsum(allowed.sum(axis=1))]).astype(np.int64)
+    cidx = np.nonzero(allowed)[1].astype(np.int64)
+    return cptr, cidx
+
+
+@njit(cache=True)
+def soft_offsets(data, model):
+    """Offsets ``pos`` (T + 1,) of the per-step candidate vectors."""
+    T = data.read.size
+    pos = np.empty(T + 1, dtype=np.int64)
+    pos[0] = 0
+    for t in range(T):
+        r = data.read[t]
+        pos[t + 1] = pos[t] + model.cptr[r + 1] - model.cptr[r]
+    return pos
+
+
+@njit(cache=True)
+def soft_forward(data, model, pos, prune):
+    """Scaled forward pass: ``(alpha, log_c)``; ``alpha[pos[t] + k]`` is the filtered probability
+    of candidate ``k`` of step ``t``, ``log_c`` (T,) the log scaling factors (their sum is the
+    log-likelihood, episode starts included).  Filtered probabilities below ``prune`` become 0."""
+    read, u, has_next = data.read, data.u, data.has_next
+    trans, emit, cptr, cidx = model.trans, model.emit, model.cptr, model.cidx
+    T = read.size
+    alpha = np.zeros(pos[T])
+    log_c = np.zeros(T)
+    for t in range(T):
+        a0 = pos[t]
+        r = read[t]
+        c0 = cptr[r]
+        n = pos[t + 1] - a0
+        if t == 0 or not has_next[t - 1]:
+            for k in range(n):
+                c = cidx[c0 + k]
+                alpha[a0 + k] = model.init[c] * emit[c, r]
+        else:
+            p0 = pos[t - 1]
+            rp = read[t - 1]
+            q0 = cptr[rp]
+            a = u[t - 1]
+            for i in range(a0 - p0):
+                ai = alpha[p0 + i]
+                if ai == 0.0:
+                    continue
+                ci = cidx[q0 + i]
+                for k in range(n):
+                    alpha[a0 + k] += ai * trans[a, ci, cidx[c0 + k]]
+            for k in range(n):
+                alpha[a0 + k] *= emit[cidx[c0 + k], r]
+        s = 0.0
+        for k in range(n):
+            s += alpha[a0 + k]
+        if s > 0.0:
+            for k in range(n):
+                v = alpha[a0 + k] / s
+                alpha[a0 + k] = v if v >= prune else 0.0
+        log_c[t] = np.log(s)
+    return alpha, log_c
+
+
+@njit(cache=True)
+def soft_backward(data, model, pos, alpha, log_c, stats):
+    """Scaled backward pass accumulating the E-step's expected counts into ``stats`` (in place):
+    transitions ``P(x_t = i, x_{t+1} = j | data)``, clone x read-symbol occupancy and episode
+    starts.  ``alpha``/``log_c`` come from :func:`soft_forward` on the same model; candidates with
+    ``alpha = 0`` are skipped."""
+    read, u, has_next = data.read, data.u, data.has_next
+    trans, emit, cptr, cidx = model.trans, model.emit, model.cptr, model.cidx
+    T = read.size
+    width = 0
+    for r in range(cptr.size - 1):
+        width = max(width, cptr[r + 1] - cptr[r])
+    beta = np.zeros(width)
+    beta_next = np.zeros(width)
+    wnext = np.zeros(width)
+    for t in range(T - 1, -1, -1):
+        a0 = pos[t]
+        r = read[t]
+        c0 = cptr[r]
+        n = pos[t + 1] - a0
+        if not has_next[t]:
+            for k in range(n):
+                beta[k] = 1.0
+        else:
+            nn = pos[t + 2] - pos[t + 1]
+            r2 = read[t + 1]
+            q0 = cptr[r2]
+            a = u[t]
+            inv_c = np.exp(-log_c[t + 1])
+            for kk in range(nn):
+                if alpha[pos[t + 1] + kk] == 0.0:
+                    wnext[kk] = 0.0
+                else:
+                    wnext[kk] = emit[cidx[q0 + kk], r2] * beta_next[kk]
+            for k in range(n):
+                ak = alpha[a0 + k]
+                if ak == 0.0:
+                    beta[k] = 0.0
+                    continue
+                ci = cidx[c0 + k]
+                w = ak * inv_c
+                acc = 0.0
+                for kk in range(nn):
+                    if wnext[kk] == 0.0:
+                        continue
+                    cj = cidx[q0 + kk]
+                    v = trans[a, ci, cj] * wnext[kk]
+                    acc += v
+                    stats.trans[a, ci, cj] += w * v
+                beta[k] = acc * inv_c
+        start = t == 0 or not has_next[t - 1]
+        for k in range(n):
+            g = alpha[a0 + k] * beta[k]
+            if g == 0.0:
+                continue
+            c = cidx[c0 + k]
+            stats.emit[c, r] += g
+            if start:
+                stats.init[c] += g
+        beta, beta_next = beta_next, beta
+    return stats
+
+
+@njit(cache=True)
+def soft_viterbi(data, log_model, pos):
+    """Most probable clone sequence under ``log_model`` (a :data:`SoftModel` holding
+    ``log(trans)``, ``log(emit)``, ``log(init)``; the candidate lists as usual).  Returns
+    ``(path, log_p)``: global clone ids (T,) and the summed log-probability of every episode's
+    best path (ties go to the earliest candidate)."""
+    read, u, has_next = data.read, data.u, data.has_next
+    trans, emit, cptr, cidx = log_model.trans, log_model.emit, log_model.cptr, log_model.cidx
+    T = read.size
+    psi = np.zeros(pos[T], dtype=np.int64)
+    width = 0
+    for r in range(cptr.size - 1):
+        width = max(width, cptr[r + 1] - cptr[r])
+    delta = np.empty(width)
+    delta_next = np.empty(width)
+    path = np.empty(T, dtype=np.int64)
+    log_p = 0.0
+    t0 = 0
+    for t in range(T):
+        r = read[t]
+        c0 = cptr[r]
+        n = pos[t + 1] - pos[t]
+        if t == t0:
+            for k in range(n):
+                c = cidx[c0 + k]
+                delta[k] = log_model.init[c] + emit[c, r]
+        else:
+            rp = read[t - 1]
+            q0 = cptr[rp]
+            m = pos[t] - pos[t - 1]
+            a = u[t - 1]
+            for k in range(n):
+                cj = cidx[c0 + k]
+                best, arg = -np.inf, 0
+                for i in range(m):
+                    v = delta[i] + trans[a, cidx[q0 + i], cj]
+                    if v > best:
+                        best, arg = v, i
+                delta_next[k] = best + emit[cj, r]
+                psi[pos[t] + k] = arg
+            delta, delta_next = delta_next, delta
+        if not has_next[t]:
+            best = 0
+            for k in range(1, n):
+                if delta[k] > delta[best]:
+                    best = k
+            log_p += delta[best]
+            k = best
+            for s in range(t, t0 - 1, -1):
+                path[s] = cidx[cptr[read[s]] + k]
+                if s > t0:
+                    k = psi[pos[s] + k]
+            t0 = t + 1
+    return path, log_p
