@@ -18,7 +18,8 @@ method fits a :class:`topomap.MapLearner` on it:
 * ``cscg``     -- ``refine=cscg refine.evidence=hard`` (EM alone);
 * ``cscg_soft``-- ``refine=cscg`` (EM alone with soft evidence).
 
-Reported: medians over the seeds of the symbol error, ARI (states against the true places),
+Every fit keeps the number of states its method finds (``learner.refined_size=free``), so the
+table shows how misreads multiply states.  Reported: medians over the seeds of the symbol error, ARI (states against the true places),
 states and fit seconds (phase 1 + split + refinement; simulation and scoring excluded).  Prints a
 Markdown table and draws ARI against symbol error, one line per method, into
 ``docs/img/noise.png`` (``--figure``).  The machine's load average is printed with the table:
@@ -82,7 +83,8 @@ def symbol_error(symbols, places, gds) -> float:
 def run_level(world: str, sigma: float, seed: int, methods, registry) -> dict:
     """Every method on one simulated trajectory: ``{method: {err, ari, states, fit}}``."""
     overrides = [*shlex.split(WORLDS[world]), f"noise.sigma={sigma}", f"seed={seed}",
-                 "data.heldout_steps=0", "output.figures=false", "output.progress=false"]
+                 "data.heldout_steps=0", "output.figures=false", "output.progress=false",
+                 "learner.refined_size=free"]  # the states each method finds by itself
     cfg = _as_dict(compose(overrides, registry))
     parts = registry.build(cfg)
     (traj, _), _ = load_data(cfg, parts, registry)
