@@ -112,3 +112,20 @@ def test_the_refined_map_has_the_told_size(told):
 def test_refined_size_is_checked():
     with pytest.raises(ValueError, match="^refined_size must be 'told' or 'free'"):
         MapLearner(refined_size="exact").fit(np.zeros((5, 2)), np.zeros(5, int))
+
+
+def test_auto_chooses_the_refined_size_on_held_out_steps():
+    places, u = ring_walk(T=3000)
+    X = _ring_observations(places)
+    learner = MapLearner(n_clusters=3, n_states="auto", refine="em", random_state=0).fit(X, u)
+    choice = learner.size_choice_["refined"]
+    assert set(choice["scores"]) >= {3, 6, 12} and choice["own"] == 6
+    assert choice["chosen"] == max(choice["scores"], key=choice["scores"].get) == 6
+    assert learner.map_.n_states == 6 and adjusted_rand(places, learner.labels_) == 1.0
+
+
+def test_auto_with_a_free_size_scores_nothing_more():
+    places, u = ring_walk(T=3000)
+    X = _ring_observations(places)
+    learner = MapLearner(n_clusters=3, n_states="auto", refine="em", refined_size="free").fit(X, u)
+    assert "refined" not in learner.size_choice_

@@ -118,12 +118,15 @@ def _summary(results: dict, out) -> str:
     gt = results.get("ground_truth", {})
     line = f"{results['n_states']['final']} states"
     choice = results.get("size_choice")
+    refined = (choice or {}).get("refined")
     if choice:
-        line += f" (split to {choice['chosen']}, the size {choice['criterion']} chose)"
+        line += (f" (split to {choice['chosen']}, " + (f"refined to {refined['chosen']}, the sizes"
+                 if refined else "the size") + f" {choice['criterion']} chose)")
     resized = results.get("resized")
     if resized:
+        told = "the held-out choice" if refined else "stop.n_states"
         line += (f" (the refinement found {resized['from']}, brought to the {resized['to']} of "
-                 f"stop.n_states; learner.refined_size=free keeps its own)")
+                 f"{told}; learner.refined_size=free keeps its own)")
     if gt:
         stages = [gt[k] for k in ("phase1", "split", "final") if k in gt]
         label = " (phase 1 -> split -> refined)" if "split" in gt else ""

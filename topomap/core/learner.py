@@ -12,7 +12,8 @@ from sklearn.base import BaseEstimator
 
 from .checks import ParameterError
 from .phase1.clustering import FixedClusters, cluster_observations, make_metric
-from .size import AutoStates, SizeScores, bic, parameter_count, split_holdout
+from .size import (AutoStates, bic, parameter_count, probe_sizes, refined_sizes,
+                   split_holdout)
 from .map.model import TopologicalMap
 from .refine.methods import REFINEMENTS, CloneFit, SymbolSequence
 from .refine.resize import resize
@@ -166,8 +167,9 @@ class MapLearner(BaseEstimator):
         t0 = time.perf_counter()
         splitter = self._phase1(data, clusters, metric, criterion, stopping)
         told = stopping.n_states if isinstance(stopping, TargetStates) else None
-        if isinstance(stopping, AutoStates):
-            stopping = TargetStates(self._choose_size(data, splitter, stopping))
+        auto = stopping if isinstance(stopping, AutoStates) else None
+        if auto is not None:
+            stopping = TargetStates(self._choose_size(data, splitter, auto))
         t1 = time.perf_counter()
         self.stop_reason_ = "no state can be split"
         while (best := splitter.best()) is not None:
@@ -187,6 +189,8 @@ class MapLearner(BaseEstimator):
         self.map_ = self.map_split_ = self._make_map(data, splitter, info)
         self.timings_ = {"phase1": t1 - t0, "phase2": t2 - t1}
         if refinement is not None:
+            if auto is not None and auto.criterion == "heldout" and self.refined_size == "told":
+                told = self._choose_refined_size(data, splitter, refinement, auto)
             self._refine(data, splitter, refinement, told)
             self.timings_["refine"] = time.perf_counter() - t2
         self._emit("done", labels=self.labels_, entropies=self.entropies_[-1], map=self.map_)
@@ -210,7 +214,6 @@ class MapLearner(BaseEstimator):
         ``map_split_``.  Refined states have no parent; ``map_.info["refined_from"]`` names, for
         each, the split state most of its steps held."""
         ns = self.n_clusters_
-        gds_ids = np.unique(data.gds[data.gds >= 0])
         seq = SymbolSequence.build(self.labels_phase1_, data.u, data.lengths, data.n_actions, ns)
         split_symbol = np.where(np.asarray(splitter.gds) < 0, splitter.symbol, -1)
         fit = refinement.fit(seq, split_symbol, self.random_state)
@@ -220,16 +223,10 @@ class MapLearner(BaseEstimator):
                                                    fit.state_symbol >= ns, splitter.criterion)
             fit = CloneFit(labels, state_symbol, dict(fit.info, resized=resized))
         sym = fit.state_symbol
-        is_gds = sym >= ns
-        state_gds = np.full(sym.size, -1, dtype=np.int64)
-        state_gds[is_gds] = gds_ids[sym[is_gds] - ns]
-        refined = TopologicalMap.from_labels(
-            data.X, data.u, fit.labels, lengths=data.lengths,
-            state_symbol=np.where(is_gds, -1, sym),
-            state_gds=state_gds,
-            state_parent=np.full(sym.size, -1), n_actions=data.n_actions, covariance_type=self.covariance_type,
-            reg_covar=self.reg_covar, action_names=data.action_names, gds_names=data.gds_names,
-            split_history=self.split_history_, info=dict(self.map_split_.info))
+        refined = self._symbol_map(data, slice(None), data.lengths, fit.labels, sym,
+                                   action_names=data.action_names, gds_names=data.gds_names,
+                                   split_history=self.split_history_,
+                                   info=dict(self.map_split_.info))
         self.refine_info_ = dict(fit.info)
         if getattr(refinement, "guard", False) and not self._keep_refined(data, refined, fit.labels):
             self.map_ = self.map_split_ = replace(self.map_split_, info=dict(
@@ -246,6 +243,43 @@ class MapLearner(BaseEstimator):
             self.map_.info, refine=repr(refinement), refine_info=self.refine_info_,
             refined_from=origin.tolist()))
         self._emit("refine", labels=self.labels_, entropies=self.entropies_[-1], map=self.map_)
+
+    def _symbol_map(self, data: _Data, steps: slice, lengths, labels, sym, **kw) -> TopologicalMap:
+        """The map of a labelling whose states emit the symbol ids ``sym`` (K-means symbols,
+        then GDS ids), estimated on ``data``'s ``steps``."""
+        ns = self.n_clusters_
+        gds_ids = np.unique(data.gds[data.gds >= 0])
+        is_gds = sym >= ns
+        state_gds = np.full(sym.size, -1, dtype=np.int64)
+        state_gds[is_gds] = gds_ids[sym[is_gds] - ns]
+        return TopologicalMap.from_labels(
+            data.X[steps], data.u[steps], labels, lengths=lengths,
+            state_symbol=np.where(is_gds, -1, sym), state_gds=state_gds,
+            state_parent=np.full(sym.size, -1), n_actions=data.n_actions,
+            covariance_type=self.covariance_type, reg_covar=self.reg_covar, **kw)
+
+    def _choose_refined_size(self, data: _Data, splitter: Splitter, refinement,
+                             rule: AutoStates) -> int:
+        """``stop=auto`` with a refinement: refine all but the held-out final block, bring that
+        refined map to the sizes of :func:`topomap.core.size.refined_sizes` and keep the size
+        whose map scores the held-out block best (``size_choice_["refined"]``)."""
+        L, held, cut = split_holdout(data.u.size, data.lengths, rule.holdout)
+        seq = SymbolSequence.build(self.labels_phase1_[:cut], data.u[:cut], L, data.n_actions,
+                                   self.n_clusters_)
+        split_symbol = np.where(np.asarray(splitter.gds) < 0, splitter.symbol, -1)
+        fit = refinement.fit(seq, split_symbol, self.random_state)
+        fixed = fit.state_symbol >= self.n_clusters_
+        n_min = int(np.unique(seq.sym).size)
+        scores = {}
+        for n in refined_sizes(fit.n_states, n_min):
+            labels, sym, _ = resize(fit.labels, fit.state_symbol, seq.u, data.n_actions,
+                                    seq.masks(), n, fixed, splitter.criterion)
+            m = self._symbol_map(data, slice(0, cut), L, labels, sym)
+            scores[int(sym.size)] = float(m.score(data.X[cut:], data.u[cut:],
+                                                  gds=data.gds[cut:], lengths=held))
+        chosen = max(sorted(scores), key=lambda n: scores[n])
+        self.size_choice_["refined"] = {"own": fit.n_states, "chosen": chosen, "scores": scores}
+        return chosen
 
     def _phase1(self, data: _Data, clusters, metric, criterion, stopping) -> Splitter:
         """K-means symbols, one state each, plus one fixed state per GDS id (paper Section 3.2)."""
@@ -321,30 +355,9 @@ class MapLearner(BaseEstimator):
         return _Data(X, u, g, L, A, action_names, gds_names)
 
     def _choose_size(self, data: _Data, splitter: Splitter, rule: AutoStates) -> int:
-        """The number of states ``stop=auto`` picks (:mod:`topomap.core.size`): from the phase-1
-        labels, a probe splits up to the rule's limit or patience -- on all steps for BIC, on all
-        but the held out final block for ``"heldout"`` -- and every size is scored;
+        """The number of states ``stop=auto`` picks (:func:`topomap.core.size.probe_sizes`);
         ``size_choice_`` keeps the scores."""
-        X, u, g, L, A = data.X, data.u, data.gds, data.lengths, data.n_actions
-        cut = u.size
-        if rule.criterion == "heldout":
-            L, held, cut = split_holdout(u.size, L, rule.holdout)
-            scores = SizeScores("heldout", (X[:cut], u[:cut], L, A),
-                                heldout=(X[cut:], u[cut:], g[cut:], held))
-        else:
-            scores = SizeScores("bic", (X, u, L, A))
-        probe = Splitter(self.labels_phase1_[:cut], u[:cut], A, *episode_masks(cut, L),
-                         symbol=splitter.symbol, gds=splitter.gds,
-                         obs_entropy=splitter.obs_entropy, criterion=splitter.criterion)
-        stop, patience = rule.probe_rule(), rule.patience_for(probe.n_states)
-        stop.check(probe.n_states)
-        scores.add(probe)
-        while (best := probe.best()) is not None and not stop.should_stop(
-                probe.n_states, best.score) and not scores.stale(patience):
-            probe.apply(best)
-            scores.add(probe)
-        self.size_choice_ = {"criterion": rule.criterion, "chosen": scores.best(),
-                             "scores": {int(n): v for n, v in scores.scores.items()}}
+        self.size_choice_ = probe_sizes(self.labels_phase1_, data, splitter, rule)
         return self.size_choice_["chosen"]
 
     def _refinement(self):

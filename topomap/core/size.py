@@ -31,9 +31,11 @@ import numpy as np
 
 from .checks import ParameterError, check_count
 from .map.model import TopologicalMap
+from .split.engine import Splitter
 from .stats import episode_masks
 
-__all__ = ["AutoStates", "UpTo", "bic", "parameter_count", "split_holdout", "SizeScores"]
+__all__ = ["AutoStates", "UpTo", "bic", "parameter_count", "split_holdout", "SizeScores",
+           "probe_sizes", "refined_sizes", "REFINED_LADDER"]
 
 CRITERIA = ("bic", "heldout")
 
@@ -163,3 +165,40 @@ class SizeScores:
     def stale(self, patience: int) -> bool:
         """Whether the last ``patience`` sizes scored have not improved on the best."""
         return max(self.scores) - self.best() >= patience
+
+
+#: the sizes, as multiples of the refinement's own, that ``stop=auto`` scores for a refined map
+REFINED_LADDER = (0.5, 0.67, 0.8, 0.9, 1.0, 1.1, 1.25, 1.5, 2.0)
+
+
+def refined_sizes(n_own: int, n_min: int) -> list[int]:
+    """The state counts ``stop=auto`` scores for a refined map whose refinement chose ``n_own``
+    states: :data:`REFINED_LADDER` x ``n_own``, none below ``n_min`` (the states phase 1 makes)."""
+    return sorted({max(int(round(f * n_own)), n_min) for f in REFINED_LADDER})
+
+
+def probe_sizes(labels_phase1, data, splitter, rule: AutoStates) -> dict:
+    """``stop=auto``'s choice: from the phase-1 labels, a probe splits up to the rule's limit or
+    patience -- on all steps for BIC, on all but the held-out final block for ``"heldout"`` --
+    and every size is scored.  ``data`` has the learner's ``X, u, gds, lengths, n_actions``.
+    Returns ``{"criterion", "chosen", "scores"}``."""
+    X, u, g, L, A = data.X, data.u, data.gds, data.lengths, data.n_actions
+    cut = u.size
+    if rule.criterion == "heldout":
+        L, held, cut = split_holdout(u.size, L, rule.holdout)
+        scores = SizeScores("heldout", (X[:cut], u[:cut], L, A),
+                            heldout=(X[cut:], u[cut:], g[cut:], held))
+    else:
+        scores = SizeScores("bic", (X, u, L, A))
+    probe = Splitter(labels_phase1[:cut], u[:cut], A, *episode_masks(cut, L),
+                     symbol=splitter.symbol, gds=splitter.gds,
+                     obs_entropy=splitter.obs_entropy, criterion=splitter.criterion)
+    stop, patience = rule.probe_rule(), rule.patience_for(probe.n_states)
+    stop.check(probe.n_states)
+    scores.add(probe)
+    while (best := probe.best()) is not None and not stop.should_stop(
+            probe.n_states, best.score) and not scores.stale(patience):
+        probe.apply(best)
+        scores.add(probe)
+    return {"criterion": rule.criterion, "chosen": scores.best(),
+            "scores": {int(n): v for n, v in scores.scores.items()}}
