@@ -63,8 +63,9 @@ def _as_int_array(values, name: str, length: int | None = None) -> np.ndarray:
             raise ValueError(f"{name} must hold integers, found {arr[bad]!r} at index {bad}")
     elif arr.dtype.kind not in "iu":
         raise ValueError(f"{name} must hold integers, got values of type {arr.dtype}")
-    if arr.size and (arr.max() > _INT_LIMIT or arr.min() < -_INT_LIMIT):
-        big = (arr.max() if arr.max() > _INT_LIMIT else arr.min()).item()
+    wide = arr.astype(np.float64) if arr.dtype.kind == "f" else arr  # float16 cannot hold 2**53
+    if wide.size and (wide.max() > _INT_LIMIT or wide.min() < -_INT_LIMIT):
+        big = (wide.max() if wide.max() > _INT_LIMIT else wide.min()).item()
         raise ValueError(f"{name} holds {big!r}, beyond the supported range of +-2**53")
     return arr if arr.dtype == np.int64 else arr.astype(np.int64)
 
