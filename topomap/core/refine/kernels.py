@@ -108,15 +108,22 @@ def clone_forward(tables, vals, prune):
             row = o + i * n
             for j in range(n):
                 alpha[a0 + j] += ai * vals[row + j]
-        c = 0.0
-        for j in range(n):
-            c += alpha[a0 + j]
-        if c > 0.0:
-            for j in range(n):
-                a = alpha[a0 + j] / c
-                alpha[a0 + j] = a if a >= prune else 0.0
-        log_c[t] = np.log(c)
+        log_c[t] = np.log(normalise_block(alpha, a0, n, prune))
     return alpha, log_c
+
+
+@njit(cache=True)
+def normalise_block(alpha, a0, n, prune):
+    """Scale ``alpha[a0:a0 + n]`` to sum 1, zeroing entries below ``prune``; returns the sum
+    before scaling (the step's scaling factor)."""
+    c = 0.0
+    for j in range(n):
+        c += alpha[a0 + j]
+    if c > 0.0:
+        for j in range(n):
+            a = alpha[a0 + j] / c
+            alpha[a0 + j] = a if a >= prune else 0.0
+    return c
 
 
 @njit(cache=True)

@@ -27,6 +27,8 @@ from collections import namedtuple
 import numpy as np
 from numba import njit
 
+from .kernels import normalise_block
+
 __all__ = ["SoftData", "SoftModel", "SoftStats", "soft_offsets", "soft_forward",
            "soft_backward", "soft_viterbi", "soft_candidates"]
 
@@ -96,14 +98,7 @@ def soft_forward(data, model, pos, prune):
                     alpha[a0 + k] += ai * trans[a, ci, cidx[c0 + k]]
             for k in range(n):
                 alpha[a0 + k] *= emit[cidx[c0 + k], r]
-        s = 0.0
-        for k in range(n):
-            s += alpha[a0 + k]
-        if s > 0.0:
-            for k in range(n):
-                v = alpha[a0 + k] / s
-                alpha[a0 + k] = v if v >= prune else 0.0
-        log_c[t] = np.log(s)
+        log_c[t] = np.log(normalise_block(alpha, a0, n, prune))
     return alpha, log_c
 
 
