@@ -8,7 +8,7 @@ import numpy as np
 from numba import njit
 
 __all__ = ["CloneTables", "clone_step_offsets", "clone_forward", "clone_backward_counts",
-           "clone_viterbi", "clone_path_counts", "clone_normalize_blocks"]
+           "clone_viterbi", "clone_path_counts", "clone_normalize_blocks", "normalise_block"]
 
 # ======================================================================================
 # Clone-structured, action-conditioned HMMs (the refinement phase, topomap.core.refine.clones)
