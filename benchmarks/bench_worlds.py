@@ -4,6 +4,7 @@
     python benchmarks/bench_worlds.py --worlds gridroom --seeds 0
     python benchmarks/bench_worlds.py --variants "" "stop=auto" "stop=auto stop.criterion=bic"
     python benchmarks/bench_worlds.py --no-navigation --worlds minigrid_fourrooms
+    python benchmarks/bench_worlds.py --no-navigation --worlds open_rooms --seeds 0   # 10k-200k steps
 
 Every row is a ``topomap`` command (``COMMANDS``), run in this process exactly as the command
 line runs it (the same config composition, data, learner and evaluation; figures off), once per
@@ -35,6 +36,7 @@ RG60 = ("env=random_graph env.n_places=60 env.n_symbols=15 env.out_degree=3 clus
         "stop.n_states=60")
 FOURROOMS = ("env=minigrid env.name=MiniGrid-FourRooms-v0 data.n_steps=50000 clusters.ns=450 "
              "stop.n_states=1036")
+EMPTY16 = "env=minigrid env.name=MiniGrid-Empty-16x16-v0 clusters.ns=109 stop.n_states=780"
 
 #: world -> the commands (overrides of ``topomap``) of its rows
 COMMANDS = {
@@ -46,7 +48,12 @@ COMMANDS = {
     "random_graph_60": [f"{RG60} {TEN_K}", f"{RG60} {TEN_K} refine=em"],
     "minigrid_empty": ["experiment=minigrid_empty refine=none", "experiment=minigrid_empty"],
     "minigrid_fourrooms": [FOURROOMS, f"{FOURROOMS} refine=em"],
+    # the open rooms as the data grow (not in the default run: about an hour; --worlds open_rooms)
+    "open_rooms": [f"{room} data.n_steps={n} refine=em" for n in (10000, 50000, 200000)
+                   for room in (FOURROOMS.replace(" data.n_steps=50000", ""), EMPTY16)],
 }
+#: the worlds a plain run measures
+DEFAULT_WORLDS = [w for w in COMMANDS if w != "open_rooms"]
 
 
 def with_variant(command: str, variant: str) -> str:
@@ -107,7 +114,7 @@ HEADER = ("| command | ARI p1 | ARI split | ARI final | NMI final | states (each
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--worlds", nargs="+", default=list(COMMANDS), choices=list(COMMANDS))
+    ap.add_argument("--worlds", nargs="+", default=DEFAULT_WORLDS, choices=list(COMMANDS))
     ap.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2])
     ap.add_argument("--variants", nargs="+", default=[""],
                     help='extra overrides added to every command, one row each ("" = none)')
