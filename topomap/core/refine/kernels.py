@@ -8,7 +8,8 @@ import numpy as np
 from numba import njit
 
 __all__ = ["CloneTables", "clone_step_offsets", "clone_forward", "clone_backward_counts",
-           "clone_viterbi", "clone_path_counts", "clone_normalize_blocks", "normalise_block"]
+           "clone_viterbi", "clone_path_counts", "clone_normalize_blocks", "normalise_block",
+           "viterbi_buffers"]
 
 # ======================================================================================
 # Clone-structured, action-conditioned HMMs (the refinement phase, topomap.core.refine.clones)
@@ -197,6 +198,17 @@ def _clone_backtrace(tables, psi, t0, t1, last, path):
 
 
 @njit(cache=True)
+def viterbi_buffers(offsets, pos, T):
+    """``(psi, delta, delta_next, path)`` of a Viterbi pass over ``T`` steps whose step ``t`` has
+    ``pos[t + 1] - pos[t]`` candidates, at most the widest run of ``offsets``."""
+    width = 0
+    for k in range(offsets.size - 1):
+        width = max(width, offsets[k + 1] - offsets[k])
+    return (np.zeros(pos[T], dtype=np.int64), np.empty(width), np.empty(width),
+            np.empty(T, dtype=np.int64))
+
+
+@njit(cache=True)
 def clone_viterbi(tables, log_vals):
     """Most probable clone sequence (max-product in log space; ties go to the lowest clone).
 
@@ -206,13 +218,7 @@ def clone_viterbi(tables, log_vals):
     """
     sym, blk, start, boff, pos = tables
     T = sym.size
-    psi = np.zeros(pos[T], dtype=np.int64)
-    width = 0
-    for k in range(start.size - 1):
-        width = max(width, start[k + 1] - start[k])
-    delta = np.empty(width)
-    delta_next = np.empty(width)
-    path = np.empty(T, dtype=np.int64)
+    psi, delta, delta_next, path = viterbi_buffers(start, pos, T)
     log_p = 0.0
     t0 = 0
     for t in range(T):

@@ -27,7 +27,7 @@ from collections import namedtuple
 import numpy as np
 from numba import njit
 
-from .kernels import normalise_block
+from .kernels import normalise_block, viterbi_buffers
 
 __all__ = ["SoftData", "SoftModel", "SoftStats", "soft_offsets", "soft_forward",
            "soft_backward", "soft_viterbi", "soft_candidates"]
@@ -174,13 +174,7 @@ def soft_viterbi(data, log_model, pos):
     read, u, has_next = data.read, data.u, data.has_next
     trans, emit, cptr, cidx = log_model.trans, log_model.emit, log_model.cptr, log_model.cidx
     T = read.size
-    psi = np.zeros(pos[T], dtype=np.int64)
-    width = 0
-    for r in range(cptr.size - 1):
-        width = max(width, cptr[r + 1] - cptr[r])
-    delta = np.empty(width)
-    delta_next = np.empty(width)
-    path = np.empty(T, dtype=np.int64)
+    psi, delta, delta_next, path = viterbi_buffers(cptr, pos, T)
     log_p = 0.0
     t0 = 0
     for t in range(T):
