@@ -6,18 +6,7 @@ from sklearn.metrics import adjusted_rand_score
 
 from topomap.core.refine.budget import evidence_budget, place_lower_bound, split_budget
 from topomap.core.refine.methods import EMRefinement, SymbolSequence
-
-
-def ring_walk(T, symbols, seed=0):
-    """Random walk on a ring (action 0: forward, 1: back); returns symbols, actions, places."""
-    rng = np.random.default_rng(seed)
-    n = len(symbols)
-    u = rng.integers(0, 2, T)
-    places = np.empty(T, dtype=np.int64)
-    places[0] = 0
-    for t in range(1, T):
-        places[t] = (places[t - 1] + (1 if u[t - 1] == 0 else -1)) % n
-    return np.asarray(symbols)[places], u, places
+from test_refine import ring_walk
 
 
 def shared_view_ring(k):

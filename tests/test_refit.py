@@ -3,22 +3,15 @@
 import numpy as np
 import pytest
 
+from test_resize import _ring_observations, ring_walk
+
 from topomap import MapLearner
 
 
-def _ring_walk(n_places=6, T=600, seed=0):
-    """A ring of places showing 3 symbols twice (aliased pairs), walked forward/backward at random."""
-    rng = np.random.default_rng(seed)
-    centres = np.eye(3)
-    x, places, acts = 0, [], []
-    for _ in range(T):
-        a = int(rng.integers(2))
-        places.append(x)
-        acts.append(a)
-        x = (x + (1 if a == 0 else -1)) % n_places
-    places = np.array(places)
-    obs = centres[places % 3] + 0.01 * rng.standard_normal((T, 3))
-    return obs, np.array(acts), places
+def _ring_walk():
+    """The aliased ring of the resizing tests: six places, three symbols, walked at random."""
+    places, acts = ring_walk()
+    return _ring_observations(places), acts, places
 
 
 @pytest.fixture(scope="module")
