@@ -10,7 +10,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 from sklearn.base import BaseEstimator
 
-from .checks import ParameterError
+from . import online
+from .checks import ParameterError, check_count
 from .phase1.clustering import FixedClusters, cluster_observations, make_metric
 from .size import (AutoStates, bic, parameter_count, probe_sizes, refined_sizes,
                    split_holdout)
@@ -98,6 +99,12 @@ class MapLearner(BaseEstimator):
         :class:`~topomap.core.split.stopping.TargetStates` rule): ``"told"`` (default) brings the
         refined map to that number (:mod:`topomap.core.refine.resize`: the least costly merges of
         same-symbol states, or further splits); ``"free"`` keeps the number the refinement chose.
+    window : int
+        :meth:`partial_fit` only: the latest steps a wider pass re-learns the map's structure
+        from (:mod:`topomap.core.online`).
+    refit_every : int
+        :meth:`partial_fit` only: new steps after which a wider pass runs (earlier, while fewer
+        steps than that were seen at the last pass).
     random_state : int
         Seed of K-means (the only random part of the method).
     callbacks : sequence of callables
@@ -108,7 +115,7 @@ class MapLearner(BaseEstimator):
 
     Attributes
     ----------
-    labels_ : (T,) int -- the state of every step
+    labels_ : (T,) int -- the state of every step (of every step seen, after :meth:`partial_fit`)
     labels_phase1_ : (T,) int -- the state of every step after phase 1
     labels_split_ : (T,) int -- the state of every step after phase 2 (before any refinement)
     map_ : TopologicalMap -- the final map (refined, with ``refine``)
@@ -134,7 +141,8 @@ class MapLearner(BaseEstimator):
                  metric="euclidean", criterion="entropy", stopping=None,
                  covariance_type: str = "diag", reg_covar: float = 1e-3, n_init: int = 3,
                  phase1: str = "auto", sample_size: int | None = None, refine=None,
-                 refined_size: str = "told", random_state: int = 0, callbacks=()):
+                 refined_size: str = "told", window: int = 20000, refit_every: int = 2000,
+                 random_state: int = 0, callbacks=()):
         self.n_clusters = n_clusters
         self.n_states = n_states
         self.clusters = clusters
@@ -148,8 +156,24 @@ class MapLearner(BaseEstimator):
         self.sample_size = sample_size
         self.refine = refine
         self.refined_size = refined_size
+        self.window = window
+        self.refit_every = refit_every
         self.random_state = random_state
         self.callbacks = callbacks
+
+    @property
+    def labels_(self) -> np.ndarray:
+        st = self.__dict__.get("_online")
+        if st is not None:
+            return online.all_labels(st, self.__dict__.get("map_"))
+        try:
+            return self.__dict__["_labels"]
+        except KeyError:
+            raise AttributeError("'MapLearner' object has no attribute 'labels_' (not fitted)") from None
+
+    @labels_.setter
+    def labels_(self, labels) -> None:
+        self.__dict__["_labels"] = labels
 
     # ------------------------------------------------------------------ the paper's method
     def fit(self, observations, actions, gds=None, lengths=None, *, n_actions=None,
@@ -158,6 +182,7 @@ class MapLearner(BaseEstimator):
 
         ``observations`` (T, D), ``actions`` (T,) ints in ``[0, n_actions)``, ``gds`` (T,) ints with
         -1 for "no GDS", ``lengths`` the episode lengths when several episodes are concatenated.
+        A fit forgets any earlier :meth:`partial_fit`.
         """
         data = self._validate(observations, actions, gds, lengths, n_actions, action_names,
                               gds_names)
@@ -195,6 +220,36 @@ class MapLearner(BaseEstimator):
             self.timings_["refine"] = time.perf_counter() - t2
         self._emit("done", labels=self.labels_, entropies=self.entropies_[-1], map=self.map_)
         return self
+
+    def partial_fit(self, observations, actions, gds=None, *, new_episode: bool = False,
+                    n_actions=None, action_names=None, gds_names=None):
+        """Learn from the next steps of the walk (scikit-learn's incremental convention).
+
+        Each call continues the walk of the calls before it (``new_episode=True`` starts a new
+        episode with its first step); afterwards ``labels_`` covers every step seen and ``map_``
+        is the current map, with or without ``refine`` and with ``n_states="auto"``.  The cost of
+        a call does not grow with the steps seen before it: its chunk is decoded with the map and
+        counted, and every ``refit_every`` steps a wider pass re-learns the map from the latest
+        ``window`` steps (:mod:`topomap.core.online` says what is kept).  ``n_actions``,
+        ``action_names`` and ``gds_names`` may be given with any call.  :meth:`fit` starts over.
+        Returns ``self``.
+        """
+        return online.partial_fit(self, observations, actions, gds, new_episode=new_episode,
+                                  n_actions=n_actions, action_names=action_names,
+                                  gds_names=gds_names)
+
+    @property
+    def online_(self) -> dict:
+        """What :meth:`partial_fit` has done: steps seen, calls, wider passes, the steps the last
+        call's kernels touched and the bytes kept (``per_step`` is the O(T) part)."""
+        st = self.__dict__.get("_online")
+        if st is None:
+            raise AttributeError("'MapLearner' object has no attribute 'online_' (no partial_fit)")
+        return {"n_steps": st.n_steps, "n_calls": st.n_calls, "n_passes": st.n_passes,
+                "last_work": dict(st.last_work), "memory": st.memory()}
+
+    def _online_settings(self) -> tuple[int, int]:
+        return check_count(self.window, "window"), check_count(self.refit_every, "refit_every")
 
     def _keep_refined(self, data: _Data, refined: TopologicalMap, labels) -> bool:
         """Whether the refined map's BIC (actions and transitions, :func:`topomap.core.size.bic`)
@@ -286,10 +341,15 @@ class MapLearner(BaseEstimator):
         plain = data.gds < 0
         if plain.sum() < 1:
             raise ValueError("every step is labelled as a GDS; no observations are left to cluster")
-        with self._naming("clusters", method="phase1"):
-            symbols, choice = cluster_observations(
-                data.X if plain.all() else data.X[plain], clusters, metric, n_init=self.n_init,
-                random_state=self.random_state, method=self.phase1, sample_size=self.sample_size)
+        given = self.__dict__.get("_given_symbols")  # a wider pass of partial_fit
+        if given is not None:
+            symbols, choice = given, {"method": "online codebook"}
+        else:
+            with self._naming("clusters", method="phase1"):
+                symbols, choice = cluster_observations(
+                    data.X if plain.all() else data.X[plain], clusters, metric,
+                    n_init=self.n_init, random_state=self.random_state, method=self.phase1,
+                    sample_size=self.sample_size)
         self.phase1_method_ = choice.pop("method")
         self.cluster_choice_ = choice
         ns = self.n_clusters_ = int(symbols.max()) + 1
@@ -437,6 +497,8 @@ class MapLearner(BaseEstimator):
         for name in [k for k in vars(self) if k.endswith("_") and not k.startswith("_")
                      and k != "n_features_in_"]:
             delattr(self, name)
+        for name in ("_labels", "_online"):
+            self.__dict__.pop(name, None)
 
     def fit_trajectory(self, traj):
         """Fit on a :class:`topomap.Trajectory`, carrying its names and episode lengths."""

@@ -1,0 +1,164 @@
+"""MapLearner.partial_fit: the map learned while the steps arrive (topomap.core.online)."""
+
+import numpy as np
+import pytest
+from sklearn.metrics import adjusted_rand_score
+
+from topomap import MapLearner
+from topomap.core import online
+from topomap.core.online import CONTEXT, decode_symbols
+from topomap.worlds import GridRoom, RandomExplorer
+
+
+def walk(width, height, n_symbols, n_steps, seed):
+    room = GridRoom(width=width, height=height, n_symbols=n_symbols)
+    return room.simulate(n_steps, RandomExplorer(), np.random.default_rng(seed))
+
+
+def feed(learner, traj, chunk, **kw):
+    X, u = traj.observations, traj.actions
+    for i in range(0, len(u), chunk):
+        learner.partial_fit(X[i:i + chunk], u[i:i + chunk], n_actions=traj.n_actions, **kw)
+    return learner
+
+
+def test_decode_symbols_tells_aliased_states_apart_by_what_follows():
+    # symbol 0 has two states: state 0 goes to state 2 (symbol 1) under action 0 and state 2
+    # comes back to 0 under action 1; state 1 goes to 3 (symbol 2) and back: two cycles.  The
+    # state of an episode's first step is told by the symbol after it.
+    trans = np.zeros((4, 2, 4))
+    trans[0, 0, 2] = trans[1, 0, 3] = trans[2, 1, 0] = trans[3, 1, 1] = 10
+    state_id = np.array([0, 0, 1, 2])
+    ids = np.array([0, 2, 0, 2, 0, 1, 0, 1])
+    u = np.array([0, 1, 0, 1, 0, 1, 0, 1])
+    starts = np.array([1, 0, 0, 0, 1, 0, 0, 0], dtype=bool)
+    labels = decode_symbols(ids, u, starts, state_id, trans, n_ids=3)
+    assert labels.tolist() == [1, 3, 1, 3, 0, 2, 0, 2]
+
+
+def test_decode_symbols_leaves_unknown_ids_out():
+    trans = np.ones((2, 1, 2))
+    labels = decode_symbols(np.array([0, 5, 1]), np.zeros(3, int), np.array([1, 0, 0], bool),
+                            np.array([0, 1]), trans, n_ids=2)
+    assert labels.tolist() == [0, -1, 1]
+
+
+def test_online_recovers_the_places_of_a_room_without_aliasing():
+    # 12 cells, 12 symbols: every state is one cell, so the right labels are the places
+    traj = walk(4, 3, 12, 3000, seed=1)
+    learner = feed(MapLearner(12, 12, window=1000, refit_every=500), traj, chunk=250)
+    assert learner.labels_.shape == (3000,)
+    assert adjusted_rand_score(traj.places, learner.labels_) == 1.0
+
+
+@pytest.mark.parametrize("refine", [None, "em"])
+def test_online_and_batch_agree_on_an_aliased_room(refine):
+    traj = walk(5, 4, 3, 6000, seed=2)
+    batch = MapLearner(3, 20, refine=refine).fit(traj.observations, traj.actions, n_actions=4)
+    # passes every 1000 steps, 400 steps a call: the last 800 steps are decoded chunks
+    learner = feed(MapLearner(3, 20, refine=refine, window=6000, refit_every=1000), traj, 400)
+    a_batch = adjusted_rand_score(traj.places, batch.labels_)
+    a_online = adjusted_rand_score(traj.places, learner.labels_)
+    assert a_online >= a_batch - 0.02
+    if refine == "em":  # the refinement finds the cells, online too
+        assert a_batch == 1.0 and a_online == 1.0
+
+
+def test_labels_and_map_follow_every_call():
+    traj = walk(5, 4, 3, 2100, seed=3)
+    learner = MapLearner(3, 20, window=1000, refit_every=600)
+    seen = 0
+    for chunk in (300, 300, 500, 1000):
+        learner.partial_fit(traj.observations[seen:seen + chunk], traj.actions[seen:seen + chunk],
+                            n_actions=4)
+        seen += chunk
+        assert learner.labels_.shape == (seen,) and (learner.labels_ >= 0).all()
+        assert learner.labels_.max() < learner.map_.n_states
+        assert learner.online_["n_steps"] == seen
+    # the map's counts hold the window's steps and every step decoded since the last pass
+    assert learner.map_.state_counts.sum() <= seen
+
+
+def test_a_call_touches_its_own_steps_not_those_before():
+    traj = walk(5, 4, 3, 24000, seed=4)
+    X, u = traj.observations, traj.actions
+    works = {}
+    for before in (4000, 20000):
+        learner = MapLearner(3, 20, window=3000, refit_every=5000)
+        learner.partial_fit(X[:before], u[:before], n_actions=4)  # a pass on the last 3000
+        assert learner.online_["last_work"] == {"decoded": 0, "pass": 3000}
+        learner.partial_fit(X[before:before + 700], u[before:before + 700])
+        works[before] = learner.online_["last_work"]
+    assert works[4000] == works[20000] == {"decoded": 700 + CONTEXT, "pass": 0}
+
+
+def test_memory_beyond_the_per_step_record_is_bounded():
+    traj = walk(5, 4, 3, 20000, seed=5)
+    X, u = traj.observations, traj.actions
+    learner = MapLearner(3, 20, window=2000, refit_every=1000)
+    mem = []
+    for i in range(0, 20000, 1000):
+        learner.partial_fit(X[i:i + 1000], u[i:i + 1000], n_actions=4)
+        mem.append(learner.online_["memory"])
+    assert mem[5]["window"] == mem[-1]["window"]  # the window holds 2000 steps from then on
+    assert mem[-1]["per_step"] >= 5 * 4 * 20000  # symbol, action, GDS, start, label: int32 each
+    assert mem[-1]["per_step"] <= 2 * 5 * 4 * 20000  # grown by doubling at most
+
+
+def test_new_episode_cuts_the_transition():
+    traj = walk(4, 3, 12, 600, seed=6)
+    X, u = traj.observations, traj.actions
+    a = MapLearner(12, 12, refit_every=10000)
+    a.partial_fit(X[:300], u[:300], n_actions=4)
+    b = MapLearner(12, 12, refit_every=10000)
+    b.partial_fit(X[:300], u[:300], n_actions=4)
+    a.partial_fit(X[300:], u[300:])
+    b.partial_fit(X[300:], u[300:], new_episode=True)
+    diff = a.map_.transition_counts - b.map_.transition_counts
+    assert diff.sum() == 1 and diff[a.labels_[299], u[299], a.labels_[300]] == 1
+
+
+def test_a_bad_chunk_is_refused_and_loses_nothing():
+    traj = walk(4, 3, 12, 600, seed=7)
+    X, u = traj.observations, traj.actions
+    learner = MapLearner(12, 12).partial_fit(X[:400], u[:400], n_actions=4)
+    before = learner.labels_.copy()
+    bad = X[400:].copy()
+    bad[3, 0] = np.nan
+    with pytest.raises(ValueError, match="observations contain NaN"):
+        learner.partial_fit(bad, u[400:])
+    with pytest.raises(ValueError, match="features"):
+        learner.partial_fit(X[400:, :5], u[400:])
+    assert learner.online_["n_steps"] == 400
+    np.testing.assert_array_equal(learner.labels_, before)
+    learner.partial_fit(X[400:], u[400:])
+    assert learner.labels_.shape == (600,)
+
+
+def test_a_failed_first_pass_keeps_nothing():
+    traj = walk(4, 3, 12, 100, seed=8)
+    learner = MapLearner(12, 200)  # more states than the room's steps can split into
+    with pytest.raises(ValueError):
+        learner.partial_fit(traj.observations[:5], traj.actions[:5], n_actions=4)
+    assert online.OnlineState is not None and not hasattr(learner, "map_")
+
+
+def test_fit_starts_over_and_settings_are_checked():
+    traj = walk(4, 3, 12, 600, seed=9)
+    X, u = traj.observations, traj.actions
+    learner = MapLearner(12, 12).partial_fit(X[:300], u[:300], n_actions=4)
+    learner.fit(X, u)
+    assert learner.labels_.shape == (600,)
+    with pytest.raises(AttributeError):
+        learner.online_
+    with pytest.raises(ValueError, match="window"):
+        MapLearner(12, 12, window=0).partial_fit(X, u)
+    with pytest.raises(ValueError, match="refit_every"):
+        MapLearner(12, 12, refit_every=-1).partial_fit(X, u)
+
+
+def test_auto_size_online():
+    traj = walk(4, 3, 4, 4000, seed=10)
+    learner = feed(MapLearner(4, "auto", refine="em", window=2000, refit_every=1000), traj, 500)
+    assert "chosen" in learner.size_choice_
+    assert adjusted_rand_score(traj.places, learner.labels_) > 0.9
