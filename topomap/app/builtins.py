@@ -46,6 +46,8 @@ def topomap_register_components():
         _c("noise", "multiplicative", noise.MultiplicativeNoise, "log-normal gain per entry (sigma)"),
         _c("explorer", "random", explorers.RandomExplorer,
            "uniform choice among executable actions (the paper's)"),
+        _c("explorer", "active", explorers.ActiveExplorer,
+           "novelty of (state, action) pairs planned over the map learned while exploring"),
         _c("metric", "euclidean", clustering.Euclidean, "Euclidean distance (the paper's)"),
         _c("metric", "standardized", clustering.Standardized,
            "Euclidean after scaling every feature to unit variance"),

@@ -18,6 +18,7 @@ import numpy as np
 from ..core.checks import ParameterError, check_count
 from ..core.data.rosbag import read_rosbag
 from ..core.data.trajectory import Trajectory, load_trajectory, save_trajectory
+from ..worlds.mapping import map_while_exploring, quality_curve
 
 log = logging.getLogger("topomap")
 
@@ -42,18 +43,41 @@ class Simulate:
         Length of a second, held-out walk through the same world that the map is scored on
         (None: ``n_steps``; 0: none).  It uses the seed's third random stream, so it never
         overlaps the training walk.
+    curve_every : int
+        Map while exploring: every ``curve_every`` steps the steps so far go to the run's
+        learner (:meth:`topomap.MapLearner.partial_fit`) and the map's ARI against the steps
+        taken is recorded (``metrics.json``: ``mapping``; ``fig_mapping.png``).  0 (default):
+        only with an explorer that uses the map (``explorer=active``, every
+        ``explorer.update_every`` steps).  While mapping, the noise is applied step by step, as
+        the explorer sees it.
     """
 
     simulates = True
 
-    def __init__(self, n_steps: int = 2000, heldout_steps: int | None = None):
+    def __init__(self, n_steps: int = 2000, heldout_steps: int | None = None,
+                 curve_every: int = 0):
         self.n_steps = check_count(n_steps, "n_steps")
         hold = check_count(heldout_steps, "heldout_steps", minimum=0, allow_none=True)
         self.heldout_steps = self.n_steps if hold is None else hold
+        self.curve_every = check_count(curve_every, "curve_every", minimum=0)
 
-    def train(self, parts, seed: int, progress=None) -> Trajectory:
+    def maps_while_exploring(self, parts) -> int:
+        """Steps between two map updates while walking (0: the map is learned after the walk)."""
+        if self.curve_every:
+            return self.curve_every
+        return int(getattr(parts.explorer, "update_every", 0)) if hasattr(parts.explorer, "update") else 0
+
+    def train(self, parts, seed: int, progress=None, learner=None) -> Trajectory:
         rng_sim, rng_noise, _ = seed_streams(seed)
         explorer = parts.explorer if progress is None else progress.ticking(parts.explorer, self.n_steps)
+        every = self.maps_while_exploring(parts)
+        if every and learner is not None:
+            traj, walk = map_while_exploring(parts.world, self.n_steps, explorer, learner,
+                                             parts.noise, rng_sim, rng_noise, every)
+            walk.flush()
+            traj.meta["mapping"] = {"every": every, "explorer": repr(parts.explorer),
+                                    "curve": quality_curve(walk, traj.places)}
+            return traj
         traj = parts.world.simulate(self.n_steps, explorer, rng_sim)
         traj.observations = parts.noise.apply(traj.observations, rng_noise)
         return traj

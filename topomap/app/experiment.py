@@ -80,7 +80,8 @@ def learn(cfg: dict, parts: Parts, output_dir, registry: Registry, cache_dir=Non
         learner = make_learner(cfg, parts, [progress.on_event, registry.learner_events(plugin_metrics)])
         with config_keys():
             learner.check_params(n_gds=getattr(parts.world, "n_gds", 0))  # before any simulation
-        (traj, heldout), t_data = load_data(cfg, parts, registry, cache_dir, progress)
+        (traj, heldout), t_data = load_data(cfg, parts, registry, cache_dir, progress,
+                                            learner=learner)
         with config_keys():
             learner.fit_trajectory(traj)
     t0 = time.perf_counter()
@@ -90,6 +91,7 @@ def learn(cfg: dict, parts: Parts, output_dir, registry: Registry, cache_dir=Non
         "split_history": learner.split_history_, "entropy_trace": learner.entropies_,
         "stop_reason": learner.stop_reason_, "timings": {**t_data, **learner.timings_},
         "size_choice": getattr(learner, "size_choice_", None), "resized": _resized(learner),
+        "mapping": _mapping(traj, results),
         "versions": versions(), "config": cfg, "plugin_metrics": plugin_metrics, "units": UNITS,
         "providers": {name: registry.provider(name, cfg[name]["component"])
                       for name, kind in KINDS.items() if kind.learner_arg},  # the learner's
@@ -111,6 +113,20 @@ def localize(cfg: dict, parts: Parts, output_dir) -> dict:
                "versions": versions(), "units": UNITS}
     write_localization(Path(output_dir), traj, beliefs, viterbi, results)
     return results
+
+
+def _mapping(traj, results) -> dict | None:
+    """The map's quality against the steps taken while exploring (None: not mapped while
+    exploring), with the batch map's ARI on the whole walk beside it."""
+    mapping = (traj.meta or {}).get("mapping")
+    if mapping is None:
+        return None
+    batch = ((results.get("ground_truth") or {}).get("final") or {}).get("ari")
+    if mapping["curve"]:
+        log.info("mapping while exploring: ARI %s after %d steps (online), %s after the walk "
+                 "(batch)", f"{mapping['curve'][-1]['ari']:.3f}", mapping["curve"][-1]["steps"],
+                 "n/a" if batch is None else f"{batch:.3f}")
+    return dict(mapping, batch_ari=batch)
 
 
 def _resized(learner) -> dict | None:
@@ -142,14 +158,21 @@ def config_keys(group: str | None = None):
         raise err.renamed(key) from err.__cause__
 
 
-def load_data(cfg, parts: Parts, registry: Registry, cache_dir=None, progress=None):
+def load_data(cfg, parts: Parts, registry: Registry, cache_dir=None, progress=None,
+              learner=None):
     """``((trajectory, heldout), timings)`` from the data component; simulated trajectories are
-    shared through ``cache_dir`` when one is given (see :class:`TrajectoryCache`)."""
+    shared through ``cache_dir`` when one is given (see :class:`TrajectoryCache`).  A walk that
+    maps while exploring gets a copy of ``learner`` to ``partial_fit`` (and is not shared: it
+    depends on the learner's settings)."""
     seed, data = int(cfg["seed"]), parts.data
     plugins = registry.plugin_names()
+    mapping = (learner is not None and data.simulates
+               and getattr(data, "maps_while_exploring", lambda _: 0)(parts))
+    train = (lambda: data.train(parts, seed, progress, learner=_online_copy(learner))) \
+        if mapping else (lambda: data.train(parts, seed, progress))
 
     def get(kind, build):
-        if cache_dir is None or not data.simulates:
+        if cache_dir is None or not data.simulates or (mapping and kind == "train"):
             return build()
         key = trajectory_key(cfg, kind, plugins)
         return TrajectoryCache(cache_dir).get(f"{'trajectory' if kind == 'train' else kind}-{key}",
@@ -157,13 +180,20 @@ def load_data(cfg, parts: Parts, registry: Registry, cache_dir=None, progress=No
 
     t0 = time.perf_counter()
     with config_keys("data"):
-        traj = get("train", lambda: data.train(parts, seed, progress))
+        traj = get("train", train)
         t1 = time.perf_counter()
         heldout = get("heldout", lambda: data.heldout(parts, seed))
     t2 = time.perf_counter()
     log.info("trajectory: %d steps, %d features, %d actions", len(traj),
              traj.observations.shape[1], traj.n_actions)
     return (traj, heldout), {"data": t1 - t0, "heldout": t2 - t1}
+
+
+def _online_copy(learner):
+    """A copy of the run's learner, with its settings and no callbacks, to map while walking."""
+    from sklearn.base import clone
+
+    return clone(learner).set_params(callbacks=())
 
 
 class Progress:
@@ -211,6 +241,9 @@ class Progress:
 class _TickingExplorer:
     def __init__(self, explorer, bar):
         self.explorer, self.bar = explorer, bar
+
+    def __getattr__(self, name):  # see / update / update_every of the explorer, when it has them
+        return getattr(self.explorer, name)
 
     def choose(self, executable, rng):
         self.bar.update(1)

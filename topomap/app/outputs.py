@@ -35,6 +35,7 @@ FIGURE_FILES = {
     "fig_split.png": "a compound state before and after its split, with transition tables (Figs. 5-6)",
     "fig_map.png": "the learned map at the states' mean positions, arcs where P > min_prob (Fig. 7)",
     "fig_entropy.png": "H(u|x), H(x'|x,u) and their sum after each split",
+    "fig_mapping.png": "mapping while exploring: the map's ARI against the steps taken",
 }
 
 

@@ -13,7 +13,8 @@ module              its one job
 ==================  ===========================================================================
 """
 
-from .explorers import RandomExplorer
+from .explorers import ActiveExplorer, RandomExplorer, View
+from .mapping import map_while_exploring
 from .gridroom import GridRoom
 from .minigrid import MiniGridWorld
 from .noise import DropoutNoise, GaussianNoise, MultiplicativeNoise, NoNoise
@@ -21,4 +22,5 @@ from .office import OfficeWorld
 from .random_graph import RandomGraphWorld
 
 __all__ = ["DropoutNoise", "GaussianNoise", "GridRoom", "MiniGridWorld", "MultiplicativeNoise",
-           "NoNoise", "OfficeWorld", "RandomExplorer", "RandomGraphWorld"]
+           "NoNoise", "OfficeWorld", "RandomExplorer", "ActiveExplorer", "View", "RandomGraphWorld",
+           "map_while_exploring"]

@@ -12,6 +12,7 @@ import numpy as np
 
 from ..core.checks import check_count
 from ..core.data.trajectory import Trajectory
+from .explorers import show
 
 __all__ = ["check_no_extra_actions", "check_simulate_args", "check_choice", "walk",
            "symbol_embedding", "assign_symbols", "symbol_legend"]
@@ -55,9 +56,12 @@ def walk(world, n_steps, explorer, rng: np.random.Generator, meta: dict) -> Traj
     places = np.empty(n_steps, dtype=np.int64)
     actions = np.empty(n_steps, dtype=np.int64)
     p = int(rng.integers(successors.shape[0]))
+    sees = hasattr(explorer, "see")
     for t in range(n_steps):
         places[t] = p
         mask = masks[p].copy()
+        if sees:
+            show(explorer, world.embedding[world.place_symbols[p]], mask, -1, t)
         a = check_choice(explorer.choose(mask, rng), mask, t)
         actions[t] = a
         p = int(successors[p, a])

@@ -2,13 +2,46 @@
 
 An explorer has one method, ``choose(executable, rng) -> int``, which receives the boolean mask of
 the actions that can be started at the current place and returns the index of one of them.
+
+Two optional methods let an explorer use what a real robot has, and nothing more:
+
+* ``see(view)`` -- called by the world before every ``choose`` with a :class:`View`: the step's
+  observation, the executable actions and the GDS recognised there.  A view has no place: the
+  true place never reaches an explorer.
+* ``update(learner)`` -- called while mapping as the robot explores (``data.curve_every``, or
+  an explorer with this method) after every ``partial_fit`` of the run's
+  :class:`~topomap.MapLearner`: the map learned so far is ``learner.map_``.
+
+:class:`RandomExplorer` is the paper's; :class:`ActiveExplorer` goes where the map is least known.
 """
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
-__all__ = ["RandomExplorer"]
+from ..core.checks import ParameterError, check_count
+
+__all__ = ["View", "RandomExplorer", "ActiveExplorer", "show"]
+
+
+class View(NamedTuple):
+    """What the robot has at a step: its observation (as the sensor gives it), the boolean mask
+    of the actions it can start, the GDS it recognises there (-1: none) and the step index."""
+
+    observation: np.ndarray
+    executable: np.ndarray
+    gds: int
+    t: int
+
+
+def show(explorer, observation, executable, gds: int, t: int) -> None:
+    """Hand an explorer that has ``see`` the step's :class:`View` (the worlds call this)."""
+    see = getattr(explorer, "see", None)
+    if see is not None:
+        see(View(np.array(observation, dtype=np.float64), np.array(executable, dtype=bool),
+                 int(gds), int(t)))
 
 
 def _check_mask(executable) -> np.ndarray:
@@ -41,3 +74,118 @@ class RandomExplorer:
 
     def __repr__(self) -> str:
         return "RandomExplorer()"
+
+
+class ActiveExplorer:
+    """Go where the map is least known: count-based novelty on (state, action) pairs, planned
+    over the map learned so far.
+
+    Every step the explorer tracks its belief over the map's states from what it saw
+    (``P(x'|x,u)`` and ``P(o|x)`` of the map; ``P(u|x)`` is no evidence, as the explorer chose the
+    actions itself).  An action tried ``n`` times from a state is worth ``1 / sqrt(n + 1)``;
+    ``horizon`` rounds of value iteration over the map's ``P(x'|x,u)`` with discount ``gamma``
+    carry that worth back to the states that lead there, and the executable action of highest
+    value under the belief is taken (ties at random); with probability ``epsilon`` a random
+    action is taken instead.  Until a map exists it walks at random.  Needs the map: the run
+    maps while exploring, every ``update_every`` steps (:meth:`topomap.MapLearner.partial_fit`).
+
+    Parameters
+    ----------
+    update_every : int
+        Steps between two updates of the map.
+    gamma : float
+        Discount of the value iteration, in (0, 1).
+    horizon : int
+        Rounds of value iteration.
+    epsilon : float
+        Share of random actions, in [0, 1].
+    """
+
+    def __init__(self, update_every: int = 250, gamma: float = 0.9, horizon: int = 30,
+                 epsilon: float = 0.0):
+        self.update_every = check_count(update_every, "update_every")
+        if not (isinstance(gamma, (int, float)) and 0 < gamma < 1):
+            raise ParameterError("gamma", f"must lie in (0, 1), got {gamma!r}")
+        self.gamma = float(gamma)
+        self.horizon = check_count(horizon, "horizon")
+        if not (isinstance(epsilon, (int, float)) and 0 <= epsilon <= 1):
+            raise ParameterError("epsilon", f"must lie in [0, 1], got {epsilon!r}")
+        self.epsilon = float(epsilon)
+        self._map = None
+        self._belief = None
+        self._view = None
+        self._last = None          # the action taken at the step before
+        self._recent = []          # (view, action) of the last steps, to re-filter on a new map
+
+    # ---------------------------------------------------------------- what the robot has
+    def update(self, learner) -> None:
+        """Take the map the learner has now; re-filter the last steps on it."""
+        m = learner.map_
+        self._map = m
+        self._trans = m.transition_probs
+        self._tried = np.zeros((m.n_states, m.n_actions))
+        self._value = self._plan()
+        belief, prev = None, None
+        for view, a in self._recent[-32:]:
+            belief = self._step(belief, prev, view)
+            prev = a
+        self._belief = belief
+
+    def see(self, view: View) -> None:
+        self._view = view
+        if self._map is not None:
+            self._belief = self._step(self._belief, self._last, view)
+
+    def _step(self, belief, action, view: View):
+        """The belief after ``action`` and then ``view``."""
+        m = self._map
+        try:
+            alone = m.step_belief(None, 0, view.observation, view.gds)
+        except ValueError:  # a GDS the map does not know yet
+            alone = m.step_belief(None, 0, view.observation, None)
+        if belief is None or action is None or action >= m.n_actions:
+            return alone
+        post = (belief @ self._trans[:, action, :]) * (alone / np.maximum(m.state_probs, 1e-12))
+        total = post.sum()
+        return post / total if total > 0 else alone
+
+    def choose(self, executable, rng: np.random.Generator) -> int:
+        mask = _check_mask(executable)
+        idx = np.flatnonzero(mask)
+        planned = (self._map is not None and self._belief is not None
+                   and self._value.shape[1] >= mask.size)
+        if not planned or rng.random() < self.epsilon:
+            a = int(idx[rng.integers(idx.size)])
+        else:
+            q = self._belief @ self._value[:, :mask.size]
+            best = idx[np.isclose(q[idx], q[idx].max(), rtol=0, atol=1e-12)]
+            a = int(best[rng.integers(best.size)])
+        if self._map is not None and self._belief is not None and a < self._tried.shape[1]:
+            self._tried[int(np.argmax(self._belief)), a] += 1
+            self._value = self._plan()
+        if self._view is not None:
+            self._recent.append((self._view, a))
+            del self._recent[:-64]
+        self._last = a
+        return a
+
+    # ---------------------------------------------------------------- planning
+    def _plan(self) -> np.ndarray:
+        """(S, A) values: the novelty of every (state, action) plus the discounted best value of
+        where it leads, over ``horizon`` rounds."""
+        m = self._map
+        n = m.action_counts + self._tried
+        visits = n.sum(1, keepdims=True)
+        # an action never taken from a state visited A times or more is taken as not executable
+        allowed = (n > 0) | (visits < m.n_actions)
+        bonus = 1.0 / np.sqrt(n + 1.0)
+        q = np.where(allowed, bonus, -np.inf)
+        for _ in range(self.horizon):
+            v = np.max(q, axis=1)
+            v = np.where(np.isfinite(v), v, 0.0)
+            q = np.where(allowed, bonus + self.gamma * (self._trans @ v), -np.inf)
+        return np.where(np.isfinite(q), q, -1e9)
+
+    def __repr__(self) -> str:
+        return (f"ActiveExplorer(update_every={self.update_every}, gamma={self.gamma}, "
+                f"horizon={self.horizon}, epsilon={self.epsilon})")

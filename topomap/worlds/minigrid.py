@@ -33,6 +33,7 @@ import numpy as np
 
 from ..core.data.trajectory import Trajectory
 from .common import check_choice, check_no_extra_actions, check_simulate_args
+from .explorers import show
 
 __all__ = ["MiniGridWorld", "MissingDependencyError", "encode_view", "VIEW_CHANNELS",
            "CHECKED_ENVS"]
@@ -248,11 +249,14 @@ class MiniGridWorld:
         poses = np.empty((T, 3), dtype=np.int64)
         actions = np.empty(T, dtype=np.int64)
         starts = [0]
+        sees = hasattr(explorer, "see")
         for t in range(T):
             views[t] = obs["image"][:, :, 0]
             x, y, d = int(u.agent_pos[0]), int(u.agent_pos[1]), int(u.agent_dir)
             poses[t] = (x, y, d)
             mask = self.executable_mask(x, y, d)
+            if sees:
+                show(explorer, encode_view(views[t:t + 1])[0], mask, -1, t)
             a = check_choice(explorer.choose(mask, rng), mask, t)
             actions[t] = a
             if t + 1 < T:

@@ -17,7 +17,7 @@ from .style import (HALO, LEGEND_SIZE, MAX_MAP_NUMBERS, MAX_STATE_NUMBERS, TITLE
                     save_figure, state_styles)
 
 __all__ = ["write_figures", "plot_states", "plot_split", "plot_map", "plot_entropy",
-           "compound_mask"]
+           "plot_mapping", "compound_mask"]
 
 
 def _pairs(labels, places, **kw):
@@ -403,4 +403,23 @@ def write_figures(out: Path, traj, learner, world=None, *, min_prob=0.8, compoun
     plot_entropy(ax, learner)
     save_figure(fig, out / "fig_entropy.png")
     written.append("fig_entropy.png")
+    curve = ((traj.meta or {}).get("mapping") or {}).get("curve")
+    if curve:
+        fig, ax = plt.subplots(figsize=(5, 3.5))
+        plot_mapping(ax, curve, traj.meta["mapping"].get("explorer", ""))
+        save_figure(fig, out / "fig_mapping.png")
+        written.append("fig_mapping.png")
     return written
+
+
+def plot_mapping(ax, curve, label=""):
+    """The online map's ARI against the steps taken (``metrics.json``: ``mapping.curve``)."""
+    steps = [c["steps"] for c in curve]
+    ax.plot(steps, [c["ari"] for c in curve], marker=".", label=label or None)
+    ax.set_xlabel("steps taken")
+    ax.set_ylabel("ARI of the map learned so far")
+    ax.set_ylim(min(0.0, min(c["ari"] for c in curve)), 1.02)
+    ax.set_title("mapping while exploring", fontsize=TITLE_SIZE)
+    if label:
+        ax.legend(fontsize=LEGEND_SIZE, loc="lower right")
+    return ax

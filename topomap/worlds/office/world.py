@@ -24,6 +24,7 @@ import numpy as np
 from ...core.checks import ParameterError, check_count
 from ...core.data.trajectory import Trajectory
 from ..common import check_choice, check_simulate_args
+from ..explorers import show
 from .actions import Action, ApproachType, FollowWall, Pose
 from .geometry import CORNER_NAMES, TOL, check_positive, corner_points
 from .layout import OfficeLayout, paper_layout, random_layout
@@ -403,6 +404,7 @@ class OfficeWorld:
             gds[t] = self.gds_of(pose)
             headings.append(float(pose.heading))
             mask = self.executable_mask(pose)
+            show(explorer, obs[t], mask, gds[t], t)
             actions[t] = check_choice(explorer.choose(mask, rng), mask, t)
             if t + 1 < T:
                 pose = self.step(pose, int(actions[t]), rng)

@@ -1,0 +1,82 @@
+"""Mapping while exploring: a simulated walk whose map is learned as the steps arrive.
+
+:func:`map_while_exploring` walks a world with an explorer wrapped so that every ``every`` steps
+the steps seen are handed to :meth:`topomap.MapLearner.partial_fit`, and an explorer with
+``update(learner)`` gets the map learned so far.  What the explorer sees is what is recorded: the
+world's observation passed through the sensor noise model, one step at a time.  The labels of
+every step after every update are kept, so the map's quality against the steps taken can be
+measured afterwards against the world's places (which the explorer never sees).
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+from sklearn.metrics import adjusted_rand_score
+
+from .explorers import View
+
+__all__ = ["MappingWalk", "map_while_exploring", "quality_curve"]
+
+
+class MappingWalk:
+    """An explorer that feeds a learner while it walks (see the module docstring)."""
+
+    def __init__(self, explorer, learner, noise, rng_noise, every: int, n_actions: int | None):
+        self.explorer, self.learner, self.noise, self.rng = explorer, learner, noise, rng_noise
+        self.every, self.n_actions = int(every), n_actions
+        self.obs, self.gds, self.actions = [], [], []
+        self._done = 0
+        self.checkpoints = []   # (steps, labels of every step, states, seconds of partial_fit)
+
+    def see(self, view: View) -> None:
+        seen = self.noise.apply(view.observation[None, :], self.rng)[0]
+        self.obs.append(seen)
+        self.gds.append(view.gds)
+        if hasattr(self.explorer, "see"):
+            self.explorer.see(view._replace(observation=seen))
+
+    def choose(self, executable, rng) -> int:
+        a = self.explorer.choose(executable, rng)
+        self.actions.append(int(a))
+        if len(self.actions) - self._done >= self.every:
+            self.flush()
+        return a
+
+    def flush(self) -> None:
+        """``partial_fit`` the steps since the last update; hand the map to the explorer."""
+        lo, hi = self._done, len(self.actions)
+        if hi == lo:
+            return
+        t0 = time.perf_counter()
+        self.learner.partial_fit(np.asarray(self.obs[lo:hi]), np.asarray(self.actions[lo:hi]),
+                                 np.asarray(self.gds[lo:hi]), n_actions=self.n_actions)
+        seconds = time.perf_counter() - t0
+        self._done = hi
+        self.checkpoints.append((hi, self.learner.labels_.copy(), self.learner.map_.n_states,
+                                 seconds))
+        if hasattr(self.explorer, "update"):
+            self.explorer.update(self.learner)
+
+
+def map_while_exploring(world, n_steps: int, explorer, learner, noise, rng_sim, rng_noise,
+                        every: int):
+    """Walk ``world`` for ``n_steps`` steps, learning the map every ``every`` steps.
+
+    Returns ``(trajectory, walk)``: the trajectory holds the observations as the explorer saw them
+    (noise applied), ``walk`` the :class:`MappingWalk` with its checkpoints.
+    """
+    walk = MappingWalk(explorer, learner, noise, rng_noise, every,
+                       getattr(world, "n_actions", None))
+    traj = world.simulate(n_steps, walk, rng_sim)
+    traj.observations = np.asarray(walk.obs, dtype=np.float64).reshape(traj.observations.shape)
+    return traj, walk
+
+
+def quality_curve(walk: MappingWalk, places) -> list[dict]:
+    """ARI of the online map's labels against the true ``places`` after every update."""
+    places = np.asarray(places)
+    return [{"steps": int(n), "ari": float(adjusted_rand_score(places[:n], labels)),
+             "n_states": int(s), "seconds": float(sec)}
+            for n, labels, s, sec in walk.checkpoints]
