@@ -119,7 +119,8 @@ def test_learner_config_is_the_learner_signature(make_cfg):
 
     cfg = make_cfg()
     params = MapLearner().get_params()
-    keys = ("covariance_type", "reg_covar", "n_init", "phase1", "sample_size", "refined_size")
+    keys = ("covariance_type", "reg_covar", "n_init", "phase1", "sample_size", "refined_size",
+            "window", "refit_every")
     assert dict(cfg.learner) == {k: params[k] for k in keys}
 
 

@@ -18,7 +18,8 @@ import numpy as np
 from ..core.checks import ParameterError, check_count
 from ..core.data.rosbag import read_rosbag
 from ..core.data.trajectory import Trajectory, load_trajectory, save_trajectory
-from ..worlds.mapping import map_while_exploring, quality_curve
+from ..worlds.explorers import RandomExplorer
+from ..worlds.mapping import heldout_judge, map_while_exploring, quality_curve
 
 log = logging.getLogger("topomap")
 
@@ -72,14 +73,25 @@ class Simulate:
         explorer = parts.explorer if progress is None else progress.ticking(parts.explorer, self.n_steps)
         every = self.maps_while_exploring(parts)
         if every and learner is not None:
+            judge = heldout_judge(self.judging_walk(parts, seed))
             traj, walk = map_while_exploring(parts.world, self.n_steps, explorer, learner,
-                                             parts.noise, rng_sim, rng_noise, every)
+                                             parts.noise, rng_sim, rng_noise, every, judge)
             walk.flush()
             traj.meta["mapping"] = {"every": every, "explorer": repr(parts.explorer),
                                     "curve": quality_curve(walk, traj.places)}
             return traj
         traj = parts.world.simulate(self.n_steps, explorer, rng_sim)
         traj.observations = parts.noise.apply(traj.observations, rng_noise)
+        return traj
+
+    def judging_walk(self, parts, seed: int) -> Trajectory:
+        """The random walk the maps learned while exploring are judged on (``heldout_ari``):
+        ``min(n_steps, 10000)`` steps of :class:`~topomap.worlds.RandomExplorer`, from the seed's
+        fourth random stream."""
+        rng_sim, rng_noise = np.random.SeedSequence(int(seed)).spawn(4)[3].spawn(2)
+        traj = parts.world.simulate(min(self.n_steps, 10000), RandomExplorer(),
+                                    np.random.default_rng(rng_sim))
+        traj.observations = parts.noise.apply(traj.observations, np.random.default_rng(rng_noise))
         return traj
 
     def heldout(self, parts, seed: int) -> Trajectory | None:

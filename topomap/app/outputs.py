@@ -13,7 +13,7 @@ import numpy as np
 from ..core.data.files import atomic_write
 from ..core.data.trajectory import save_trajectory
 
-__all__ = ["OUTPUT_FILES", "FIGURE_FILES", "LOCALIZE_FILES", "write_outputs",
+__all__ = ["OUTPUT_FILES", "FIGURE_FILES", "MAPPING_FIGURES", "LOCALIZE_FILES", "write_outputs",
            "write_localization", "versions", "write_json"]
 
 #: files every run writes, with what they hold (figures only with ``output.figures``)
@@ -35,6 +35,9 @@ FIGURE_FILES = {
     "fig_split.png": "a compound state before and after its split, with transition tables (Figs. 5-6)",
     "fig_map.png": "the learned map at the states' mean positions, arcs where P > min_prob (Fig. 7)",
     "fig_entropy.png": "H(u|x), H(x'|x,u) and their sum after each split",
+}
+#: the figure a run that maps while exploring (``data.curve_every`` > 0) adds
+MAPPING_FIGURES = {
     "fig_mapping.png": "mapping while exploring: the map's ARI against the steps taken",
 }
 

@@ -102,7 +102,8 @@ class ActiveExplorer:
     """
 
     def __init__(self, update_every: int = 250, gamma: float = 0.9, horizon: int = 30,
-                 epsilon: float = 0.0):
+                 epsilon: float = 0.0, temperature: float = 0.0, surprise: float = 0.0,
+                 novelty: str = "pair"):
         self.update_every = check_count(update_every, "update_every")
         if not (isinstance(gamma, (int, float)) and 0 < gamma < 1):
             raise ParameterError("gamma", f"must lie in (0, 1), got {gamma!r}")
@@ -111,6 +112,11 @@ class ActiveExplorer:
         if not (isinstance(epsilon, (int, float)) and 0 <= epsilon <= 1):
             raise ParameterError("epsilon", f"must lie in [0, 1], got {epsilon!r}")
         self.epsilon = float(epsilon)
+        if not (isinstance(temperature, (int, float)) and temperature >= 0):
+            raise ParameterError("temperature", f"must be >= 0, got {temperature!r}")
+        self.temperature = float(temperature)
+        self.surprise = float(surprise)
+        self.novelty = novelty
         self._map = None
         self._belief = None
         self._view = None
@@ -124,6 +130,7 @@ class ActiveExplorer:
         self._map = m
         self._trans = m.transition_probs
         self._tried = np.zeros((m.n_states, m.n_actions))
+        self._executable = np.zeros((m.n_states, m.n_actions), dtype=bool)  # masks seen
         self._value = self._plan()
         belief, prev = None, None
         for view, a in self._recent[-32:]:
@@ -154,12 +161,22 @@ class ActiveExplorer:
         idx = np.flatnonzero(mask)
         planned = (self._map is not None and self._belief is not None
                    and self._value.shape[1] >= mask.size)
+        if planned:  # what can be done here, now seen, is what can be done in the likely state
+            s = int(np.argmax(self._belief))
+            seen = self._executable[s, :mask.size]
+            if (mask & ~seen).any():
+                seen |= mask
+                self._value = self._plan()
         if not planned or rng.random() < self.epsilon:
             a = int(idx[rng.integers(idx.size)])
         else:
             q = self._belief @ self._value[:, :mask.size]
-            best = idx[np.isclose(q[idx], q[idx].max(), rtol=0, atol=1e-12)]
-            a = int(best[rng.integers(best.size)])
+            if self.temperature > 0:  # Boltzmann: better actions more often, every one sometimes
+                w = np.exp((q[idx] - q[idx].max()) / self.temperature)
+                a = int(idx[rng.choice(idx.size, p=w / w.sum())])
+            else:
+                best = idx[np.isclose(q[idx], q[idx].max(), rtol=0, atol=1e-12)]
+                a = int(best[rng.integers(best.size)])
         if self._map is not None and self._belief is not None and a < self._tried.shape[1]:
             self._tried[int(np.argmax(self._belief)), a] += 1
             self._value = self._plan()
@@ -176,16 +193,26 @@ class ActiveExplorer:
         m = self._map
         n = m.action_counts + self._tried
         visits = n.sum(1, keepdims=True)
-        # an action never taken from a state visited A times or more is taken as not executable
-        allowed = (n > 0) | (visits < m.n_actions)
+        # an action is open where it was seen executable or taken; in a state whose actions were
+        # not seen, an action never taken from it in A visits or more is taken as not executable
+        seen = self._executable.any(1, keepdims=True)
+        allowed = (n > 0) | self._executable | (~seen & (visits < m.n_actions))
         bonus = 1.0 / np.sqrt(n + 1.0)
+        if self.novelty == "place":  # where an action leads: states seldom visited are worth more
+            visits_to = m.state_counts + self._tried.sum(1)
+            bonus = np.where(n > 0, self._trans @ (1.0 / np.sqrt(visits_to + 1.0)), 1.0)
+        if self.surprise:
+            P = self._trans
+            with np.errstate(divide="ignore", invalid="ignore"):
+                h = -np.where(P > 0, P * np.log2(P), 0.0).sum(-1)
+            bonus = bonus + self.surprise * np.where(m.action_counts > 0, h, 0.0)
         q = np.where(allowed, bonus, -np.inf)
         for _ in range(self.horizon):
             v = np.max(q, axis=1)
             v = np.where(np.isfinite(v), v, 0.0)
             q = np.where(allowed, bonus + self.gamma * (self._trans @ v), -np.inf)
-        return np.where(np.isfinite(q), q, -1e9)
+        return np.where(np.isfinite(q), q, 0.0)  # the mask tells what is executable here
 
     def __repr__(self) -> str:
         return (f"ActiveExplorer(update_every={self.update_every}, gamma={self.gamma}, "
-                f"horizon={self.horizon}, epsilon={self.epsilon})")
+                f"horizon={self.horizon}, epsilon={self.epsilon}, temperature={self.temperature})")
