@@ -109,7 +109,7 @@ class FromFile:
     Parameters
     ----------
     path : str
-        The recording (see the README's trajectory file formats).
+        The recording (see the trajectory file formats in ``docs/file-formats.md``).
     heldout_path : str or None
         A second recording of the same world that the map is scored on.
     """

@@ -20,9 +20,9 @@ then splits to that size.  Two criteria:
 The held-out score is the default because BIC misjudges short runs: a split that makes a
 state's transitions deterministic lowers the hard-assignment likelihood's entropy without adding
 a counted parameter, so on the paper's 2,000 steps BIC chooses 82, 33 and 165 states (seeds 0-2)
-for 29 places, where the held-out score chooses 35, 30 and 24 (README, "Choosing the number of
-states").  With ``refine="em"`` the refinement decides the final number of states itself (it
-merges duplicates of a place and splits compound states), so the split size matters little there.
+for 29 places, where the held-out score chooses 35, 30 and 24 (``docs/choosing-size.md``).  With
+``refine="em"`` the refinement decides the final number of states itself (it merges duplicates of
+a place and splits compound states), so the split size matters little there.
 """
 
 from __future__ import annotations

@@ -5,7 +5,7 @@ step, optionally the globally distinctive state (GDS) recognised at each step an
 annotated data, the ground truth (place id and position).  Several episodes may be stored back to
 back; ``lengths`` gives their sizes and no transition is counted across an episode boundary.
 
-Two file formats are read and written (see the README for the full description):
+Two file formats are read and written (``docs/file-formats.md`` describes them in full):
 
 ``.npz``
     arrays ``observations`` (T, D) float, ``actions`` (T,) int and optionally ``gds`` (T,) int,
