@@ -33,6 +33,10 @@ DOCUMENTED_FAILURES = {"topomap experiment=sweep_pricai2002": 15}
 #: commands that run a plugin the page installs first (``pip install -e .``): tested with the
 #: plugin's module listed instead, which registers the same components the entry point does
 INSTALLED_PLUGINS = {"topomap stop=max_splits stop.k=3": "my_stop.py"}
+#: what a command needs beyond the test extras: it is checked only where the package is installed
+OPTIONAL = {"env=minigrid": "minigrid", "minigrid_empty": "minigrid",
+            "hydra/sweeper=optuna": "hydra_plugins.hydra_optuna_sweeper",
+            "hydra/launcher=ray": "hydra_plugins.hydra_ray_launcher"}
 #: a run shortened for the test (appended, so it wins over the page's own values)
 SHORT = ["data.n_steps=200", "data.heldout_steps=0", "output.figures=false",
          "output.progress=false"]
@@ -121,8 +125,9 @@ def test_the_readme_and_the_pages_have_commands():
 def compose_checked(command, make_cfg):
     """Compose every job of ``command`` and run the checks made before data is simulated; the
     jobs that fail them, with their messages."""
-    if "env=minigrid" in command or "minigrid_empty" in command:
-        pytest.importorskip("minigrid")
+    for needs, module in OPTIONAL.items():
+        if needs in command:
+            pytest.importorskip(module)
     failed = []
     for job, cfg in jobs_of(command, make_cfg):
         registry = Registry.load(plugins_named(job))
