@@ -159,12 +159,19 @@ class Trajectory:
     Attributes
     ----------
     observations : (T, D) float array
-    actions : (T,) int array, values in ``[0, n_actions)``
-    gds : (T,) int array or None -- GDS id recognised at each step, ``-1`` for none
-    places : (T,) int array or None -- ground-truth place id of each step
-    positions : (T, 2) float array or None -- ground-truth position of each step
-    lengths : (E,) int array or None -- episode lengths (None: a single episode)
+        The observation of every step.
+    actions : (T,) int array
+        The action taken at every step, values in ``[0, n_actions)``.
+    gds : (T,) int array or None
+        GDS id recognised at each step, ``-1`` for none.
+    places : (T,) int array or None
+        Ground-truth place id of each step.
+    positions : (T, 2) float array or None
+        Ground-truth position of each step.
+    lengths : (E,) int array or None
+        Episode lengths (None: a single episode).
     action_names, gds_names : list of str or None
+        The names of the actions and of the GDS ids.
     """
 
     observations: np.ndarray
