@@ -47,7 +47,7 @@ def topomap_register_components():
         _c("explorer", "random", explorers.RandomExplorer,
            "uniform choice among executable actions (the paper's)"),
         _c("explorer", "active", explorers.ActiveExplorer,
-           "novelty of (state, action) pairs planned over the map learned while exploring"),
+           "the action least taken from the state (recent symbols and actions) under the map learned while exploring"),
         _c("metric", "euclidean", clustering.Euclidean, "Euclidean distance (the paper's)"),
         _c("metric", "standardized", clustering.Standardized,
            "Euclidean after scaling every feature to unit variance"),
