@@ -162,3 +162,30 @@ def test_auto_size_online():
     learner = feed(MapLearner(4, "auto", refine="em", window=2000, refit_every=1000), traj, 500)
     assert "chosen" in learner.size_choice_
     assert adjusted_rand_score(traj.places, learner.labels_) > 0.9
+
+
+def test_a_walk_the_window_holds_is_learned_as_fit_learns_it():
+    # every call of 1000 steps makes a pass (refit_every 1000) on all steps seen, K-means
+    # included: after the last, the online map is the batch map of the same steps
+    traj = walk(5, 4, 3, 3000, seed=4)
+    batch = MapLearner(3, 20).fit(traj.observations, traj.actions, n_actions=4)
+    learner = feed(MapLearner(3, 20, window=5000, refit_every=1000), traj, chunk=1000)
+    assert learner.online_["n_passes"] == 3
+    assert np.array_equal(learner.labels_, batch.labels_)
+    assert np.array_equal(learner.map_.transition_counts, batch.map_.transition_counts)
+
+
+def test_symbols_are_fixed_once_steps_leave_the_window():
+    traj = walk(5, 4, 3, 4000, seed=5)
+    learner = MapLearner(3, 20, window=1500, refit_every=500)
+    X = traj.observations + np.random.default_rng(0).normal(0, 0.05, traj.observations.shape)
+    u = traj.actions
+    codebooks = []
+    for i in range(0, 4000, 500):
+        learner.partial_fit(X[i:i + 500], u[i:i + 500], n_actions=4)
+        codebooks.append(learner._online.codebook.copy())
+    # passes at 500, 1000 and 1500 steps see every step and re-learn the symbols; from 2000 on
+    # the window has lost steps and the codebook of the pass at 1500 stays
+    assert not np.array_equal(codebooks[0], codebooks[2])
+    assert all(np.array_equal(codebooks[2], c) for c in codebooks[3:])
+    assert learner.online_["n_passes"] == 8

@@ -3,12 +3,13 @@
 The map is learned from a stream of chunks, at a cost per chunk that does not grow with the steps
 seen before it:
 
-* **Symbols.** The first pass runs phase 1's K-means on the steps seen so far; its symbols are
-  then fixed (a codebook of the symbols' mean observations).  A new step takes the symbol of the
-  nearest mean: for the Euclidean metric (the paper's) this is K-means' own assignment.  Symbols
-  are fixed rather than updated (``MiniBatchKMeans.partial_fit``) because every state, count and
-  label is defined on them: moving a centre would silently change the symbol of steps already
-  counted.
+* **Symbols.** While the window still holds every step seen, every pass runs phase 1's K-means
+  on all of them (a walk no longer than the window is learned as :meth:`MapLearner.fit` learns
+  it).  Once steps have left the window, the symbols of the last such pass are fixed (a codebook
+  of the symbols' mean observations), and a new step takes the symbol of the nearest mean: for
+  the Euclidean metric (the paper's) this is K-means' own assignment.  Symbols are then fixed
+  rather than updated (``MiniBatchKMeans.partial_fit``) because every state, count and label is
+  defined on them: moving a centre would silently change the symbol of steps already counted.
 * **Every chunk** is decoded with the current map (Viterbi over the chunk's symbols and actions,
   continuing from the last steps before it) and its transitions are added to the map's count
   tables: only the rows of the states the chunk visits change.
@@ -329,13 +330,14 @@ def _pass(learner, st: OnlineState, X_call) -> None:
     inner = clone(learner)
     inner.callbacks = ()
     present = None
-    if st.codebook is not None:
+    relearn = st.codebook is None or first == 0   # the window still holds every step seen
+    if not relearn:
         sym = st.sym.values[first:].astype(np.int64)[plain]
         present = np.unique(sym)
         inner._given_symbols = np.searchsorted(present, sym)
     inner.fit(Xw, uw, gw, lengths_of(sw), n_actions=st.n_actions, action_names=st.action_names,
               gds_names=st.gds_names)
-    if st.codebook is None:  # the first pass's K-means symbols become the codebook
+    if relearn:  # phase 1's K-means symbols of every step seen become the codebook
         sym = inner.labels_phase1_[plain]
         K = inner.n_clusters_
         counts = np.bincount(sym, minlength=K)[:, None]
