@@ -31,10 +31,11 @@ LOCALIZE_FILES = {
     "metrics.json": "log-likelihood, ARI/NMI/purity of both state sequences, config, versions",
 }
 FIGURE_FILES = {
-    "fig_states.png": "observation points coloured by state (the paper's Fig. 4, right)",
+    "fig_states.png": "observation points coloured by state after clustering, after splitting and "
+                      "(with refine) after the refinement (the paper's Fig. 4, right)",
     "fig_split.png": "a compound state before and after its split, with transition tables (Figs. 5-6)",
     "fig_map.png": "the learned map at the states' mean positions, arcs where P > min_prob (Fig. 7)",
-    "fig_entropy.png": "H(u|x), H(x'|x,u) and their sum after each split",
+    "fig_entropy.png": "H(u|x), H(x'|x,u) and their sum after each split (and after the refinement)",
 }
 #: the figure a run that maps while exploring (``data.curve_every`` > 0) adds
 MAPPING_FIGURES = {
