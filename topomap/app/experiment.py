@@ -22,17 +22,15 @@ from ..core.map.model import TopologicalMap
 from .config import check_config, learner_key
 from .data import TrajectoryCache, trajectory_key
 from .evaluate import evaluate, localization_scores
-from .outputs import versions, write_json, write_localization, write_outputs
+from .outputs import (STATUS_FILE, OutputDirInUse, claim_output_dir, versions, write_json,
+                      write_localization, write_outputs)
 from .kinds import KINDS
 from .registry import Parts, Registry
 
 log = logging.getLogger("topomap")
 
 __all__ = ["run", "run_job", "make_learner", "load_data", "config_keys", "Progress", "STATUS_FILE",
-           "CACHE_DIR"]
-
-#: a sweep job's status file (``completed`` or ``failed`` with the error)
-STATUS_FILE = "status.json"
+           "CACHE_DIR", "write_status", "interrupt_on_sigterm"]
 #: the folder of a sweep where its jobs share simulated trajectories
 CACHE_DIR = ".cache"
 #: what the less obvious numbers of metrics.json measure
@@ -53,8 +51,13 @@ def run(cfg, output_dir, *, registry: Registry | None = None, cache_dir=None) ->
     from it (:meth:`Registry.build <topomap.app.registry.Registry.build>`), before any data is
     read; then ``task=learn`` (the default) learns a map (:func:`learn`) and ``task=localize``
     applies the saved ``map`` to the data (:func:`localize`).  Returns the metrics dict.
+
+    A folder that holds another run's outputs is refused (:class:`~topomap.app.outputs.OutputDirInUse`)
+    unless ``output.overwrite`` is true, which removes them first
+    (:func:`~topomap.app.outputs.claim_output_dir`).
     """
     cfg = _as_dict(cfg)
+    claim_output_dir(output_dir, bool((cfg.get("output") or {}).get("overwrite", False)))
     registry = registry or Registry.load(cfg.get("plugins") or ())
     for err in registry.errors:
         log.warning("%s", err)
@@ -264,26 +267,52 @@ def run_job(cfg, output_dir, *, sweep_dir, registry=None) -> dict | None:
 
     Trajectories are shared through ``<sweep_dir>/.cache``.  Any exception is logged and written to
     ``output_dir/status.json`` (``{"status": "failed", "error": ..., "traceback": ...}``) rather than
-    raised, so the other jobs and the sweep report are not lost.  ``status.json`` also holds the
-    job's wall time, process id and host.
+    raised, so the other jobs and the sweep report are not lost.  An interrupt (Ctrl-C, SIGTERM)
+    is written as ``{"status": "interrupted"}`` and raised again: it ends the sweep.
+    ``status.json`` also holds the job's wall time, process id and host.  A job folder that holds
+    another run's outputs is left as it is (the error is logged).
     """
     out = Path(output_dir)
     t0 = time.perf_counter()
     try:
         results = run(cfg, out, registry=registry, cache_dir=Path(sweep_dir) / CACHE_DIR)
+    except OutputDirInUse as exc:
+        log.error("job not run: %s", exc)
+        return None
+    except KeyboardInterrupt:
+        write_status(out, "interrupted", job_time=time.perf_counter() - t0)
+        raise
     except Exception as exc:
-        error = f"{type(exc).__name__}: {exc}"
         if isinstance(exc, ValueError):
             log.error("job failed: %s", exc)
         else:
-            log.exception("job failed: %s", error)
-        _write_status(out, {"status": "failed", "error": error,
-                            "traceback": traceback.format_exc(),
-                            "job_time": time.perf_counter() - t0})
+            log.exception("job failed: %s", f"{type(exc).__name__}: {exc}")
+        write_status(out, "failed", exc, job_time=time.perf_counter() - t0)
         return None
-    _write_status(out, {"status": "completed", "error": None, "job_time": time.perf_counter() - t0})
+    write_status(out, "completed", job_time=time.perf_counter() - t0)
     return results
+
+
+def write_status(out, status: str, error: BaseException | None = None, **extra) -> None:
+    """Write ``out/status.json``: the ``status`` (``completed``, ``failed``, ``interrupted``),
+    the ``error`` (``"<type>: <message>"``) and its traceback, the process id and the host."""
+    record = {"status": status, "error": None, **extra}
+    if error is not None:
+        record["error"] = f"{type(error).__name__}: {error}"
+        record["traceback"] = "".join(traceback.format_exception(error))
+    _write_status(Path(out), record)
 
 
 def _write_status(out: Path, status: dict) -> None:
     write_json(out / STATUS_FILE, {**status, "pid": os.getpid(), "host": socket.gethostname()})
+
+
+def interrupt_on_sigterm() -> None:
+    """Make SIGTERM end the process as Ctrl-C does (a :class:`KeyboardInterrupt`), so that a
+    killed run or sweep ends as cleanly as an interrupted one."""
+    import signal
+
+    def handler(signum, frame):
+        raise KeyboardInterrupt(f"signal {signal.Signals(signum).name}")
+
+    signal.signal(signal.SIGTERM, handler)
