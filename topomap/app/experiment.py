@@ -85,8 +85,10 @@ def learn(cfg: dict, parts: Parts, output_dir, registry: Registry, cache_dir=Non
             learner.check_params(n_gds=getattr(parts.world, "n_gds", 0))  # before any simulation
         (traj, heldout), t_data = load_data(cfg, parts, registry, cache_dir, progress,
                                             learner=learner)
+        check_cluster_count(getattr(parts.clusters, "ns", None), traj)
         with config_keys():
             learner.fit_trajectory(traj)
+    _report_missed_target(learner)
     t0 = time.perf_counter()
     results = evaluate(learner, traj, heldout, parts)
     t_data["evaluate"] = time.perf_counter() - t0
@@ -101,6 +103,43 @@ def learn(cfg: dict, parts: Parts, output_dir, registry: Registry, cache_dir=Non
     })
     write_outputs(Path(output_dir), traj, learner, results, cfg, parts.world)
     return results
+
+
+#: fewer steps than this per K-means symbol, on average, and a run warns (see
+#: :func:`check_cluster_count`)
+STEPS_PER_SYMBOL = 10
+
+
+def check_cluster_count(ns: int | None, traj) -> None:
+    """Refuse ``clusters.ns`` above half the steps K-means clusters (the steps at no GDS): most
+    symbols would hold a single step, whose transitions cannot be estimated; warn below
+    :data:`STEPS_PER_SYMBOL` steps per symbol on average, where the symbols' observation models
+    and transition counts are poorly estimated.  ``ns`` None: the count is chosen from the data
+    (``clusters=bic``), nothing to check."""
+    if ns is None:
+        return
+    n = int((traj.gds < 0).sum()) if traj.gds is not None else len(traj)
+    if 2 * ns > n:
+        raise ValueError(f"clusters.ns={ns} is more than half of the {n} steps to cluster: most "
+                         f"symbols would hold a single step, whose transitions cannot be "
+                         f"estimated; give at most clusters.ns={n // 2}, or more steps")
+    if ns * STEPS_PER_SYMBOL > n:
+        log.warning("clusters.ns=%d leaves %.1f steps per symbol on average (%d steps to "
+                    "cluster): below %d, the symbols' observation models and transitions are "
+                    "poorly estimated; lower clusters.ns or give more steps", ns, n / ns, n,
+                    STEPS_PER_SYMBOL)
+
+
+def _report_missed_target(learner) -> None:
+    """Warn when the split stopped short of the told number of states, saying why."""
+    from ..core.split.stopping import TargetStates
+
+    rule = learner.stopping
+    told = rule.n_states if isinstance(rule, TargetStates) else None
+    made = learner.map_split_.n_states
+    if told is not None and made < told:
+        log.warning("stop.n_states=%d not reached: the split stopped at %d states (%s)", told,
+                    made, learner.stop_reason_)
 
 
 def localize(cfg: dict, parts: Parts, output_dir) -> dict:
