@@ -47,3 +47,27 @@ def test_few_steps_per_cluster_are_warned_about(make_cfg, tmp_path, caplog):
     steps = int(line.split("(")[1].split()[0])  # the steps to cluster, as the warning counts them
     assert steps < 40 * STEPS_PER_SYMBOL
     assert f"leaves {steps / 40:.1f} steps per symbol on average" in line, line
+
+
+def test_a_state_count_below_what_bic_may_choose_is_refused_before_bic(make_cfg, tmp_path,
+                                                                       monkeypatch):
+    from topomap.core.phase1.clustering import BICClusters
+
+    def no_bic(self, Z, random_state):
+        raise AssertionError("BIC ran before the check")
+
+    monkeypatch.setattr(BICClusters, "choose", no_bic)
+    with pytest.raises(ValueError) as err:
+        run(make_cfg(["clusters=bic", "output.progress=false"]), tmp_path / "out")
+    assert str(err.value) == (
+        "stop.n_states=30 is below the 42 states phase 1 may create: clusters=bic chooses up to "
+        "clusters.max_ns=40 clusters plus the 2 GDS; give stop.n_states=42 or more, "
+        "clusters.max_ns=28 or less, or stop=auto (the number of states chosen from the data "
+        "too)")
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_state_count_that_leaves_bic_room_runs(make_cfg, tmp_path):
+    results = run(make_cfg([*SMALL, "clusters=bic", "clusters.max_ns=12",
+                            "stop.n_states=14"]), tmp_path)
+    assert results["n_states"]["phase1"] <= 14 == results["n_states"]["final"]

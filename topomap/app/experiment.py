@@ -83,6 +83,7 @@ def learn(cfg: dict, parts: Parts, output_dir, registry: Registry, cache_dir=Non
         learner = make_learner(cfg, parts, [progress.on_event, registry.learner_events(plugin_metrics)])
         with config_keys():
             learner.check_params(n_gds=getattr(parts.world, "n_gds", 0))  # before any simulation
+        check_room_for_clusters(cfg, parts)
         (traj, heldout), t_data = load_data(cfg, parts, registry, cache_dir, progress,
                                             learner=learner)
         check_cluster_count(getattr(parts.clusters, "ns", None), traj)
@@ -103,6 +104,31 @@ def learn(cfg: dict, parts: Parts, output_dir, registry: Registry, cache_dir=Non
     })
     write_outputs(Path(output_dir), traj, learner, results, cfg, parts.world)
     return results
+
+
+def check_room_for_clusters(cfg: dict, parts: Parts) -> None:
+    """Refuse, before any data or BIC, a told ``stop.n_states`` below the states phase 1 may
+    create when the cluster count is chosen from the data (``clusters=bic``: up to
+    ``clusters.max_ns``, plus the world's GDS): the choice takes a while, and a count above
+    the told states would end the run after it.  The rule is conservative: it refuses even when
+    the data would have chosen fewer clusters."""
+    from ..core.split.stopping import TargetStates
+
+    most = getattr(parts.clusters, "max_ns", None)
+    least = getattr(parts.clusters, "min_ns", None)
+    stop = parts.stop
+    if most is None or most == least or not isinstance(stop, TargetStates):
+        return
+    n_gds = int(getattr(parts.world, "n_gds", 0) or 0)
+    if stop.n_states >= most + n_gds:
+        return
+    gds = f" plus the {n_gds} GDS" if n_gds else ""
+    comp = cfg["clusters"]["component"]
+    raise ValueError(
+        f"stop.n_states={stop.n_states} is below the {most + n_gds} states phase 1 may create: "
+        f"clusters={comp} chooses up to clusters.max_ns={most} clusters{gds}; give "
+        f"stop.n_states={most + n_gds} or more, clusters.max_ns={stop.n_states - n_gds} or less, "
+        "or stop=auto (the number of states chosen from the data too)")
 
 
 #: fewer steps than this per K-means symbol, on average, and a run warns (see
