@@ -104,7 +104,7 @@ def test_compound_states_are_ringed_and_numbered_at_each_place():
         (text,) = [t for t in ax.texts if np.allclose(t.get_position(), (x, y), atol=0.05)]
         ringed.add(int(text.get_text()))
     assert ringed == set(compound)
-    assert len(ringed) == compound_states(labels, traj.places)
+    assert len(ringed) == compound_states(traj.places, labels)
     assert len(rings.get_offsets()) == 2 * len(compound)  # one ring on each of their places
     assert any(t.get_text().startswith("compound state (3)") for t in ax.get_legend().get_texts())
 
@@ -155,7 +155,7 @@ def test_map_marks_compound_states_in_its_legend(small_run):
     assert any(label.startswith("symbol") for label in labels)  # the room's tints, explained
     (coll,) = [c for c in ax.collections if c.get_label().startswith("compound state")]
     assert (learner.map_.state_gds < 0).all()  # no GDS in a gridroom: every compound is drawn so
-    assert len(coll.get_offsets()) == compound_states(learner.labels_, traj.places) > 0
+    assert len(coll.get_offsets()) == compound_states(traj.places, learner.labels_) > 0
 
 
 # ---------------------------------------------------------------------------- the office room
@@ -263,7 +263,7 @@ def test_states_figure_of_a_refined_run_names_each_stage(refined_run, monkeypatc
     assert titles[1] == f"after splitting: {learner.map_split_.n_states} states"
     assert titles[2] == f"after the refinement: {learner.map_.n_states} states"
     rings = [c for c in fig.axes[1].collections if c.get_label().startswith("compound")]
-    assert len(rings[0].get_offsets()) >= compound_states(learner.labels_split_, traj.places)
+    assert len(rings[0].get_offsets()) >= compound_states(traj.places, learner.labels_split_)
 
 
 def test_split_figure_of_a_refined_run_shows_the_split(refined_run, monkeypatch, tmp_path):

@@ -24,11 +24,11 @@ def evaluate(learner: MapLearner, traj: Trajectory, heldout: Trajectory | None,
         out["n_states"]["split"] = learner.map_split_.n_states
     if traj.places is not None:
         out["ground_truth"] = {
-            "phase1": M.evaluate(learner.labels_phase1_, traj.places),
-            "final": M.evaluate(learner.labels_, traj.places),
+            "phase1": M.evaluate(traj.places, learner.labels_phase1_),
+            "final": M.evaluate(traj.places, learner.labels_),
         }
         if refined:
-            out["ground_truth"]["split"] = M.evaluate(learner.labels_split_, traj.places)
+            out["ground_truth"]["split"] = M.evaluate(traj.places, learner.labels_split_)
     if heldout is None:
         out.update(heldout_loglik=None, heldout_steps=0)
     else:
@@ -52,6 +52,6 @@ def localization_scores(m, traj: Trajectory, beliefs, viterbi) -> dict:
            "loglik": m.score(traj.observations, traj.actions, gds=traj.gds, lengths=traj.lengths),
            "mean_max_belief": float(beliefs.max(axis=1).mean())}
     if traj.places is not None:
-        out["ground_truth"] = {"filter": M.evaluate(beliefs.argmax(axis=1), traj.places),
-                               "viterbi": M.evaluate(viterbi, traj.places)}
+        out["ground_truth"] = {"filter": M.evaluate(traj.places, beliefs.argmax(axis=1)),
+                               "viterbi": M.evaluate(traj.places, viterbi)}
     return out
