@@ -457,6 +457,9 @@ class MapLearner(BaseEstimator):
                                  f"must be 'diag' or 'full', got {self.covariance_type!r}")
         if not (isinstance(self.reg_covar, (int, float)) and self.reg_covar > 0):
             raise ParameterError("reg_covar", f"must be a positive number, got {self.reg_covar!r}")
+        check_count(self.n_init, "n_init")
+        check_count(self.sample_size, "sample_size", allow_none=True)
+        self._online_settings()
         return clusters, make_metric(self.metric), criterion, stopping
 
     @contextmanager
