@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from ..core import metrics as M
 from ..core.learner import MapLearner
+from ..core.progress import report
 from ..core.data.trajectory import Trajectory
 
 __all__ = ["evaluate", "localization_scores"]
@@ -32,9 +33,11 @@ def evaluate(learner: MapLearner, traj: Trajectory, heldout: Trajectory | None,
     if heldout is None:
         out.update(heldout_loglik=None, heldout_steps=0)
     else:
+        report("held-out scoring", 0, 1)
         out.update(heldout_loglik=learner.map_.score(heldout.observations, heldout.actions,
                                                      gds=heldout.gds, lengths=heldout.lengths),
                    heldout_steps=len(heldout))
+        report("held-out scoring", 1, 1)
     if parts is not None and parts.evaluate is not None:
         if parts.world is None or traj.places is None:
             raise ValueError("evaluate=navigation needs a simulated world with ground truth "

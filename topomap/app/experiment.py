@@ -19,6 +19,7 @@ from pathlib import Path
 from ..core.checks import ParameterError
 from ..core.learner import MapLearner
 from ..core.map.model import TopologicalMap
+from ..core.progress import reporting
 from .config import check_config, learner_key
 from .data import TrajectoryCache, trajectory_key
 from .evaluate import evaluate, localization_scores
@@ -79,7 +80,8 @@ def learn(cfg: dict, parts: Parts, output_dir, registry: Registry, cache_dir=Non
     shared between runs (the jobs of a sweep).
     """
     plugin_metrics: dict = {}
-    with Progress(cfg["output"].get("progress", True) and sys.stderr.isatty()) as progress:
+    shown = cfg["output"].get("progress", True) and sys.stderr.isatty()
+    with Progress(shown) as progress, reporting(progress.on_progress if shown else None):
         learner = make_learner(cfg, parts, [progress.on_event, registry.learner_events(plugin_metrics)])
         with config_keys():
             learner.check_params(n_gds=getattr(parts.world, "n_gds", 0))  # before any simulation
@@ -89,10 +91,18 @@ def learn(cfg: dict, parts: Parts, output_dir, registry: Registry, cache_dir=Non
         check_cluster_count(getattr(parts.clusters, "ns", None), traj)
         with config_keys():
             learner.fit_trajectory(traj)
-    _report_missed_target(learner)
-    t0 = time.perf_counter()
-    results = evaluate(learner, traj, heldout, parts)
-    t_data["evaluate"] = time.perf_counter() - t0
+        _report_missed_target(learner)
+        t0 = time.perf_counter()
+        results = evaluate(learner, traj, heldout, parts)
+        t_data["evaluate"] = time.perf_counter() - t0
+        _write_learned(cfg, parts, registry, output_dir, traj, learner, results, t_data,
+                       plugin_metrics)
+    return results
+
+
+def _write_learned(cfg, parts, registry, output_dir, traj, learner, results, t_data,
+                   plugin_metrics) -> None:
+    """Complete the results of a learned map and write the run's files."""
     results.update({
         "split_history": learner.split_history_, "entropy_trace": learner.entropies_,
         "stop_reason": learner.stop_reason_, "timings": {**t_data, **learner.timings_},
@@ -103,7 +113,6 @@ def learn(cfg: dict, parts: Parts, output_dir, registry: Registry, cache_dir=Non
                       for name, kind in KINDS.items() if kind.learner_arg},  # the learner's
     })
     write_outputs(Path(output_dir), traj, learner, results, cfg, parts.world)
-    return results
 
 
 def check_room_for_clusters(cfg: dict, parts: Parts) -> None:
@@ -290,6 +299,24 @@ class Progress:
         """``explorer``, ticking a "simulating" bar once per chosen action."""
         return _TickingExplorer(explorer, self._bar(total, "simulating"))
 
+    def on_progress(self, stage: str, done: int, total: int | None) -> None:
+        """A listener of the core's loops (:mod:`topomap.core.progress`): one bar per running
+        loop (BIC, EM, held-out scoring, drawing the figures), closed when the loop ends."""
+        bars = self.__dict__.setdefault("_stages", {})
+        bar = bars.get(stage)
+        if bar is not None and done < bar.n:  # the loop starts again (another EM round)
+            bar.close()
+            bar = None
+        if bar is None:
+            bar = bars[stage] = self._bar(total, stage)
+        if total is not None and bar.total != total:
+            bar.total = total
+            bar.refresh()
+        bar.update(done - bar.n)
+        if total is not None and done >= total:
+            bar.close()
+            del bars[stage]
+
     def on_event(self, event, info) -> None:
         """A learner callback: log phase 1, tick a "splitting" bar per split."""
         if event == "phase1":
@@ -304,6 +331,8 @@ class Progress:
             r = info["record"]
             log.debug("split %d: state %d -> %d (gain %.4f)", r["iteration"], r["state"],
                       r["new_state"], r["gain"])
+        elif event == "done" and getattr(self, "splitting", None) is not None:
+            self.splitting.close()
 
 
 class _TickingExplorer:

@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ...core.progress import report
 from .style import (HALO, LEGEND_SIZE, MAX_MAP_NUMBERS, MAX_STATE_NUMBERS, TITLE_SIZE, pyplot,
                     save_figure, state_styles)
 
@@ -437,10 +438,24 @@ def plot_entropy(ax, learner):
 
 def write_figures(out: Path, traj, learner, world=None, *, min_prob=0.8, compound_state=None):
     """Write the figures of :data:`topomap.app.outputs.FIGURE_FILES` that the data allows
-    (the room figures need ground-truth positions)."""
+    (the room figures need ground-truth positions); the drawing's progress is reported as
+    ``"drawing figures"`` (:mod:`topomap.core.progress`)."""
     plt = pyplot()
     out = Path(out)
     written = []
+    curve = ((traj.meta or {}).get("mapping") or {}).get("curve")
+    total = (3 if traj.positions is not None else 0) + 1 + bool(curve)
+    done = 0
+
+    def drawn(fig, name):
+        nonlocal done
+        if fig is not None:
+            save_figure(fig, out / name)
+            written.append(name)
+        done += 1
+        report("drawing figures", done, total)
+
+    report("drawing figures", 0, total)
     if traj.positions is not None:
         refined = _refined(learner)
         fig, axes = plt.subplots(1, 3 if refined else 2, figsize=(18 if refined else 12, 4.9))
@@ -452,28 +467,22 @@ def write_figures(out: Path, traj, learner, world=None, *, min_prob=0.8, compoun
         if refined:
             plot_states(axes[2], traj, learner.labels_, world,
                         f"after the refinement: {learner.map_.n_states} states")
-        save_figure(fig, out / "fig_states.png")
-        written.append("fig_states.png")
+        drawn(fig, "fig_states.png")
         fig = plt.figure(figsize=(13, 6.6))
-        if plot_split(fig, traj, learner, world, compound_state):
-            save_figure(fig, out / "fig_split.png")
-            written.append("fig_split.png")
-        else:
+        if not plot_split(fig, traj, learner, world, compound_state):
             plt.close(fig)
+            fig = None
+        drawn(fig, "fig_split.png")
         fig, ax = plt.subplots(figsize=(8, 6))
         plot_map(ax, traj, learner, world, min_prob)
-        save_figure(fig, out / "fig_map.png")
-        written.append("fig_map.png")
+        drawn(fig, "fig_map.png")
     fig, ax = plt.subplots(figsize=(6.5, 3.5))
     plot_entropy(ax, learner)
-    save_figure(fig, out / "fig_entropy.png")
-    written.append("fig_entropy.png")
-    curve = ((traj.meta or {}).get("mapping") or {}).get("curve")
+    drawn(fig, "fig_entropy.png")
     if curve:
         fig, ax = plt.subplots(figsize=(5, 3.5))
         plot_mapping(ax, curve, traj.meta["mapping"].get("explorer", ""))
-        save_figure(fig, out / "fig_mapping.png")
-        written.append("fig_mapping.png")
+        drawn(fig, "fig_mapping.png")
     return written
 
 
