@@ -5,6 +5,7 @@
     topomap data=file data.path=my_log.npz
     topomap -m clusters.ns=10,20,30 stop.n_states=25,30,40
     topomap --list-plugins                    # every component by kind, with its plugin
+    topomap --version                         # topomap's version (with Hydra's and Python's)
 
 The line from the command to the work, each step once: :func:`main` reads the plugins named on the
 command line (with Hydra's own parsers), loads the :class:`~topomap.app.registry.Registry`,
@@ -222,6 +223,17 @@ def _interrupted() -> None:
     sys.exit(INTERRUPTED)
 
 
+def version_line() -> str:
+    """What ``topomap --version`` prints: topomap's version, with Hydra's and Python's."""
+    import platform
+
+    from hydra import __version__ as hydra_version
+
+    from .. import __version__
+
+    return f"topomap {__version__} (Hydra {hydra_version}, Python {platform.python_version()})"
+
+
 def _user_configs(argv) -> bool:
     """Whether the command line names config folders or a primary config of its own."""
     flags = ("-cd", "--config-dir", "-cp", "--config-path", "-cn", "--config-name")
@@ -234,6 +246,9 @@ def main() -> None:
 
     interrupt_on_sigterm()
     argv = sys.argv[1:]
+    if "--version" in argv:
+        print(version_line())
+        return
     if argv and argv[0] in ("--list-plugins", "plugins"):
         list_plugins(Registry.load(argv[1:]))
         return
