@@ -90,7 +90,7 @@ def test_sigterm_ends_a_run_with_one_line_and_its_status(tmp_path):
     code, out, err = finish(proc)
     assert code == 130
     assert err.strip().splitlines() == [
-        f"topomap: interrupted; {run_dir} holds no outputs (status.json says so)"]
+        f"topomap: interrupted; {run_dir}/status.json says so"]
     assert json.loads((run_dir / "status.json").read_text())["status"] == "interrupted"
     assert sorted(p.name for p in run_dir.iterdir()) == [".hydra", "status.json", "topomap.log"]
 

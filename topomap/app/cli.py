@@ -178,9 +178,8 @@ def _single_run(cfg, out, registry: Registry) -> dict:
         sys.exit(f"topomap: error: {exc}")
     except KeyboardInterrupt:
         write_status(out, "interrupted")
-        log.warning("interrupted; no outputs written")
-        print(f"topomap: interrupted; {out} holds no outputs (status.json says so)",
-              file=sys.stderr)
+        log.warning("interrupted")
+        print(f"topomap: interrupted; {out}/status.json says so", file=sys.stderr)
         sys.exit(INTERRUPTED)
     except ValueError as exc:
         write_status(out, "failed", exc)
