@@ -77,7 +77,7 @@ def fit(registry, command: str, T: int, seed: int, method: str, data=None):
     m = learner.map_
     return {
         "T": T, "seed": seed, "method": method, "places": int(np.unique(traj.places).size),
-        "ari": adjusted_rand(learner.labels_, traj.places), "nmi": nmi(learner.labels_, traj.places),
+        "ari": adjusted_rand(traj.places, learner.labels_), "nmi": nmi(traj.places, learner.labels_),
         "states": m.n_states, "seconds": seconds,
         "heldout": m.score(heldout.observations, heldout.actions, gds=heldout.gds,
                            lengths=heldout.lengths),

@@ -61,8 +61,8 @@ def run(name, repeats):
     fit()
     peak = tracemalloc.get_traced_memory()[1]
     tracemalloc.stop()
-    ari0 = adjusted_rand(learner.labels_phase1_, places)
-    ari1 = adjusted_rand(learner.labels_, places)
+    ari0 = adjusted_rand(places, learner.labels_phase1_)
+    ari1 = adjusted_rand(places, learner.labels_)
     print(f"{name:6s} T={cfg['T']:>7,} D={cfg['D']} ns={cfg['ns']} -> {cfg['n_places']} states | "
           f"phase1 {p1:7.3f} s  phase2 {p2:7.3f} s  total {tot:7.3f} s  "
           f"peak {peak / 2**20:7.1f} MiB | ARI {ari0:.3f} -> {ari1:.3f}  (median of {repeats})")

@@ -97,12 +97,12 @@ def run_level(world: str, sigma: float, seed: int, methods, registry) -> dict:
         learner.fit_trajectory(traj)
         t = learner.timings_
         err = symbol_error(learner.labels_phase1_, traj.places, traj.gds)
-        out[name] = {"err": err, "ari": M.evaluate(learner.labels_, traj.places)["ari"],
+        out[name] = {"err": err, "ari": M.evaluate(traj.places, learner.labels_)["ari"],
                      "states": int(np.unique(learner.labels_).size),
                      "fit": t["phase1"] + t["phase2"] + t.get("refine", 0.0)}
         if name == "em_hard" and "split" in methods:
             out["split"] = {"err": err,
-                            "ari": M.evaluate(learner.labels_split_, traj.places)["ari"],
+                            "ari": M.evaluate(traj.places, learner.labels_split_)["ari"],
                             "states": int(np.unique(learner.labels_split_).size),
                             "fit": t["phase1"] + t["phase2"]}
     return out

@@ -36,7 +36,7 @@ def main():
         (traj, _), _ = load_data(cfg, parts, registry)
         learner = make_learner(cfg, parts).fit_trajectory(traj)
         dt = time.perf_counter() - t0
-        a, b = evaluate(learner.labels_phase1_, traj.places), evaluate(learner.labels_, traj.places)
+        a, b = evaluate(traj.places, learner.labels_phase1_), evaluate(traj.places, learner.labels_)
         rows.append((a["ari"], b["ari"], a["purity"], b["purity"], a["compound_states"],
                      b["compound_states"], dt))
         print(f"seed {seed}: ARI {a['ari']:.3f} -> {b['ari']:.3f}  purity {a['purity']:.3f} -> "

@@ -110,8 +110,8 @@ def _fit_record(X, u, places, ns, S, **kw):
     fit_rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024 / 1e9
     return learner, {"time": total, "refine": 0.0, **learner.timings_, "S": learner.map_.n_states,
                      "fit_rss_gb": fit_rss,
-                     "ari0": adjusted_rand(learner.labels_phase1_, places),
-                     "ari1": adjusted_rand(learner.labels_, places),
+                     "ari0": adjusted_rand(places, learner.labels_phase1_),
+                     "ari1": adjusted_rand(places, learner.labels_),
                      "method": getattr(learner, "phase1_method_", "full")}
 
 

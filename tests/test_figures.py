@@ -104,7 +104,7 @@ def test_compound_states_are_ringed_and_numbered_at_each_place():
         (text,) = [t for t in ax.texts if np.allclose(t.get_position(), (x, y), atol=0.05)]
         ringed.add(int(text.get_text()))
     assert ringed == set(compound)
-    assert len(ringed) == compound_states(labels, traj.places)
+    assert len(ringed) == compound_states(traj.places, labels)
     assert len(rings.get_offsets()) == 2 * len(compound)  # one ring on each of their places
     assert any(t.get_text().startswith("compound state (3)") for t in ax.get_legend().get_texts())
 
@@ -155,7 +155,7 @@ def test_map_marks_compound_states_in_its_legend(small_run):
     assert any(label.startswith("symbol") for label in labels)  # the room's tints, explained
     (coll,) = [c for c in ax.collections if c.get_label().startswith("compound state")]
     assert (learner.map_.state_gds < 0).all()  # no GDS in a gridroom: every compound is drawn so
-    assert len(coll.get_offsets()) == compound_states(learner.labels_, traj.places) > 0
+    assert len(coll.get_offsets()) == compound_states(traj.places, learner.labels_) > 0
 
 
 # ---------------------------------------------------------------------------- the office room
@@ -233,3 +233,67 @@ def test_sweep_line_draws_no_value_for_a_failed_job():
     assert any("failed" in t.get_text() for t in ax.get_legend().get_texts())
     ticks = {t.get_text(): t.get_color() for t in ax.get_xticklabels()}
     assert mcolors.to_hex(ticks["30"]) == mcolors.to_hex("tab:red")
+
+
+# ---------------------------------------------------------------------------- a refined run
+@pytest.fixture(scope="module")
+def refined_run(small_run):
+    """The small gridroom walk learned with the EM refinement after the split."""
+    world, traj, _ = small_run
+    learner = MapLearner(n_clusters=3, n_states=20, n_init=1, refine="em").fit_trajectory(traj)
+    assert learner.map_ is not learner.map_split_  # the refinement was kept
+    return world, traj, learner
+
+
+def _written_figures(monkeypatch, tmp_path, traj, learner, world):
+    """``{file name: Figure}`` of what :func:`plots.write_figures` draws (not saved)."""
+    figures = {}
+    monkeypatch.setattr(plots.run, "save_figure", lambda fig, path: figures.update({path.name: fig}))
+    plots.write_figures(tmp_path, traj, learner, world)
+    for fig in figures.values():
+        FigureCanvasAgg(fig)
+    return figures
+
+
+def test_states_figure_of_a_refined_run_names_each_stage(refined_run, monkeypatch, tmp_path):
+    """The split map and the refined map each get their panel, titled by their stage."""
+    world, traj, learner = refined_run
+    fig = _written_figures(monkeypatch, tmp_path, traj, learner, world)["fig_states.png"]
+    titles = [ax.get_title() for ax in fig.axes]
+    assert titles[1] == f"after splitting: {learner.map_split_.n_states} states"
+    assert titles[2] == f"after the refinement: {learner.map_.n_states} states"
+    rings = [c for c in fig.axes[1].collections if c.get_label().startswith("compound")]
+    assert len(rings[0].get_offsets()) >= compound_states(traj.places, learner.labels_split_)
+
+
+def test_split_figure_of_a_refined_run_shows_the_split(refined_run, monkeypatch, tmp_path):
+    world, traj, learner = refined_run
+    fig = _written_figures(monkeypatch, tmp_path, traj, learner, world)["fig_split.png"]
+    state = learner.split_history_[0]["state"]
+    made = np.unique(learner.labels_split_[learner.labels_phase1_ == state])
+    assert fig.axes[1].get_title() == f"after splitting: states {', '.join(map(str, made))}"
+
+
+def test_split_figure_leaves_no_blank_band_below_its_tables(small_run, monkeypatch, tmp_path):
+    world, traj, learner = small_run
+    fig = _written_figures(monkeypatch, tmp_path, traj, learner, world)["fig_split.png"]
+    renderer = fig.canvas.get_renderer()
+    tables = [t for ax in fig.axes for t in ax.tables]
+    assert tables
+    bottom = min(t.get_window_extent(renderer).y0 for t in tables)
+    axes_bottom = min(ax.get_window_extent(renderer).y0 for ax in fig.axes if ax.tables)
+    assert (bottom - axes_bottom) / fig.bbox.height < 0.04
+
+
+def test_entropy_figure_labels_the_refinement_and_keeps_its_legend_off_the_curves(refined_run):
+    _, _, learner = refined_run
+    ax = plots.plot_entropy(_axes((6.5, 3.5)), learner)
+    ax.figure.canvas.draw()
+    renderer = ax.figure.canvas.get_renderer()
+    assert any(t.get_text().strip() == "refined" for t in ax.texts)
+    names = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert f"after the refinement ({learner.map_.n_states} states)" in names
+    assert not ax.get_legend().get_window_extent(renderer).overlaps(ax.get_window_extent(renderer))
+    split = [r for r in learner.entropies_ if r.get("stage") != "refined"]
+    lowest = min(min(r["H_u"], r["H_x"]) for r in split)
+    assert ax.get_ylim()[0] > lowest - 0.1 * (max(r["H_u"] + r["H_x"] for r in split) - lowest)

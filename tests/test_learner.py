@@ -27,22 +27,22 @@ def test_one_way_ring_split_has_gain_of_one_bit():
     # predecessor makes both halves deterministic, so the gain is exactly 1 bit.
     X, u, places = ring(n_steps=200, n_places=4, aliased=[(1, 3)], two_way=False)
     learner = MapLearner(n_clusters=3, n_states=4).fit(X, u)
-    assert adjusted_rand(learner.labels_phase1_, places) < 1
-    assert compound_states(learner.labels_phase1_, places) == 1
+    assert adjusted_rand(places, learner.labels_phase1_) < 1
+    assert compound_states(places, learner.labels_phase1_) == 1
     (rec,) = learner.split_history_
     assert rec["n_groups"] == 2
     # instances exist for steps 1..T-2; the shares of A- and C-predecessors are 50/50 up to one
     n_kept, n_new = rec["n_steps_kept"], rec["n_steps_new"]
     assert abs(n_kept - n_new) <= 1
     assert rec["gain"] == pytest.approx(1.0, abs=0.01)
-    assert adjusted_rand(learner.labels_, places) == 1.0
+    assert adjusted_rand(places, learner.labels_) == 1.0
 
 
 def test_two_way_ring_aliased_places_separated_exactly():
     X, u, places = ring(n_steps=600)
     learner = MapLearner(n_clusters=5, n_states=6, random_state=0).fit(X, u)
-    before = evaluate(learner.labels_phase1_, places)
-    after = evaluate(learner.labels_, places)
+    before = evaluate(places, learner.labels_phase1_)
+    after = evaluate(places, learner.labels_)
     assert before["n_states"] == 5 and before["compound_states"] == 1
     assert after == {"ari": 1.0, "nmi": 1.0, "purity": 1.0, "compound_states": 0,
                      "n_states": 6, "n_places": 6}
@@ -83,7 +83,7 @@ def test_gds_states_are_never_split():
     assert all(r["state"] not in gds_states for r in learner.split_history_)
     assert set(learner.labels_[places == 0]) == {gds_states[0]}
     assert not np.isin(learner.labels_[places != 0], gds_states).any()
-    assert adjusted_rand(learner.labels_, places) == 1.0
+    assert adjusted_rand(places, learner.labels_) == 1.0
 
 
 def test_gds_state_stays_whole_even_when_it_is_the_only_candidate():
@@ -204,7 +204,7 @@ def test_cosine_metric_groups_scaled_copies():
     X = dirs[which] * rng.uniform(0.5, 5, (100, 1))
     u = rng.integers(2, size=100)
     labels = MapLearner(n_clusters=2, n_states=2, metric="cosine").fit(X, u).labels_
-    assert adjusted_rand(labels, which) == 1.0
+    assert adjusted_rand(which, labels) == 1.0
     assert np.allclose(np.linalg.norm(Cosine().fit_transform(X), axis=1), 1)
 
 
@@ -229,10 +229,25 @@ def test_fixed_policy_and_learner_with_bic():
 def test_metrics_on_a_hand_example():
     states = [0, 0, 0, 1, 1, 2]
     places = [5, 5, 6, 6, 6, 7]
-    assert purity(states, places) == pytest.approx(5 / 6)
-    assert compound_states(states, places) == 1
-    assert compound_states(states, places, min_share=0.4) == 0
+    assert purity(places, states) == pytest.approx(5 / 6)
+    assert compound_states(places, states) == 1
+    assert compound_states(places, states, min_share=0.4) == 0
     assert adjusted_rand(states, states) == 1.0
+
+
+def test_metrics_take_the_true_labels_first_as_scikit_learn_does():
+    """Purity and compound states are not symmetric: one state holding two places is impure,
+    one place cut into two states is pure; the keywords name which is which."""
+    places = [0, 0, 1, 1, 2, 2]
+    states = [0, 0, 0, 0, 1, 2]  # state 0 holds places 0 and 1; place 2 is cut in two states
+    assert purity(places, states) == pytest.approx(4 / 6)
+    assert purity(labels_true=places, labels_pred=states) == pytest.approx(4 / 6)
+    assert purity(states, places) == pytest.approx(5 / 6)  # the places measured by the states
+    places, states = places + [3, 3], states + [3, 4]  # place 3 cut in two states as well
+    assert compound_states(labels_true=places, labels_pred=states) == 1  # state 0
+    assert compound_states(labels_true=states, labels_pred=places) == 2  # places 2 and 3
+    assert evaluate(labels_true=places, labels_pred=states)["n_states"] == 5
+    assert evaluate(places, states)["n_places"] == 4
 
 
 # ---------------------------------------------------------------- the fitted map
@@ -242,7 +257,7 @@ def test_predict_recovers_training_labels_and_score_prefers_true_actions():
     m = learner.map_
     X2, u2, places2 = ring(n_steps=300, seed=7)
     pred = m.predict(X2, u2)
-    assert adjusted_rand(pred, places2) == 1.0
+    assert adjusted_rand(places2, pred) == 1.0
     assert m.score(X2, u2) > m.score(X2, 1 - u2)
     assert np.isfinite(m.score(X2, u2))
 

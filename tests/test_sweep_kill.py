@@ -97,9 +97,10 @@ def test_a_killed_job_is_incomplete_and_no_finished_job_is_lost(killed_sweep):
     result = subprocess.run([sys.executable, "-m", "topomap.app.sweep", str(sweep)],
                             capture_output=True, text=True, timeout=120)
     assert result.returncode == 0, result.stderr
-    assert "sweep of 2 jobs, 1 completed, 0 failed, 1 incomplete" in result.stdout
+    assert "sweep of 3 jobs, 1 completed, 0 failed, 1 incomplete, 1 not started" in result.stdout
     rows = {r["job"]: r for r in read_summary(sweep)}
-    assert sorted(rows) == ["0", "1"]
+    assert sorted(rows) == ["0", "1", "2"]
+    assert (rows["2"]["stop.n_states"], rows["2"]["status"]) == ("10", "not started")
     done, cut = rows["0"], rows["1"]
     assert (done["stop.n_states"], cut["stop.n_states"]) == ("8", "9")
     metrics = json.loads((sweep / done["output_dir"] / "metrics.json").read_text())
@@ -175,7 +176,7 @@ def test_a_half_written_job_folder_is_reported_with_its_reason(killed_sweep, tmp
     damage(job)
     assert report_main([str(sweep), "--no-figure"]) == 0
     rows = {r["job"]: r for r in read_summary(sweep)}
-    assert sorted(rows) == ["0", "1", "7"]
+    assert sorted(rows) == ["0", "1", "2", "7"]  # job 2 of the plan never started
     assert rows["0"]["status"] == "completed" and rows["1"]["status"] == "incomplete"
     status, reasons = DAMAGE[damage]
     assert rows["7"]["status"] == status

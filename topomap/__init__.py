@@ -24,7 +24,7 @@ _sys.modules[f"{__name__}.metrics"] = metrics
 
 __all__ = ["MapLearner", "TopologicalMap", "Trajectory", "load_trajectory", "save_trajectory",
            "read_rosbag", "write_rosbag", "metrics", "hookimpl"]
-__version__ = "0.1.0"
+__version__ = "0.2.0"
 
 
 def __getattr__(name):

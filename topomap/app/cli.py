@@ -5,6 +5,7 @@
     topomap data=file data.path=my_log.npz
     topomap -m clusters.ns=10,20,30 stop.n_states=25,30,40
     topomap --list-plugins                    # every component by kind, with its plugin
+    topomap --version                         # topomap's version (with Hydra's and Python's)
 
 The line from the command to the work, each step once: :func:`main` reads the plugins named on the
 command line (with Hydra's own parsers), loads the :class:`~topomap.app.registry.Registry`,
@@ -20,7 +21,8 @@ import sys
 from pathlib import Path
 
 from .config import check_overrides, store_configs
-from .experiment import run, run_job
+from .experiment import interrupt_on_sigterm, run, run_job, write_status
+from .outputs import OutputDirInUse, claim_output_dir
 from .registry import Registry
 
 log = logging.getLogger("topomap")
@@ -57,13 +59,15 @@ def plugins_named(overrides) -> list[str]:
     return []
 
 
-def prepare(overrides, registry: Registry | None = None) -> Registry:
+def prepare(overrides, registry: Registry | None = None, *, user_configs: bool = False) -> Registry:
     """What must happen before Hydra composes the config of ``topomap <overrides>``: the registry
     (of the plugins the overrides name, unless given), the command line screened
     (:func:`~topomap.app.config.check_overrides`: Hydra would refuse an unknown key or a preset
-    that does not fit with its own message) and every component's config stored."""
+    that does not fit with its own message) and every component's config stored.
+    ``user_configs``: the command line brings config folders of its own (``-cd``, ``-cp``,
+    ``-cn``), whose options topomap does not know."""
     registry = registry or Registry.load(plugins_named(overrides))
-    check_overrides(overrides, registry)
+    check_overrides(overrides, registry, user_configs=user_configs)
     store_configs(registry)
     return registry
 
@@ -158,33 +162,110 @@ def _task(cfg, registry: Registry):
         if results is None:
             return None
     else:
-        try:
-            results = run(cfg, out, registry=registry)
-        except ValueError as exc:
-            log.error("%s", exc)
-            sys.exit(f"topomap: error: {exc}")
+        results = _single_run(cfg, out, registry)
     print(f"topomap: {_summary(results, out)}\ntopomap: outputs in {out}")
     return results.get("ground_truth", {}).get("final", {}).get("ari")
+
+
+def _single_run(cfg, out, registry: Registry) -> dict:
+    """``topomap <overrides>`` without ``-m``: the run's results; a failed or interrupted run
+    leaves ``status.json`` in its folder saying so, and ends the command with one line."""
+    try:
+        if claim_output_dir(out, bool(cfg.output.overwrite)):
+            _restart_log(out)
+        return run(cfg, out, registry=registry)
+    except OutputDirInUse as exc:  # another run's folder: leave it as it is
+        sys.exit(f"topomap: error: {exc}")
+    except KeyboardInterrupt:
+        write_status(out, "interrupted")
+        log.warning("interrupted")
+        print(f"topomap: interrupted; {out}/status.json says so", file=sys.stderr)
+        sys.exit(INTERRUPTED)
+    except ValueError as exc:
+        write_status(out, "failed", exc)
+        log.error("%s", exc)
+        sys.exit(f"topomap: error: {exc}")
+    except Exception as exc:
+        write_status(out, "failed", exc)
+        raise
+
+
+def _restart_log(out) -> None:
+    """Start the run's log file in ``out`` afresh: with ``output.overwrite=true`` the previous
+    run's log lines go with its outputs (Hydra opened the file to append)."""
+    import logging
+
+    folder = Path(out).resolve()
+    for handler in logging.getLogger().handlers:
+        if isinstance(handler, logging.FileHandler) and Path(handler.baseFilename).parent == folder:
+            handler.acquire()
+            try:
+                handler.flush()
+                handler.stream.seek(0)
+                handler.stream.truncate()
+            finally:
+                handler.release()
+
+
+#: the exit status of a run or sweep ended by Ctrl-C or SIGTERM (128 + SIGINT, as shells report)
+INTERRUPTED = 130
+
+
+def _interrupted() -> None:
+    """After Ctrl-C or SIGTERM outside a single run's own handling: a sweep writes its report
+    (with the interrupted job and the jobs that did not start); then one line, exit 130."""
+    from .sweep import interrupted_sweep_report
+
+    where = interrupted_sweep_report()
+    print("topomap: interrupted" + (f"; sweep report in {where}" if where else ""),
+          file=sys.stderr)
+    sys.exit(INTERRUPTED)
+
+
+def version_line() -> str:
+    """What ``topomap --version`` prints: topomap's version, with Hydra's and Python's."""
+    import platform
+
+    from hydra import __version__ as hydra_version
+
+    from .. import __version__
+
+    return f"topomap {__version__} (Hydra {hydra_version}, Python {platform.python_version()})"
+
+
+def _user_configs(argv) -> bool:
+    """Whether the command line names config folders or a primary config of its own."""
+    flags = ("-cd", "--config-dir", "-cp", "--config-path", "-cn", "--config-name")
+    return any(a in flags or a.startswith(tuple(f + "=" for f in flags)) for a in argv)
 
 
 def main() -> None:
     """Console entry point."""
     import hydra
 
+    interrupt_on_sigterm()
     argv = sys.argv[1:]
+    if "--version" in argv:
+        print(version_line())
+        return
     if argv and argv[0] in ("--list-plugins", "plugins"):
         list_plugins(Registry.load(argv[1:]))
         return
     try:
-        registry = prepare(overrides_of(argv))
+        registry = prepare(overrides_of(argv), user_configs=_user_configs(argv))
     except ValueError as exc:
         sys.exit(f"topomap: error: {exc}")
+    except KeyboardInterrupt:
+        _interrupted()
 
     @hydra.main(version_base="1.3", config_path=f"pkg://{CONFIG_MODULE}", config_name="config")
     def topomap(cfg):
         return _task(cfg, registry)
 
-    topomap()
+    try:
+        topomap()
+    except KeyboardInterrupt:
+        _interrupted()
 
 
 if __name__ == "__main__":

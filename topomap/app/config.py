@@ -40,7 +40,7 @@ from .kinds import KINDS
 
 __all__ = ["Config", "RunConf", "LearnerConf", "OutputConf", "RUNTIME_ARGS", "schema_of",
            "learner_schema", "learner_key", "store_configs", "read_yaml_options", "check_overrides",
-           "check_config"]
+           "check_config", "group_options", "default_choices"]
 
 #: factory arguments the app passes itself; never config fields
 RUNTIME_ARGS = frozenset({"extra_actions"})
@@ -130,6 +130,8 @@ class OutputConf:
     compound_state: Optional[int] = None
     #: show progress bars on the terminal
     progress: bool = True
+    #: a run into a folder that holds another run's outputs replaces them (false: refuses)
+    overwrite: bool = False
 
 
 class Task(Enum):
@@ -275,9 +277,18 @@ def _unknown(key: str, valid, where: str = "") -> ValueError:
     return ValueError(f"unknown config key {key!r}{where}{hint} (topomap --help lists the config)")
 
 
-def check_overrides(overrides, registry) -> None:
-    """Refuse an override whose key no config declares, ``+`` or not, naming the nearest valid
-    key.  Group choices (``env=gridroom``), ``hydra.*`` and deletions are left to Hydra."""
+def check_overrides(overrides, registry, *, user_configs: bool = False) -> None:
+    """Screen a command line before Hydra composes it, in topomap's words.
+
+    * a key no config declares, ``+`` or not: refused, naming the nearest valid key;
+    * a group's option that does not exist (``env=gridrom``): refused, naming the nearest option;
+    * a key of a component that is not selected (``data.path`` while ``data=simulate``):
+      refused, naming the components that have that key (Hydra would offer to append it);
+    * a preset that sets a field the chosen component lacks (:func:`_check_preset`).
+
+    ``hydra.*`` and deletions are left to Hydra; so are the options of a group when the command
+    line brings config folders of its own (``user_configs``, or ``hydra.searchpath``), which may
+    add options."""
     from hydra.core.override_parser.overrides_parser import OverridesParser
 
     try:
@@ -292,10 +303,100 @@ def check_overrides(overrides, registry) -> None:
                 or key in groups or key in valid):
             continue
         raise _unknown(key, valid)
-    choices = {o.key_or_group: o.value() for o in parsed
-               if o.key_or_group in groups and not o.is_delete() and isinstance(o.value(), str)}
+    user_configs = user_configs or any(o.key_or_group.startswith("hydra.searchpath")
+                                       for o in parsed)
+    chosen = {}  # group -> the options the command line chooses (several in a sweep)
+    for o in parsed:
+        if o.key_or_group in groups and not o.is_delete():
+            options = _options_of(o)
+            if options is not None:
+                chosen[o.key_or_group] = options
+    if not user_configs:
+        for group, options in chosen.items():
+            for option in options:
+                _check_option(group, option, registry)
+    _check_component_keys(parsed, chosen, registry)
+    choices = {g: v[0] for g, v in chosen.items() if len(v) == 1}
     if "experiment" in choices:
         _check_preset(choices.pop("experiment"), choices, registry)
+
+
+def _options_of(override) -> list[str] | None:
+    """The options a group override chooses: one, the values of a plain sweep
+    (``env=office,gridroom``), or None when they are not spelt out (e.g. ``glob(...)``)."""
+    value = override.value()
+    if isinstance(value, str):
+        return [value]
+    if override.is_sweep_override() and override.is_discrete_sweep():
+        return [str(v) for v in override.sweep_string_iterator()]
+    return None
+
+
+def group_options(group: str, registry) -> list[str]:
+    """The options of a config group: the registered components (and the options of plugins'
+    YAML files) of a kind; the packaged and plugins' presets for ``experiment``."""
+    names = set(registry.names(group)) if group in KINDS else set()
+    if group == "experiment":
+        names |= {p.name[:-5] for p in (resources.files("topomap.conf") / "experiment").iterdir()
+                  if p.name.endswith(".yaml")}
+    for path, _ in registry.config_paths():
+        try:
+            names |= {option for g, option, _, _ in read_yaml_options(path) if g == group}
+        except ValueError:
+            continue  # store_configs names the broken folder
+    return sorted(names)
+
+
+def _check_option(group: str, option: str, registry) -> None:
+    """Refuse ``<group>=<option>`` when the group has no such option, naming the nearest one."""
+    import difflib
+
+    options = group_options(group, registry)
+    if option in options or not options:
+        return
+    close = difflib.get_close_matches(option, options, n=1, cutoff=0.6)
+    hint = f"; did you mean {group}={close[0]}?" if close else ""
+    raise ValueError(f"unknown {group}={option}{hint} (the options: {', '.join(options)})")
+
+
+def default_choices() -> dict[str, str]:
+    """The component each group selects when the command line does not choose (the defaults
+    list of ``conf/config.yaml``)."""
+    text = (resources.files("topomap.conf") / "config.yaml").read_text()
+    defaults = OmegaConf.to_container(OmegaConf.create(text)).get("defaults") or []
+    return {k: v for d in defaults if isinstance(d, dict) for k, v in d.items() if k in KINDS}
+
+
+def _check_component_keys(parsed, chosen: dict, registry) -> None:
+    """Refuse ``<group>.<key>=...`` when no selected component of ``group`` has ``key``, naming
+    the components that have it (``data.path`` belongs to ``data=file``)."""
+    preset = {}
+    if len(chosen.get("experiment", [])) == 1:
+        preset = {k.split("/")[-1]: v for d in (_load_preset(chosen["experiment"][0]) or {})
+                  .get("defaults") or [] if isinstance(d, dict) for k, v in d.items()}
+    defaults = default_choices()
+    for o in parsed:
+        group, dot, key = o.key_or_group.lstrip("+~").partition(".")
+        if o.is_delete() or not dot or group not in KINDS or "." in key:
+            continue
+        told = group in chosen
+        selected = chosen.get(group) or [preset.get(group) or defaults.get(group)]
+        for option in selected:
+            if option not in registry.names(group):
+                continue
+            if key in fields_of(schema_of(registry.get(group, option))):
+                continue
+            owners = [n for n in registry.names(group)
+                      if key in fields_of(schema_of(registry.get(group, n)))]
+            if not owners:
+                continue  # no component has it: the unknown-key check speaks
+            more = f" (and {', '.join(f'{group}={n}' for n in owners[1:])})" if owners[1:] else ""
+            where = f"{group}={owners[0]}{more}"
+            if told:
+                raise ValueError(f"{group}.{key} is not a key of {group}={option}: it belongs "
+                                 f"to {where}; leave it out, or choose {group}={owners[0]}")
+            raise ValueError(f"{group}.{key} belongs to {where}, not to {group}={option} (the "
+                             f"default); add {group}={owners[0]}")
 
 
 def _load_preset(name: str) -> dict | None:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from ..core import metrics as M
 from ..core.learner import MapLearner
+from ..core.progress import report
 from ..core.data.trajectory import Trajectory
 
 __all__ = ["evaluate", "localization_scores"]
@@ -24,17 +25,19 @@ def evaluate(learner: MapLearner, traj: Trajectory, heldout: Trajectory | None,
         out["n_states"]["split"] = learner.map_split_.n_states
     if traj.places is not None:
         out["ground_truth"] = {
-            "phase1": M.evaluate(learner.labels_phase1_, traj.places),
-            "final": M.evaluate(learner.labels_, traj.places),
+            "phase1": M.evaluate(traj.places, learner.labels_phase1_),
+            "final": M.evaluate(traj.places, learner.labels_),
         }
         if refined:
-            out["ground_truth"]["split"] = M.evaluate(learner.labels_split_, traj.places)
+            out["ground_truth"]["split"] = M.evaluate(traj.places, learner.labels_split_)
     if heldout is None:
         out.update(heldout_loglik=None, heldout_steps=0)
     else:
+        report("held-out scoring", 0, 1)
         out.update(heldout_loglik=learner.map_.score(heldout.observations, heldout.actions,
                                                      gds=heldout.gds, lengths=heldout.lengths),
                    heldout_steps=len(heldout))
+        report("held-out scoring", 1, 1)
     if parts is not None and parts.evaluate is not None:
         if parts.world is None or traj.places is None:
             raise ValueError("evaluate=navigation needs a simulated world with ground truth "
@@ -52,6 +55,6 @@ def localization_scores(m, traj: Trajectory, beliefs, viterbi) -> dict:
            "loglik": m.score(traj.observations, traj.actions, gds=traj.gds, lengths=traj.lengths),
            "mean_max_belief": float(beliefs.max(axis=1).mean())}
     if traj.places is not None:
-        out["ground_truth"] = {"filter": M.evaluate(beliefs.argmax(axis=1), traj.places),
-                               "viterbi": M.evaluate(viterbi, traj.places)}
+        out["ground_truth"] = {"filter": M.evaluate(traj.places, beliefs.argmax(axis=1)),
+                               "viterbi": M.evaluate(traj.places, viterbi)}
     return out

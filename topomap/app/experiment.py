@@ -19,20 +19,19 @@ from pathlib import Path
 from ..core.checks import ParameterError
 from ..core.learner import MapLearner
 from ..core.map.model import TopologicalMap
+from ..core.progress import reporting
 from .config import check_config, learner_key
 from .data import TrajectoryCache, trajectory_key
 from .evaluate import evaluate, localization_scores
-from .outputs import versions, write_json, write_localization, write_outputs
+from .outputs import (STATUS_FILE, OutputDirInUse, claim_output_dir, versions, write_json,
+                      write_localization, write_outputs)
 from .kinds import KINDS
 from .registry import Parts, Registry
 
 log = logging.getLogger("topomap")
 
 __all__ = ["run", "run_job", "make_learner", "load_data", "config_keys", "Progress", "STATUS_FILE",
-           "CACHE_DIR"]
-
-#: a sweep job's status file (``completed`` or ``failed`` with the error)
-STATUS_FILE = "status.json"
+           "CACHE_DIR", "write_status", "interrupt_on_sigterm"]
 #: the folder of a sweep where its jobs share simulated trajectories
 CACHE_DIR = ".cache"
 #: what the less obvious numbers of metrics.json measure
@@ -53,8 +52,13 @@ def run(cfg, output_dir, *, registry: Registry | None = None, cache_dir=None) ->
     from it (:meth:`Registry.build <topomap.app.registry.Registry.build>`), before any data is
     read; then ``task=learn`` (the default) learns a map (:func:`learn`) and ``task=localize``
     applies the saved ``map`` to the data (:func:`localize`).  Returns the metrics dict.
+
+    A folder that holds another run's outputs is refused (:class:`~topomap.app.outputs.OutputDirInUse`)
+    unless ``output.overwrite`` is true, which removes them first
+    (:func:`~topomap.app.outputs.claim_output_dir`).
     """
     cfg = _as_dict(cfg)
+    claim_output_dir(output_dir, bool((cfg.get("output") or {}).get("overwrite", False)))
     registry = registry or Registry.load(cfg.get("plugins") or ())
     for err in registry.errors:
         log.warning("%s", err)
@@ -76,17 +80,29 @@ def learn(cfg: dict, parts: Parts, output_dir, registry: Registry, cache_dir=Non
     shared between runs (the jobs of a sweep).
     """
     plugin_metrics: dict = {}
-    with Progress(cfg["output"].get("progress", True) and sys.stderr.isatty()) as progress:
+    shown = cfg["output"].get("progress", True) and sys.stderr.isatty()
+    with Progress(shown) as progress, reporting(progress.on_progress if shown else None):
         learner = make_learner(cfg, parts, [progress.on_event, registry.learner_events(plugin_metrics)])
         with config_keys():
             learner.check_params(n_gds=getattr(parts.world, "n_gds", 0))  # before any simulation
+        check_room_for_clusters(cfg, parts)
         (traj, heldout), t_data = load_data(cfg, parts, registry, cache_dir, progress,
                                             learner=learner)
+        check_cluster_count(getattr(parts.clusters, "ns", None), traj)
         with config_keys():
             learner.fit_trajectory(traj)
-    t0 = time.perf_counter()
-    results = evaluate(learner, traj, heldout, parts)
-    t_data["evaluate"] = time.perf_counter() - t0
+        _report_missed_target(learner)
+        t0 = time.perf_counter()
+        results = evaluate(learner, traj, heldout, parts)
+        t_data["evaluate"] = time.perf_counter() - t0
+        _write_learned(cfg, parts, registry, output_dir, traj, learner, results, t_data,
+                       plugin_metrics)
+    return results
+
+
+def _write_learned(cfg, parts, registry, output_dir, traj, learner, results, t_data,
+                   plugin_metrics) -> None:
+    """Complete the results of a learned map and write the run's files."""
     results.update({
         "split_history": learner.split_history_, "entropy_trace": learner.entropies_,
         "stop_reason": learner.stop_reason_, "timings": {**t_data, **learner.timings_},
@@ -97,7 +113,68 @@ def learn(cfg: dict, parts: Parts, output_dir, registry: Registry, cache_dir=Non
                       for name, kind in KINDS.items() if kind.learner_arg},  # the learner's
     })
     write_outputs(Path(output_dir), traj, learner, results, cfg, parts.world)
-    return results
+
+
+def check_room_for_clusters(cfg: dict, parts: Parts) -> None:
+    """Refuse, before any data or BIC, a told ``stop.n_states`` below the states phase 1 may
+    create when the cluster count is chosen from the data (``clusters=bic``: up to
+    ``clusters.max_ns``, plus the world's GDS): the choice takes a while, and a count above
+    the told states would end the run after it.  The rule is conservative: it refuses even when
+    the data would have chosen fewer clusters."""
+    from ..core.split.stopping import TargetStates
+
+    most = getattr(parts.clusters, "max_ns", None)
+    least = getattr(parts.clusters, "min_ns", None)
+    stop = parts.stop
+    if most is None or most == least or not isinstance(stop, TargetStates):
+        return
+    n_gds = int(getattr(parts.world, "n_gds", 0) or 0)
+    if stop.n_states >= most + n_gds:
+        return
+    gds = f" plus the {n_gds} GDS" if n_gds else ""
+    comp = cfg["clusters"]["component"]
+    raise ValueError(
+        f"stop.n_states={stop.n_states} is below the {most + n_gds} states phase 1 may create: "
+        f"clusters={comp} chooses up to clusters.max_ns={most} clusters{gds}; give "
+        f"stop.n_states={most + n_gds} or more, clusters.max_ns={stop.n_states - n_gds} or less, "
+        "or stop=auto (the number of states chosen from the data too)")
+
+
+#: fewer steps than this per K-means symbol, on average, and a run warns (see
+#: :func:`check_cluster_count`)
+STEPS_PER_SYMBOL = 10
+
+
+def check_cluster_count(ns: int | None, traj) -> None:
+    """Refuse ``clusters.ns`` above half the steps K-means clusters (the steps at no GDS): most
+    symbols would hold a single step, whose transitions cannot be estimated; warn below
+    :data:`STEPS_PER_SYMBOL` steps per symbol on average, where the symbols' observation models
+    and transition counts are poorly estimated.  ``ns`` None: the count is chosen from the data
+    (``clusters=bic``), nothing to check."""
+    if ns is None:
+        return
+    n = int((traj.gds < 0).sum()) if traj.gds is not None else len(traj)
+    if 2 * ns > n:
+        raise ValueError(f"clusters.ns={ns} is more than half of the {n} steps to cluster: most "
+                         f"symbols would hold a single step, whose transitions cannot be "
+                         f"estimated; give at most clusters.ns={n // 2}, or more steps")
+    if ns * STEPS_PER_SYMBOL > n:
+        log.warning("clusters.ns=%d leaves %.1f steps per symbol on average (%d steps to "
+                    "cluster): below %d, the symbols' observation models and transitions are "
+                    "poorly estimated; lower clusters.ns or give more steps", ns, n / ns, n,
+                    STEPS_PER_SYMBOL)
+
+
+def _report_missed_target(learner) -> None:
+    """Warn when the split stopped short of the told number of states, saying why."""
+    from ..core.split.stopping import TargetStates
+
+    rule = learner.stopping
+    told = rule.n_states if isinstance(rule, TargetStates) else None
+    made = learner.map_split_.n_states
+    if told is not None and made < told:
+        log.warning("stop.n_states=%d not reached: the split stopped at %d states (%s)", told,
+                    made, learner.stop_reason_)
 
 
 def localize(cfg: dict, parts: Parts, output_dir) -> dict:
@@ -222,6 +299,24 @@ class Progress:
         """``explorer``, ticking a "simulating" bar once per chosen action."""
         return _TickingExplorer(explorer, self._bar(total, "simulating"))
 
+    def on_progress(self, stage: str, done: int, total: int | None) -> None:
+        """A listener of the core's loops (:mod:`topomap.core.progress`): one bar per running
+        loop (BIC, EM, held-out scoring, drawing the figures), closed when the loop ends."""
+        bars = self.__dict__.setdefault("_stages", {})
+        bar = bars.get(stage)
+        if bar is not None and done < bar.n:  # the loop starts again (another EM round)
+            bar.close()
+            bar = None
+        if bar is None:
+            bar = bars[stage] = self._bar(total, stage)
+        if total is not None and bar.total != total:
+            bar.total = total
+            bar.refresh()
+        bar.update(done - bar.n)
+        if total is not None and done >= total:
+            bar.close()
+            del bars[stage]
+
     def on_event(self, event, info) -> None:
         """A learner callback: log phase 1, tick a "splitting" bar per split."""
         if event == "phase1":
@@ -236,6 +331,8 @@ class Progress:
             r = info["record"]
             log.debug("split %d: state %d -> %d (gain %.4f)", r["iteration"], r["state"],
                       r["new_state"], r["gain"])
+        elif event == "done" and getattr(self, "splitting", None) is not None:
+            self.splitting.close()
 
 
 class _TickingExplorer:
@@ -264,26 +361,52 @@ def run_job(cfg, output_dir, *, sweep_dir, registry=None) -> dict | None:
 
     Trajectories are shared through ``<sweep_dir>/.cache``.  Any exception is logged and written to
     ``output_dir/status.json`` (``{"status": "failed", "error": ..., "traceback": ...}``) rather than
-    raised, so the other jobs and the sweep report are not lost.  ``status.json`` also holds the
-    job's wall time, process id and host.
+    raised, so the other jobs and the sweep report are not lost.  An interrupt (Ctrl-C, SIGTERM)
+    is written as ``{"status": "interrupted"}`` and raised again: it ends the sweep.
+    ``status.json`` also holds the job's wall time, process id and host.  A job folder that holds
+    another run's outputs is left as it is (the error is logged).
     """
     out = Path(output_dir)
     t0 = time.perf_counter()
     try:
         results = run(cfg, out, registry=registry, cache_dir=Path(sweep_dir) / CACHE_DIR)
+    except OutputDirInUse as exc:
+        log.error("job not run: %s", exc)
+        return None
+    except KeyboardInterrupt:
+        write_status(out, "interrupted", job_time=time.perf_counter() - t0)
+        raise
     except Exception as exc:
-        error = f"{type(exc).__name__}: {exc}"
         if isinstance(exc, ValueError):
             log.error("job failed: %s", exc)
         else:
-            log.exception("job failed: %s", error)
-        _write_status(out, {"status": "failed", "error": error,
-                            "traceback": traceback.format_exc(),
-                            "job_time": time.perf_counter() - t0})
+            log.exception("job failed: %s", f"{type(exc).__name__}: {exc}")
+        write_status(out, "failed", exc, job_time=time.perf_counter() - t0)
         return None
-    _write_status(out, {"status": "completed", "error": None, "job_time": time.perf_counter() - t0})
+    write_status(out, "completed", job_time=time.perf_counter() - t0)
     return results
+
+
+def write_status(out, status: str, error: BaseException | None = None, **extra) -> None:
+    """Write ``out/status.json``: the ``status`` (``completed``, ``failed``, ``interrupted``),
+    the ``error`` (``"<type>: <message>"``) and its traceback, the process id and the host."""
+    record = {"status": status, "error": None, **extra}
+    if error is not None:
+        record["error"] = f"{type(error).__name__}: {error}"
+        record["traceback"] = "".join(traceback.format_exception(error))
+    _write_status(Path(out), record)
 
 
 def _write_status(out: Path, status: dict) -> None:
     write_json(out / STATUS_FILE, {**status, "pid": os.getpid(), "host": socket.gethostname()})
+
+
+def interrupt_on_sigterm() -> None:
+    """Make SIGTERM end the process as Ctrl-C does (a :class:`KeyboardInterrupt`), so that a
+    killed run or sweep ends as cleanly as an interrupted one."""
+    import signal
+
+    def handler(signum, frame):
+        raise KeyboardInterrupt(f"signal {signal.Signals(signum).name}")
+
+    signal.signal(signal.SIGTERM, handler)

@@ -96,7 +96,7 @@ class TopomapSpecs:
         Called before the world is built; the actions of all plugins are appended after the world's
         own, in plugin order, and passed to the environment factory as ``extra_actions``.  For the
         office world an action is an object with ``name``, ``is_executable(world, pose)`` and
-        ``execute(world, pose, rng) -> pose`` (see :class:`topomap.envs.office.Action`).
+        ``execute(world, pose, rng) -> pose`` (see :class:`topomap.worlds.office.Action`).
         """
 
     @hookspec

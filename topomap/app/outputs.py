@@ -3,8 +3,13 @@
 from __future__ import annotations
 
 import json
+import os
+import shutil
+import signal
 import sys
+import tempfile
 import time
+from contextlib import contextmanager
 from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 
@@ -13,8 +18,15 @@ import numpy as np
 from ..core.data.files import atomic_write
 from ..core.data.trajectory import save_trajectory
 
-__all__ = ["OUTPUT_FILES", "FIGURE_FILES", "MAPPING_FIGURES", "LOCALIZE_FILES", "write_outputs",
-           "write_localization", "versions", "write_json"]
+__all__ = ["OUTPUT_FILES", "FIGURE_FILES", "MAPPING_FIGURES", "LOCALIZE_FILES", "STATUS_FILE",
+           "write_outputs", "write_localization", "versions", "write_json", "staged",
+           "held_signals", "own_files", "claim_output_dir", "OutputDirInUse"]
+
+#: the status of a sweep job (``completed``, ``failed`` or ``interrupted``) and of a run that
+#: failed or was interrupted, with the error
+STATUS_FILE = "status.json"
+#: where a run stages its files before they move into its folder (hidden, removed afterwards)
+STAGE_PREFIX = ".topomap-partial-"
 
 #: files every run writes, with what they hold (figures only with ``output.figures``)
 OUTPUT_FILES = {
@@ -31,15 +43,89 @@ LOCALIZE_FILES = {
     "metrics.json": "log-likelihood, ARI/NMI/purity of both state sequences, config, versions",
 }
 FIGURE_FILES = {
-    "fig_states.png": "observation points coloured by state (the paper's Fig. 4, right)",
+    "fig_states.png": "observation points coloured by state after clustering, after splitting and "
+                      "(with refine) after the refinement (the paper's Fig. 4, right)",
     "fig_split.png": "a compound state before and after its split, with transition tables (Figs. 5-6)",
     "fig_map.png": "the learned map at the states' mean positions, arcs where P > min_prob (Fig. 7)",
-    "fig_entropy.png": "H(u|x), H(x'|x,u) and their sum after each split",
+    "fig_entropy.png": "H(u|x), H(x'|x,u) and their sum after each split (and after the refinement)",
 }
 #: the figure a run that maps while exploring (``data.curve_every`` > 0) adds
 MAPPING_FIGURES = {
     "fig_mapping.png": "mapping while exploring: the map's ARI against the steps taken",
 }
+
+
+def own_files(out) -> list[Path]:
+    """The files of ``out`` that a topomap run writes (every file of :data:`OUTPUT_FILES`,
+    :data:`FIGURE_FILES`, :data:`MAPPING_FIGURES`, :data:`LOCALIZE_FILES`, ``status.json``, and
+    any staging folder a killed run left); never a file topomap does not know, nor Hydra's
+    ``.hydra/`` and log."""
+    out = Path(out)
+    names = {*OUTPUT_FILES, *FIGURE_FILES, *MAPPING_FIGURES, *LOCALIZE_FILES, STATUS_FILE}
+    if not out.is_dir():
+        return []
+    return sorted(p for p in out.iterdir()
+                  if p.name in names or (p.is_dir() and p.name.startswith(STAGE_PREFIX)))
+
+
+class OutputDirInUse(ValueError):
+    """The output folder holds another run's outputs (and ``output.overwrite`` is false)."""
+
+
+def claim_output_dir(out, overwrite: bool = False) -> list[str]:
+    """Make ``out`` ready for a run: refuse (:class:`OutputDirInUse`) when it holds another run's
+    outputs (:func:`own_files`), or with ``overwrite`` remove them.  Returns the names removed.
+    A folder whose run failed or was interrupted (it holds ``status.json`` and nothing else of
+    topomap's) is free: its ``status.json`` is removed."""
+    found = own_files(out)
+    if [p.name for p in found if not p.name.startswith(STAGE_PREFIX)] == [STATUS_FILE]:
+        for p in found:
+            shutil.rmtree(p) if p.is_dir() else p.unlink()
+        return []
+    if found and not overwrite:
+        names = ", ".join(p.name for p in found[:3]) + (", ..." if len(found) > 3 else "")
+        raise OutputDirInUse(f"the output folder {out} holds another run's outputs ({names}); "
+                             "choose another hydra.run.dir, or give output.overwrite=true to "
+                             "replace them")
+    for p in found:
+        shutil.rmtree(p) if p.is_dir() else p.unlink()
+    return [p.name for p in found]
+
+
+@contextmanager
+def held_signals():
+    """Hold SIGINT and SIGTERM back inside (they are delivered on leaving): a few renames that
+    must happen together are not cut in half by Ctrl-C or a kill."""
+    sigs = {signal.SIGINT, signal.SIGTERM}
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, sigs)
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
+
+#: files moved into a run's folder last, in this order: a reader that finds them finds the rest
+_LAST = ("metrics.json", STATUS_FILE)
+
+
+@contextmanager
+def staged(out):
+    """A hidden folder inside ``out`` to write a run's files into.  When the block succeeds
+    they move into ``out`` together (``metrics.json`` last, signals held meanwhile), so that
+    ``out`` never holds some of a run's files without the rest; when it fails, or is
+    interrupted, the folder is removed and ``out`` is left as it was."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    stage = Path(tempfile.mkdtemp(prefix=STAGE_PREFIX, dir=out))
+    try:
+        yield stage
+        names = sorted((p.name for p in stage.iterdir()),
+                       key=lambda n: (_LAST.index(n) if n in _LAST else -1, n))
+        with held_signals():
+            for name in names:
+                os.replace(stage / name, out / name)
+    finally:
+        shutil.rmtree(stage, ignore_errors=True)
 
 
 def versions() -> dict:
@@ -81,9 +167,13 @@ def write_states(path: Path, traj, **columns) -> None:
 
 
 def write_outputs(out: Path, traj, learner, results, cfg, world=None) -> None:
-    """Write every output file of a run into ``out`` (each atomically; metrics.json last)."""
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    """Write every output file of a run into ``out``: all of them are written into a staging
+    folder first and move into ``out`` together (:func:`staged`)."""
+    with staged(out) as stage:
+        _write_outputs(stage, traj, learner, results, cfg, world)
+
+
+def _write_outputs(out: Path, traj, learner, results, cfg, world=None) -> None:
     t0 = time.perf_counter()
     save_trajectory(traj, out / "trajectory.npz")
     m = learner.map_
@@ -101,9 +191,13 @@ def write_outputs(out: Path, traj, learner, results, cfg, world=None) -> None:
 
 
 def write_localization(out: Path, traj, beliefs, viterbi, results) -> None:
-    """Write the files of a ``task=localize`` run (:data:`LOCALIZE_FILES`) into ``out``."""
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    """Write the files of a ``task=localize`` run (:data:`LOCALIZE_FILES`) into ``out`` (staged
+    like :func:`write_outputs`)."""
+    with staged(out) as stage:
+        _write_localization(stage, traj, beliefs, viterbi, results)
+
+
+def _write_localization(out: Path, traj, beliefs, viterbi, results) -> None:
     write_states(out / "states.csv", traj, state_filter=beliefs.argmax(axis=1),
                  state_viterbi=viterbi)
 

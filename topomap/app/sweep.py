@@ -40,7 +40,7 @@ from hydra.experimental.callback import Callback
 from ..core.data.files import atomic_write
 from .sweep_columns import (METRICS, axis_values, best_row, check_metric, header, mean, no_value,
                             number, row, short)
-from .sweep_jobs import read_jobs, swept_keys
+from .sweep_jobs import not_started, planned_jobs, read_jobs, swept_keys
 
 log = logging.getLogger("topomap")
 
@@ -62,7 +62,8 @@ class Report:
 
     @property
     def failed(self) -> list[dict]:
-        """Rows of jobs that did not complete (``failed`` or ``incomplete``)."""
+        """Rows of jobs that did not complete (``failed``, ``interrupted``, ``incomplete`` or
+        ``not started``)."""
         return [r for r in self.rows if r["status"] != "completed"]
 
 
@@ -71,7 +72,8 @@ def write_report(sweep_dir, *, metric: str = "ari", figure: bool = True,
     """Write ``summary.csv`` (and ``summary_<metric>.png``) for the sweep in ``sweep_dir``.
 
     ``multirun_cfg`` (the multirun config; by default ``sweep_dir/multirun.yaml``) names the swept
-    keys.  Returns a :class:`Report`.
+    keys and, for Hydra's basic sweeper, every job the sweep was to run: a job without a folder
+    is a row ``not started``.  Returns a :class:`Report`.
     """
     check_metric(metric)
     sweep_dir = Path(sweep_dir)
@@ -80,6 +82,9 @@ def write_report(sweep_dir, *, metric: str = "ari", figure: bool = True,
 
         multirun_cfg = OmegaConf.load(sweep_dir / "multirun.yaml")
     jobs = read_jobs(sweep_dir)
+    if jobs:
+        jobs = sorted(jobs + not_started(jobs, planned_jobs(multirun_cfg), sweep_dir),
+                      key=lambda j: j.num)
     keys = swept_keys(multirun_cfg, jobs)
     rows = [row(j, keys, sweep_dir) for j in jobs]
     summary = _write_summary(sweep_dir / SUMMARY_FILE, header(keys), rows)
@@ -150,10 +155,11 @@ def _table(report: Report) -> str:
 def _print_report(report: Report, file=None) -> None:
     file = sys.stdout if file is None else file
     n, failed = len(report.rows), report.failed
-    n_incomplete = sum(r["status"] == "incomplete" for r in failed)
+    counts = {st: sum(r["status"] == st for r in failed)
+              for st in ("interrupted", "incomplete", "not started")}
     print(f"topomap: sweep of {n} jobs, {n - len(failed)} completed, "
-          f"{len(failed) - n_incomplete} failed" +
-          (f", {n_incomplete} incomplete" if n_incomplete else ""), file=file)
+          f"{len(failed) - sum(counts.values())} failed" +
+          "".join(f", {k} {st}" for st, k in counts.items() if k), file=file)
     table = _table(report)
     if table:
         print(f"{METRICS[report.metric].label}:\n{table}", file=file)
@@ -161,10 +167,12 @@ def _print_report(report: Report, file=None) -> None:
         setting = " ".join(f"{k}={report.best[k]}" for k in report.keys)
         print(f"topomap: best {report.metric}: {number(report.best[report.metric]):.4g} "
               f"(job {report.best['job']}: {setting})", file=file)
-    for r in failed[:5]:
-        print(f"topomap: job {r['job']} {r['status']}: {r['error']}", file=file)
-    if len(failed) > 5:
-        print(f"topomap: ... and {len(failed) - 5} more (see {report.summary.name})", file=file)
+    listed = [r for r in failed if r["status"] != "not started"]
+    for r in listed[:5]:
+        print(f"topomap: job {r['job']} {r['status']}" + (f": {r['error']}" if r["error"] else ""),
+              file=file)
+    if len(listed) > 5:
+        print(f"topomap: ... and {len(listed) - 5} more (see {report.summary.name})", file=file)
     print(f"topomap: report in {report.summary}" +
           (f" and {report.figure.name}" if report.figure else ""), file=file)
 
@@ -185,11 +193,19 @@ class SweepReport(Callback):
         rows of the report and the command succeeds).
     """
 
+    #: the sweep under way in this process (its report and multirun config), for
+    #: :func:`interrupted_sweep_report`
+    running = None
+
     def __init__(self, metric: str = "ari", figure: bool = True, strict: bool = False):
         check_metric(metric, "hydra.callbacks.sweep_report.metric")
         self.metric, self.figure, self.strict = metric, bool(figure), bool(strict)
 
+    def on_multirun_start(self, config, **kwargs) -> None:
+        SweepReport.running = (self, config)
+
     def on_multirun_end(self, config, **kwargs) -> None:
+        SweepReport.running = None
         sweep_dir = Path(str(config.hydra.sweep.dir))
         report = write_report(sweep_dir, metric=self.metric, figure=self.figure,
                               multirun_cfg=config)
@@ -200,6 +216,25 @@ class SweepReport(Callback):
             if self.strict:
                 sys.exit(f"topomap: error: {len(report.failed)} of {len(report.rows)} jobs "
                          f"did not complete; see {report.summary}")
+
+
+def interrupted_sweep_report() -> Path | None:
+    """After Ctrl-C or SIGTERM ended the sweep under way in this process: write and print its
+    report (the interrupted job and those that did not start are rows of it); returns the
+    summary's path, None when no sweep was under way."""
+    if SweepReport.running is None:
+        return None
+    callback, config = SweepReport.running
+    SweepReport.running = None
+    sweep_dir = Path(str(config.hydra.sweep.dir))
+    from omegaconf import OmegaConf
+
+    if (sweep_dir / "multirun.yaml").is_file():  # the job config Hydra saved, with the plan
+        config = OmegaConf.load(sweep_dir / "multirun.yaml")
+    report = write_report(sweep_dir, metric=callback.metric, figure=callback.figure,
+                          multirun_cfg=config)
+    _print_report(report)
+    return report.summary
 
 
 def main(argv=None) -> int:

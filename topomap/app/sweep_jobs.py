@@ -14,13 +14,18 @@ from pathlib import Path
 
 from .experiment import CACHE_DIR, STATUS_FILE
 
-__all__ = ["Job", "read_jobs", "swept_keys"]
+__all__ = ["Job", "read_jobs", "swept_keys", "planned_jobs", "not_started", "STATUSES"]
+
+#: the status of a job in the report: completed, failed or interrupted (its ``status.json``
+#: says so), incomplete (no status: still running, killed or lost) or not started (a job of
+#: the sweep's plan without a folder)
+STATUSES = ("completed", "failed", "interrupted", "incomplete", "not started")
 
 
 @dataclass
 class Job:
     """What one job folder of a sweep holds: its number and folder, its overrides (``{key:
-    value}``), its ``status`` (``completed``, ``failed`` or ``incomplete``) and ``error``, its
+    value}``), its ``status`` (one of :data:`STATUSES`) and ``error``, its
     ``metrics.json`` (``{}`` unless completed) and its ``status.json`` (``{}`` if none)."""
 
     num: int
@@ -84,7 +89,7 @@ def _read_job(path: Path, index: int) -> Job:
         if not (path / STATUS_FILE).exists() and not (path / "metrics.json").exists():
             problems.append(f"no {STATUS_FILE} or metrics.json: the job is still running, or "
                             "was killed or lost")
-    elif state not in ("completed", "failed"):
+    elif state not in ("completed", "failed", "interrupted"):
         problems.append(f"{STATUS_FILE} gives the unknown status {state!r}")
         state = "incomplete"
     if state == "completed" and not metrics:
@@ -136,6 +141,39 @@ def _one_line(exc: BaseException) -> str:
     """An exception's message on one line, cut to 120 characters."""
     text = " ".join(str(exc).split()) or type(exc).__name__
     return text if len(text) <= 120 else text[:117] + "..."
+
+
+def planned_jobs(multirun_cfg) -> list[dict[str, str]] | None:
+    """The overrides (``{key: value}``) of every job the sweep of ``multirun_cfg`` was to run, in
+    job order, when its sweeper plans them ahead (Hydra's basic sweeper: every combination of
+    the swept values); None when it does not tell (e.g. an optimising sweeper)."""
+    from hydra._internal.core_plugins.basic_sweeper import BasicSweeper
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+    from omegaconf import OmegaConf
+
+    if multirun_cfg is None:
+        return None
+    target = OmegaConf.select(multirun_cfg, "hydra.sweeper._target_", default=None)
+    if target != f"{BasicSweeper.__module__}.{BasicSweeper.__name__}":
+        return None
+    task = OmegaConf.select(multirun_cfg, "hydra.overrides.task", default=None)
+    params = OmegaConf.select(multirun_cfg, "hydra.sweeper.params", default=None)
+    texts = [f"{k}={v}" for k, v in (OmegaConf.to_container(params) if params else {}).items()]
+    texts += [str(o) for o in (OmegaConf.to_container(task) if task is not None else [])]
+    try:  # as the basic sweeper reads them: its params, then the command line's
+        overrides = OverridesParser.create().parse_overrides(texts)
+        batches = BasicSweeper.split_arguments(overrides, None)
+    except Exception:  # an override the basic sweeper would not take: no plan to compare
+        return None
+    return [dict(_key_value(o) for o in job) for batch in batches for job in batch]
+
+
+def not_started(jobs: list[Job], plan, sweep_dir) -> list[Job]:
+    """The jobs of ``plan`` (:func:`planned_jobs`) that have no folder among ``jobs``."""
+    seen = {j.num for j in jobs}
+    return [Job(num=i, path=Path(sweep_dir) / str(i), overrides=overrides, status="not started",
+                error="the sweep ended before this job started")
+            for i, overrides in enumerate(plan or ()) if i not in seen]
 
 
 def _sweep_overrides(multirun_cfg) -> list[str]:

@@ -5,10 +5,14 @@ from __future__ import annotations
 import copy
 import time
 from contextlib import contextmanager
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
+from typing import Self
 
 import numpy as np
+from numpy.typing import ArrayLike
 from sklearn.base import BaseEstimator
+from sklearn.utils.validation import check_is_fitted
 
 from . import online
 from .checks import ParameterError, check_count
@@ -176,8 +180,10 @@ class MapLearner(BaseEstimator):
         self.__dict__["_labels"] = labels
 
     # ------------------------------------------------------------------ the paper's method
-    def fit(self, observations, actions, gds=None, lengths=None, *, n_actions=None,
-            action_names=None, gds_names=None):
+    def fit(self, observations: ArrayLike, actions: ArrayLike, gds: ArrayLike | None = None,
+            lengths: ArrayLike | None = None, *, n_actions: int | None = None,
+            action_names: Sequence[str] | None = None,
+            gds_names: Sequence[str] | None = None) -> Self:
         """Learn the map.  Returns ``self``.
 
         ``observations`` (T, D), ``actions`` (T,) ints in ``[0, n_actions)``, ``gds`` (T,) ints with
@@ -457,6 +463,9 @@ class MapLearner(BaseEstimator):
                                  f"must be 'diag' or 'full', got {self.covariance_type!r}")
         if not (isinstance(self.reg_covar, (int, float)) and self.reg_covar > 0):
             raise ParameterError("reg_covar", f"must be a positive number, got {self.reg_covar!r}")
+        check_count(self.n_init, "n_init")
+        check_count(self.sample_size, "sample_size", allow_none=True)
+        self._online_settings()
         return clusters, make_metric(self.metric), criterion, stopping
 
     @contextmanager
@@ -508,3 +517,19 @@ class MapLearner(BaseEstimator):
 
     def fit_predict(self, observations, actions, gds=None, lengths=None, **kwargs) -> np.ndarray:
         return self.fit(observations, actions, gds, lengths, **kwargs).labels_
+
+    def predict(self, observations: ArrayLike, actions: ArrayLike, gds: ArrayLike | None = None,
+                lengths: ArrayLike | None = None) -> np.ndarray:
+        """The most likely state of every step of a new sequence (Viterbi on the learned map:
+        :meth:`TopologicalMap.predict <topomap.core.map.model.TopologicalMap.predict>`).
+        Raises scikit-learn's ``NotFittedError`` before :meth:`fit` (or :meth:`partial_fit`)."""
+        check_is_fitted(self, "map_")
+        return self.map_.predict(observations, actions, gds=gds, lengths=lengths)
+
+    def score(self, observations: ArrayLike, actions: ArrayLike, gds: ArrayLike | None = None,
+              lengths: ArrayLike | None = None) -> float:
+        """Mean log-likelihood per step (nats; a log-density) of a new sequence under the learned
+        map (:meth:`TopologicalMap.score <topomap.core.map.model.TopologicalMap.score>`).
+        Raises scikit-learn's ``NotFittedError`` before :meth:`fit` (or :meth:`partial_fit`)."""
+        check_is_fitted(self, "map_")
+        return self.map_.score(observations, actions, gds=gds, lengths=lengths)

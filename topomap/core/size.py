@@ -33,6 +33,7 @@ from .checks import ParameterError, check_count
 from .map.model import TopologicalMap
 from .split.engine import Splitter
 from .stats import episode_masks
+from .progress import report
 
 __all__ = ["AutoStates", "UpTo", "bic", "parameter_count", "split_holdout", "SizeScores",
            "probe_sizes", "refined_sizes", "REFINED_LADDER"]
@@ -195,10 +196,14 @@ def probe_sizes(labels_phase1, data, splitter, rule: AutoStates) -> dict:
                      obs_entropy=splitter.obs_entropy, criterion=splitter.criterion)
     stop, patience = rule.probe_rule(), rule.patience_for(probe.n_states)
     stop.check(probe.n_states)
+    stage = "held-out scoring" if rule.criterion == "heldout" else "BIC scoring"
     scores.add(probe)
+    report(stage, 1)
     while (best := probe.best()) is not None and not stop.should_stop(
             probe.n_states, best.score) and not scores.stale(patience):
         probe.apply(best)
         scores.add(probe)
+        report(stage, len(scores.scores))
+    report(stage, len(scores.scores), len(scores.scores))
     return {"criterion": rule.criterion, "chosen": scores.best(),
             "scores": {int(n): v for n, v in scores.scores.items()}}

@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ...core.progress import report
 from .style import (HALO, LEGEND_SIZE, MAX_MAP_NUMBERS, MAX_STATE_NUMBERS, TITLE_SIZE, pyplot,
                     save_figure, state_styles)
 
@@ -239,23 +240,49 @@ def _clouds(ax, traj, P, labels, sel, names):
               title_fontsize=LEGEND_SIZE, columnspacing=1.0, handletextpad=0.2)
 
 
+def _split_stage(learner):
+    """``(labels, map)`` right after splitting: ``labels_split_`` and ``map_split_`` when the
+    learner refined its map afterwards, else its final ``labels_`` and ``map_``."""
+    if _refined(learner):
+        return learner.labels_split_, learner.map_split_
+    return learner.labels_, learner.map_
+
+
+def _refined(learner) -> bool:
+    """Whether the learner's final map is a refinement of its split map (``refine``, kept)."""
+    split = getattr(learner, "map_split_", None)
+    return split is not None and learner.map_ is not split
+
+
+def _table_rows(m, s) -> int:
+    """The rows of the transition table of state ``s`` of map ``m`` (the actions it took)."""
+    return int(np.count_nonzero(m.transition_counts[s].sum(axis=1)))
+
+
 def plot_split(fig, traj, learner, world=None, state=None):
-    """A compound phase-1 state (left) and the states it became (right), each in its style of
-    :func:`plot_states`, with their transition tables below.  Returns False when nothing split."""
+    """A compound phase-1 state (left) and the states the split made of it (right), each in its
+    style of :func:`plot_states`, with their transition tables below (the split, not a later
+    refinement: :func:`_split_stage`).  The tables' row is as tall as the longest table needs.
+    Returns False when nothing split."""
     hist = learner.split_history_
     if state is None:
         if not hist:
             return False
         state = hist[0]["state"]
-    m0, m1 = learner.map_phase1_, learner.map_
+    m0 = learner.map_phase1_
+    labels1, m1 = _split_stage(learner)
     if not 0 <= state < m0.n_states:
         raise ValueError(f"output.compound_state={state} is not a phase-1 state (0..{m0.n_states - 1})")
     sel = learner.labels_phase1_ == state
-    after = np.unique(learner.labels_[sel])
-    grid = fig.add_gridspec(2, 6, height_ratios=[3, 1.4], hspace=0.4)
+    after = np.unique(labels1[sel])
+    rows = max([_table_rows(m0, state)] + [_table_rows(m1, s) for s in after[:2]])
+    width, height = fig.get_size_inches()
+    table_height = 0.45 + 0.2 * (rows + 1)  # inches: a title, the header and the rows
+    fig.set_size_inches(width, height * 3 / 4.4 + table_height)
+    grid = fig.add_gridspec(2, 6, height_ratios=[height * 3 / 4.4, table_height], hspace=0.5)
     top = [fig.add_subplot(grid[0, :3]), fig.add_subplot(grid[0, 3:])]
     P = _jitter(traj.positions)
-    for ax, labels, m in zip(top, (learner.labels_phase1_, learner.labels_), (m0, m1)):
+    for ax, labels, m in zip(top, (learner.labels_phase1_, labels1), (m0, m1)):
         _room(ax, world, traj.positions, faint=True)
         _clouds(ax, traj, P, labels, sel, m.state_label)
     top[0].set_title(f"state {state} after clustering ({sel.sum()} steps)", fontsize=TITLE_SIZE)
@@ -356,59 +383,106 @@ def plot_map(ax, traj, learner, world=None, min_prob=0.8):
 
 
 def plot_entropy(ax, learner):
-    """H(u|x), H(x'|x,u) and their sum after phase 1 and after each split.  Returns ``ax``."""
+    """H(u|x), H(x'|x,u) and their sum after phase 1 and after each split; after a refinement
+    its values too, as open markers right of a dashed line labelled "refined", at the refined
+    map's number of states.  The y-axis spans the split's curves (its range is the data's, not
+    0): a refined value beyond it is drawn on the axis' edge, an arrow pointing its way, with
+    its value written beside.  The legend sits outside the Axes, so it never covers a curve.
+    Returns ``ax``."""
     from matplotlib.ticker import MaxNLocator
 
-    e = learner.entropies_
+    entries = learner.entropies_
+    e = [r for r in entries if r.get("stage") != "refined"]
+    refined = [r for r in entries if r.get("stage") == "refined"]
     it = [r["n_states"] for r in e]
     hu = np.array([r["H_u"] for r in e])
     hx = np.array([r["H_x"] for r in e])
-    ax.plot(it, hu + hx, "k^-", ms=3, label="sum")
-    ax.plot(it, hu, "o-", ms=3, color="tab:blue", label="H(u|x)")
-    ax.plot(it, hx, "s-", ms=3, color="tab:orange", label="H(x'|x,u)")
+    curves = (("sum", hu + hx, "^", "k"), ("H(u|x)", hu, "o", "tab:blue"),
+              ("H(x'|x,u)", hx, "s", "tab:orange"))
+    for label, y, marker, colour in curves:
+        ax.plot(it, y, marker=marker, ls="-", ms=3, color=colour, label=label)
     ax.xaxis.set_major_locator(MaxNLocator(integer=True))
     ax.set_xlabel("number of states (phase 1, then one more per split)")
     ax.set_ylabel("bits")
-    ax.legend(fontsize=8, loc="center right")
     ax.grid(alpha=0.3)
-    ax.set_title("entropies after each split", fontsize=TITLE_SIZE)
+    title = "entropies after each split"
+    if refined:
+        r = refined[-1]
+        lo = min(float(np.min(y)) for _, y, _, _ in curves)
+        hi = max(float(np.max(y)) for _, y, _, _ in curves)
+        pad = 0.08 * max(hi - lo, 1e-6)
+        ax.set_ylim(lo - pad, hi + pad)
+        x = max(it) + max(1.0, 0.06 * (max(it) - min(it)))  # right of the split's last point
+        ax.axvline((x + max(it)) / 2, color="0.4", ls="--", lw=0.8)
+        ax.text((x + max(it)) / 2, hi + pad, " refined", rotation=90, va="top", ha="right",
+                fontsize=LEGEND_SIZE, color="0.3")
+        values = {"sum": r["H_u"] + r["H_x"], "H(u|x)": r["H_u"], "H(x'|x,u)": r["H_x"]}
+        for label, _, marker, colour in curves:
+            v = values[label]
+            if lo - pad <= v <= hi + pad:
+                ax.plot([x], [v], marker=marker, ms=6, mfc="white", mec=colour, ls="none")
+            else:
+                edge = lo - pad if v < lo else hi + pad
+                ax.plot([x], [edge], marker="v" if v < lo else "^", ms=6, color=colour,
+                        ls="none", clip_on=False)
+                ax.annotate(f"{v:.2f}", (x, edge), xytext=(4, 6 if v < lo else -10),
+                            textcoords="offset points", fontsize=LEGEND_SIZE, color=colour)
+        ax.plot([], [], marker="o", ms=5, mfc="white", mec="0.3", ls="none",
+                label=f"after the refinement ({r['n_states']} states)")
+        ax.set_xlim(right=x + 0.5 * (x - max(it)) + 0.5)
+        title += ", then after the refinement"
+    ax.legend(fontsize=LEGEND_SIZE, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
+    ax.set_title(title, fontsize=TITLE_SIZE)
     return ax
 
 
 def write_figures(out: Path, traj, learner, world=None, *, min_prob=0.8, compound_state=None):
     """Write the figures of :data:`topomap.app.outputs.FIGURE_FILES` that the data allows
-    (the room figures need ground-truth positions)."""
+    (the room figures need ground-truth positions); the drawing's progress is reported as
+    ``"drawing figures"`` (:mod:`topomap.core.progress`)."""
     plt = pyplot()
     out = Path(out)
     written = []
+    curve = ((traj.meta or {}).get("mapping") or {}).get("curve")
+    total = (3 if traj.positions is not None else 0) + 1 + bool(curve)
+    done = 0
+
+    def drawn(fig, name):
+        nonlocal done
+        if fig is not None:
+            save_figure(fig, out / name)
+            written.append(name)
+        done += 1
+        report("drawing figures", done, total)
+
+    report("drawing figures", 0, total)
     if traj.positions is not None:
-        fig, axes = plt.subplots(1, 2, figsize=(12, 4.9))
+        refined = _refined(learner)
+        fig, axes = plt.subplots(1, 3 if refined else 2, figsize=(18 if refined else 12, 4.9))
         plot_states(axes[0], traj, learner.labels_phase1_, world,
                     f"after clustering: {learner.map_phase1_.n_states} states")
-        plot_states(axes[1], traj, learner.labels_, world,
-                    f"after splitting: {learner.map_.n_states} states")
-        save_figure(fig, out / "fig_states.png")
-        written.append("fig_states.png")
+        split_labels, split_map = _split_stage(learner)
+        plot_states(axes[1], traj, split_labels, world,
+                    f"after splitting: {split_map.n_states} states")
+        if refined:
+            plot_states(axes[2], traj, learner.labels_, world,
+                        f"after the refinement: {learner.map_.n_states} states")
+        drawn(fig, "fig_states.png")
         fig = plt.figure(figsize=(13, 6.6))
-        if plot_split(fig, traj, learner, world, compound_state):
-            save_figure(fig, out / "fig_split.png")
-            written.append("fig_split.png")
-        else:
+        if not plot_split(fig, traj, learner, world, compound_state):
             plt.close(fig)
+            fig = None
+        drawn(fig, "fig_split.png")
         fig, ax = plt.subplots(figsize=(8, 6))
         plot_map(ax, traj, learner, world, min_prob)
-        save_figure(fig, out / "fig_map.png")
-        written.append("fig_map.png")
-    fig, ax = plt.subplots(figsize=(5, 3.5))
+        drawn(fig, "fig_map.png")
+    fig, ax = plt.subplots(figsize=(6.5, 3.5))
     plot_entropy(ax, learner)
-    save_figure(fig, out / "fig_entropy.png")
-    written.append("fig_entropy.png")
-    curve = ((traj.meta or {}).get("mapping") or {}).get("curve")
+    drawn(fig, "fig_entropy.png")
     if curve:
         fig, ax = plt.subplots(figsize=(5, 3.5))
         plot_mapping(ax, curve, traj.meta["mapping"].get("explorer", ""))
-        save_figure(fig, out / "fig_mapping.png")
-        written.append("fig_mapping.png")
+        drawn(fig, "fig_mapping.png")
     return written
 
 

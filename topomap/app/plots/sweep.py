@@ -28,7 +28,8 @@ def write_sweep_figure(path: Path, rows, keys, metric: str, best=None) -> None:
     """``summary_<metric>.png``: ``metric`` over one swept key (a line) or two (a heat map);
     ``rows`` are the summary's, ``best`` the best job's row (ringed or outlined)."""
     plt = pyplot()
-    counts = {st: sum(r["status"] == st for r in rows) for st in ("failed", "incomplete")}
+    counts = {st: sum(r["status"] == st for r in rows)
+              for st in ("failed", "interrupted", "incomplete", "not started")}
     note = ", ".join([f"{len(rows)} jobs", *(f"{n} {st}" for st, n in counts.items() if n)])
     title = f"{METRICS[metric].label} ({note})"
     if len(keys) == 1:

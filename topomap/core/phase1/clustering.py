@@ -44,6 +44,7 @@ from sklearn.mixture import GaussianMixture
 from threadpoolctl import threadpool_limits
 
 from ..checks import ParameterError, check_count
+from ..progress import report
 from .distinct import distinct_rows
 
 __all__ = [
@@ -164,10 +165,11 @@ class BICClusters:
             raise ParameterError(
                 "min_ns", f"={self.min_ns} exceeds the {n_distinct} distinct observations")
         bic = {}
-        for k in candidates:
+        for i, k in enumerate(candidates):
             gm = GaussianMixture(k, covariance_type=self.covariance_type, n_init=self.n_init,
                                  random_state=random_state, reg_covar=1e-6)
             bic[k] = float(gm.fit(Z).bic(Z))
+            report("BIC", i + 1, len(candidates))
         return min(bic, key=lambda k: (bic[k], k)), {"bic": bic}
 
     def __repr__(self) -> str:

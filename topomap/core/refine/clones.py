@@ -25,6 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..progress import report
 from .convergence import ConvergenceMonitor
 from .kernels import (CloneTables, clone_backward_counts, clone_forward, clone_normalize_blocks,
                       clone_path_counts, clone_step_offsets, clone_viterbi)
@@ -172,6 +173,8 @@ def baum_welch(lay: Layout, counts, pseudocount: float, joint: bool, *, max_iter
     while not monitor.converged:
         counts, occupancy, ll = e_step(lay, m_step(lay, counts, pseudocount, joint), prune)
         monitor.report(ll)
+        report("EM", len(monitor.history), max_iter)
+    report("EM", len(monitor.history), len(monitor.history))  # converged: the loop ends here
     return counts, occupancy, monitor.history
 
 

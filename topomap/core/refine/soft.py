@@ -28,6 +28,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..checks import ParameterError
+from ..progress import report
 from .structure import same_partition
 from .soft_kernels import (SoftData, SoftModel, SoftStats, soft_backward, soft_candidates,
                            soft_forward, soft_offsets, soft_viterbi)
@@ -215,8 +216,10 @@ def soft_round(seq, labels, state_symbol, conf=None, *, spare: int = 0,
             conf = _confusion_mstep(N, ns, s)
         emit = _clone_emission(conf, clone_symbol, stats.emit, s.clone_prior)
         emit[clone_symbol >= ns] = conf[clone_symbol[clone_symbol >= ns]]  # GDS: never confused
+        report("EM", it + 1, s.max_iter)
         if len(history) > 2 and history[-1] - history[-2] < s.tol * seq.T:
             break
+    report("EM", len(history), len(history))
     model = _model(trans, emit, init, s.floor)
     pos = soft_offsets(data, model)
     path, log_p = soft_viterbi(data, _log(model), pos)

@@ -66,7 +66,7 @@ _TABLE = _XlogxTable()
 def merge_groups(counts: np.ndarray) -> np.ndarray:
     """Agglomerate the rows of an integer count matrix into two clusters, each time merging the
     pair whose union increases the weighted entropy ``n H`` least (costs rounded to 1e-9 bits;
-    ties: smallest indices).  Compiled (:func:`topomap.core.sums.merge_groups_kernel`).
+    ties: smallest indices).  Compiled (:func:`topomap.core.split.kernels.merge_groups_kernel`).
 
     Returns a boolean array: False for the rows in the cluster holding row 0, True for the others.
     """

@@ -1,0 +1,50 @@
+"""The command line is screened before Hydra composes it: a key of a component that is not
+selected names the components that have it, and a misspelt option of a group names the nearest
+option, each in one line."""
+
+import subprocess
+import sys
+
+import pytest
+
+from topomap.app.cli import compose
+
+
+@pytest.mark.parametrize("overrides, message", [
+    (["data.path=my.npz"], "data.path belongs to data=file (and data=rosbag), not to "
+                           "data=simulate (the default); add data=file"),
+    (["+data.path=my.npz"], "data.path belongs to data=file (and data=rosbag)"),
+    (["stop=auto", "stop.n_states=40"], "stop.n_states is not a key of stop=auto: it belongs to "
+                                        "stop=n_states; leave it out, or choose stop=n_states"),
+    (["env=gridrom"], "unknown env=gridrom; did you mean env=gridroom? (the options: gridroom, "
+                      "minigrid, office, random_graph)"),
+    (["env=office,gridrom"], "unknown env=gridrom; did you mean env=gridroom?"),
+    (["experiment=gridrom"], "unknown experiment=gridrom; did you mean experiment=gridroom?"),
+])
+def test_the_screening_names_what_to_give(overrides, message):
+    with pytest.raises(ValueError) as err:
+        compose(overrides)
+    assert message in str(err.value) and "\n" not in str(err.value)
+
+
+@pytest.mark.parametrize("overrides", [
+    ["data=file", "data.path=my.npz"],
+    ["experiment=gridroom", "env.n_symbols=3"],  # the preset selects env=gridroom
+    ["stop=auto", "stop.patience=2"],
+])
+def test_a_key_of_the_selected_component_passes(overrides):
+    compose(overrides)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("args, line", [
+    (["data.path=my.npz"], "topomap: error: data.path belongs to data=file (and data=rosbag), "
+                           "not to data=simulate (the default); add data=file"),
+    (["env=gridrom"], "topomap: error: unknown env=gridrom; did you mean env=gridroom? (the "
+                      "options: gridroom, minigrid, office, random_graph)"),
+])
+def test_the_command_prints_one_line_instead_of_hydras_message(args, line, tmp_path):
+    r = subprocess.run([sys.executable, "-m", "topomap", *args], cwd=tmp_path,
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 1 and r.stderr.splitlines() == [line], r.stderr
+    assert not (tmp_path / "outputs").exists()

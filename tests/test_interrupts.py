@@ -1,0 +1,136 @@
+"""Ctrl-C, SIGTERM and failures end a run or a sweep cleanly: one line and exit status 130 for an
+interrupt, the sweep report written with the interrupted job and the jobs that did not start, a
+``status.json`` saying what happened, and never a folder holding part of a run's files."""
+
+import csv
+import json
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from topomap.app import experiment, outputs, plots
+
+SMALL = ["data.n_steps=200", "data.heldout_steps=0", "output.figures=false",
+         "output.progress=false", "clusters.ns=6"]
+
+PLUGIN = '''
+"""Test plugin: {which} writes ``{marker}`` once phase 1 is done, then waits."""
+import os
+import time
+
+from hydra.core.hydra_config import HydraConfig
+
+from topomap import hookimpl
+
+
+@hookimpl
+def topomap_learner_event(event, info):
+    hydra = HydraConfig.get()
+    if event == "phase1" and ({job} is None or hydra.job.num == {job}):
+        with open("{marker}", "w") as fh:
+            fh.write(hydra.runtime.output_dir)
+        time.sleep(300)
+'''
+
+
+def start(cwd: Path, args, job=None):
+    """``topomap <args>`` as a process whose job ``job`` (every job: None) waits after phase 1;
+    returns the process and the marker file the waiting job writes its folder into."""
+    marker = cwd / "waiting.txt"
+    plugin = cwd / "slow_job.py"
+    plugin.write_text(PLUGIN.format(job=job, marker=marker,
+                                    which="every job" if job is None else f"job {job}"))
+    proc = subprocess.Popen([sys.executable, "-m", "topomap", *args, f"plugins=[{plugin}]"],
+                            cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 120
+    while not marker.is_file() or not marker.read_text():
+        assert proc.poll() is None, proc.communicate()
+        assert time.monotonic() < deadline, "the job never reached phase 1"
+        time.sleep(0.05)
+    return proc, Path(marker.read_text())
+
+
+def finish(proc) -> tuple[int, str, str]:
+    out, err = proc.communicate(timeout=120)
+    return proc.returncode, out, err
+
+
+@pytest.mark.slow
+def test_ctrl_c_ends_a_sweep_with_its_report(tmp_path):
+    proc, job_dir = start(tmp_path, ["-m", *SMALL, "stop.n_states=8,9,10"], job=1)
+    proc.send_signal(signal.SIGINT)
+    code, out, err = finish(proc)
+    assert code == 130, err
+    assert "Traceback" not in err and err.strip().splitlines()[-1].startswith(
+        "topomap: interrupted; sweep report in "), err
+    sweep = job_dir.parent
+    assert "sweep of 3 jobs, 1 completed, 0 failed, 1 interrupted, 1 not started" in out
+    with open(sweep / "summary.csv", newline="") as fh:
+        rows = {r["job"]: r for r in csv.DictReader(fh)}
+    assert [(rows[j]["stop.n_states"], rows[j]["status"]) for j in "012"] == [
+        ("8", "completed"), ("9", "interrupted"), ("10", "not started")]
+    status = json.loads((job_dir / "status.json").read_text())
+    assert status["status"] == "interrupted"
+    assert not (job_dir / "map.json").exists() and not (sweep / "2").exists()
+    rebuilt = subprocess.run([sys.executable, "-m", "topomap.app.sweep", str(sweep)],
+                             capture_output=True, text=True, timeout=120)
+    assert "sweep of 3 jobs, 1 completed, 0 failed, 1 interrupted, 1 not started" in rebuilt.stdout
+
+
+@pytest.mark.slow
+def test_sigterm_ends_a_run_with_one_line_and_its_status(tmp_path):
+    run_dir = tmp_path / "run"
+    proc, job_dir = start(tmp_path, [*SMALL, f"hydra.run.dir={run_dir}"])
+    assert job_dir == run_dir
+    proc.send_signal(signal.SIGTERM)
+    code, out, err = finish(proc)
+    assert code == 130
+    assert err.strip().splitlines() == [
+        f"topomap: interrupted; {run_dir}/status.json says so"]
+    assert json.loads((run_dir / "status.json").read_text())["status"] == "interrupted"
+    assert sorted(p.name for p in run_dir.iterdir()) == [".hydra", "status.json", "topomap.log"]
+
+
+@pytest.mark.slow
+def test_a_failed_run_leaves_a_status_saying_so(tmp_path):
+    run_dir = tmp_path / "run"
+    r = subprocess.run([sys.executable, "-m", "topomap", "output.progress=false", "data=file",
+                        "data.path=nope.npz", f"hydra.run.dir={run_dir}"], cwd=tmp_path,
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 1 and r.stderr.count("\n") == 1, r.stderr
+    status = json.loads((run_dir / "status.json").read_text())
+    assert status["status"] == "failed" and "nope.npz" in status["error"]
+    assert status["error"].split(": ", 1)[1] in r.stderr
+
+
+def test_an_interrupt_while_writing_leaves_none_of_the_run_files(tmp_path, make_cfg,
+                                                                  monkeypatch):
+    """Interrupted while drawing the figures (after the map was written, before the metrics):
+    the folder holds none of the run's files and no staging folder."""
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(plots, "write_figures", interrupted)
+    cfg = make_cfg(["data.n_steps=200", "data.heldout_steps=0", "output.progress=false",
+                    "clusters.ns=6"])
+    with pytest.raises(KeyboardInterrupt):
+        experiment.run(cfg, tmp_path / "out")
+    assert list((tmp_path / "out").iterdir()) == []
+
+
+def test_a_sweep_job_that_is_interrupted_says_so_and_ends_the_sweep(tmp_path, make_cfg,
+                                                                    monkeypatch):
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(outputs, "_write_outputs", interrupted)
+    cfg = make_cfg(["data.n_steps=200", "data.heldout_steps=0", "output.progress=false",
+                    "clusters.ns=6"])
+    with pytest.raises(KeyboardInterrupt):
+        experiment.run_job(cfg, tmp_path / "0", sweep_dir=tmp_path)
+    assert [p.name for p in (tmp_path / "0").iterdir()] == ["status.json"]
+    assert json.loads((tmp_path / "0" / "status.json").read_text())["status"] == "interrupted"

@@ -1,0 +1,73 @@
+"""A run that cannot meet what it was told says so: a state count the split cannot reach is a
+warning with the reason, a cluster count too close to the number of steps is refused or warned."""
+
+import logging
+
+import pytest
+
+from topomap.app.experiment import STEPS_PER_SYMBOL, run
+
+SMALL = ["data.n_steps=300", "data.heldout_steps=0", "output.progress=false",
+         "output.figures=false"]
+
+
+def warnings_of(caplog) -> list[str]:
+    return [r.getMessage() for r in caplog.records
+            if r.name == "topomap" and r.levelno == logging.WARNING]
+
+
+def test_a_state_count_the_split_cannot_reach_is_a_warning_with_the_reason(make_cfg, tmp_path,
+                                                                           caplog):
+    caplog.set_level(logging.INFO, logger="topomap")
+    results = run(make_cfg([*SMALL, "clusters.ns=8", "stop.n_states=100000"]), tmp_path)
+    made = results["n_states"]["final"]
+    assert made < 100000 and results["stop_reason"] == "no state can be split"
+    assert warnings_of(caplog) == [f"stop.n_states=100000 not reached: the split stopped at "
+                                   f"{made} states (no state can be split)"]
+
+
+def test_a_reached_state_count_is_not_warned_about(make_cfg, tmp_path, caplog):
+    caplog.set_level(logging.INFO, logger="topomap")
+    run(make_cfg([*SMALL, "clusters.ns=8", "stop.n_states=12"]), tmp_path)
+    assert warnings_of(caplog) == []
+
+
+def test_more_clusters_than_half_the_steps_are_refused(make_cfg, tmp_path):
+    cfg = make_cfg([*SMALL, "clusters.ns=200", "stop.n_states=250"])
+    with pytest.raises(ValueError, match=r"^clusters.ns=200 is more than half of the \d+ steps "
+                                         r"to cluster.*give at most clusters.ns=\d+"):
+        run(cfg, tmp_path / "out")
+    assert not (tmp_path / "out").exists()
+
+
+def test_few_steps_per_cluster_are_warned_about(make_cfg, tmp_path, caplog):
+    caplog.set_level(logging.INFO, logger="topomap")
+    run(make_cfg([*SMALL, "clusters.ns=40", "stop.n_states=45"]), tmp_path)
+    (line,) = [w for w in warnings_of(caplog) if w.startswith("clusters.ns=40")]
+    steps = int(line.split("(")[1].split()[0])  # the steps to cluster, as the warning counts them
+    assert steps < 40 * STEPS_PER_SYMBOL
+    assert f"leaves {steps / 40:.1f} steps per symbol on average" in line, line
+
+
+def test_a_state_count_below_what_bic_may_choose_is_refused_before_bic(make_cfg, tmp_path,
+                                                                       monkeypatch):
+    from topomap.core.phase1.clustering import BICClusters
+
+    def no_bic(self, Z, random_state):
+        raise AssertionError("BIC ran before the check")
+
+    monkeypatch.setattr(BICClusters, "choose", no_bic)
+    with pytest.raises(ValueError) as err:
+        run(make_cfg(["clusters=bic", "output.progress=false"]), tmp_path / "out")
+    assert str(err.value) == (
+        "stop.n_states=30 is below the 42 states phase 1 may create: clusters=bic chooses up to "
+        "clusters.max_ns=40 clusters plus the 2 GDS; give stop.n_states=42 or more, "
+        "clusters.max_ns=28 or less, or stop=auto (the number of states chosen from the data "
+        "too)")
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_state_count_that_leaves_bic_room_runs(make_cfg, tmp_path):
+    results = run(make_cfg([*SMALL, "clusters=bic", "clusters.max_ns=12",
+                            "stop.n_states=14"]), tmp_path)
+    assert results["n_states"]["phase1"] <= 14 == results["n_states"]["final"]
