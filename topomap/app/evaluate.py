@@ -6,7 +6,43 @@ from ..core import metrics as M
 from ..core.learner import MapLearner
 from ..core.data.trajectory import Trajectory
 
-__all__ = ["evaluate", "localization_scores"]
+__all__ = ["evaluate", "localization_scores", "OBJECTIVES", "objective_value", "check_objective"]
+
+#: what a run can return to an optimising sweeper (the config key ``objective``): where the value
+#: is in the run's results, which way is better (the sweeper's ``direction``) and what it needs
+OBJECTIVES = {
+    "heldout_loglik": {"place": ("heldout_loglik",), "direction": "maximize",
+                       "needs": "held-out data: data.heldout_steps > 0 (data=simulate; default: "
+                                "data.n_steps) or data.heldout_path (data=file, data=rosbag)"},
+    "ari": {"place": ("ground_truth", "final", "ari"), "direction": "maximize",
+            "needs": "ground truth (the places of a simulated world, or a recording with them)"},
+}
+
+
+def _objective(name: str) -> dict:
+    name = getattr(name, "value", name)  # an Objective enum member, or its name
+    if name not in OBJECTIVES:
+        raise ValueError(f"objective={name!r} is not one of {', '.join(OBJECTIVES)}")
+    return OBJECTIVES[name]
+
+
+def check_objective(name: str, traj: Trajectory, heldout: Trajectory | None) -> None:
+    """Refuse, before learning, data that cannot give the objective ``name`` (a ValueError
+    naming the config keys to set)."""
+    missing = (heldout is None) if _objective(name)["place"][0] == "heldout_loglik" \
+        else (traj.places is None)
+    if missing:
+        other = next(n for n in OBJECTIVES if n != getattr(name, "value", name))
+        raise ValueError(f"objective={getattr(name, 'value', name)} needs "
+                         f"{_objective(name)['needs']}; or choose objective={other}")
+
+
+def objective_value(results: dict, name: str) -> float | None:
+    """The objective ``name`` of a run's ``results`` (None where the run has no value for it)."""
+    value = results
+    for key in _objective(name)["place"]:
+        value = value.get(key) if isinstance(value, dict) else None
+    return None if value is None else float(value)
 
 
 def evaluate(learner: MapLearner, traj: Trajectory, heldout: Trajectory | None,

@@ -21,7 +21,7 @@ from ..core.learner import MapLearner
 from ..core.map.model import TopologicalMap
 from .config import check_config, learner_key
 from .data import TrajectoryCache, trajectory_key
-from .evaluate import evaluate, localization_scores
+from .evaluate import check_objective, evaluate, localization_scores, objective_value
 from .outputs import versions, write_json, write_localization, write_outputs
 from .kinds import KINDS
 from .registry import Parts, Registry
@@ -46,13 +46,16 @@ UNITS = {
 }
 
 
-def run(cfg, output_dir, *, registry: Registry | None = None, cache_dir=None) -> dict:
+def run(cfg, output_dir, *, registry: Registry | None = None, cache_dir=None,
+        needs_objective: bool = False) -> dict:
     """Run one experiment described by ``cfg`` and write its outputs into ``output_dir``.
 
     The config is checked (:func:`~topomap.app.config.check_config`), every component is built
     from it (:meth:`Registry.build <topomap.app.registry.Registry.build>`), before any data is
     read; then ``task=learn`` (the default) learns a map (:func:`learn`) and ``task=localize``
     applies the saved ``map`` to the data (:func:`localize`).  Returns the metrics dict.
+    ``needs_objective``: the run's ``objective`` is optimised (an Optuna sweep), so data that
+    cannot give it is an error before learning.
     """
     cfg = _as_dict(cfg)
     registry = registry or Registry.load(cfg.get("plugins") or ())
@@ -65,10 +68,11 @@ def run(cfg, output_dir, *, registry: Registry | None = None, cache_dir=None) ->
     parts = registry.build(cfg)
     if localizing:
         return localize(cfg, parts, output_dir)
-    return learn(cfg, parts, output_dir, registry, cache_dir)
+    return learn(cfg, parts, output_dir, registry, cache_dir, needs_objective)
 
 
-def learn(cfg: dict, parts: Parts, output_dir, registry: Registry, cache_dir=None) -> dict:
+def learn(cfg: dict, parts: Parts, output_dir, registry: Registry, cache_dir=None,
+          needs_objective: bool = False) -> dict:
     """Learn a map: data -> learner -> evaluation -> outputs.
 
     The learner's settings are checked before any data is simulated, so a bad setting fails
@@ -82,6 +86,9 @@ def learn(cfg: dict, parts: Parts, output_dir, registry: Registry, cache_dir=Non
             learner.check_params(n_gds=getattr(parts.world, "n_gds", 0))  # before any simulation
         (traj, heldout), t_data = load_data(cfg, parts, registry, cache_dir, progress,
                                             learner=learner)
+        objective = cfg.get("objective", "heldout_loglik")
+        if needs_objective:
+            check_objective(objective, traj, heldout)
         with config_keys():
             learner.fit_trajectory(traj)
     t0 = time.perf_counter()
@@ -93,6 +100,7 @@ def learn(cfg: dict, parts: Parts, output_dir, registry: Registry, cache_dir=Non
         "size_choice": getattr(learner, "size_choice_", None), "resized": _resized(learner),
         "mapping": _mapping(traj, results),
         "versions": versions(), "config": cfg, "plugin_metrics": plugin_metrics, "units": UNITS,
+        "objective": {"name": objective, "value": objective_value(results, objective)},
         "providers": {name: registry.provider(name, cfg[name]["component"])
                       for name, kind in KINDS.items() if kind.learner_arg},  # the learner's
     })
@@ -259,7 +267,7 @@ def _as_dict(cfg) -> dict:
 
 
 # ---------------------------------------------------------------------------------- sweep jobs
-def run_job(cfg, output_dir, *, sweep_dir, registry=None) -> dict | None:
+def run_job(cfg, output_dir, *, sweep_dir, registry=None, needs_objective=False) -> dict | None:
     """Run one job of a sweep into ``output_dir``; return its results, or None if it failed.
 
     Trajectories are shared through ``<sweep_dir>/.cache``.  Any exception is logged and written to
@@ -270,7 +278,8 @@ def run_job(cfg, output_dir, *, sweep_dir, registry=None) -> dict | None:
     out = Path(output_dir)
     t0 = time.perf_counter()
     try:
-        results = run(cfg, out, registry=registry, cache_dir=Path(sweep_dir) / CACHE_DIR)
+        results = run(cfg, out, registry=registry, cache_dir=Path(sweep_dir) / CACHE_DIR,
+                      needs_objective=needs_objective)
     except Exception as exc:
         error = f"{type(exc).__name__}: {exc}"
         if isinstance(exc, ValueError):
