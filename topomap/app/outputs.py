@@ -13,7 +13,7 @@ import numpy as np
 from ..core.data.files import atomic_write
 from ..core.data.trajectory import save_trajectory
 
-__all__ = ["OUTPUT_FILES", "FIGURE_FILES", "MAPPING_FIGURES", "LOCALIZE_FILES", "write_outputs",
+__all__ = ["OUTPUT_FILES", "FIGURE_FILES", "HTML_FILES", "MAPPING_FIGURES", "LOCALIZE_FILES", "write_outputs",
            "write_localization", "versions", "write_json"]
 
 #: files every run writes, with what they hold (figures only with ``output.figures``)
@@ -36,6 +36,11 @@ FIGURE_FILES = {
     "fig_map.png": "the learned map at the states' mean positions, arcs where P > min_prob (Fig. 7)",
     "fig_entropy.png": "H(u|x), H(x'|x,u) and their sum after each split",
 }
+#: the interactive map every run writes with its figures (``output.figures``)
+HTML_FILES = {
+    "map.html": "the learned map to zoom, pan and hover (states, visits, places, transitions); "
+                "one self-contained file, plotly's JavaScript inlined",
+}
 #: the figure a run that maps while exploring (``data.curve_every`` > 0) adds
 MAPPING_FIGURES = {
     "fig_mapping.png": "mapping while exploring: the map's ARI against the steps taken",
@@ -46,7 +51,7 @@ def versions() -> dict:
     """Python's and every relevant package's version, for the record."""
     out = {"python": sys.version.split()[0]}
     for pkg in ("topomap", "numpy", "scikit-learn", "networkx", "hydra-core", "omegaconf",
-                "pluggy", "matplotlib"):
+                "pluggy", "matplotlib", "plotly"):
         try:
             out[pkg] = version(pkg)
         except PackageNotFoundError:
@@ -96,6 +101,10 @@ def write_outputs(out: Path, traj, learner, results, cfg, world=None) -> None:
 
         plots.write_figures(out, traj, learner, world, min_prob=cfg["output"]["min_prob"],
                             compound_state=cfg["output"].get("compound_state"))
+        from .plots.interactive import write_map_html
+
+        write_map_html(out / "map.html", m, learner.labels_, traj.positions, traj.places,
+                       min_prob=cfg["output"]["min_prob"], seed=int(cfg["seed"]))
     results["timings"]["outputs"] = time.perf_counter() - t0
     write_json(out / "metrics.json", results)
 
