@@ -24,6 +24,7 @@ from .data import TrajectoryCache, trajectory_key
 from .evaluate import check_objective, evaluate, localization_scores, objective_value
 from .outputs import versions, write_json, write_localization, write_outputs
 from .kinds import KINDS
+from .loggers import RunRecord, start_dir
 from .registry import Parts, Registry
 
 log = logging.getLogger("topomap")
@@ -105,6 +106,10 @@ def learn(cfg: dict, parts: Parts, output_dir, registry: Registry, cache_dir=Non
                       for name, kind in KINDS.items() if kind.learner_arg},  # the learner's
     })
     write_outputs(Path(output_dir), traj, learner, results, cfg, parts.world)
+    if parts.logger is not None:
+        sweep_dir = None if cache_dir is None else Path(cache_dir).parent  # <sweep>/.cache
+        parts.logger.log_run(RunRecord(Path(output_dir), cfg, results, start_dir=start_dir(),
+                                       sweep_dir=sweep_dir))
     return results
 
 
