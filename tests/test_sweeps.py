@@ -250,6 +250,16 @@ def test_optuna_presets_maximise_and_the_paper_preset_searches_its_knobs(make_cf
     assert make_cfg(["objective=ari"]).objective.value == "ari"
 
 
+def test_ray_cluster_preset_joins_a_running_cluster(make_cfg):
+    pytest.importorskip("hydra_plugins.hydra_ray_launcher")
+    launcher = make_cfg(["hydra/launcher=ray_cluster"], hydra=True).hydra.launcher
+    assert launcher._target_.endswith("ray_launcher.RayLauncher")
+    assert launcher.ray.init == {"address": "auto", "object_store_memory": None}
+    other = make_cfg(["hydra/launcher=ray_cluster", "hydra.launcher.ray.init.address=10.0.0.1:6379"],
+                     hydra=True)
+    assert other.hydra.launcher.ray.init.address == "10.0.0.1:6379"
+
+
 def test_the_objective_needs_its_data_and_names_the_keys(tmp_path, make_cfg):
     from topomap.app.evaluate import objective_value
 
