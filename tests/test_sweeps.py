@@ -250,6 +250,22 @@ def test_optuna_presets_maximise_and_the_paper_preset_searches_its_knobs(make_cf
     assert make_cfg(["objective=ari"]).objective.value == "ari"
 
 
+def test_a_search_the_wrong_way_stops_before_its_first_job():
+    report = SweepReport()
+    for objective in ("heldout_loglik", "ari"):
+        config = OmegaConf.create({"objective": objective,
+                                   "hydra": {"sweeper": {"direction": "minimize"}}})
+        with pytest.raises(SystemExit, match=f"hydra.sweeper.direction=minimize, but "
+                                             f"objective={objective} is better when larger"):
+            report.on_multirun_start(config=config)
+        config.hydra.sweeper.direction = "maximize"
+        report.on_multirun_start(config=config)  # goes on
+        assert report.metric_of(config) == objective
+    grid = OmegaConf.create({"objective": "ari", "hydra": {"sweeper": {"params": None}}})
+    report.on_multirun_start(config=grid)
+    assert report.metric_of(grid) == "ari" and SweepReport("nmi").metric_of(grid) == "nmi"
+
+
 def test_ray_cluster_preset_joins_a_running_cluster(make_cfg):
     pytest.importorskip("hydra_plugins.hydra_ray_launcher")
     launcher = make_cfg(["hydra/launcher=ray_cluster"], hydra=True).hydra.launcher

@@ -19,28 +19,29 @@ OBJECTIVES = {
 }
 
 
-def _objective(name: str) -> dict:
-    name = getattr(name, "value", name)  # an Objective enum member, or its name
+def _objective(name) -> tuple[str, dict]:
+    """``(name, entry of OBJECTIVES)`` for an objective's name or :class:`Objective` member."""
+    name = getattr(name, "value", name)
     if name not in OBJECTIVES:
         raise ValueError(f"objective={name!r} is not one of {', '.join(OBJECTIVES)}")
-    return OBJECTIVES[name]
+    return name, OBJECTIVES[name]
 
 
-def check_objective(name: str, traj: Trajectory, heldout: Trajectory | None) -> None:
+def check_objective(name, traj: Trajectory, heldout: Trajectory | None) -> None:
     """Refuse, before learning, data that cannot give the objective ``name`` (a ValueError
     naming the config keys to set)."""
-    missing = (heldout is None) if _objective(name)["place"][0] == "heldout_loglik" \
-        else (traj.places is None)
+    name, objective = _objective(name)
+    missing = heldout is None if name == "heldout_loglik" else traj.places is None
     if missing:
-        other = next(n for n in OBJECTIVES if n != getattr(name, "value", name))
-        raise ValueError(f"objective={getattr(name, 'value', name)} needs "
-                         f"{_objective(name)['needs']}; or choose objective={other}")
+        other = next(n for n in OBJECTIVES if n != name)
+        raise ValueError(f"objective={name} needs {objective['needs']}; or choose "
+                         f"objective={other}")
 
 
-def objective_value(results: dict, name: str) -> float | None:
+def objective_value(results: dict, name) -> float | None:
     """The objective ``name`` of a run's ``results`` (None where the run has no value for it)."""
     value = results
-    for key in _objective(name)["place"]:
+    for key in _objective(name)[1]["place"]:
         value = value.get(key) if isinstance(value, dict) else None
     return None if value is None else float(value)
 

@@ -212,6 +212,24 @@ class SweepReport(Callback):
             return str(getattr(objective, "value", objective))  # an Objective, or its name
         return "ari"
 
+    def on_multirun_start(self, config, **kwargs) -> None:
+        """Stop a search before its first job when it would optimise the wrong way: the
+        sweeper's ``direction`` against the objective's (:data:`~topomap.app.evaluate.OBJECTIVES`)."""
+        from omegaconf import OmegaConf
+
+        from .evaluate import OBJECTIVES
+
+        direction = OmegaConf.select(config, "hydra.sweeper.direction", default=None)
+        direction = getattr(direction, "name", direction)  # the plugin's Direction enum, or text
+        objective = OmegaConf.select(config, "objective", default=None)
+        objective = getattr(objective, "value", objective)
+        wanted = OBJECTIVES.get(objective, {}).get("direction")
+        if isinstance(direction, str) and wanted and direction != wanted:
+            sys.exit(f"topomap: error: hydra.sweeper.direction={direction}, but "
+                     f"objective={objective} is better when "
+                     f"{'larger' if wanted == 'maximize' else 'smaller'}; give "
+                     f"hydra.sweeper.direction={wanted}")
+
     def on_multirun_end(self, config, **kwargs) -> None:
         sweep_dir = Path(str(config.hydra.sweep.dir))
         report = write_report(sweep_dir, metric=self.metric_of(config), figure=self.figure,
