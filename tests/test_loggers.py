@@ -61,6 +61,7 @@ def test_runs_share_the_named_experiment_and_store(tmp_path, client_of):
         run(compose([*SMALL, "output.figures=false", "logger=mlflow", f"seed={seed}",
                      f"logger.tracking_uri={uri}", "logger.experiment=two_seeds"]),
             tmp_path / f"run{seed}")
+    assert (tmp_path / "mlartifacts").is_dir()  # beside the given store, not in the cwd
     client = client_of(uri)
     experiment = client.get_experiment_by_name("two_seeds")
     runs = client.search_runs([experiment.experiment_id])
@@ -87,6 +88,9 @@ def test_default_store_is_below_the_outputs_folder(tmp_path):
     assert uri == f"sqlite:///{tmp_path.resolve() / 'outputs' / 'mlflow.db'}"
     assert artifacts == (tmp_path.resolve() / "outputs" / "mlartifacts").as_uri()
     assert MLflowLogger("http://tracking:5000").store(tmp_path) == ("http://tracking:5000", None)
+    given = f"sqlite:///{tmp_path / 'elsewhere' / 'runs.db'}"
+    assert MLflowLogger(given).store(tmp_path) == \
+        (given, (tmp_path / "elsewhere" / "mlartifacts").as_uri())
 
 
 PLUGIN = '''

@@ -132,9 +132,10 @@ class MLflowLogger:
     ----------
     tracking_uri : str or None
         Where MLflow keeps the runs (any MLflow tracking URI: ``sqlite:///path/mlflow.db``,
-        ``http://host:5000``, ...).  None: a local store, ``outputs/mlflow.db`` with the artifacts
-        in ``outputs/mlartifacts/``, below the folder ``topomap`` was started from; no server
-        needed (``mlflow ui --backend-store-uri sqlite:///outputs/mlflow.db`` shows it).
+        ``http://host:5000``, ...).  None: a local store, ``outputs/mlflow.db`` below the folder
+        ``topomap`` was started from; no server needed (``mlflow ui --backend-store-uri
+        sqlite:///outputs/mlflow.db`` shows it).  A local SQLite store keeps the artifacts of
+        the experiments it creates in ``mlartifacts/`` beside it.
     experiment : str
         The MLflow experiment the runs go to (made when missing).
     """
@@ -150,13 +151,15 @@ class MLflowLogger:
         self.experiment = experiment
 
     def store(self, start_dir) -> tuple[str, str | None]:
-        """``(tracking URI, artifact location)``; the location is None for a given URI (the
-        server's own)."""
-        if self.tracking_uri:
-            return self.tracking_uri, None
-        outputs = Path(start_dir).resolve() / "outputs"
-        outputs.mkdir(parents=True, exist_ok=True)
-        return f"sqlite:///{outputs / 'mlflow.db'}", (outputs / "mlartifacts").as_uri()
+        """``(tracking URI, artifact location of a new experiment)``: a local SQLite store keeps
+        its artifacts in ``mlartifacts/`` beside it; for any other URI the location is None (the
+        tracking server's own)."""
+        uri = self.tracking_uri or f"sqlite:///{Path(start_dir).resolve() / 'outputs' / 'mlflow.db'}"
+        if not uri.startswith("sqlite:///"):
+            return uri, None
+        folder = Path(uri[len("sqlite:///"):]).parent
+        folder.mkdir(parents=True, exist_ok=True)
+        return uri, (folder / "mlartifacts").as_uri()
 
     def log_run(self, record: RunRecord) -> str:
         """Log ``record`` as one MLflow run; returns its run id."""
