@@ -177,6 +177,126 @@ def test_submitit_local_gives_the_same_maps_and_a_line_for_one_swept_key(basic, 
     assert (sweep / "summary_ari.png").read_bytes()[:8] == PNG
 
 
+@pytest.mark.slow
+def test_ray_runs_two_jobs_on_a_local_cluster_logged_to_one_mlflow_experiment(basic, tmp_path):
+    pytest.importorskip("hydra_plugins.hydra_ray_launcher")
+    pytest.importorskip("mlflow")
+    from mlflow.tracking import MlflowClient
+
+    _, _, sweep0 = basic
+    result, pid = cli(["-m", *SMALL, "clusters.ns=6,8", "stop.n_states=12",
+                       "hydra/launcher=ray",
+                       "logger=mlflow", "logger.experiment=ray_sweep"], tmp_path)
+    assert result.returncode == 0, result.stderr
+    assert "Started a local Ray instance" in result.stdout + result.stderr
+    sweep = the_sweep_dir(tmp_path)
+    rows = {(int(r["clusters.ns"]), 12): r for r in read_summary(sweep)}  # ns alone is swept
+    rows0 = by_setting(read_summary(sweep0))
+    assert sorted(rows) == [(6, 12), (8, 12)]
+    for setting, row in rows.items():
+        assert row["status"] == "completed" and row["ari"] == rows0[setting]["ari"]
+        job, job0 = sweep / row["output_dir"], sweep0 / rows0[setting]["output_dir"]
+        assert (job / "map.json").read_bytes() == (job0 / "map.json").read_bytes()
+        assert status(job)["pid"] != pid  # a Ray worker ran it
+    client = MlflowClient(tracking_uri=f"sqlite:///{tmp_path / 'outputs' / 'mlflow.db'}")
+    runs = client.search_runs([client.get_experiment_by_name("ray_sweep").experiment_id])
+    assert sorted(r.data.params["clusters.ns"] for r in runs) == ["6", "8"]
+    assert {r.data.tags["topomap.sweep_dir"] for r in runs} == {str(sweep.resolve())}
+    assert sorted(r.info.run_name for r in runs) == [f"{sweep.name}/0", f"{sweep.name}/1"]
+
+
+# ---------------------------------------------------------------- an Optuna search
+@pytest.mark.slow
+def test_optuna_search_maximises_the_objective_and_is_reported(tmp_path):
+    pytest.importorskip("hydra_plugins.hydra_optuna_sweeper")
+    args = ["-m", *SMALL, "hydra/sweeper=optuna", "hydra.sweeper.n_trials=6",
+            "clusters.ns=int(interval(4,10))", "stop.n_states=int(interval(8,16))"]
+    result, _ = cli(args, tmp_path)
+    assert result.returncode == 0, result.stderr
+    sweep = the_sweep_dir(tmp_path)
+    rows = read_summary(sweep)
+    assert len(rows) == 6 and list(rows[0])[1:3] == ["clusters.ns", "stop.n_states"]
+    done = [r for r in rows if r["status"] == "completed"]
+    assert done and all(r["status"] == "failed" and "is below the" in r["error"]
+                        for r in rows if r not in done)
+    for r in rows:
+        assert 4 <= int(r["clusters.ns"]) <= 10 and 8 <= int(r["stop.n_states"]) <= 16
+    best = max(done, key=lambda r: float(r["heldout_loglik"]))
+    found = OmegaConf.load(sweep / "optimization_results.yaml")
+    assert found.best_value == float(best["heldout_loglik"])  # maximised, not minimised
+    assert found.best_params == {"clusters.ns": int(best["clusters.ns"]),
+                                 "stop.n_states": int(best["stop.n_states"])}
+    assert (sweep / "summary_heldout_loglik.png").read_bytes()[:8] == PNG
+    assert f"best heldout_loglik: {float(best['heldout_loglik']):.4g}" in result.stdout
+    (tmp_path / "again").mkdir()
+    again, _ = cli(args, tmp_path / "again")  # the sampler follows the seed: the same trials
+    assert again.returncode == 0, again.stderr
+    rows_again = read_summary(the_sweep_dir(tmp_path / "again"))
+    assert [(r["clusters.ns"], r["stop.n_states"], r["heldout_loglik"]) for r in rows_again] == \
+        [(r["clusters.ns"], r["stop.n_states"], r["heldout_loglik"]) for r in rows]
+
+
+def test_optuna_presets_maximise_and_the_paper_preset_searches_its_knobs(make_cfg):
+    pytest.importorskip("hydra_plugins.hydra_optuna_sweeper")
+    plain = make_cfg(["hydra/sweeper=optuna"], hydra=True).hydra.sweeper
+    assert plain.direction == "maximize" and plain.sampler.seed == 0
+    assert plain._target_.endswith("optuna_sweeper.OptunaSweeper")
+    paper = make_cfg(["hydra/sweeper=optuna_pricai2002", "seed=3"], hydra=True)
+    assert paper.hydra.sweeper.direction == "maximize" and paper.hydra.sweeper.n_trials == 30
+    assert dict(paper.hydra.sweeper.params) == {"clusters.ns": "int(interval(10, 40))",
+                                                "stop.n_states": "int(interval(20, 80))"}
+    assert paper.hydra.sweeper.sampler.seed == 3
+    assert paper.objective.value == "heldout_loglik"
+    assert make_cfg(["objective=ari"]).objective.value == "ari"
+
+
+def test_a_search_the_wrong_way_stops_before_its_first_job():
+    report = SweepReport()
+    for objective in ("heldout_loglik", "ari"):
+        config = OmegaConf.create({"objective": objective,
+                                   "hydra": {"sweeper": {"direction": "minimize"}}})
+        with pytest.raises(SystemExit, match=f"hydra.sweeper.direction=minimize, but "
+                                             f"objective={objective} is better when larger"):
+            report.on_multirun_start(config=config)
+        config.hydra.sweeper.direction = "maximize"
+        report.on_multirun_start(config=config)  # goes on
+        assert report.metric_of(config) == objective
+    grid = OmegaConf.create({"objective": "ari", "hydra": {"sweeper": {"params": None}}})
+    report.on_multirun_start(config=grid)
+    assert report.metric_of(grid) == "ari" and SweepReport("nmi").metric_of(grid) == "nmi"
+
+
+def test_ray_cluster_preset_joins_a_running_cluster(make_cfg):
+    pytest.importorskip("hydra_plugins.hydra_ray_launcher")
+    launcher = make_cfg(["hydra/launcher=ray_cluster"], hydra=True).hydra.launcher
+    assert launcher._target_.endswith("ray_launcher.RayLauncher")
+    assert launcher.ray.init == {"address": "auto", "object_store_memory": None}
+    other = make_cfg(["hydra/launcher=ray_cluster", "hydra.launcher.ray.init.address=10.0.0.1:6379"],
+                     hydra=True)
+    assert other.hydra.launcher.ray.init.address == "10.0.0.1:6379"
+
+
+def test_the_objective_needs_its_data_and_names_the_keys(tmp_path, make_cfg):
+    from topomap.app.evaluate import objective_value
+
+    cfg = make_cfg([*SMALL, "data.heldout_steps=0"])
+    with pytest.raises(ValueError, match="objective=heldout_loglik needs held-out data: "
+                                         "data.heldout_steps > 0"):
+        run(cfg, tmp_path / "a", needs_objective=True)
+    assert not (tmp_path / "a").exists()
+    results = run(cfg, tmp_path / "b")  # a single run does without
+    assert results["objective"] == {"name": "heldout_loglik", "value": None}
+    results = run(make_cfg([*SMALL, "objective=ari"]), tmp_path / "c", needs_objective=True)
+    assert results["objective"]["value"] == results["ground_truth"]["final"]["ari"]
+    assert objective_value(results, "heldout_loglik") == results["heldout_loglik"]
+    from hydra.errors import ConfigCompositionException
+
+    with pytest.raises(ConfigCompositionException) as bad:
+        make_cfg(["objective=nll"])
+    assert "Invalid value 'nll', expected one of [heldout_loglik, ari]" in str(bad.value.__cause__)
+    assert "full_key: objective" in str(bad.value.__cause__)
+
+
 # ---------------------------------------------------------------- the report on its own
 def test_report_lists_crashed_and_unfinished_jobs(tmp_path, monkeypatch, make_cfg):
     def job_dir(num, overrides):

@@ -16,7 +16,7 @@ from ..worlds.office import OfficeWorld
 from ..worlds.random_graph import RandomGraphWorld
 from ..core import size as auto
 from ..core.refine import methods as refine
-from . import data
+from . import data, loggers
 from .hookspecs import Component, hookimpl
 
 
@@ -25,7 +25,7 @@ def _c(kind, name, factory, description):
 
 
 def nothing():
-    """A component switched off (``refine=none``, ``evaluate=none``)."""
+    """A component switched off (``refine=none``, ``evaluate=none``, ``logger=none``)."""
     return None
 
 
@@ -77,4 +77,7 @@ def topomap_register_components():
         _c("evaluate", "none", nothing, "no evaluation beyond ground truth and held-out data"),
         _c("evaluate", "navigation", Navigation,
            "localise, plan on the map and act in the world: success rate and path length"),
+        _c("logger", "none", nothing, "the run's files only"),
+        _c("logger", "mlflow", loggers.MLflowLogger,
+           "MLflow tracking (optional mlflow package): config, metrics, map and figures"),
     ]

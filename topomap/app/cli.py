@@ -148,8 +148,16 @@ def _summary(results: dict, out) -> str:
     return line
 
 
+def optimising(sweeper) -> bool:
+    """Whether a sweeper optimises what the jobs return (Optuna's has a ``direction``), rather
+    than running a grid."""
+    return sweeper is not None and "direction" in sweeper
+
+
 def _task(cfg, registry: Registry):
-    """One run (or one job of a sweep) of the composed config ``cfg``."""
+    """One run (or one job of a sweep) of the composed config ``cfg``; returns the run's
+    ``objective`` (:data:`~topomap.app.evaluate.OBJECTIVES`) for a sweeper to optimise, None for
+    a failed job."""
     from hydra.core.hydra_config import HydraConfig
 
     hc = HydraConfig.get()
@@ -158,13 +166,14 @@ def _task(cfg, registry: Registry):
         # trajectories are shared through the sweep folder, and a failure is written to the job's
         # status.json (the sweep report lists it) instead of ending the sweep
         sweep_dir = Path(hc.runtime.cwd, hc.sweep.dir)  # absolute, even with hydra.job.chdir
-        results = run_job(cfg, out, sweep_dir=sweep_dir, registry=registry)
+        results = run_job(cfg, out, sweep_dir=sweep_dir, registry=registry,
+                          needs_objective=optimising(hc.sweeper))
         if results is None:
             return None
     else:
         results = _single_run(cfg, out, registry)
     print(f"topomap: {_summary(results, out)}\ntopomap: outputs in {out}")
-    return results.get("ground_truth", {}).get("final", {}).get("ari")
+    return (results.get("objective") or {}).get("value")
 
 
 def _single_run(cfg, out, registry: Registry) -> dict:

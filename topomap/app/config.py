@@ -38,7 +38,7 @@ from omegaconf import II, MISSING, OmegaConf
 from ..core.learner import MapLearner
 from .kinds import KINDS
 
-__all__ = ["Config", "RunConf", "LearnerConf", "OutputConf", "RUNTIME_ARGS", "schema_of",
+__all__ = ["Config", "RunConf", "Objective", "LearnerConf", "OutputConf", "RUNTIME_ARGS", "schema_of",
            "learner_schema", "learner_key", "store_configs", "read_yaml_options", "check_overrides",
            "check_config", "group_options", "default_choices"]
 
@@ -141,6 +141,14 @@ class Task(Enum):
     localize = "localize"
 
 
+class Objective(Enum):
+    """The value a run returns to a sweeper that optimises it (``hydra/sweeper=optuna``); both
+    are better when larger (:data:`topomap.app.evaluate.OBJECTIVES`)."""
+
+    heldout_loglik = "heldout_loglik"
+    ari = "ari"
+
+
 @dataclass
 class RunConf:
     """The run settings at the top level of a config (:class:`Config` adds the groups)."""
@@ -151,6 +159,9 @@ class RunConf:
     task: Task = Task.learn
     #: the map.json a ``task=localize`` run applies
     map: Optional[str] = None
+    #: what the run returns to an optimising sweeper: heldout_loglik (needs held-out data, no
+    #: ground truth) or ari (needs ground truth)
+    objective: Objective = Objective.heldout_loglik
 
 
 #: The top level of a run's config: the run settings, one group per kind of component
@@ -229,6 +240,38 @@ def store_configs(registry) -> None:
     for (group, option), (text, package, provider) in files.items():
         cs.store(group=group, name=option, node=OmegaConf.create(text), package=package,
                  provider=provider)
+    store_optuna_sweeper(cs)
+
+
+def store_optuna_sweeper(cs) -> None:
+    """``hydra/sweeper=optuna`` set for topomap, when the Optuna sweeper plugin is installed
+    (``pip install "topomap[optuna]"``): the plugin's own config (``OptunaSweeperConf``), but
+    maximising (both of topomap's objectives are better when larger; the plugin minimises by
+    default), one trial at a time, and going on past jobs that cannot run (``max_failure_rate``:
+    such a job is a failed trial and a row of ``summary.csv``, as in a grid); and its default
+    sampler, ``hydra/sweeper/sampler=tpe``, seeded by the run's ``seed`` (the same command
+    proposes the same trials).  Every field can still be set: ``hydra.sweeper.n_trials=30``."""
+    try:
+        from hydra_plugins.hydra_optuna_sweeper.config import OptunaSweeperConf, TPESamplerConfig
+    except ImportError:
+        return
+    from hydra.core.plugins import Plugins
+
+    Plugins.instance()  # Hydra's first plugin scan stores the plugin's options: let it come first
+
+    @dataclass
+    class TopomapOptunaSweeperConf(OptunaSweeperConf):
+        direction: Any = "maximize"
+        n_jobs: int = 1
+        max_failure_rate: float = 1.0
+
+    @dataclass
+    class SeededTPESamplerConf(TPESamplerConfig):
+        seed: Optional[int] = II("seed")
+
+    cs.store(group="hydra/sweeper", name="optuna", node=TopomapOptunaSweeperConf, provider="topomap")
+    cs.store(group="hydra/sweeper/sampler", name="tpe", node=SeededTPESamplerConf,
+             provider="topomap")
 
 
 def fields_of(schema) -> dict:

@@ -22,10 +22,11 @@ from ..core.map.model import TopologicalMap
 from ..core.progress import reporting
 from .config import check_config, learner_key
 from .data import TrajectoryCache, trajectory_key
-from .evaluate import evaluate, localization_scores
+from .evaluate import check_objective, evaluate, localization_scores, objective_value
 from .outputs import (STATUS_FILE, OutputDirInUse, claim_output_dir, versions, write_json,
                       write_localization, write_outputs)
 from .kinds import KINDS
+from .loggers import RunRecord, start_dir
 from .registry import Parts, Registry
 
 log = logging.getLogger("topomap")
@@ -45,7 +46,8 @@ UNITS = {
 }
 
 
-def run(cfg, output_dir, *, registry: Registry | None = None, cache_dir=None) -> dict:
+def run(cfg, output_dir, *, registry: Registry | None = None, cache_dir=None,
+        needs_objective: bool = False) -> dict:
     """Run one experiment described by ``cfg`` and write its outputs into ``output_dir``.
 
     The config is checked (:func:`~topomap.app.config.check_config`), every component is built
@@ -55,7 +57,9 @@ def run(cfg, output_dir, *, registry: Registry | None = None, cache_dir=None) ->
 
     A folder that holds another run's outputs is refused (:class:`~topomap.app.outputs.OutputDirInUse`)
     unless ``output.overwrite`` is true, which removes them first
-    (:func:`~topomap.app.outputs.claim_output_dir`).
+    (:func:`~topomap.app.outputs.claim_output_dir`).  ``needs_objective``: the run's
+    ``objective`` is optimised (an Optuna sweep), so data that cannot give it is an error before
+    learning.
     """
     cfg = _as_dict(cfg)
     claim_output_dir(output_dir, bool((cfg.get("output") or {}).get("overwrite", False)))
@@ -69,10 +73,11 @@ def run(cfg, output_dir, *, registry: Registry | None = None, cache_dir=None) ->
     parts = registry.build(cfg)
     if localizing:
         return localize(cfg, parts, output_dir)
-    return learn(cfg, parts, output_dir, registry, cache_dir)
+    return learn(cfg, parts, output_dir, registry, cache_dir, needs_objective)
 
 
-def learn(cfg: dict, parts: Parts, output_dir, registry: Registry, cache_dir=None) -> dict:
+def learn(cfg: dict, parts: Parts, output_dir, registry: Registry, cache_dir=None,
+          needs_objective: bool = False) -> dict:
     """Learn a map: data -> learner -> evaluation -> outputs.
 
     The learner's settings are checked before any data is simulated, so a bad setting fails
@@ -89,6 +94,9 @@ def learn(cfg: dict, parts: Parts, output_dir, registry: Registry, cache_dir=Non
         (traj, heldout), t_data = load_data(cfg, parts, registry, cache_dir, progress,
                                             learner=learner)
         check_cluster_count(getattr(parts.clusters, "ns", None), traj)
+        objective = cfg.get("objective", "heldout_loglik")
+        if needs_objective:
+            check_objective(objective, traj, heldout)
         with config_keys():
             learner.fit_trajectory(traj)
         _report_missed_target(learner)
@@ -96,23 +104,28 @@ def learn(cfg: dict, parts: Parts, output_dir, registry: Registry, cache_dir=Non
         results = evaluate(learner, traj, heldout, parts)
         t_data["evaluate"] = time.perf_counter() - t0
         _write_learned(cfg, parts, registry, output_dir, traj, learner, results, t_data,
-                       plugin_metrics)
+                       plugin_metrics, objective, cache_dir)
     return results
 
 
 def _write_learned(cfg, parts, registry, output_dir, traj, learner, results, t_data,
-                   plugin_metrics) -> None:
-    """Complete the results of a learned map and write the run's files."""
+                   plugin_metrics, objective, cache_dir) -> None:
+    """Complete the results of a learned map, write the run's files and log the run."""
     results.update({
         "split_history": learner.split_history_, "entropy_trace": learner.entropies_,
         "stop_reason": learner.stop_reason_, "timings": {**t_data, **learner.timings_},
         "size_choice": getattr(learner, "size_choice_", None), "resized": _resized(learner),
         "mapping": _mapping(traj, results),
         "versions": versions(), "config": cfg, "plugin_metrics": plugin_metrics, "units": UNITS,
+        "objective": {"name": objective, "value": objective_value(results, objective)},
         "providers": {name: registry.provider(name, cfg[name]["component"])
                       for name, kind in KINDS.items() if kind.learner_arg},  # the learner's
     })
     write_outputs(Path(output_dir), traj, learner, results, cfg, parts.world)
+    if parts.logger is not None:
+        sweep_dir = None if cache_dir is None else Path(cache_dir).parent  # <sweep>/.cache
+        parts.logger.log_run(RunRecord(Path(output_dir), cfg, results, start_dir=start_dir(),
+                                       sweep_dir=sweep_dir))
 
 
 def check_room_for_clusters(cfg: dict, parts: Parts) -> None:
@@ -356,7 +369,7 @@ def _as_dict(cfg) -> dict:
 
 
 # ---------------------------------------------------------------------------------- sweep jobs
-def run_job(cfg, output_dir, *, sweep_dir, registry=None) -> dict | None:
+def run_job(cfg, output_dir, *, sweep_dir, registry=None, needs_objective=False) -> dict | None:
     """Run one job of a sweep into ``output_dir``; return its results, or None if it failed.
 
     Trajectories are shared through ``<sweep_dir>/.cache``.  Any exception is logged and written to
@@ -369,7 +382,8 @@ def run_job(cfg, output_dir, *, sweep_dir, registry=None) -> dict | None:
     out = Path(output_dir)
     t0 = time.perf_counter()
     try:
-        results = run(cfg, out, registry=registry, cache_dir=Path(sweep_dir) / CACHE_DIR)
+        results = run(cfg, out, registry=registry, cache_dir=Path(sweep_dir) / CACHE_DIR,
+                      needs_objective=needs_objective)
     except OutputDirInUse as exc:
         log.error("job not run: %s", exc)
         return None

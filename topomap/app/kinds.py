@@ -58,4 +58,6 @@ KINDS = MappingProxyType({kind.name: kind for kind in (
                  "``heldout(parts, seed)`` return Trajectory objects (or None)"),
     Kind("evaluate", "``evaluate(map, labels, places, world, noise) -> dict``, or None for no "
                      "extra evaluation"),
+    Kind("logger", "``log_run(record)`` with a :class:`~topomap.app.loggers.RunRecord` once the "
+                   "run has written its outputs, or None for no logging"),
 )})

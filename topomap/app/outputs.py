@@ -18,7 +18,7 @@ import numpy as np
 from ..core.data.files import atomic_write
 from ..core.data.trajectory import save_trajectory
 
-__all__ = ["OUTPUT_FILES", "FIGURE_FILES", "MAPPING_FIGURES", "LOCALIZE_FILES", "STATUS_FILE",
+__all__ = ["OUTPUT_FILES", "FIGURE_FILES", "HTML_FILES", "MAPPING_FIGURES", "LOCALIZE_FILES", "STATUS_FILE",
            "write_outputs", "write_localization", "versions", "write_json", "staged",
            "held_signals", "own_files", "claim_output_dir", "OutputDirInUse"]
 
@@ -48,6 +48,11 @@ FIGURE_FILES = {
     "fig_split.png": "a compound state before and after its split, with transition tables (Figs. 5-6)",
     "fig_map.png": "the learned map at the states' mean positions, arcs where P > min_prob (Fig. 7)",
     "fig_entropy.png": "H(u|x), H(x'|x,u) and their sum after each split (and after the refinement)",
+}
+#: the interactive map every run writes with its figures (``output.figures``)
+HTML_FILES = {
+    "map.html": "the learned map to zoom, pan and hover (states, visits, places, transitions); "
+                "one self-contained file, plotly's JavaScript inlined",
 }
 #: the figure a run that maps while exploring (``data.curve_every`` > 0) adds
 MAPPING_FIGURES = {
@@ -132,7 +137,7 @@ def versions() -> dict:
     """Python's and every relevant package's version, for the record."""
     out = {"python": sys.version.split()[0]}
     for pkg in ("topomap", "numpy", "scikit-learn", "networkx", "hydra-core", "omegaconf",
-                "pluggy", "matplotlib"):
+                "pluggy", "matplotlib", "plotly"):
         try:
             out[pkg] = version(pkg)
         except PackageNotFoundError:
@@ -186,6 +191,10 @@ def _write_outputs(out: Path, traj, learner, results, cfg, world=None) -> None:
 
         plots.write_figures(out, traj, learner, world, min_prob=cfg["output"]["min_prob"],
                             compound_state=cfg["output"].get("compound_state"))
+        from .plots.interactive import write_map_html
+
+        write_map_html(out / "map.html", m, learner.labels_, traj.positions, traj.places,
+                       min_prob=cfg["output"]["min_prob"], seed=int(cfg["seed"]))
     results["timings"]["outputs"] = time.perf_counter() - t0
     write_json(out / "metrics.json", results)
 

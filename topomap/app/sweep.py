@@ -40,6 +40,7 @@ from hydra.experimental.callback import Callback
 from ..core.data.files import atomic_write
 from .sweep_columns import (METRICS, axis_values, best_row, check_metric, header, mean, no_value,
                             number, row, short)
+from .plots.sweep import is_grid
 from .sweep_jobs import not_started, planned_jobs, read_jobs, swept_keys
 
 log = logging.getLogger("topomap")
@@ -126,7 +127,8 @@ def _fmt(v) -> str:
 
 # ---------------------------------------------------------------------------------- the console
 def _table(report: Report) -> str:
-    """The metric as a text table over the two swept keys (or a column for one)."""
+    """The metric as a text table over the two swept keys (or a column for one; the ten best
+    jobs when they do not make a grid)."""
     rows, keys, metric = report.rows, report.keys, report.metric
 
     def cell(rs):
@@ -135,7 +137,14 @@ def _table(report: Report) -> str:
         value = mean([number(r[metric]) for r in rs])
         return "-" if math.isnan(value) else short(value)
 
-    if len(keys) == 1:
+    if len(keys) == 2 and not is_grid(rows, keys):  # a search: the jobs, best first
+        done = sorted((r for r in rows if not math.isnan(number(r[metric]))),
+                      key=lambda r: number(r[metric]), reverse=METRICS[metric].better != "min")
+        lines = [["job", *keys, metric]] + [[str(r["job"]), *(str(r[k]) for k in keys),
+                                             short(number(r[metric]))] for r in done[:10]]
+        if len(done) > 10:
+            lines.append(["...", *("" for _ in keys), f"{len(done) - 10} more"])
+    elif len(keys) == 1:
         (key,) = keys
         lines = [[key, metric]] + [[x, cell([r for r in rows if str(r[key]) == x])]
                                    for x in axis_values(rows, key)]
@@ -183,9 +192,10 @@ class SweepReport(Callback):
 
     Parameters (``hydra.callbacks.sweep_report.<name>=...``)
     ---------------------------------------------------------
-    metric : str
-        Summary column shown in the figure and the printed table (default ``ari``, the final ARI);
-        one of :data:`METRICS`.
+    metric : str or None
+        Summary column shown in the figure and the printed table, one of :data:`METRICS`; None
+        (the default): the run's ``objective`` when the sweeper optimises it (Optuna), else
+        ``ari`` (the final ARI).
     figure : bool
         Write ``summary_<metric>.png``.
     strict : bool
@@ -197,17 +207,46 @@ class SweepReport(Callback):
     #: :func:`interrupted_sweep_report`
     running = None
 
-    def __init__(self, metric: str = "ari", figure: bool = True, strict: bool = False):
-        check_metric(metric, "hydra.callbacks.sweep_report.metric")
+    def __init__(self, metric: str | None = None, figure: bool = True, strict: bool = False):
+        if metric is not None:
+            check_metric(metric, "hydra.callbacks.sweep_report.metric")
         self.metric, self.figure, self.strict = metric, bool(figure), bool(strict)
 
+    def metric_of(self, config) -> str:
+        """The column the report shows for the multirun ``config``."""
+        from omegaconf import OmegaConf
+
+        if self.metric is not None:
+            return self.metric
+        sweeper = OmegaConf.select(config, "hydra.sweeper", default=None)
+        if sweeper is not None and "direction" in sweeper:
+            objective = OmegaConf.select(config, "objective", default="heldout_loglik")
+            return str(getattr(objective, "value", objective))  # an Objective, or its name
+        return "ari"
+
     def on_multirun_start(self, config, **kwargs) -> None:
+        """Stop a search before its first job when it would optimise the wrong way: the
+        sweeper's ``direction`` against the objective's (:data:`~topomap.app.evaluate.OBJECTIVES`)."""
+        from omegaconf import OmegaConf
+
+        from .evaluate import OBJECTIVES
+
         SweepReport.running = (self, config)
+        direction = OmegaConf.select(config, "hydra.sweeper.direction", default=None)
+        direction = getattr(direction, "name", direction)  # the plugin's Direction enum, or text
+        objective = OmegaConf.select(config, "objective", default=None)
+        objective = getattr(objective, "value", objective)
+        wanted = OBJECTIVES.get(objective, {}).get("direction")
+        if isinstance(direction, str) and wanted and direction != wanted:
+            sys.exit(f"topomap: error: hydra.sweeper.direction={direction}, but "
+                     f"objective={objective} is better when "
+                     f"{'larger' if wanted == 'maximize' else 'smaller'}; give "
+                     f"hydra.sweeper.direction={wanted}")
 
     def on_multirun_end(self, config, **kwargs) -> None:
         SweepReport.running = None
         sweep_dir = Path(str(config.hydra.sweep.dir))
-        report = write_report(sweep_dir, metric=self.metric, figure=self.figure,
+        report = write_report(sweep_dir, metric=self.metric_of(config), figure=self.figure,
                               multirun_cfg=config)
         _print_report(report)
         if report.failed:
@@ -231,7 +270,7 @@ def interrupted_sweep_report() -> Path | None:
 
     if (sweep_dir / "multirun.yaml").is_file():  # the job config Hydra saved, with the plan
         config = OmegaConf.load(sweep_dir / "multirun.yaml")
-    report = write_report(sweep_dir, metric=callback.metric, figure=callback.figure,
+    report = write_report(sweep_dir, metric=callback.metric_of(config), figure=callback.figure,
                           multirun_cfg=config)
     _print_report(report)
     return report.summary

@@ -1,7 +1,8 @@
 """Figures of a sweep: one summary column over the swept values (matplotlib, Agg backend, PNG).
 
 A line over one swept key (:func:`plot_sweep_line`), a heat map over two
-(:func:`plot_sweep_heat_map`); :func:`write_sweep_figure` writes ``summary_<metric>.png``.  As
+(:func:`plot_sweep_heat_map`), or a scatter of the jobs when their values do not make a grid (a
+search such as Optuna's picks its own, :func:`plot_sweep_scatter`); :func:`write_sweep_figure` writes ``summary_<metric>.png``.  As
 for the run figures (:mod:`topomap.app.plots`), every ``plot_*`` function draws on the Axes (or
 Figure) it is given and returns it, and the style is theirs: the palette's first colour for the
 values, its red for the best job and for values no job completed, the same font sizes, PNG files
@@ -18,14 +19,16 @@ import numpy as np
 from ..sweep_columns import METRICS, axis_values, cell_value, no_value, number, short
 from .style import LEGEND_SIZE, PALETTE, TITLE_SIZE, pyplot, save_figure
 
-__all__ = ["write_sweep_figure", "plot_sweep_line", "plot_sweep_heat_map"]
+__all__ = ["write_sweep_figure", "plot_sweep_line", "plot_sweep_heat_map", "plot_sweep_scatter",
+           "is_grid"]
 
 #: the colour of the values, and of the best job and of the values that no job completed
 VALUE, ALERT = PALETTE[0], PALETTE[3]
 
 
 def write_sweep_figure(path: Path, rows, keys, metric: str, best=None) -> None:
-    """``summary_<metric>.png``: ``metric`` over one swept key (a line) or two (a heat map);
+    """``summary_<metric>.png``: ``metric`` over one swept key (a line) or two (a heat map, or a
+    scatter of the jobs when their values do not make a grid, see :func:`is_grid`);
     ``rows`` are the summary's, ``best`` the best job's row (ringed or outlined)."""
     plt = pyplot()
     counts = {st: sum(r["status"] == st for r in rows)
@@ -36,6 +39,9 @@ def write_sweep_figure(path: Path, rows, keys, metric: str, best=None) -> None:
         n = len(axis_values(rows, keys[0]))
         fig, ax = plt.subplots(figsize=(max(4.0, 0.6 * n + 2.0), 3.2))
         plot_sweep_line(ax, rows, keys[0], metric, title, best)
+    elif not is_grid(rows, keys):
+        fig = plt.figure(figsize=(6.4, 4.6))
+        plot_sweep_scatter(fig, rows, keys, metric, title, best)
     else:
         ys, xs = (axis_values(rows, k) for k in keys)
         fig = plt.figure(figsize=(1.6 + 0.75 * len(xs) + 1.2, 1.3 + 0.5 * len(ys)))
@@ -134,4 +140,51 @@ def plot_sweep_heat_map(fig, rows, keys, metric, title, best=None):
     ax.set_xlabel(xkey)
     ax.set_ylabel(ykey)
     ax.set_title(title, fontsize=TITLE_SIZE)
+    return ax
+
+
+def is_grid(rows, keys) -> bool:
+    """Whether the jobs' values of two swept ``keys`` make a grid: a job for at least half the
+    pairs of values (a grid sweep has one for every pair; a search picks a few scattered ones)."""
+    pairs = {tuple(str(r[k]) for k in keys) for r in rows}
+    cells = np.prod([len(axis_values(rows, k)) for k in keys])
+    return 2 * len(pairs) >= cells
+
+
+def plot_sweep_scatter(fig, rows, keys, metric, title, best=None):
+    """``metric`` over two swept ``keys`` (y, x) when the jobs do not make a grid: one point per
+    completed job at its values, coloured by ``metric``, numbered by job, and a red cross for each
+    job that did not complete; the best job ringed in red.  Returns the Axes."""
+    (ykey, xkey) = keys
+    ax = fig.add_subplot()
+    done = [r for r in rows if r["status"] == "completed" and np.isfinite(number(r[metric]))]
+    lost = [r for r in rows if r not in done]
+
+    def xy(rs):
+        return (np.array([number(r[xkey]) for r in rs]), np.array([number(r[ykey]) for r in rs]))
+
+    handles = []
+    if done:
+        x, y = xy(done)
+        pts = ax.scatter(x, y, c=[number(r[metric]) for r in done], cmap="viridis", s=36,
+                         edgecolors="0.3", lw=0.5, zorder=3, label="completed job (number)")
+        fig.colorbar(pts, ax=ax, label=METRICS[metric].label)
+        handles.append(pts)
+        for r, xi, yi in zip(done, x, y):
+            ax.annotate(str(r["job"]), (xi, yi), xytext=(3, 3), textcoords="offset points",
+                        fontsize=6, color="0.3")
+    if lost:
+        x, y = xy(lost)
+        handles.append(ax.scatter(x, y, marker="x", color=ALERT, s=28, lw=1.2, zorder=3,
+                                  label="failed or incomplete job"))
+    if best is not None:
+        handles += ax.plot(number(best[xkey]), number(best[ykey]), "o", ms=13, mfc="none",
+                           mec=ALERT, mew=1.5, zorder=4,
+                           label=f"best: {ykey}={best[ykey]}, {xkey}={best[xkey]}")
+    ax.legend(handles=handles, fontsize=LEGEND_SIZE, loc="upper center",
+              bbox_to_anchor=(0.5, -0.14), frameon=False, ncol=2)
+    ax.set_xlabel(xkey)
+    ax.set_ylabel(ykey)
+    ax.set_title(title, fontsize=TITLE_SIZE)
+    ax.grid(alpha=0.3)
     return ax
