@@ -89,18 +89,33 @@ def code_files():
     return files
 
 
+def sweep_values(value: str) -> list[str]:
+    """The values a swept override stands for: ``a,b,c``; ``choice(a,b)``; ``range(a,b[,s])``; a
+    search space ``interval(a,b)`` (``int(...)``: an integer one) stands for its middle."""
+    value = value.strip()
+    space = re.fullmatch(r"(int\()?\s*interval\(\s*([-\d.]+)\s*,\s*([-\d.]+)\s*\)\)?", value)
+    if space:
+        middle = (float(space[2]) + float(space[3])) / 2
+        return [str(int(middle)) if space[1] else str(middle)]
+    call = re.fullmatch(r"(choice|range)\((.*)\)", value)
+    if call and call[1] == "range":
+        return [str(v) for v in range(*(int(x) for x in call[2].split(",")))]
+    return [v.strip() for v in (call[2] if call else value).split(",")]
+
+
 def jobs_of(command, make_cfg):
-    """The composed config of every job a command runs (a sweep expanded)."""
+    """The composed config of every job a command runs (a sweep expanded; a search space at its
+    middle)."""
     args = shlex.split(command)[1:]
     swept, fixed = [], []
     for o in overrides_of(args):
         key, _, value = o.partition("=")
         if "-m" in args and "," in value and not value.startswith("["):
-            swept.append((key, value.split(",")))
+            swept.append((key, sweep_values(value)))
         else:
             fixed.append(o)
     params = OmegaConf.select(make_cfg(fixed, hydra=True), "hydra.sweeper.params") or {}
-    swept += [(k, str(v).split(",")) for k, v in params.items()]
+    swept += [(k, sweep_values(str(v))) for k, v in params.items()]
     for combo in itertools.product(*(values for _, values in swept)) if swept else [()]:
         job = fixed + [f"{k}={v}" for (k, _), v in zip(swept, combo)]
         yield job, make_cfg([o for o in job if not o.startswith("hydra")])
