@@ -3,6 +3,7 @@ warning with the reason, a cluster count too close to the number of steps is ref
 
 import logging
 
+import numpy as np
 import pytest
 
 from topomap.app.experiment import STEPS_PER_SYMBOL, run
@@ -49,7 +50,7 @@ def test_few_steps_per_cluster_are_warned_about(make_cfg, tmp_path, caplog):
     assert f"leaves {steps / 40:.1f} steps per symbol on average" in line, line
 
 
-def test_a_state_count_below_what_bic_may_choose_is_refused_before_bic(make_cfg, tmp_path,
+def test_a_state_count_below_what_bic_can_choose_is_refused_before_bic(make_cfg, tmp_path,
                                                                        monkeypatch):
     from topomap.core.phase1.clustering import BICClusters
 
@@ -58,13 +59,27 @@ def test_a_state_count_below_what_bic_may_choose_is_refused_before_bic(make_cfg,
 
     monkeypatch.setattr(BICClusters, "choose", no_bic)
     with pytest.raises(ValueError) as err:
-        run(make_cfg(["clusters=bic", "output.progress=false"]), tmp_path / "out")
-    assert str(err.value) == (
-        "stop.n_states=30 is below the 42 states phase 1 may create: clusters=bic chooses up to "
-        "clusters.max_ns=40 clusters plus the 2 GDS; give stop.n_states=42 or more, "
-        "clusters.max_ns=28 or less, or stop=auto (the number of states chosen from the data "
-        "too)")
+        run(make_cfg(["clusters=bic", "clusters.min_ns=30", "output.progress=false"]),
+            tmp_path / "out")
+    assert str(err.value).startswith("stop.n_states=30 is below the 32 states")
     assert not (tmp_path / "out").exists()
+
+
+def test_bic_searches_only_the_counts_the_told_size_leaves_room_for():
+    # the office has 2 GDS: 30 states told leave room for 28 clusters; BIC over 5..40 picks 34
+    # on the default walk, so searched up to 28 it picks at most 28, and the run reaches 30
+    from topomap import MapLearner
+    from topomap.core.phase1.clustering import BICClusters
+    from topomap.worlds import GaussianNoise, OfficeWorld, RandomExplorer
+
+    rng = np.random.default_rng(0)
+    traj = OfficeWorld().simulate(600, RandomExplorer(), rng)
+    traj.observations = GaussianNoise(0.01).apply(traj.observations, rng)
+    policy = BICClusters(min_ns=20, max_ns=34)
+    learner = MapLearner(n_states=30, clusters=policy).fit_trajectory(traj)
+    assert max(learner.cluster_choice_["bic"]) == 28
+    assert learner.n_clusters_ <= 28 and learner.map_.n_states == 30
+    assert learner.map_.info["clusters"] == repr(policy) == "BICClusters(min_ns=20, max_ns=34, step=1)"
 
 
 def test_a_state_count_that_leaves_bic_room_runs(make_cfg, tmp_path):

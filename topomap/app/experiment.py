@@ -129,28 +129,23 @@ def _write_learned(cfg, parts, registry, output_dir, traj, learner, results, t_d
 
 
 def check_room_for_clusters(cfg: dict, parts: Parts) -> None:
-    """Refuse, before any data or BIC, a told ``stop.n_states`` below the states phase 1 may
-    create when the cluster count is chosen from the data (``clusters=bic``: up to
-    ``clusters.max_ns``, plus the world's GDS): the choice takes a while, and a count above
-    the told states would end the run after it.  The rule is conservative: it refuses even when
-    the data would have chosen fewer clusters."""
+    """Say, before any data or BIC, when a told ``stop.n_states`` narrows the cluster counts a
+    policy choosing from the data searches (``clusters=bic``: ``min_ns`` .. ``max_ns``, plus the
+    world's GDS): :class:`~topomap.MapLearner` searches only the counts it leaves room for.  (A
+    told size below ``min_ns`` plus the GDS is refused by the learner's own checks, before
+    this.)"""
     from ..core.split.stopping import TargetStates
 
     most = getattr(parts.clusters, "max_ns", None)
     least = getattr(parts.clusters, "min_ns", None)
     stop = parts.stop
-    if most is None or most == least or not isinstance(stop, TargetStates):
+    if most is None or least is None or not isinstance(stop, TargetStates):
         return
     n_gds = int(getattr(parts.world, "n_gds", 0) or 0)
-    if stop.n_states >= most + n_gds:
-        return
-    gds = f" plus the {n_gds} GDS" if n_gds else ""
-    comp = cfg["clusters"]["component"]
-    raise ValueError(
-        f"stop.n_states={stop.n_states} is below the {most + n_gds} states phase 1 may create: "
-        f"clusters={comp} chooses up to clusters.max_ns={most} clusters{gds}; give "
-        f"stop.n_states={most + n_gds} or more, clusters.max_ns={stop.n_states - n_gds} or less, "
-        "or stop=auto (the number of states chosen from the data too)")
+    if least + n_gds <= stop.n_states < most + n_gds:
+        log.info("clusters=%s searches %d to %d clusters: stop.n_states=%d leaves room for no "
+                 "more%s", cfg["clusters"]["component"], least, stop.n_states - n_gds,
+                 stop.n_states, f" beside the {n_gds} GDS" if n_gds else "")
 
 
 #: fewer steps than this per K-means symbol, on average, and a run warns (see

@@ -351,9 +351,10 @@ class MapLearner(BaseEstimator):
         if given is not None:
             symbols, choice = given, {"method": "online codebook"}
         else:
+            searched = _within_told_size(clusters, stopping, np.unique(data.gds[~plain]).size)
             with self._naming("clusters", method="phase1"):
                 symbols, choice = cluster_observations(
-                    data.X if plain.all() else data.X[plain], clusters, metric,
+                    data.X if plain.all() else data.X[plain], searched, metric,
                     n_init=self.n_init, random_state=self.random_state, method=self.phase1,
                     sample_size=self.sample_size)
         self.phase1_method_ = choice.pop("method")
@@ -533,3 +534,20 @@ class MapLearner(BaseEstimator):
         Raises scikit-learn's ``NotFittedError`` before :meth:`fit` (or :meth:`partial_fit`)."""
         check_is_fitted(self, "map_")
         return self.map_.score(observations, actions, gds=gds, lengths=lengths)
+
+
+def _within_told_size(clusters, stopping, n_gds: int):
+    """A cluster-count policy that searches a range (``min_ns`` .. ``max_ns``, as
+    :class:`~topomap.core.phase1.clustering.BICClusters`) searched only up to the counts a told
+    number of states leaves room for (``n_states`` minus the GDS states): a larger count could
+    not be split to that size.  The policy itself is not changed (its repr, kept in the map, is
+    the one given)."""
+    if not isinstance(stopping, TargetStates):
+        return clusters
+    low, high = getattr(clusters, "min_ns", None), getattr(clusters, "max_ns", None)
+    room = stopping.n_states - n_gds
+    if low is None or high is None or not low <= room < high:
+        return clusters
+    searched = copy.copy(clusters)
+    searched.max_ns = room
+    return searched
