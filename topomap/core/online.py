@@ -21,8 +21,9 @@ seen before it:
   map does not know.
 
 Memory kept: the window (``window`` rows of observations, actions, GDS ids) and the map's tables,
-bounded by the world, not by the steps; and, per step seen, its symbol, action and GDS id (int32
-each) from which ``labels_`` is decoded, so O(T) small integers in all.  Reading ``labels_``
+bounded by the world, not by the steps; and, per step seen, five int32: its symbol, action and
+GDS id (from which ``labels_`` is decoded), whether an episode starts there, and the label it was
+decoded to when it arrived, so O(T) small integers in all.  Reading ``labels_``
 decodes the steps before the window with the current map: O(T), once per call (cached).
 """
 
