@@ -107,30 +107,30 @@ def test_a_failed_run_leaves_a_status_saying_so(tmp_path):
     assert status["error"].split(": ", 1)[1] in r.stderr
 
 
+def interrupted(*args, **kwargs):
+    """Stands in for a function the user's Ctrl-C stops."""
+    raise KeyboardInterrupt
+
+
+def small_cfg(make_cfg):
+    return make_cfg(["data.n_steps=200", "data.heldout_steps=0", "output.progress=false",
+                     "clusters.ns=6"])
+
+
 def test_an_interrupt_while_writing_leaves_none_of_the_run_files(tmp_path, make_cfg,
                                                                   monkeypatch):
     """Interrupted while drawing the figures (after the map was written, before the metrics):
     the folder holds none of the run's files and no staging folder."""
-    def interrupted(*args, **kwargs):
-        raise KeyboardInterrupt
-
     monkeypatch.setattr(plots, "write_figures", interrupted)
-    cfg = make_cfg(["data.n_steps=200", "data.heldout_steps=0", "output.progress=false",
-                    "clusters.ns=6"])
     with pytest.raises(KeyboardInterrupt):
-        experiment.run(cfg, tmp_path / "out")
+        experiment.run(small_cfg(make_cfg), tmp_path / "out")
     assert list((tmp_path / "out").iterdir()) == []
 
 
 def test_a_sweep_job_that_is_interrupted_says_so_and_ends_the_sweep(tmp_path, make_cfg,
                                                                     monkeypatch):
-    def interrupted(*args, **kwargs):
-        raise KeyboardInterrupt
-
     monkeypatch.setattr(outputs, "_write_outputs", interrupted)
-    cfg = make_cfg(["data.n_steps=200", "data.heldout_steps=0", "output.progress=false",
-                    "clusters.ns=6"])
     with pytest.raises(KeyboardInterrupt):
-        experiment.run_job(cfg, tmp_path / "0", sweep_dir=tmp_path)
+        experiment.run_job(small_cfg(make_cfg), tmp_path / "0", sweep_dir=tmp_path)
     assert [p.name for p in (tmp_path / "0").iterdir()] == ["status.json"]
     assert json.loads((tmp_path / "0" / "status.json").read_text())["status"] == "interrupted"
