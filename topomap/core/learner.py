@@ -2,11 +2,9 @@
 
 from __future__ import annotations
 
-import copy
 import time
-from contextlib import contextmanager
 from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from typing import Self
 
 import numpy as np
@@ -15,42 +13,19 @@ from sklearn.base import BaseEstimator
 from sklearn.utils.validation import check_is_fitted
 
 from . import online
-from .checks import ParameterError, check_count
-from .phase1.clustering import FixedClusters, cluster_observations, make_metric
+from .checks import check_count
+from .components import make_components, make_refinement, naming, within_told_size
+from .phase1.clustering import cluster_observations
 from .size import (AutoStates, bic, parameter_count, probe_sizes, refined_sizes,
                    split_holdout)
 from .map.model import TopologicalMap
-from .refine.methods import REFINEMENTS, CloneFit, SymbolSequence
+from .refine.methods import CloneFit, SymbolSequence
 from .refine.resize import resize
-from .split.criteria import CRITERIA
 from .split.engine import Splitter
 from .split.stopping import TargetStates
-from .stats import episode_masks
-from .data.trajectory import check_sequences
+from .data.trajectory import FitData, check_fit_data
 
 __all__ = ["MapLearner"]
-
-#: the learner's own parameter behind a parameter of a component it makes itself
-#: (``FixedClusters(n_clusters)``, ``TargetStates(n_states)``)
-_MADE_FROM = {("clusters", "ns"): "n_clusters", ("stopping", "n_states"): "n_states"}
-
-
-@dataclass
-class _Data:
-    """Validated input of one fit."""
-
-    X: np.ndarray
-    u: np.ndarray
-    gds: np.ndarray
-    lengths: np.ndarray
-    n_actions: int
-    action_names: list | None
-    gds_names: list | None
-
-    @property
-    def masks(self):
-        return episode_masks(self.X.shape[0], self.lengths)
-
 
 class MapLearner(BaseEstimator):
     """Learn a topological map from observations and actions (Yairi, Togami & Hori, 2002).
@@ -190,10 +165,11 @@ class MapLearner(BaseEstimator):
         -1 for "no GDS", ``lengths`` the episode lengths when several episodes are concatenated.
         A fit forgets any earlier :meth:`partial_fit`.
         """
-        data = self._validate(observations, actions, gds, lengths, n_actions, action_names,
+        data = check_fit_data(observations, actions, gds, lengths, n_actions, action_names,
                               gds_names)
-        clusters, metric, criterion, stopping = self._components()
-        refinement = self._refinement()
+        self.n_features_in_ = data.X.shape[1]
+        clusters, metric, criterion, stopping = make_components(self)
+        refinement = make_refinement(self.refine)
         self._forget_fit()
         t0 = time.perf_counter()
         splitter = self._phase1(data, clusters, metric, criterion, stopping)
@@ -257,7 +233,7 @@ class MapLearner(BaseEstimator):
     def _online_settings(self) -> tuple[int, int]:
         return check_count(self.window, "window"), check_count(self.refit_every, "refit_every")
 
-    def _keep_refined(self, data: _Data, refined: TopologicalMap, labels) -> bool:
+    def _keep_refined(self, data: FitData, refined: TopologicalMap, labels) -> bool:
         """Whether the refined map's BIC (actions and transitions, :func:`topomap.core.size.bic`)
         is no worse than the split map's; both BICs and the map kept go into ``refine_info_``."""
         has_next = data.masks[1]
@@ -270,7 +246,7 @@ class MapLearner(BaseEstimator):
         self.refine_info_.update(bic=scores, kept="refined" if keep else "split")
         return keep
 
-    def _refine(self, data: _Data, splitter: Splitter, refinement, told: int | None) -> None:
+    def _refine(self, data: FitData, splitter: Splitter, refinement, told: int | None) -> None:
         """Re-estimate every state jointly (:mod:`topomap.core.refine.methods`); the split map stays as
         ``map_split_``.  Refined states have no parent; ``map_.info["refined_from"]`` names, for
         each, the split state most of its steps held."""
@@ -305,7 +281,7 @@ class MapLearner(BaseEstimator):
             refined_from=origin.tolist()))
         self._emit("refine", labels=self.labels_, entropies=self.entropies_[-1], map=self.map_)
 
-    def _symbol_map(self, data: _Data, steps: slice, lengths, labels, sym, **kw) -> TopologicalMap:
+    def _symbol_map(self, data: FitData, steps: slice, lengths, labels, sym, **kw) -> TopologicalMap:
         """The map of a labelling whose states emit the symbol ids ``sym`` (K-means symbols,
         then GDS ids), estimated on ``data``'s ``steps``."""
         ns = self.n_clusters_
@@ -319,7 +295,7 @@ class MapLearner(BaseEstimator):
             state_parent=np.full(sym.size, -1), n_actions=data.n_actions,
             covariance_type=self.covariance_type, reg_covar=self.reg_covar, **kw)
 
-    def _choose_refined_size(self, data: _Data, splitter: Splitter, refinement,
+    def _choose_refined_size(self, data: FitData, splitter: Splitter, refinement,
                              rule: AutoStates) -> int:
         """``stop=auto`` with a refinement: refine all but the held-out final block, bring that
         refined map to the sizes of :func:`topomap.core.size.refined_sizes` and keep the size
@@ -342,7 +318,7 @@ class MapLearner(BaseEstimator):
         self.size_choice_["refined"] = {"own": fit.n_states, "chosen": chosen, "scores": scores}
         return chosen
 
-    def _phase1(self, data: _Data, clusters, metric, criterion, stopping) -> Splitter:
+    def _phase1(self, data: FitData, clusters, metric, criterion, stopping) -> Splitter:
         """K-means symbols, one state each, plus one fixed state per GDS id (paper Section 3.2)."""
         plain = data.gds < 0
         if plain.sum() < 1:
@@ -351,8 +327,8 @@ class MapLearner(BaseEstimator):
         if given is not None:
             symbols, choice = given, {"method": "online codebook"}
         else:
-            searched = _within_told_size(clusters, stopping, np.unique(data.gds[~plain]).size)
-            with self._naming("clusters", method="phase1"):
+            searched = within_told_size(clusters, stopping, np.unique(data.gds[~plain]).size)
+            with naming(self, "clusters", method="phase1"):
                 symbols, choice = cluster_observations(
                     data.X if plain.all() else data.X[plain], searched, metric,
                     n_init=self.n_init, random_state=self.random_state, method=self.phase1,
@@ -364,7 +340,7 @@ class MapLearner(BaseEstimator):
         labels = np.empty(data.X.shape[0], dtype=np.int64)
         labels[plain] = symbols
         labels[~plain] = ns + np.searchsorted(gds_ids, data.gds[~plain])
-        with self._naming("stopping"):
+        with naming(self, "stopping"):
             stopping.check(ns + gds_ids.size)
         self.labels_phase1_ = labels.copy()
         self.split_history_, self.entropies_ = [], []
@@ -398,100 +374,24 @@ class MapLearner(BaseEstimator):
         plus ``n_gds``, the number of GDS the data is expected to hold.  ``fit`` checks again
         with the real counts.
         """
-        clusters, _, _, stopping = self._components()
+        clusters, _, _, stopping = make_components(self)
         least = getattr(clusters, "min_clusters", None)
         if least is not None:
-            with self._naming("stopping"):
+            with naming(self, "stopping"):
                 stopping.check(int(least) + int(n_gds))
 
     # ------------------------------------------------------------------ helpers
-    def _validate(self, observations, actions, gds, lengths, n_actions, action_names,
-                  gds_names) -> _Data:
-        X, u, g, L = check_sequences(observations, actions, gds, lengths)
-        A = int(u.max()) + 1 if n_actions is None else int(n_actions)
-        if action_names is not None and n_actions is None:
-            A = max(A, len(action_names))
-        if u.max() >= A:
-            raise ValueError(f"actions use id {int(u.max())} but n_actions is {A}")
-        if action_names is not None and len(action_names) != A:
-            raise ValueError(f"action_names has {len(action_names)} names but n_actions is {A}")
-        if gds_names is not None and g.max() >= len(gds_names):
-            raise ValueError(f"gds id {int(g.max())} is out of range: only {len(gds_names)} "
-                             "gds_names are given")
-        self.n_features_in_ = X.shape[1]
-        return _Data(X, u, g, L, A, action_names, gds_names)
-
-    def _choose_size(self, data: _Data, splitter: Splitter, rule: AutoStates) -> int:
+    def _choose_size(self, data: FitData, splitter: Splitter, rule: AutoStates) -> int:
         """The number of states ``stop=auto`` picks (:func:`topomap.core.size.probe_sizes`);
         ``size_choice_`` keeps the scores."""
         self.size_choice_ = probe_sizes(self.labels_phase1_, data, splitter, rule)
         return self.size_choice_["chosen"]
 
-    def _refinement(self):
-        """The refinement object (None: the paper's method alone)."""
-        refine = self.refine
-        if isinstance(refine, str):
-            if refine == "none":
-                return None
-            if refine not in REFINEMENTS:
-                raise ParameterError("refine", f"{refine!r} is unknown; choose one of none, "
-                                               f"{', '.join(sorted(REFINEMENTS))}")
-            return REFINEMENTS[refine]()
-        if refine is not None and not callable(getattr(refine, "fit", None)):
-            raise ParameterError("refine", f"{refine!r} has no fit(sequence, split_state_symbol, "
-                                           "random_state) method")
-        return refine
-
-    def _components(self):
-        with self._naming("clusters"):
-            clusters = self.clusters if self.clusters is not None else FixedClusters(self.n_clusters)
-        # a stopping rule may keep state during a fit (e.g. its limit): fit works on a copy, so
-        # the parameter itself is never changed
-        if self.stopping is not None:
-            stopping = copy.deepcopy(self.stopping)
-        else:
-            stopping = AutoStates() if self.n_states == "auto" else TargetStates(self.n_states)
-        criterion = self.criterion
-        if isinstance(criterion, str):
-            if criterion not in CRITERIA:
-                raise ParameterError("criterion", f"{criterion!r} is unknown; choose one of "
-                                                  f"{', '.join(sorted(CRITERIA))}")
-            criterion = CRITERIA[criterion]()
-        if self.refined_size not in ("told", "free"):
-            raise ParameterError("refined_size", f"must be 'told' or 'free', got {self.refined_size!r}")
-        if self.covariance_type not in ("diag", "full"):
-            raise ParameterError("covariance_type",
-                                 f"must be 'diag' or 'full', got {self.covariance_type!r}")
-        if not (isinstance(self.reg_covar, (int, float)) and self.reg_covar > 0):
-            raise ParameterError("reg_covar", f"must be a positive number, got {self.reg_covar!r}")
-        check_count(self.n_init, "n_init")
-        check_count(self.sample_size, "sample_size", allow_none=True)
-        self._online_settings()
-        return clusters, make_metric(self.metric), criterion, stopping
-
-    @contextmanager
-    def _naming(self, arg: str, **own: str):
-        """Name the parameter of a :class:`ParameterError` raised inside as this learner's:
-        ``<arg>.<param>`` for a parameter of the component passed as ``arg`` (``clusters.ns``),
-        the learner's own parameter when the learner made the component from it
-        (``n_clusters``), and ``own[param]`` for a setting passed on under another name
-        (``method`` is ``phase1``)."""
-        try:
-            yield
-        except ParameterError as err:
-            if err.param in own:
-                name = own[err.param]
-            elif getattr(self, arg) is None:
-                name = _MADE_FROM.get((arg, err.param), err.param)
-            else:
-                name = f"{arg}.{err.param}"
-            raise err.renamed(name) from err.__cause__
-
     def _emit(self, event: str, **info) -> None:
         for cb in self.callbacks:
             cb(event, dict(info, learner=self))
 
-    def _make_map(self, data: _Data, splitter: Splitter, info=None) -> TopologicalMap:
+    def _make_map(self, data: FitData, splitter: Splitter, info=None) -> TopologicalMap:
         return TopologicalMap.from_labels(
             data.X, data.u, splitter.labels, lengths=data.lengths, state_symbol=splitter.symbol,
             state_gds=splitter.gds, state_parent=splitter.parent, n_actions=data.n_actions,
@@ -535,19 +435,3 @@ class MapLearner(BaseEstimator):
         check_is_fitted(self, "map_")
         return self.map_.score(observations, actions, gds=gds, lengths=lengths)
 
-
-def _within_told_size(clusters, stopping, n_gds: int):
-    """A cluster-count policy that searches a range (``min_ns`` .. ``max_ns``, as
-    :class:`~topomap.core.phase1.clustering.BICClusters`) searched only up to the counts a told
-    number of states leaves room for (``n_states`` minus the GDS states): a larger count could
-    not be split to that size.  The policy itself is not changed (its repr, kept in the map, is
-    the one given)."""
-    if not isinstance(stopping, TargetStates):
-        return clusters
-    low, high = getattr(clusters, "min_ns", None), getattr(clusters, "max_ns", None)
-    room = stopping.n_states - n_gds
-    if low is None or high is None or not low <= room < high:
-        return clusters
-    searched = copy.copy(clusters)
-    searched.max_ns = room
-    return searched

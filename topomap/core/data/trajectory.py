@@ -23,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..stats import episode_masks
 from .files import atomic_write
 
 __all__ = ["Trajectory", "load_trajectory", "save_trajectory", "check_sequences",
@@ -139,6 +140,40 @@ def check_sequences(observations, actions, gds=None, lengths=None, *, min_length
         if int(L.sum()) != T:
             raise ValueError(f"lengths sum to {int(L.sum())} but observations has {T} steps")
     return X, u, g, L
+
+
+@dataclass
+class FitData:
+    """The validated input of one fit (:func:`check_fit_data`)."""
+
+    X: np.ndarray
+    u: np.ndarray
+    gds: np.ndarray
+    lengths: np.ndarray
+    n_actions: int
+    action_names: list | None
+    gds_names: list | None
+
+    @property
+    def masks(self):
+        return episode_masks(self.X.shape[0], self.lengths)
+
+
+def check_fit_data(observations, actions, gds, lengths, n_actions, action_names,
+                   gds_names) -> FitData:
+    """:func:`check_sequences`, and the number of actions and the names checked against it."""
+    X, u, g, L = check_sequences(observations, actions, gds, lengths)
+    A = int(u.max()) + 1 if n_actions is None else int(n_actions)
+    if action_names is not None and n_actions is None:
+        A = max(A, len(action_names))
+    if u.max() >= A:
+        raise ValueError(f"actions use id {int(u.max())} but n_actions is {A}")
+    if action_names is not None and len(action_names) != A:
+        raise ValueError(f"action_names has {len(action_names)} names but n_actions is {A}")
+    if gds_names is not None and g.max() >= len(gds_names):
+        raise ValueError(f"gds id {int(g.max())} is out of range: only {len(gds_names)} "
+                         "gds_names are given")
+    return FitData(X, u, g, L, A, action_names, gds_names)
 
 
 def _as_names(values, name: str) -> list[str]:
