@@ -26,7 +26,7 @@ import statistics
 import tempfile
 
 from topomap.app.cli import compose
-from topomap.app.config import preset_overrides
+from topomap.app.config_checks import preset_overrides
 from topomap.app.experiment import run
 from topomap.app.registry import Registry
 

@@ -20,7 +20,8 @@ import logging
 import sys
 from pathlib import Path
 
-from .config import check_overrides, store_configs
+from .config import store_configs
+from .config_checks import check_overrides
 from .experiment import interrupt_on_sigterm, run, run_job, write_status
 from .outputs import OutputDirInUse, claim_output_dir
 from .registry import Registry
@@ -62,7 +63,7 @@ def plugins_named(overrides) -> list[str]:
 def prepare(overrides, registry: Registry | None = None, *, user_configs: bool = False) -> Registry:
     """What must happen before Hydra composes the config of ``topomap <overrides>``: the registry
     (of the plugins the overrides name, unless given), the command line screened
-    (:func:`~topomap.app.config.check_overrides`: Hydra would refuse an unknown key or a preset
+    (:func:`~topomap.app.config_checks.check_overrides`: Hydra would refuse an unknown key or a preset
     that does not fit with its own message) and every component's config stored.
     ``user_configs``: the command line brings config folders of its own (``-cd``, ``-cp``,
     ``-cn``), whose options topomap does not know."""

@@ -20,7 +20,8 @@ from ..core.checks import ParameterError
 from ..core.learner import MapLearner
 from ..core.map.model import TopologicalMap
 from ..core.progress import reporting
-from .config import check_config, learner_key
+from .config import learner_key
+from .config_checks import check_config
 from .data import TrajectoryCache, trajectory_key
 from .evaluate import check_objective, evaluate, localization_scores, objective_value
 from .outputs import (STATUS_FILE, OutputDirInUse, claim_output_dir, versions, write_json,
@@ -50,7 +51,7 @@ def run(cfg, output_dir, *, registry: Registry | None = None, cache_dir=None,
         needs_objective: bool = False) -> dict:
     """Run one experiment described by ``cfg`` and write its outputs into ``output_dir``.
 
-    The config is checked (:func:`~topomap.app.config.check_config`), every component is built
+    The config is checked (:func:`~topomap.app.config_checks.check_config`), every component is built
     from it (:meth:`Registry.build <topomap.app.registry.Registry.build>`), before any data is
     read; then ``task=learn`` (the default) learns a map (:func:`learn`) and ``task=localize``
     applies the saved ``map`` to the data (:func:`localize`).  Returns the metrics dict.

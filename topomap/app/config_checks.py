@@ -1,0 +1,230 @@
+"""Closed configs: the command line and the composed config checked against the schemas of
+:mod:`topomap.app.config`, in topomap's words.
+
+:func:`check_config` checks the composed config once, before anything is built (a key no schema
+of the selected components declares, added with ``+`` or by a YAML file; a required value left
+out), naming the nearest valid key.  The command line is screened before Hydra composes it
+(:func:`check_overrides`), in the same words: Hydra itself refuses a key it does not know or a
+preset setting a field the chosen component lacks, before there is a config to check, with a
+message that does not name the key meant; and a sweep with a misspelt key stops before its first
+job.
+"""
+
+from __future__ import annotations
+
+from importlib import resources
+
+from omegaconf import OmegaConf
+
+from .config import Config, LearnerConf, OutputConf, fields_of, read_yaml_options, schema_of
+from .kinds import KINDS
+
+__all__ = ["check_overrides", "check_config", "group_options", "default_choices",
+           "preset_overrides", "valid_keys"]
+
+
+def _keys_of(schema, prefix: str) -> set[str]:
+    return {f"{prefix}.{k}" for k in fields_of(schema)}
+
+
+def valid_keys(registry) -> set[str]:
+    """Every key a config may hold: the top level, every field of every registered component
+    (of any component of its group), ``learner.*`` and ``output.*``."""
+    keys = set(fields_of(Config)) | _keys_of(LearnerConf, "learner") | _keys_of(OutputConf, "output")
+    for kind, _, comp, _ in registry.items():
+        keys |= _keys_of(schema_of(comp), kind)
+    return keys
+
+
+def _unknown(key: str, valid, where: str = "") -> ValueError:
+    import difflib
+
+    close = difflib.get_close_matches(key, sorted(valid), n=1, cutoff=0.6)
+    hint = f"; did you mean {close[0]}?" if close else ""
+    return ValueError(f"unknown config key {key!r}{where}{hint} (topomap --help lists the config)")
+
+
+def check_overrides(overrides, registry, *, user_configs: bool = False) -> None:
+    """Screen a command line before Hydra composes it, in topomap's words.
+
+    * a key no config declares, ``+`` or not: refused, naming the nearest valid key;
+    * a group's option that does not exist (``env=gridrom``): refused, naming the nearest option;
+    * a key of a component that is not selected (``data.path`` while ``data=simulate``):
+      refused, naming the components that have that key (Hydra would offer to append it);
+    * a preset that sets a field the chosen component lacks (:func:`_check_preset`).
+
+    ``hydra.*`` and deletions are left to Hydra; so are the options of a group when the command
+    line brings config folders of its own (``user_configs``, or ``hydra.searchpath``), which may
+    add options."""
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+
+    try:
+        parsed = OverridesParser.create().parse_overrides(list(overrides))
+    except Exception:  # a syntax error: Hydra reports it with its own message
+        return
+    valid = valid_keys(registry)
+    groups = set(KINDS) | {"experiment"}
+    for override in parsed:
+        key = override.key_or_group
+        if (override.is_delete() or "/" in key or key.split(".")[0] == "hydra"
+                or key in groups or key in valid):
+            continue
+        raise _unknown(key, valid)
+    user_configs = user_configs or any(o.key_or_group.startswith("hydra.searchpath")
+                                       for o in parsed)
+    chosen = {}  # group -> the options the command line chooses (several in a sweep)
+    for o in parsed:
+        if o.key_or_group in groups and not o.is_delete():
+            options = _options_of(o)
+            if options is not None:
+                chosen[o.key_or_group] = options
+    if not user_configs:
+        for group, options in chosen.items():
+            for option in options:
+                _check_option(group, option, registry)
+    _check_component_keys(parsed, chosen, registry)
+    choices = {g: v[0] for g, v in chosen.items() if len(v) == 1}
+    if "experiment" in choices:
+        _check_preset(choices.pop("experiment"), choices, registry)
+
+
+def _options_of(override) -> list[str] | None:
+    """The options a group override chooses: one, the values of a plain sweep
+    (``env=office,gridroom``), or None when they are not spelt out (e.g. ``glob(...)``)."""
+    value = override.value()
+    if isinstance(value, str):
+        return [value]
+    if override.is_sweep_override() and override.is_discrete_sweep():
+        return [str(v) for v in override.sweep_string_iterator()]
+    return None
+
+
+def group_options(group: str, registry) -> list[str]:
+    """The options of a config group: the registered components (and the options of plugins'
+    YAML files) of a kind; the packaged and plugins' presets for ``experiment``."""
+    names = set(registry.names(group)) if group in KINDS else set()
+    if group == "experiment":
+        names |= {p.name[:-5] for p in (resources.files("topomap.conf") / "experiment").iterdir()
+                  if p.name.endswith(".yaml")}
+    for path, _ in registry.config_paths():
+        try:
+            names |= {option for g, option, _, _ in read_yaml_options(path) if g == group}
+        except ValueError:
+            continue  # store_configs names the broken folder
+    return sorted(names)
+
+
+def _check_option(group: str, option: str, registry) -> None:
+    """Refuse ``<group>=<option>`` when the group has no such option, naming the nearest one."""
+    import difflib
+
+    options = group_options(group, registry)
+    if option in options or not options:
+        return
+    close = difflib.get_close_matches(option, options, n=1, cutoff=0.6)
+    hint = f"; did you mean {group}={close[0]}?" if close else ""
+    raise ValueError(f"unknown {group}={option}{hint} (the options: {', '.join(options)})")
+
+
+def default_choices() -> dict[str, str]:
+    """The component each group selects when the command line does not choose (the defaults
+    list of ``conf/config.yaml``)."""
+    text = (resources.files("topomap.conf") / "config.yaml").read_text()
+    defaults = OmegaConf.to_container(OmegaConf.create(text)).get("defaults") or []
+    return {k: v for d in defaults if isinstance(d, dict) for k, v in d.items() if k in KINDS}
+
+
+def _check_component_keys(parsed, chosen: dict, registry) -> None:
+    """Refuse ``<group>.<key>=...`` when no selected component of ``group`` has ``key``, naming
+    the components that have it (``data.path`` belongs to ``data=file``)."""
+    preset = {}
+    if len(chosen.get("experiment", [])) == 1:
+        preset = {k.split("/")[-1]: v for d in (_load_preset(chosen["experiment"][0]) or {})
+                  .get("defaults") or [] if isinstance(d, dict) for k, v in d.items()}
+    defaults = default_choices()
+    for o in parsed:
+        group, dot, key = o.key_or_group.lstrip("+~").partition(".")
+        if o.is_delete() or not dot or group not in KINDS or "." in key:
+            continue
+        told = group in chosen
+        selected = chosen.get(group) or [preset.get(group) or defaults.get(group)]
+        for option in selected:
+            if option not in registry.names(group):
+                continue
+            if key in fields_of(schema_of(registry.get(group, option))):
+                continue
+            owners = [n for n in registry.names(group)
+                      if key in fields_of(schema_of(registry.get(group, n)))]
+            if not owners:
+                continue  # no component has it: the unknown-key check speaks
+            more = f" (and {', '.join(f'{group}={n}' for n in owners[1:])})" if owners[1:] else ""
+            where = f"{group}={owners[0]}{more}"
+            if told:
+                raise ValueError(f"{group}.{key} is not a key of {group}={option}: it belongs "
+                                 f"to {where}; leave it out, or choose {group}={owners[0]}")
+            raise ValueError(f"{group}.{key} belongs to {where}, not to {group}={option} (the "
+                             f"default); add {group}={owners[0]}")
+
+
+def _load_preset(name: str) -> dict | None:
+    path = resources.files("topomap.conf") / "experiment" / f"{name}.yaml"
+    return OmegaConf.to_container(OmegaConf.create(path.read_text())) if path.is_file() else None
+
+
+def preset_overrides(name: str, without=()) -> list[str] | None:
+    """The command-line overrides that ``experiment=<name>`` stands for (its group choices, then
+    its values), leaving out the groups in ``without``; None if there is no such preset."""
+    preset = _load_preset(name)
+    if preset is None:
+        return None
+    out = [f"{k.split('/')[-1]}={v}" for d in preset.get("defaults") or []
+           if isinstance(d, dict) for k, v in d.items() if k.split("/")[-1] not in without]
+    return out + [f"{section}.{k}={v}" for section, values in preset.items()
+                  if section not in ("defaults", *without) and isinstance(values, dict)
+                  for k, v in values.items()]
+
+
+def _check_preset(name: str, choices: dict, registry) -> None:
+    """Refuse ``experiment=<name> <group>=<option>`` when the preset sets a field of ``group``
+    that the chosen component lacks (e.g. ``experiment=gridroom stop=auto``: the preset's
+    ``stop.n_states``), spelling out the preset's other settings to give instead."""
+    preset = _load_preset(name)
+    if preset is None:
+        return  # Hydra names the missing preset
+    for group, option in choices.items():
+        if not isinstance(preset.get(group), dict) or option not in registry.names(group):
+            continue
+        fields = set(fields_of(schema_of(registry.get(group, option))))
+        lost = [k for k in preset[group] if k not in fields]
+        if lost:
+            rest = " ".join(preset_overrides(name, without=choices))
+            raise ValueError(
+                f"experiment={name} sets {group}.{lost[0]}, which {group}={option} does not "
+                f"have; give the preset's other settings instead: topomap {rest} "
+                f"{group}={option}")
+
+
+def check_config(cfg, registry) -> None:
+    """Refuse a composed config (a plain mapping) holding a key that its schemas do not declare,
+    e.g. one added with ``+`` or by a YAML file (only the selected components' fields count), or
+    lacking a required value (``???``)."""
+    for section, values in cfg.items():
+        for key, value in (values.items() if isinstance(values, dict) else ()):
+            if value == "???":
+                raise ValueError(f"{section}.{key} is required: give it on the command line, "
+                                 f"e.g. topomap ... {section}.{key}=<value>")
+    top = set(fields_of(Config))
+    extra = [k for k in cfg if k not in top and k != "hydra"]
+    sections = {"learner": LearnerConf, "output": OutputConf}
+    for kind in KINDS:
+        if isinstance(cfg.get(kind), dict) and "component" in cfg[kind]:
+            sections[kind] = schema_of(registry.get(kind, cfg[kind]["component"]))
+    for section, schema in sections.items():
+        allowed = set(fields_of(schema))
+        extra += [f"{section}.{k}" for k in cfg.get(section) or {} if k not in allowed]
+    if extra:
+        key = extra[0]
+        section = key.split(".")[0]
+        valid = top | set().union(*(_keys_of(s, n) for n, s in sections.items()))
+        comp = (cfg.get(section) or {}).get("component") if "." in key else None
+        raise _unknown(key, valid, f" for {section}={comp}" if comp else "")
