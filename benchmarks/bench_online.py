@@ -91,14 +91,14 @@ def peak_rss_mib() -> float:
 def compose(overrides):
     os.environ.setdefault("TOPOMAP_DISABLE_PLUGIN_AUTOLOAD", "1")
     from topomap.app.cli import compose as hydra_compose
-    from topomap.app.experiment import _as_dict
+    from topomap.app.run.experiment import _as_dict
 
     return _as_dict(hydra_compose([*overrides, "output.progress=false", "output.figures=false"]))
 
 
 def build(overrides):
-    from topomap.app.experiment import make_learner
-    from topomap.app.registry import Registry
+    from topomap.app.run.experiment import make_learner
+    from topomap.app.compose.registry import Registry
 
     cfg = compose(overrides)
     parts = Registry.load(()).build(cfg)
@@ -204,7 +204,7 @@ EXPLORERS = {"random": ["explorer=random"], "active": ["explorer=active"],
 def child_explore(overrides, explorer: str, seed: int, steps: int) -> dict:
     import copy
 
-    from topomap.app.data import seed_streams
+    from topomap.app.components.data import seed_streams
 
     cfg, parts, learner = build([*overrides, *EXPLORERS[explorer], f"seed={seed}",
                                  f"data.n_steps={steps}", "data.curve_every=250",

@@ -13,9 +13,9 @@ from omegaconf import MISSING
 from omegaconf.errors import ValidationError
 
 from topomap import TopologicalMap, load_trajectory
-from topomap.app.experiment import run
-from topomap.app.outputs import FIGURE_FILES, OUTPUT_FILES
-from topomap.app.registry import Registry
+from topomap.app.run.experiment import run
+from topomap.app.run.outputs import FIGURE_FILES, OUTPUT_FILES
+from topomap.app.compose.registry import Registry
 
 CONF = Path(__file__).resolve().parents[1] / "conf"
 PLUGINS = Path(__file__).resolve().parents[1] / "plugins"
@@ -66,7 +66,7 @@ def test_every_experiment_preset_composes(preset, make_cfg):
 def _signature_defaults(factory):
     import inspect
 
-    from topomap.app.config import RUNTIME_ARGS
+    from topomap.app.compose.schemas import RUNTIME_ARGS
 
     return {p.name: (MISSING if p.default is p.empty else p.default)
             for p in inspect.signature(factory).parameters.values()
@@ -76,7 +76,7 @@ def _signature_defaults(factory):
 def test_every_config_field_matches_its_factory_signature():
     """Built-ins (derived configs) and the example plugins (one derived, two hand-written):
     the config's fields are exactly the factory's parameters, with the same defaults."""
-    from topomap.app.config import fields_of, schema_of
+    from topomap.app.compose.schemas import fields_of, schema_of
 
     plugins = [str(PLUGINS / "topomap-gainratio" / "topomap_gainratio.py"),
                str(PLUGINS / "topomap-gtest" / "topomap_gtest" / "__init__.py")]
@@ -91,7 +91,7 @@ def test_every_config_field_matches_its_factory_signature():
             assert fields.pop("seed") == "${seed}" and expected.pop("seed") is not MISSING
         assert fields == expected, (kind, name)
         kinds.add(kind)
-    from topomap.app.hookspecs import KINDS
+    from topomap.app.compose.hookspecs import KINDS
 
     assert kinds == set(KINDS)
 
@@ -100,8 +100,8 @@ def test_a_hand_written_config_that_disagrees_with_the_factory_is_caught():
     """The check above can fail: a config whose default drifted from the constructor's."""
     from dataclasses import dataclass
 
-    from topomap.app.config import fields_of, schema_of
-    from topomap.app.hookspecs import Component
+    from topomap.app.compose.schemas import fields_of, schema_of
+    from topomap.app.compose.hookspecs import Component
     from topomap.core.phase1.clustering import FixedClusters
 
     @dataclass

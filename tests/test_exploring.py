@@ -8,7 +8,7 @@ import pytest
 from sklearn.metrics import adjusted_rand_score
 
 from topomap import MapLearner
-from topomap.app.experiment import run
+from topomap.app.run.experiment import run
 from topomap.worlds import ActiveExplorer, GridRoom, NoNoise, RandomExplorer, View
 from topomap.worlds.mapping import heldout_judge, map_while_exploring, quality_curve
 

@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 
 from topomap import TopologicalMap, load_trajectory
-from topomap.app.experiment import run
-from topomap.app.outputs import HTML_FILES
+from topomap.app.run.experiment import run
+from topomap.app.run.outputs import HTML_FILES
 from topomap.app.plots.interactive import NODE_COLOURS, SVG_MAX_STATES, map_figure
 from topomap.app.plots.run import _state_positions, compound_mask
 

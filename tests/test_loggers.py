@@ -7,9 +7,9 @@ import textwrap
 import pytest
 
 from topomap.app.cli import compose
-from topomap.app.experiment import run
-from topomap.app.loggers import MLflowLogger, RunRecord
-from topomap.app.registry import Registry
+from topomap.app.run.experiment import run
+from topomap.app.components.loggers import MLflowLogger, RunRecord
+from topomap.app.compose.registry import Registry
 
 SMALL = ["data.n_steps=300", "data.heldout_steps=200", "clusters.ns=8", "stop.n_states=12",
          "output.progress=false"]
@@ -92,7 +92,7 @@ def test_default_store_is_below_the_outputs_folder(tmp_path):
 
 
 PLUGIN = '''
-    from topomap.app.hookspecs import Component, hookimpl
+    from topomap.app.compose.hookspecs import Component, hookimpl
 
     RECORDS = []
 

@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from topomap import Trajectory, save_trajectory
-from topomap.app.hookspecs import TopomapSpecs
-from topomap.app.registry import Registry
+from topomap.app.compose.hookspecs import TopomapSpecs
+from topomap.app.compose.registry import Registry
 
 ROOT = Path(__file__).resolve().parents[1]
 PLUGINS = ROOT / "plugins"
@@ -158,7 +158,7 @@ def test_autoload_switch_keeps_installed_action_plugins_out(tmp_path):
 def test_cached_trajectory_key_names_the_loaded_plugins(make_cfg):
     from omegaconf import OmegaConf
 
-    from topomap.app.data import trajectory_key
+    from topomap.app.components.data import trajectory_key
 
     cfg = OmegaConf.to_container(make_cfg(), resolve=True)
     assert trajectory_key(cfg, plugins=["turnback"]) != trajectory_key(cfg)
@@ -183,7 +183,7 @@ def write_plugin(path: Path, body: str) -> Path:
 
 COMPONENT = """
 from topomap import hookimpl
-from topomap.app.hookspecs import Component
+from topomap.app.compose.hookspecs import Component
 from topomap.core.split.criteria import EntropyCriterion
 
 @hookimpl
@@ -244,7 +244,7 @@ def test_every_hook_is_documented():
 def test_progress_hook_sees_every_split_and_records_metrics(tmp_path, make_cfg):
     from test_app import small
 
-    from topomap.app.experiment import run
+    from topomap.app.run.experiment import run
 
     plug = write_plugin(tmp_path / "recorder.py", """
         from topomap import hookimpl

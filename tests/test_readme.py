@@ -19,8 +19,8 @@ import pytest
 from omegaconf import OmegaConf
 
 from topomap.app.cli import overrides_of, plugins_named
-from topomap.app.experiment import make_learner, run
-from topomap.app.registry import Registry
+from topomap.app.run.experiment import make_learner, run
+from topomap.app.compose.registry import Registry
 
 ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"

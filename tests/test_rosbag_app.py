@@ -9,7 +9,7 @@ import pytest
 pytest.importorskip("rosbags")
 
 from topomap import read_rosbag, save_trajectory, write_rosbag  # noqa: E402
-from topomap.app.experiment import run  # noqa: E402
+from topomap.app.run.experiment import run  # noqa: E402
 from topomap.worlds import GridRoom, RandomExplorer  # noqa: E402
 
 LEARN = ["clusters.ns=4", "stop.n_states=48", "output.figures=false", "output.progress=false"]

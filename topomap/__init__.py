@@ -30,7 +30,7 @@ __version__ = "0.2.0"
 def __getattr__(name):
     """``topomap.hookimpl`` (the plugin marker) is loaded on first use, with pluggy."""
     if name == "hookimpl":
-        from .app.hookspecs import hookimpl
+        from .app.compose.hookspecs import hookimpl
 
         return hookimpl
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 from typing import Optional
 
 from topomap import hookimpl
-from topomap.app.hookspecs import Component
+from topomap.app.compose.hookspecs import Component
 
 
 @dataclass

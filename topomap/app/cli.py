@@ -1,4 +1,4 @@
-"""The ``topomap`` command: Hydra composes ``conf/`` and :func:`topomap.app.experiment.run` does the work.
+"""The ``topomap`` command: Hydra composes ``conf/`` and :func:`topomap.app.run.experiment.run` does the work.
 
     topomap                                   # the paper's experiment, outputs in outputs/runs/...
     topomap clusters.ns=15 stop.n_states=40
@@ -8,9 +8,9 @@
     topomap --version                         # topomap's version (with Hydra's and Python's)
 
 The line from the command to the work, each step once: :func:`main` reads the plugins named on the
-command line (with Hydra's own parsers), loads the :class:`~topomap.app.registry.Registry`,
+command line (with Hydra's own parsers), loads the :class:`~topomap.app.compose.registry.Registry`,
 screens the command line and stores every component's typed config (:func:`prepare`); Hydra
-composes the config of each job and :func:`~topomap.app.experiment.run` takes it from there:
+composes the config of each job and :func:`~topomap.app.run.experiment.run` takes it from there:
 the config is checked, the components are built, the map is learned, evaluated and written.
 """
 
@@ -20,11 +20,11 @@ import logging
 import sys
 from pathlib import Path
 
-from .config import store_configs
-from .config_checks import check_overrides
-from .experiment import interrupt_on_sigterm, run, run_job, write_status
-from .outputs import OutputDirInUse, claim_output_dir
-from .registry import Registry
+from .compose.schemas import store_configs
+from .compose.config_checks import check_overrides
+from .run.experiment import interrupt_on_sigterm, run, run_job, write_status
+from .run.outputs import OutputDirInUse, claim_output_dir
+from .compose.registry import Registry
 
 log = logging.getLogger("topomap")
 
@@ -63,7 +63,7 @@ def plugins_named(overrides) -> list[str]:
 def prepare(overrides, registry: Registry | None = None, *, user_configs: bool = False) -> Registry:
     """What must happen before Hydra composes the config of ``topomap <overrides>``: the registry
     (of the plugins the overrides name, unless given), the command line screened
-    (:func:`~topomap.app.config_checks.check_overrides`: Hydra would refuse an unknown key or a preset
+    (:func:`~topomap.app.compose.config_checks.check_overrides`: Hydra would refuse an unknown key or a preset
     that does not fit with its own message) and every component's config stored.
     ``user_configs``: the command line brings config folders of its own (``-cd``, ``-cp``,
     ``-cn``), whose options topomap does not know."""
@@ -88,7 +88,7 @@ def compose(overrides=(), registry: Registry | None = None, *, return_hydra_conf
 def list_plugins(registry: Registry, file=None) -> None:
     """Print every registered component by kind, and every action a plugin adds to a world, with
     the plugin that provides it."""
-    from .config import fields_of, schema_of
+    from .compose.schemas import fields_of, schema_of
 
     file = sys.stdout if file is None else file
     last = None
@@ -157,7 +157,7 @@ def optimising(sweeper) -> bool:
 
 def _task(cfg, registry: Registry):
     """One run (or one job of a sweep) of the composed config ``cfg``; returns the run's
-    ``objective`` (:data:`~topomap.app.evaluate.OBJECTIVES`) for a sweeper to optimise, None for
+    ``objective`` (:data:`~topomap.app.run.evaluate.OBJECTIVES`) for a sweeper to optimise, None for
     a failed job."""
     from hydra.core.hydra_config import HydraConfig
 
@@ -224,7 +224,7 @@ INTERRUPTED = 130
 def _interrupted() -> None:
     """After Ctrl-C or SIGTERM outside a single run's own handling: a sweep writes its report
     (with the interrupted job and the jobs that did not start); then one line, exit 130."""
-    from .sweep import interrupted_sweep_report
+    from .report.summary import interrupted_sweep_report
 
     where = interrupted_sweep_report()
     print("topomap: interrupted" + (f"; sweep report in {where}" if where else ""),

@@ -14,7 +14,7 @@ import numpy as np
 from scipy.stats import chi2
 
 from topomap import hookimpl
-from topomap.app.hookspecs import Component
+from topomap.app.compose.hookspecs import Component
 from topomap.core.split.criteria import EntropyCriterion
 
 

@@ -1,7 +1,7 @@
 """The sweep report: the table that compares the jobs of ``topomap -m ...``.
 
 Every job of a sweep (any Hydra launcher: the basic one, ``joblib``, ``submitit_local`` or
-``submitit_slurm``) runs :func:`topomap.app.experiment.run_job`, which learns from the trajectory
+``submitit_slurm``) runs :func:`topomap.app.run.experiment.run_job`, which learns from the trajectory
 cached in ``<sweep dir>/.cache/`` and writes ``status.json`` into its folder: ``completed``, or
 ``failed`` with the error (the job then returns normally, so the sweep goes on and Hydra still ends
 it with the report).
@@ -17,11 +17,11 @@ When the multirun ends, the :class:`SweepReport` callback (registered in ``conf/
 and prints the metric as a table.  The report can be rebuilt at any time, e.g. for another metric
 or after an interrupted sweep::
 
-    python -m topomap.app.sweep outputs/sweeps/2026-01-01/12-00-00-000000 --metric heldout_loglik
+    python -m topomap.app.report.summary outputs/sweeps/2026-01-01/12-00-00-000000 --metric heldout_loglik
 
-The job folders are read by :mod:`topomap.app.sweep_jobs`, the figures drawn by
-:mod:`topomap.app.plots.sweep`; the CSV's columns, the table's and the figures' labels and the best
-job all follow the column list :data:`topomap.app.sweep_columns.COLUMNS`.
+The job folders are read by :mod:`topomap.app.report.jobs`, the figures drawn by
+:mod:`topomap.app.report.figure`; the CSV's columns, the table's and the figures' labels and the best
+job all follow the column list :data:`topomap.app.report.columns.COLUMNS`.
 """
 
 from __future__ import annotations
@@ -37,11 +37,11 @@ from pathlib import Path
 
 from hydra.experimental.callback import Callback
 
-from ..core.data.files import atomic_write
-from .sweep_columns import (METRICS, axis_values, best_row, check_metric, header, mean, no_value,
+from ...core.data.files import atomic_write
+from .columns import (METRICS, axis_values, best_row, check_metric, header, mean, no_value,
                             number, row, short)
-from .plots.sweep import is_grid
-from .sweep_jobs import not_started, planned_jobs, read_jobs, swept_keys
+from .figure import is_grid
+from .jobs import not_started, planned_jobs, read_jobs, swept_keys
 
 log = logging.getLogger("topomap")
 
@@ -95,7 +95,7 @@ def write_report(sweep_dir, *, metric: str = "ari", figure: bool = True,
         if all(math.isnan(number(r[metric])) for r in rows):
             log.warning("sweep report: no job has a value for %s; no figure", metric)
         else:
-            from .plots.sweep import write_sweep_figure
+            from .figure import write_sweep_figure
 
             fig_path = sweep_dir / f"summary_{metric}.png"
             write_sweep_figure(fig_path, rows, keys, metric, best)
@@ -226,10 +226,10 @@ class SweepReport(Callback):
 
     def on_multirun_start(self, config, **kwargs) -> None:
         """Stop a search before its first job when it would optimise the wrong way: the
-        sweeper's ``direction`` against the objective's (:data:`~topomap.app.evaluate.OBJECTIVES`)."""
+        sweeper's ``direction`` against the objective's (:data:`~topomap.app.run.evaluate.OBJECTIVES`)."""
         from omegaconf import OmegaConf
 
-        from .evaluate import OBJECTIVES
+        from ..run.evaluate import OBJECTIVES
 
         SweepReport.running = (self, config)
         direction = OmegaConf.select(config, "hydra.sweeper.direction", default=None)
@@ -277,8 +277,8 @@ def interrupted_sweep_report() -> Path | None:
 
 
 def main(argv=None) -> int:
-    """``python -m topomap.app.sweep SWEEP_DIR [--metric M] [--no-figure]``: rebuild a sweep report."""
-    parser = argparse.ArgumentParser(prog="python -m topomap.app.sweep", description=main.__doc__)
+    """``python -m topomap.app.report.summary SWEEP_DIR [--metric M] [--no-figure]``: rebuild a sweep report."""
+    parser = argparse.ArgumentParser(prog="python -m topomap.app.report.summary", description=main.__doc__)
     parser.add_argument("sweep_dir", type=Path)
     parser.add_argument("--metric", default="ari", choices=list(METRICS))
     parser.add_argument("--no-figure", dest="figure", action="store_false")

@@ -2,10 +2,10 @@
 
 from __future__ import annotations
 
-from ..core import metrics as M
-from ..core.learner import MapLearner
-from ..core.progress import report
-from ..core.data.trajectory import Trajectory
+from ...core import metrics as M
+from ...core.learner import MapLearner
+from ...core.progress import report
+from ...core.data.trajectory import Trajectory
 
 __all__ = ["evaluate", "localization_scores", "OBJECTIVES", "objective_value", "check_objective"]
 

@@ -22,7 +22,7 @@ from pathlib import Path
 import pluggy
 
 from . import builtins, hookspecs
-from ..core.checks import ParameterError
+from ...core.checks import ParameterError
 from .hookspecs import Component
 from .kinds import KINDS
 
@@ -40,7 +40,7 @@ def autoload_disabled() -> bool:
 
 class Parts:
     """The components of one run, each built once from its config: one attribute per kind of
-    component (:data:`~topomap.app.kinds.KINDS`), ``world`` standing for ``env``.
+    component (:data:`~topomap.app.compose.kinds.KINDS`), ``world`` standing for ``env``.
 
     The parts of the world (``env``, ``noise``, ``explorer``) are None when the data component
     does not simulate (``data=file``).
@@ -251,7 +251,7 @@ class Registry:
 
     def build(self, cfg) -> Parts:
         """Every component of the run ``cfg`` (a mapping), each built once, in the order of
-        :data:`~topomap.app.kinds.KINDS` -- the data component first: the parts of the world are
+        :data:`~topomap.app.compose.kinds.KINDS` -- the data component first: the parts of the world are
         built only when it simulates."""
         data = self.make("data", cfg["data"])
         simulates = bool(getattr(data, "simulates", False))

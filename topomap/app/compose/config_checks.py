@@ -1,5 +1,5 @@
 """Closed configs: the command line and the composed config checked against the schemas of
-:mod:`topomap.app.config`, in topomap's words.
+:mod:`topomap.app.compose.schemas`, in topomap's words.
 
 :func:`check_config` checks the composed config once, before anything is built (a key no schema
 of the selected components declares, added with ``+`` or by a YAML file; a required value left
@@ -16,7 +16,7 @@ from importlib import resources
 
 from omegaconf import OmegaConf
 
-from .config import Config, LearnerConf, OutputConf, fields_of, read_yaml_options, schema_of
+from .schemas import Config, LearnerConf, OutputConf, fields_of, read_yaml_options, schema_of
 from .kinds import KINDS
 
 __all__ = ["check_overrides", "check_config", "group_options", "default_choices",

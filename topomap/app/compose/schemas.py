@@ -11,7 +11,7 @@ itself (:data:`RUNTIME_ARGS`) are not config fields.
 (with the values of a plugin's own YAML file for it, if it ships one) and the top-level schema as
 ``topomap_schema``; ``conf/config.yaml`` composes them.
 
-Closed configs: Hydra checks the types; :mod:`topomap.app.config_checks` checks the command line
+Closed configs: Hydra checks the types; :mod:`topomap.app.compose.config_checks` checks the command line
 and the composed config against these schemas, naming the nearest valid key.
 """
 
@@ -30,7 +30,7 @@ from typing import Any, Optional
 
 from omegaconf import II, MISSING, OmegaConf
 
-from ..core.learner import MapLearner
+from ...core.learner import MapLearner
 from .kinds import KINDS
 
 __all__ = ["Config", "RunConf", "Objective", "LearnerConf", "OutputConf", "RUNTIME_ARGS", "schema_of",
@@ -137,7 +137,7 @@ class Task(Enum):
 
 class Objective(Enum):
     """The value a run returns to a sweeper that optimises it (``hydra/sweeper=optuna``); both
-    are better when larger (:data:`topomap.app.evaluate.OBJECTIVES`)."""
+    are better when larger (:data:`topomap.app.run.evaluate.OBJECTIVES`)."""
 
     heldout_loglik = "heldout_loglik"
     ari = "ari"
@@ -159,7 +159,7 @@ class RunConf:
 
 
 #: The top level of a run's config: the run settings, one group per kind of component
-#: (:data:`~topomap.app.kinds.KINDS`; each holds a ``<kind>/<name>`` config), ``learner`` and
+#: (:data:`~topomap.app.compose.kinds.KINDS`; each holds a ``<kind>/<name>`` config), ``learner`` and
 #: ``output``.
 Config = make_dataclass("Config", [
     *((kind, Any, field(default=MISSING)) for kind in KINDS),

@@ -15,8 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..core.data.files import atomic_write
-from ..core.data.trajectory import save_trajectory
+from ...core.data.files import atomic_write
+from ...core.data.trajectory import save_trajectory
 
 __all__ = ["OUTPUT_FILES", "FIGURE_FILES", "HTML_FILES", "MAPPING_FIGURES", "LOCALIZE_FILES", "STATUS_FILE",
            "write_outputs", "write_localization", "versions", "write_json", "staged",
@@ -187,11 +187,11 @@ def _write_outputs(out: Path, traj, learner, results, cfg, world=None) -> None:
     write_states(out / "states.csv", traj, state_phase1=learner.labels_phase1_,
                  state=learner.labels_)
     if cfg["output"]["figures"]:
-        from . import plots
+        from .. import plots
 
         plots.write_figures(out, traj, learner, world, min_prob=cfg["output"]["min_prob"],
                             compound_state=cfg["output"].get("compound_state"))
-        from .plots.interactive import write_map_html
+        from ..plots.interactive import write_map_html
 
         write_map_html(out / "map.html", m, learner.labels_, traj.positions, traj.places,
                        min_prob=cfg["output"]["min_prob"], seed=int(cfg["seed"]))

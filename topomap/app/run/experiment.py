@@ -16,19 +16,19 @@ import traceback
 from contextlib import contextmanager
 from pathlib import Path
 
-from ..core.checks import ParameterError
-from ..core.learner import MapLearner
-from ..core.map.model import TopologicalMap
-from ..core.progress import reporting
-from .config import learner_key
-from .config_checks import check_config
-from .data import TrajectoryCache, trajectory_key
+from ...core.checks import ParameterError
+from ...core.learner import MapLearner
+from ...core.map.model import TopologicalMap
+from ...core.progress import reporting
+from ..compose.schemas import learner_key
+from ..compose.config_checks import check_config
+from ..components.data import TrajectoryCache, trajectory_key
 from .evaluate import check_objective, evaluate, localization_scores, objective_value
 from .outputs import (STATUS_FILE, OutputDirInUse, claim_output_dir, versions, write_json,
                       write_localization, write_outputs)
-from .kinds import KINDS
-from .loggers import RunRecord, start_dir
-from .registry import Parts, Registry
+from ..compose.kinds import KINDS
+from ..components.loggers import RunRecord, start_dir
+from ..compose.registry import Parts, Registry
 
 log = logging.getLogger("topomap")
 
@@ -51,14 +51,14 @@ def run(cfg, output_dir, *, registry: Registry | None = None, cache_dir=None,
         needs_objective: bool = False) -> dict:
     """Run one experiment described by ``cfg`` and write its outputs into ``output_dir``.
 
-    The config is checked (:func:`~topomap.app.config_checks.check_config`), every component is built
-    from it (:meth:`Registry.build <topomap.app.registry.Registry.build>`), before any data is
+    The config is checked (:func:`~topomap.app.compose.config_checks.check_config`), every component is built
+    from it (:meth:`Registry.build <topomap.app.compose.registry.Registry.build>`), before any data is
     read; then ``task=learn`` (the default) learns a map (:func:`learn`) and ``task=localize``
     applies the saved ``map`` to the data (:func:`localize`).  Returns the metrics dict.
 
-    A folder that holds another run's outputs is refused (:class:`~topomap.app.outputs.OutputDirInUse`)
+    A folder that holds another run's outputs is refused (:class:`~topomap.app.run.outputs.OutputDirInUse`)
     unless ``output.overwrite`` is true, which removes them first
-    (:func:`~topomap.app.outputs.claim_output_dir`).  ``needs_objective``: the run's
+    (:func:`~topomap.app.run.outputs.claim_output_dir`).  ``needs_objective``: the run's
     ``objective`` is optimised (an Optuna sweep), so data that cannot give it is an error before
     learning.
     """
@@ -135,7 +135,7 @@ def check_room_for_clusters(cfg: dict, parts: Parts) -> None:
     world's GDS): :class:`~topomap.MapLearner` searches only the counts it leaves room for.  (A
     told size below ``min_ns`` plus the GDS is refused by the learner's own checks, before
     this.)"""
-    from ..core.split.stopping import TargetStates
+    from ...core.split.stopping import TargetStates
 
     most = getattr(parts.clusters, "max_ns", None)
     least = getattr(parts.clusters, "min_ns", None)
@@ -176,7 +176,7 @@ def check_cluster_count(ns: int | None, traj) -> None:
 
 def _report_missed_target(learner) -> None:
     """Warn when the split stopped short of the told number of states, saying why."""
-    from ..core.split.stopping import TargetStates
+    from ...core.split.stopping import TargetStates
 
     rule = learner.stopping
     told = rule.n_states if isinstance(rule, TargetStates) else None
@@ -236,7 +236,7 @@ def make_learner(cfg, parts: Parts, callbacks=()) -> MapLearner:
 def config_keys(group: str | None = None):
     """Name the parameter of a :class:`~topomap.core.checks.ParameterError` raised inside by its
     config key: ``<group>.<param>`` for a component of ``group``, else the key of a
-    :class:`MapLearner` parameter (:func:`~topomap.app.config.learner_key`)."""
+    :class:`MapLearner` parameter (:func:`~topomap.app.compose.schemas.learner_key`)."""
     try:
         yield
     except ParameterError as err:

@@ -75,7 +75,7 @@ class RunRecord:
         ``H_o``, ``H_u``, ``H_x``, ``heldout_loglik``, ``n_states``, ``n_states_phase1``, ...),
         ``n_states_split`` for a refined run, ``objective`` and every timing as
         ``time_<part>`` (seconds)."""
-        from .sweep_columns import COLUMNS
+        from ..report.columns import COLUMNS
 
         out = {}
         for column in COLUMNS:
@@ -144,7 +144,7 @@ class MLflowLogger:
         if importlib.util.find_spec("mlflow") is None:
             raise ValueError('needs the mlflow package: pip install "topomap[mlflow]"')
         if not experiment:
-            from ..core.checks import ParameterError
+            from ...core.checks import ParameterError
 
             raise ParameterError("experiment", "must name an MLflow experiment")
         self.tracking_uri = tracking_uri

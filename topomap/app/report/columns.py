@@ -20,9 +20,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from ..core.checks import ParameterError
-from .experiment import STATUS_FILE
-from .sweep_jobs import Job
+from ...core.checks import ParameterError
+from ..run.experiment import STATUS_FILE
+from .jobs import Job
 
 __all__ = ["Column", "COLUMNS", "METRICS", "header", "row", "best_row", "check_metric"]
 

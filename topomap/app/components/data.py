@@ -15,11 +15,11 @@ from typing import Any
 
 import numpy as np
 
-from ..core.checks import ParameterError, check_count
-from ..core.data.rosbag import read_rosbag
-from ..core.data.trajectory import Trajectory, load_trajectory, save_trajectory
-from ..worlds.explorers import RandomExplorer
-from ..worlds.mapping import heldout_judge, map_while_exploring, quality_curve
+from ...core.checks import ParameterError, check_count
+from ...core.data.rosbag import read_rosbag
+from ...core.data.trajectory import Trajectory, load_trajectory, save_trajectory
+from ...worlds.explorers import RandomExplorer
+from ...worlds.mapping import heldout_judge, map_while_exploring, quality_curve
 
 log = logging.getLogger("topomap")
 

@@ -1,9 +1,9 @@
 """Reading a sweep: the job folders that ``topomap -m ...`` left, and the keys the sweep varies.
 
 Every job of a sweep writes its folder (Hydra's ``.hydra/``, then ``status.json`` and
-``metrics.json``, see :func:`topomap.app.experiment.run_job`); :func:`read_jobs` reads them back
+``metrics.json``, see :func:`topomap.app.run.experiment.run_job`); :func:`read_jobs` reads them back
 as :class:`Job` records, whatever a crash or a kill left behind, and :func:`swept_keys` names the
-keys whose values tell the jobs apart.  :mod:`topomap.app.sweep` builds the report from them.
+keys whose values tell the jobs apart.  :mod:`topomap.app.report.summary` builds the report from them.
 """
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ import json
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from .experiment import CACHE_DIR, STATUS_FILE
+from ..run.experiment import CACHE_DIR, STATUS_FILE
 
 __all__ = ["Job", "read_jobs", "swept_keys", "planned_jobs", "not_started", "STATUSES"]
 

@@ -5,12 +5,12 @@ the specifications below.  It is found through the setuptools entry-point group 
 (``[project.entry-points.topomap] my_plugin = "my_package.plugin"``; set
 ``TOPOMAP_DISABLE_PLUGIN_AUTOLOAD=1`` to skip them) or listed in the Hydra config
 (``plugins: [my_module]``).  topomap's own components are registered by the very same hooks
-(:mod:`topomap.app.builtins`).  See ``docs/plugins.md`` for a walk-through.
+(:mod:`topomap.app.compose.builtins`).  See ``docs/plugins.md`` for a walk-through.
 
 Component kinds
 ---------------
-A component has one of the kinds declared in :mod:`topomap.app.kinds`
-(:data:`~topomap.app.kinds.KINDS`, with what the factory of each kind returns); the kind is also
+A component has one of the kinds declared in :mod:`topomap.app.compose.kinds`
+(:data:`~topomap.app.compose.kinds.KINDS`, with what the factory of each kind returns); the kind is also
 the config group that selects the component (``topomap split=<name>``).
 """
 
