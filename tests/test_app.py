@@ -14,7 +14,7 @@ from omegaconf.errors import ValidationError
 
 from topomap import TopologicalMap, load_trajectory
 from topomap.app.run.experiment import run
-from topomap.app.run.outputs import FIGURE_FILES, OUTPUT_FILES
+from topomap.app.results import FIGURE_FILES, OUTPUT_FILES
 from topomap.app.compose.registry import Registry
 
 CONF = Path(__file__).resolve().parents[1] / "conf"

@@ -16,7 +16,7 @@ import pytest
 
 from topomap import TopologicalMap, load_trajectory
 from topomap.app.run.experiment import run
-from topomap.app.run.outputs import HTML_FILES
+from topomap.app.results import HTML_FILES
 from topomap.app.plots.interactive import NODE_COLOURS, SVG_MAX_STATES, map_figure
 from topomap.app.plots.run import _state_positions, compound_mask
 

@@ -17,7 +17,7 @@ from topomap.worlds.minigrid import (
 )
 from topomap.worlds.random_graph import RandomGraphWorld, random_strong_digraph
 from topomap.app.run.experiment import run
-from topomap.app.run.outputs import FIGURE_FILES, OUTPUT_FILES
+from topomap.app.results import FIGURE_FILES, OUTPUT_FILES
 from topomap.worlds.explorers import RandomExplorer
 from topomap.core.data.trajectory import Trajectory
 

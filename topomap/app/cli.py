@@ -157,7 +157,7 @@ def optimising(sweeper) -> bool:
 
 def _task(cfg, registry: Registry):
     """One run (or one job of a sweep) of the composed config ``cfg``; returns the run's
-    ``objective`` (:data:`~topomap.app.run.evaluate.OBJECTIVES`) for a sweeper to optimise, None for
+    ``objective`` (:data:`~topomap.app.results.OBJECTIVES`) for a sweeper to optimise, None for
     a failed job."""
     from hydra.core.hydra_config import HydraConfig
 

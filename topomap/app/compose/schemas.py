@@ -31,6 +31,7 @@ from typing import Any, Optional
 from omegaconf import II, MISSING, OmegaConf
 
 from ...core.learner import MapLearner
+from ..results import OBJECTIVES
 from .kinds import KINDS
 
 __all__ = ["Config", "RunConf", "Objective", "LearnerConf", "OutputConf", "RUNTIME_ARGS", "schema_of",
@@ -135,12 +136,9 @@ class Task(Enum):
     localize = "localize"
 
 
-class Objective(Enum):
-    """The value a run returns to a sweeper that optimises it (``hydra/sweeper=optuna``); both
-    are better when larger (:data:`topomap.app.run.evaluate.OBJECTIVES`)."""
-
-    heldout_loglik = "heldout_loglik"
-    ari = "ari"
+#: The value a run returns to a sweeper that optimises it (``hydra/sweeper=optuna``): one of
+#: :data:`~topomap.app.results.OBJECTIVES`
+Objective = Enum("Objective", {name: name for name in OBJECTIVES}, module=__name__)
 
 
 @dataclass

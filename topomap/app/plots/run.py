@@ -384,7 +384,7 @@ def plot_map(ax, traj, learner, world=None, min_prob=0.8):
 
 
 def write_figures(out: Path, traj, learner, world=None, *, min_prob=0.8, compound_state=None):
-    """Write the figures of :data:`topomap.app.run.outputs.FIGURE_FILES` that the data allows
+    """Write the figures of :data:`topomap.app.results.FIGURE_FILES` that the data allows
     (the room figures need ground-truth positions); the drawing's progress is reported as
     ``"drawing figures"`` (:mod:`topomap.core.progress`)."""
     plt = pyplot()

@@ -1,10 +1,11 @@
-"""The columns of a sweep's summary, and how the jobs of one swept setting make a cell.
+"""The rows of a sweep's summary, and how the jobs of one swept setting make a cell.
 
-Each numeric column of ``summary.csv`` is one :class:`Column` of :data:`COLUMNS`: its name, where
-its value is in a job's ``metrics.json`` (or ``status.json``), its label and which way is better.
-Everything else is derived from that list: the CSV's columns and rows (:func:`header`,
-:func:`row`), the best job (:func:`best_row`), the printed table's and the figures' labels.  To
-add a column, add a :class:`Column`.
+Each numeric column of ``summary.csv`` is one :class:`~topomap.app.results.Column` of
+:data:`~topomap.app.results.COLUMNS`: its name, where its value is in a job's ``metrics.json``
+(or ``status.json``), its label and which way is better.  Everything else is derived from that
+list: the CSV's columns and rows (:func:`header`, :func:`row`), the best job (:func:`best_row`),
+the printed table's and the figures' labels.  To add a column, add a
+:class:`~topomap.app.results.Column`.
 
 A cell is the jobs of one swept value (or pair of values): its value is the mean over its
 completed jobs (:func:`mean`), and a cell none of whose jobs completed says why
@@ -13,95 +14,15 @@ completed jobs (:func:`mean`), and a cell none of whose jobs completed says why
 
 from __future__ import annotations
 
-import functools
 import math
-import operator
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from ...core.checks import ParameterError
-from ..run.experiment import STATUS_FILE
+from ..results import COLUMNS, METRICS, STATUS_FILE
 from .jobs import Job
 
-__all__ = ["Column", "COLUMNS", "METRICS", "header", "row", "best_row", "check_metric"]
-
-
-@dataclass(frozen=True)
-class Column:
-    """One numeric column of ``summary.csv``.
-
-    name : str
-        The column's name (the CSV header, ``--metric``, ``sweep_report.metric``).
-    place : str or tuple of str
-        Where the value is in the job's ``file``: keys joined by dots
-        (``"ground_truth.final.ari"``); several places are summed (None unless all are there).
-    label : str
-        What the value is, with its unit: the printed table's and the figures' label.
-    better : "max", "min" or None
-        Which value is the best job's; None for a column no job is best at (the state counts).
-    file : str
-        ``metrics.json`` (written by a completed job) or ``status.json`` (by any job that ended).
-    """
-
-    name: str
-    place: str | tuple[str, ...]
-    label: str
-    better: str | None = None
-    file: str = "metrics.json"
-
-    def value(self, job: Job) -> Any:
-        """The column's value for ``job``: None where the job's file does not have it."""
-        data = job.status_file if self.file == STATUS_FILE else job.metrics
-        places = (self.place,) if isinstance(self.place, str) else self.place
-        values = [_lookup(data, place) for place in places]
-        if any(v is None for v in values):
-            return None
-        return values[0] if len(values) == 1 else functools.reduce(operator.add, values)
-
-
-def _lookup(data: dict, place: str) -> Any:
-    """``data[a][b]...`` for ``place`` ``"a.b..."``; None where a level is missing."""
-    for key in place.split("."):
-        if not isinstance(data, dict):
-            return None
-        data = data.get(key)
-    return data
-
-
-#: the numeric columns of ``summary.csv``, in its order
-COLUMNS = (
-    Column("n_states_phase1", "n_states.phase1", "states after phase 1"),
-    Column("n_states", "n_states.final", "final states"),
-    Column("ari", "ground_truth.final.ari", "final ARI", "max"),
-    Column("nmi", "ground_truth.final.nmi", "final NMI", "max"),
-    Column("purity", "ground_truth.final.purity", "final purity", "max"),
-    Column("compound_states", "ground_truth.final.compound_states", "final compound states",
-           "min"),
-    Column("ari_phase1", "ground_truth.phase1.ari", "phase-1 ARI", "max"),
-    Column("nmi_phase1", "ground_truth.phase1.nmi", "phase-1 NMI", "max"),
-    Column("purity_phase1", "ground_truth.phase1.purity", "phase-1 purity", "max"),
-    Column("H_o", "entropies.final.H_o", "H(o|x) [bits, differential]"),
-    Column("H_u", "entropies.final.H_u", "H(u|x) [bits]", "min"),
-    Column("H_x", "entropies.final.H_x", "H(x'|x,u) [bits]", "min"),
-    Column("heldout_loglik", "heldout_loglik",
-           "held-out log-likelihood per step [nats, a log-density]", "max"),
-    Column("nav_success", "navigation.success_rate", "navigation success rate", "max"),
-    Column("nav_path_ratio", "navigation.path_ratio", "navigation path length / shortest", "min"),
-    Column("fit_time", ("timings.phase1", "timings.phase2"), "fit time [s]", "min"),
-    Column("data_time", "timings.data", "data time [s]", "min"),
-    Column("job_time", "job_time", "job time [s]", "min", file=STATUS_FILE),
-)
-#: the columns by name
-METRICS = {c.name: c for c in COLUMNS}
-
-
-def check_metric(metric: str, param: str = "metric") -> Column:
-    """The column named ``metric``; a :class:`ParameterError` naming ``param`` if none is."""
-    if metric not in METRICS:
-        raise ParameterError(param, f"={metric!r} is not a summary column; choose one of "
-                                    f"{', '.join(METRICS)}")
-    return METRICS[metric]
+__all__ = ["header", "row", "best_row", "number", "mean", "axis_values", "cell_value", "no_value",
+           "short"]
 
 
 # ---------------------------------------------------------------------------------- rows
@@ -113,7 +34,8 @@ def header(keys) -> list[str]:
 def row(job: Job, keys, sweep_dir: Path) -> dict[str, Any]:
     """The summary's row of ``job`` (a value for each column of :func:`header`)."""
     return {"job": job.num, **{k: job.overrides.get(k, "") for k in keys}, "status": job.status,
-            **{c.name: c.value(job) for c in COLUMNS},
+            **{c.name: c.read(job.status_file if c.file == STATUS_FILE else job.metrics)
+               for c in COLUMNS},
             "error": " ".join(str(job.error).split()) if job.error else "",
             "output_dir": job.path.relative_to(sweep_dir).as_posix()}
 

@@ -12,7 +12,7 @@ import json
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ..run.experiment import CACHE_DIR, STATUS_FILE
+from ..results import CACHE_DIR, METRICS_FILE, STATUS_FILE
 
 __all__ = ["Job", "read_jobs", "swept_keys", "planned_jobs", "not_started", "STATUSES"]
 
@@ -82,20 +82,20 @@ def _read_job(path: Path, index: int) -> Job:
     problems: list[str] = []
     overrides = _read_overrides(path, problems)
     status = _read_json(path / STATUS_FILE, problems)
-    metrics = _read_json(path / "metrics.json", problems)
+    metrics = _read_json(path / METRICS_FILE, problems)
     state = status.get("status")
     if state is None:  # no status.json: the job ended (or was stopped) before writing it
         state = "completed" if metrics else "incomplete"
-        if not (path / STATUS_FILE).exists() and not (path / "metrics.json").exists():
-            problems.append(f"no {STATUS_FILE} or metrics.json: the job is still running, or "
+        if not (path / STATUS_FILE).exists() and not (path / METRICS_FILE).exists():
+            problems.append(f"no {STATUS_FILE} or {METRICS_FILE}: the job is still running, or "
                             "was killed or lost")
     elif state not in ("completed", "failed", "interrupted"):
         problems.append(f"{STATUS_FILE} gives the unknown status {state!r}")
         state = "incomplete"
     if state == "completed" and not metrics:
         state = "incomplete"
-        if not (path / "metrics.json").is_file():
-            problems.append("metrics.json is missing")
+        if not (path / METRICS_FILE).is_file():
+            problems.append(f"{METRICS_FILE} is missing")
     errors = [str(status["error"])] if status.get("error") else []
     return Job(num=_job_num(path, index), path=path, overrides=overrides, status=state,
                error="; ".join(errors + problems) or None,

@@ -21,7 +21,7 @@ or after an interrupted sweep::
 
 The job folders are read by :mod:`topomap.app.report.jobs`, the figures drawn by
 :mod:`topomap.app.report.figure`; the CSV's columns, the table's and the figures' labels and the best
-job all follow the column list :data:`topomap.app.report.columns.COLUMNS`.
+job all follow the column list :data:`topomap.app.results.COLUMNS`.
 """
 
 from __future__ import annotations
@@ -38,8 +38,8 @@ from pathlib import Path
 from hydra.experimental.callback import Callback
 
 from ...core.data.files import atomic_write
-from .columns import (METRICS, axis_values, best_row, check_metric, header, mean, no_value,
-                            number, row, short)
+from ..results import METRICS, OBJECTIVES, check_metric, objective_direction
+from .columns import axis_values, best_row, header, mean, no_value, number, row, short
 from .figure import is_grid
 from .jobs import not_started, planned_jobs, read_jobs, swept_keys
 
@@ -226,17 +226,15 @@ class SweepReport(Callback):
 
     def on_multirun_start(self, config, **kwargs) -> None:
         """Stop a search before its first job when it would optimise the wrong way: the
-        sweeper's ``direction`` against the objective's (:data:`~topomap.app.run.evaluate.OBJECTIVES`)."""
+        sweeper's ``direction`` against the objective's (:data:`~topomap.app.results.OBJECTIVES`)."""
         from omegaconf import OmegaConf
-
-        from ..run.evaluate import OBJECTIVES
 
         SweepReport.running = (self, config)
         direction = OmegaConf.select(config, "hydra.sweeper.direction", default=None)
         direction = getattr(direction, "name", direction)  # the plugin's Direction enum, or text
         objective = OmegaConf.select(config, "objective", default=None)
         objective = getattr(objective, "value", objective)
-        wanted = OBJECTIVES.get(objective, {}).get("direction")
+        wanted = objective_direction(objective) if objective in OBJECTIVES else None
         if isinstance(direction, str) and wanted and direction != wanted:
             sys.exit(f"topomap: error: hydra.sweeper.direction={direction}, but "
                      f"objective={objective} is better when "

@@ -24,27 +24,17 @@ from ..compose.schemas import learner_key
 from ..compose.config_checks import check_config
 from ..components.data import TrajectoryCache, trajectory_key
 from .evaluate import check_objective, evaluate, localization_scores, objective_value
-from .outputs import (STATUS_FILE, OutputDirInUse, claim_output_dir, versions, write_json,
-                      write_localization, write_outputs)
+from .outputs import (OutputDirInUse, claim_output_dir, versions, write_json, write_localization,
+                      write_outputs)
+from ..results import CACHE_DIR, STATUS_FILE, UNITS
 from ..compose.kinds import KINDS
 from ..components.loggers import RunRecord, start_dir
 from ..compose.registry import Parts, Registry
 
 log = logging.getLogger("topomap")
 
-__all__ = ["run", "run_job", "make_learner", "load_data", "config_keys", "Progress", "STATUS_FILE",
-           "CACHE_DIR", "write_status", "interrupt_on_sigterm"]
-#: the folder of a sweep where its jobs share simulated trajectories
-CACHE_DIR = ".cache"
-#: what the less obvious numbers of metrics.json measure
-UNITS = {
-    "H_o": "bits; a differential entropy of the Gaussian observation models (continuous "
-           "observations), so it can be negative",
-    "H_u, H_x": "bits",
-    "heldout_loglik": "nats per step; a log-density of continuous observations, so it can be "
-                      "positive",
-    "loglik": "nats per step (task=localize); a log-density, like heldout_loglik",
-}
+__all__ = ["run", "run_job", "make_learner", "load_data", "config_keys", "Progress", "write_status",
+           "interrupt_on_sigterm"]
 
 
 def run(cfg, output_dir, *, registry: Registry | None = None, cache_dir=None,

@@ -17,47 +17,14 @@ import numpy as np
 
 from ...core.data.files import atomic_write
 from ...core.data.trajectory import save_trajectory
+from ..results import (FIGURE_FILES, LOCALIZE_FILES, MAPPING_FIGURES, METRICS_FILE, OUTPUT_FILES,
+                       STATUS_FILE)
 
-__all__ = ["OUTPUT_FILES", "FIGURE_FILES", "HTML_FILES", "MAPPING_FIGURES", "LOCALIZE_FILES", "STATUS_FILE",
-           "write_outputs", "write_localization", "versions", "write_json", "staged",
+__all__ = ["write_outputs", "write_localization", "versions", "write_json", "staged",
            "held_signals", "own_files", "claim_output_dir", "OutputDirInUse"]
 
-#: the status of a sweep job (``completed``, ``failed`` or ``interrupted``) and of a run that
-#: failed or was interrupted, with the error
-STATUS_FILE = "status.json"
 #: where a run stages its files before they move into its folder (hidden, removed afterwards)
 STAGE_PREFIX = ".topomap-partial-"
-
-#: files every run writes, with what they hold (figures only with ``output.figures``)
-OUTPUT_FILES = {
-    "trajectory.npz": "the observations and actions learned from (plus GDS, ground truth)",
-    "map.json": "the learned map (states, observation models, counts, split history)",
-    "map.graphml": "the map as a graph: arcs where P(x'|x,u) > output.min_prob",
-    "states.csv": "step, state after phase 1, final state (and ground-truth place)",
-    "metrics.json": "entropies, ARI/NMI/purity/compound states, splits, timings, versions, config",
-}
-#: files a ``task=localize`` run writes
-LOCALIZE_FILES = {
-    "states.csv": "step, filtered state (argmax of the belief), Viterbi state (and place)",
-    "beliefs.npz": "beliefs: (T, S) belief over the map's states at every step (past only)",
-    "metrics.json": "log-likelihood, ARI/NMI/purity of both state sequences, config, versions",
-}
-FIGURE_FILES = {
-    "fig_states.png": "observation points coloured by state after clustering, after splitting and "
-                      "(with refine) after the refinement (the paper's Fig. 4, right)",
-    "fig_split.png": "a compound state before and after its split, with transition tables (Figs. 5-6)",
-    "fig_map.png": "the learned map at the states' mean positions, arcs where P > min_prob (Fig. 7)",
-    "fig_entropy.png": "H(u|x), H(x'|x,u) and their sum after each split (and after the refinement)",
-}
-#: the interactive map every run writes with its figures (``output.figures``)
-HTML_FILES = {
-    "map.html": "the learned map to zoom, pan and hover (states, visits, places, transitions); "
-                "one self-contained file, plotly's JavaScript inlined",
-}
-#: the figure a run that maps while exploring (``data.curve_every`` > 0) adds
-MAPPING_FIGURES = {
-    "fig_mapping.png": "mapping while exploring: the map's ARI against the steps taken",
-}
 
 
 def own_files(out) -> list[Path]:
@@ -110,7 +77,7 @@ def held_signals():
 
 
 #: files moved into a run's folder last, in this order: a reader that finds them finds the rest
-_LAST = ("metrics.json", STATUS_FILE)
+_LAST = (METRICS_FILE, STATUS_FILE)
 
 
 @contextmanager
@@ -196,7 +163,7 @@ def _write_outputs(out: Path, traj, learner, results, cfg, world=None) -> None:
         write_map_html(out / "map.html", m, learner.labels_, traj.positions, traj.places,
                        min_prob=cfg["output"]["min_prob"], seed=int(cfg["seed"]))
     results["timings"]["outputs"] = time.perf_counter() - t0
-    write_json(out / "metrics.json", results)
+    write_json(out / METRICS_FILE, results)
 
 
 def write_localization(out: Path, traj, beliefs, viterbi, results) -> None:
@@ -215,4 +182,4 @@ def _write_localization(out: Path, traj, beliefs, viterbi, results) -> None:
             np.savez_compressed(fh, beliefs=beliefs)
 
     atomic_write(out / "beliefs.npz", save_beliefs)
-    write_json(out / "metrics.json", results)
+    write_json(out / METRICS_FILE, results)
