@@ -35,7 +35,7 @@ import numpy as np
 from omegaconf import OmegaConf
 
 from topomap.app.cli import compose
-from topomap.app.run.experiment import load_data
+from topomap.app.run.data import load_data
 from topomap.app.compose.registry import Registry
 from topomap.core.learner import MapLearner
 from topomap.core.metrics import adjusted_rand, nmi

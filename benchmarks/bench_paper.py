@@ -16,7 +16,8 @@ import time
 from omegaconf import OmegaConf
 
 from topomap.app.cli import compose
-from topomap.app.run.experiment import load_data, make_learner
+from topomap.app.run.data import load_data
+from topomap.app.run.experiment import make_learner
 from topomap.app.compose.registry import Registry
 from topomap.core.metrics import evaluate
 

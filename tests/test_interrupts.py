@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 
 from topomap.app import plots
-from topomap.app.run import experiment, outputs
+from topomap.app.run import experiment, job, outputs
 
 SMALL = ["data.n_steps=200", "data.heldout_steps=0", "output.figures=false",
          "output.progress=false", "clusters.ns=6"]
@@ -132,6 +132,6 @@ def test_a_sweep_job_that_is_interrupted_says_so_and_ends_the_sweep(tmp_path, ma
                                                                     monkeypatch):
     monkeypatch.setattr(outputs, "_write_outputs", interrupted)
     with pytest.raises(KeyboardInterrupt):
-        experiment.run_job(small_cfg(make_cfg), tmp_path / "0", sweep_dir=tmp_path)
+        job.run_job(small_cfg(make_cfg), tmp_path / "0", sweep_dir=tmp_path)
     assert [p.name for p in (tmp_path / "0").iterdir()] == ["status.json"]
     assert json.loads((tmp_path / "0" / "status.json").read_text())["status"] == "interrupted"

@@ -158,7 +158,7 @@ def test_autoload_switch_keeps_installed_action_plugins_out(tmp_path):
 def test_cached_trajectory_key_names_the_loaded_plugins(make_cfg):
     from omegaconf import OmegaConf
 
-    from topomap.app.components.data import trajectory_key
+    from topomap.app.run.data import trajectory_key
 
     cfg = OmegaConf.to_container(make_cfg(), resolve=True)
     assert trajectory_key(cfg, plugins=["turnback"]) != trajectory_key(cfg)

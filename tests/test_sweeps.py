@@ -14,11 +14,12 @@ import pytest
 from omegaconf import OmegaConf
 
 from topomap import TopologicalMap, load_trajectory
-from topomap.app.components.data import trajectory_key
-from topomap.app.run.experiment import load_data, run
+from topomap.app.run.data import trajectory_key
+from topomap.app.run.data import load_data
+from topomap.app.run.experiment import run
 from topomap.app.compose.registry import Registry
 from topomap.app.report.summary import METRICS, SweepReport, main as report_main, write_report
-from topomap.app.run.experiment import run_job
+from topomap.app.run.job import run_job
 
 PNG = b"\x89PNG\r\n\x1a\n"
 SMALL = ["data.n_steps=200", "data.heldout_steps=150", "output.figures=false",
@@ -311,7 +312,7 @@ def test_report_lists_crashed_and_unfinished_jobs(tmp_path, monkeypatch, make_cf
     def crash(*args, **kwargs):
         raise RuntimeError("disk on fire")
 
-    monkeypatch.setattr("topomap.app.run.experiment.run", crash)
+    monkeypatch.setattr("topomap.app.run.job.run", crash)
     assert run_job(cfg, job_dir(1, ["stop.n_states=11"]), sweep_dir=tmp_path) is None
     st = status(tmp_path / "1")
     assert st["status"] == "failed" and st["error"] == "RuntimeError: disk on fire"

@@ -22,7 +22,9 @@ from pathlib import Path
 
 from .compose.schemas import store_configs
 from .compose.config_checks import check_overrides
-from .run.experiment import interrupt_on_sigterm, run, run_job, write_status
+from .run.experiment import run
+from .run.interrupts import interrupt_on_sigterm
+from .run.job import run_job, write_status
 from .run.outputs import OutputDirInUse, claim_output_dir
 from .compose.registry import Registry
 

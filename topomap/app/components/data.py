@@ -1,4 +1,4 @@
-"""Data components: where a run's trajectories come from, and the cache a sweep shares them in.
+"""Data components: where a run's trajectories come from.
 
 A data component has ``simulates`` (whether it needs the world, noise and explorer),
 ``train(parts, seed, progress)`` -> the :class:`~topomap.Trajectory` learned from, and
@@ -7,24 +7,17 @@ A data component has ``simulates`` (whether it needs the world, noise and explor
 
 from __future__ import annotations
 
-import hashlib
-import json
-import logging
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from ...core.checks import ParameterError, check_count
 from ...core.data.rosbag import read_rosbag
-from ...core.data.trajectory import Trajectory, load_trajectory, save_trajectory
+from ...core.data.trajectory import Trajectory, load_trajectory
 from ...worlds.explorers import RandomExplorer
 from ...worlds.mapping import heldout_judge, map_while_exploring, quality_curve
 
-log = logging.getLogger("topomap")
-
-__all__ = ["Simulate", "FromFile", "FromRosbag", "trajectory_key", "TrajectoryCache",
-           "seed_streams"]
+__all__ = ["Simulate", "FromFile", "FromRosbag", "seed_streams"]
 
 
 def seed_streams(seed: int):
@@ -163,58 +156,3 @@ class FromRosbag:
             return read_rosbag(self.heldout_path, **self.options)
         except ParameterError as err:  # read_rosbag's path is this heldout_path
             raise (err.renamed("heldout_path") if err.param == "path" else err) from None
-
-
-def trajectory_key(cfg, kind: str = "train", plugins=()) -> str:
-    """A hash of every setting that determines a simulated trajectory.
-
-    ``kind`` is ``"train"`` (the trajectory learned from) or ``"heldout"`` (the one scored);
-    ``plugins`` the loaded plugins (a plugin may add actions to the world).  Two configs with the
-    same key simulate the same trajectory, whatever their learner settings.
-    """
-    data = dict(cfg["data"])
-    if kind == "train":
-        data.pop("heldout_steps", None)
-    elif kind == "heldout":
-        hold = data.get("heldout_steps")
-        data["heldout_steps"] = data.get("n_steps") if hold is None else hold
-    else:
-        raise ValueError(f"kind must be 'train' or 'heldout', not {kind!r}")
-    payload = {"kind": kind, "data": data, "seed": cfg["seed"],
-               "plugins": sorted({str(p) for p in cfg.get("plugins") or ()} | set(plugins)),
-               **{k: dict(cfg[k]) for k in ("env", "noise", "explorer")}}
-    text = json.dumps(payload, sort_keys=True, default=str)
-    return hashlib.sha256(text.encode()).hexdigest()[:16]
-
-
-class TrajectoryCache:
-    """A folder of simulated trajectories shared by the jobs of a sweep.
-
-    :meth:`get` loads ``<folder>/<name>.npz`` or builds and stores it (a build that returns None,
-    "no trajectory", is not stored), holding a lock file
-    (``filelock.SoftFileLock``, which works on a cluster's shared file system) so that parallel
-    jobs build each trajectory once; the file itself is written atomically.
-    """
-
-    def __init__(self, folder, timeout: float = 3600.0):
-        self.folder = Path(folder)
-        self.timeout = float(timeout)
-
-    def get(self, name: str, build) -> Trajectory | None:
-        from filelock import SoftFileLock, Timeout
-
-        path = self.folder / f"{name}.npz"
-        self.folder.mkdir(parents=True, exist_ok=True)
-        try:
-            with SoftFileLock(str(path.with_suffix(".lock")), timeout=self.timeout):
-                if path.is_file():
-                    log.info("trajectory %s: reused from %s", name, path)
-                    return load_trajectory(path)
-                traj = build()
-                if traj is not None:
-                    save_trajectory(traj, path)
-                return traj
-        except Timeout:
-            raise ValueError(f"waited {self.timeout:.0f} s for {path} (lock "
-                             f"{path.with_suffix('.lock')}); if no job is building it, delete "
-                             "the lock file") from None

@@ -21,6 +21,7 @@ import dataclasses
 import inspect
 import re
 import typing
+from contextlib import contextmanager
 from dataclasses import MISSING as _NO_DEFAULT
 from dataclasses import dataclass, field, make_dataclass
 from enum import Enum
@@ -30,12 +31,13 @@ from typing import Any, Optional
 
 from omegaconf import II, MISSING, OmegaConf
 
+from ...core.checks import ParameterError
 from ...core.learner import MapLearner
 from ..results import OBJECTIVES
 from .kinds import KINDS
 
 __all__ = ["Config", "RunConf", "Objective", "LearnerConf", "OutputConf", "RUNTIME_ARGS", "schema_of",
-           "learner_schema", "learner_key", "store_configs", "read_yaml_options", "fields_of"]
+           "learner_schema", "learner_key", "config_keys", "store_configs", "read_yaml_options", "fields_of"]
 
 #: factory arguments the app passes itself; never config fields
 RUNTIME_ARGS = frozenset({"extra_actions"})
@@ -288,3 +290,15 @@ def learner_key(param: str) -> str:
     if head in groups:
         return groups[head] + dot + rest
     return f"learner.{param}" if param in fields_of(LearnerConf) else param
+
+
+@contextmanager
+def config_keys(group: str | None = None):
+    """Name the parameter of a :class:`~topomap.core.checks.ParameterError` raised inside by its
+    config key: ``<group>.<param>`` for a component of ``group``, else the key of a
+    :class:`MapLearner` parameter (:func:`~topomap.app.compose.schemas.learner_key`)."""
+    try:
+        yield
+    except ParameterError as err:
+        key = f"{group}.{err.param}" if group else learner_key(err.param)
+        raise err.renamed(key) from err.__cause__

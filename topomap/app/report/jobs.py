@@ -1,7 +1,7 @@
 """Reading a sweep: the job folders that ``topomap -m ...`` left, and the keys the sweep varies.
 
 Every job of a sweep writes its folder (Hydra's ``.hydra/``, then ``status.json`` and
-``metrics.json``, see :func:`topomap.app.run.experiment.run_job`); :func:`read_jobs` reads them back
+``metrics.json``, see :func:`topomap.app.run.job.run_job`); :func:`read_jobs` reads them back
 as :class:`Job` records, whatever a crash or a kill left behind, and :func:`swept_keys` names the
 keys whose values tell the jobs apart.  :mod:`topomap.app.report.summary` builds the report from them.
 """

@@ -1,7 +1,7 @@
 """The sweep report: the table that compares the jobs of ``topomap -m ...``.
 
 Every job of a sweep (any Hydra launcher: the basic one, ``joblib``, ``submitit_local`` or
-``submitit_slurm``) runs :func:`topomap.app.run.experiment.run_job`, which learns from the trajectory
+``submitit_slurm``) runs :func:`topomap.app.run.job.run_job`, which learns from the trajectory
 cached in ``<sweep dir>/.cache/`` and writes ``status.json`` into its folder: ``completed``, or
 ``failed`` with the error (the job then returns normally, so the sweep goes on and Hydra still ends
 it with the report).

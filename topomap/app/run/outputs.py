@@ -5,7 +5,6 @@ from __future__ import annotations
 import json
 import os
 import shutil
-import signal
 import sys
 import tempfile
 import time
@@ -19,9 +18,10 @@ from ...core.data.files import atomic_write
 from ...core.data.trajectory import save_trajectory
 from ..results import (FIGURE_FILES, LOCALIZE_FILES, MAPPING_FIGURES, METRICS_FILE, OUTPUT_FILES,
                        STATUS_FILE)
+from .interrupts import held_signals
 
 __all__ = ["write_outputs", "write_localization", "versions", "write_json", "staged",
-           "held_signals", "own_files", "claim_output_dir", "OutputDirInUse"]
+           "own_files", "claim_output_dir", "OutputDirInUse"]
 
 #: where a run stages its files before they move into its folder (hidden, removed afterwards)
 STAGE_PREFIX = ".topomap-partial-"
@@ -62,18 +62,6 @@ def claim_output_dir(out, overwrite: bool = False) -> list[str]:
     for p in found:
         shutil.rmtree(p) if p.is_dir() else p.unlink()
     return [p.name for p in found]
-
-
-@contextmanager
-def held_signals():
-    """Hold SIGINT and SIGTERM back inside (they are delivered on leaving): a few renames that
-    must happen together are not cut in half by Ctrl-C or a kill."""
-    sigs = {signal.SIGINT, signal.SIGTERM}
-    old = signal.pthread_sigmask(signal.SIG_BLOCK, sigs)
-    try:
-        yield
-    finally:
-        signal.pthread_sigmask(signal.SIG_SETMASK, old)
 
 
 #: files moved into a run's folder last, in this order: a reader that finds them finds the rest
