@@ -20,7 +20,7 @@ import logging
 import sys
 from pathlib import Path
 
-from .compose.schemas import store_configs
+from .compose.store import store_configs
 from .compose.config_checks import check_overrides
 from .run.experiment import run
 from .run.interrupts import interrupt_on_sigterm

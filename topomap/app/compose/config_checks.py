@@ -16,7 +16,8 @@ from importlib import resources
 
 from omegaconf import OmegaConf
 
-from .schemas import Config, LearnerConf, OutputConf, fields_of, read_yaml_options, schema_of
+from .schemas import Config, LearnerConf, OutputConf, fields_of, schema_of
+from .store import read_yaml_options
 from .kinds import KINDS
 
 __all__ = ["check_overrides", "check_config", "group_options", "default_choices",
