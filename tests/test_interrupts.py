@@ -77,7 +77,7 @@ def test_ctrl_c_ends_a_sweep_with_its_report(tmp_path):
     status = json.loads((job_dir / "status.json").read_text())
     assert status["status"] == "interrupted"
     assert not (job_dir / "map.json").exists() and not (sweep / "2").exists()
-    rebuilt = subprocess.run([sys.executable, "-m", "topomap.app.report.summary", str(sweep)],
+    rebuilt = subprocess.run([sys.executable, "-m", "topomap.app.report", str(sweep)],
                              capture_output=True, text=True, timeout=120)
     assert "sweep of 3 jobs, 1 completed, 0 failed, 1 interrupted, 1 not started" in rebuilt.stdout
 

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from topomap.app.report.summary import main as report_main
+from topomap.app.report.cli import main as report_main
 
 pytestmark = pytest.mark.slow  # every test reads a real sweep, started (and killed) as a process
 
@@ -94,7 +94,7 @@ def test_a_killed_job_is_incomplete_and_no_finished_job_is_lost(killed_sweep):
     sweep, killed = killed_sweep
     assert not (sweep / "summary.csv").exists()  # the sweep died before its report
     assert not (sweep / "2").exists()  # the job after the killed one never started
-    result = subprocess.run([sys.executable, "-m", "topomap.app.report.summary", str(sweep)],
+    result = subprocess.run([sys.executable, "-m", "topomap.app.report", str(sweep)],
                             capture_output=True, text=True, timeout=120)
     assert result.returncode == 0, result.stderr
     assert "sweep of 3 jobs, 1 completed, 0 failed, 1 incomplete, 1 not started" in result.stdout

@@ -18,7 +18,10 @@ from topomap.app.run.data import trajectory_key
 from topomap.app.run.data import load_data
 from topomap.app.run.experiment import run
 from topomap.app.compose.registry import Registry
-from topomap.app.report.summary import METRICS, SweepReport, main as report_main, write_report
+from topomap.app.report.callback import SweepReport
+from topomap.app.report.cli import main as report_main
+from topomap.app.report.summary import write_report
+from topomap.app.results import METRICS
 from topomap.app.run.job import run_job
 
 PNG = b"\x89PNG\r\n\x1a\n"
@@ -412,7 +415,7 @@ def test_sweep_preset_and_slurm_example_compose(make_cfg):
     paper = make_cfg(["experiment=pricai2002"])
     for key in ("env", "noise", "explorer", "data", "seed", "clusters", "stop"):
         assert cfg[key] == paper[key], key
-    assert cfg.hydra.callbacks.sweep_report._target_ == "topomap.app.report.summary.SweepReport"
+    assert cfg.hydra.callbacks.sweep_report._target_ == "topomap.app.report.callback.SweepReport"
 
     pytest.importorskip("hydra_plugins.hydra_submitit_launcher")
     slurm = make_cfg(["hydra/launcher=slurm", "hydra.launcher.partition=short"], hydra=True)

@@ -226,7 +226,7 @@ INTERRUPTED = 130
 def _interrupted() -> None:
     """After Ctrl-C or SIGTERM outside a single run's own handling: a sweep writes its report
     (with the interrupted job and the jobs that did not start); then one line, exit 130."""
-    from .report.summary import interrupted_sweep_report
+    from .report.callback import interrupted_sweep_report
 
     where = interrupted_sweep_report()
     print("topomap: interrupted" + (f"; sweep report in {where}" if where else ""),
