@@ -223,12 +223,12 @@ def _restart_log(out) -> None:
 INTERRUPTED = 130
 
 
-def _interrupted() -> None:
+def _interrupted(exc: KeyboardInterrupt) -> None:
     """After Ctrl-C or SIGTERM outside a single run's own handling: a sweep writes its report
     (with the interrupted job and the jobs that did not start); then one line, exit 130."""
-    from .report.callback import interrupted_sweep_report
+    from .report.callback import SweepInterrupted
 
-    where = interrupted_sweep_report()
+    where = exc.write_report() if isinstance(exc, SweepInterrupted) else None
     print("topomap: interrupted" + (f"; sweep report in {where}" if where else ""),
           file=sys.stderr)
     sys.exit(INTERRUPTED)
@@ -267,8 +267,8 @@ def main() -> None:
         registry = prepare(overrides_of(argv), user_configs=_user_configs(argv))
     except ValueError as exc:
         sys.exit(f"topomap: error: {exc}")
-    except KeyboardInterrupt:
-        _interrupted()
+    except KeyboardInterrupt as exc:
+        _interrupted(exc)
 
     @hydra.main(version_base="1.3", config_path=f"pkg://{CONFIG_MODULE}", config_name="config")
     def topomap(cfg):
@@ -276,8 +276,8 @@ def main() -> None:
 
     try:
         topomap()
-    except KeyboardInterrupt:
-        _interrupted()
+    except KeyboardInterrupt as exc:
+        _interrupted(exc)
 
 
 if __name__ == "__main__":
