@@ -34,7 +34,7 @@ from pathlib import Path
 import numpy as np
 from omegaconf import OmegaConf
 
-from topomap.app.cli import compose
+from topomap.app.compose.command_line import compose
 from topomap.app.run.data import load_data
 from topomap.app.compose.registry import Registry
 from topomap.core.learner import MapLearner

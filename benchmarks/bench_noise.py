@@ -37,7 +37,7 @@ from pathlib import Path
 
 import numpy as np
 
-from topomap.app.cli import compose
+from topomap.app.compose.command_line import compose
 from topomap.app.run.data import load_data
 from topomap.app.run.experiment import _as_dict, make_learner
 from topomap.app.compose.registry import Registry

@@ -90,7 +90,7 @@ def peak_rss_mib() -> float:
 
 def compose(overrides):
     os.environ.setdefault("TOPOMAP_DISABLE_PLUGIN_AUTOLOAD", "1")
-    from topomap.app.cli import compose as hydra_compose
+    from topomap.app.compose.command_line import compose as hydra_compose
     from topomap.app.run.experiment import _as_dict
 
     return _as_dict(hydra_compose([*overrides, "output.progress=false", "output.figures=false"]))

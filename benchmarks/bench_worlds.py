@@ -25,7 +25,7 @@ import shlex
 import statistics
 import tempfile
 
-from topomap.app.cli import compose
+from topomap.app.compose.command_line import compose
 from topomap.app.compose.config_checks import preset_overrides
 from topomap.app.run.experiment import run
 from topomap.app.compose.registry import Registry

@@ -26,7 +26,7 @@ SMALL = ["data.n_steps=400", "data.heldout_steps=0", "clusters.ns=8", "stop.n_st
 
 @pytest.fixture(scope="module")
 def office_run(tmp_path_factory):
-    from topomap.app.cli import compose
+    from topomap.app.compose.command_line import compose
 
     out = tmp_path_factory.mktemp("office")
     run(compose(SMALL), out)

@@ -6,7 +6,7 @@ import textwrap
 
 import pytest
 
-from topomap.app.cli import compose
+from topomap.app.compose.command_line import compose
 from topomap.app.run.experiment import run
 from topomap.app.components.loggers import MLflowLogger, RunRecord
 from topomap.app.compose.registry import Registry

@@ -18,7 +18,7 @@ from pathlib import Path
 import pytest
 from omegaconf import OmegaConf
 
-from topomap.app.cli import overrides_of, plugins_named
+from topomap.app.compose.command_line import overrides_of, plugins_named
 from topomap.app.run.experiment import make_learner, run
 from topomap.app.compose.registry import Registry
 

@@ -9,9 +9,10 @@
 
 The line from the command to the work, each step once: :func:`main` reads the plugins named on the
 command line (with Hydra's own parsers), loads the :class:`~topomap.app.compose.registry.Registry`,
-screens the command line and stores every component's typed config (:func:`prepare`); Hydra
-composes the config of each job and :func:`~topomap.app.run.experiment.run` takes it from there:
-the config is checked, the components are built, the map is learned, evaluated and written.
+screens the command line and stores every component's typed config
+(:func:`~topomap.app.compose.command_line.prepare`); Hydra composes the config of each job and
+:func:`~topomap.app.run.experiment.run` takes it from there: the config is checked, the
+components are built, the map is learned, evaluated and written.
 """
 
 from __future__ import annotations
@@ -20,71 +21,16 @@ import logging
 import sys
 from pathlib import Path
 
-from .compose.store import store_configs
-from .compose.config_checks import check_overrides
+from .compose.command_line import CONFIG_MODULE, overrides_of, prepare
+from .compose.registry import Registry
 from .run.experiment import run
 from .run.interrupts import interrupt_on_sigterm
 from .run.job import run_job, write_status
 from .run.outputs import OutputDirInUse, claim_output_dir
-from .compose.registry import Registry
 
 log = logging.getLogger("topomap")
 
-__all__ = ["main", "overrides_of", "plugins_named", "prepare", "compose", "list_plugins"]
-
-CONFIG_MODULE = "topomap.conf"
-
-
-def overrides_of(argv) -> list[str]:
-    """The overrides (``key=value`` words) of a command line, as Hydra's own parser reads it."""
-    from hydra._internal.utils import get_args_parser
-
-    args, _ = get_args_parser().parse_known_args(list(argv))
-    return list(args.overrides or [])
-
-
-def plugins_named(overrides) -> list[str]:
-    """The plugin modules the overrides name (``plugins=[a,b]``), read with Hydra's override
-    parser: their components' configs must be stored before Hydra composes."""
-    from hydra.core.override_parser.overrides_parser import OverridesParser
-
-    try:
-        overrides = OverridesParser.create().parse_overrides(list(overrides))
-    except Exception:  # a syntax error: Hydra reports it when it parses the same line
-        return []
-    for override in overrides:
-        if override.key_or_group.lstrip("+~") != "plugins":
-            continue
-        if override.is_sweep_override():
-            raise ValueError("plugins cannot be swept; list every plugin in one plugins=[...]")
-        value = override.value()
-        return [str(v) for v in (value if isinstance(value, list) else [value]) if v]
-    return []
-
-
-def prepare(overrides, registry: Registry | None = None, *, user_configs: bool = False) -> Registry:
-    """What must happen before Hydra composes the config of ``topomap <overrides>``: the registry
-    (of the plugins the overrides name, unless given), the command line screened
-    (:func:`~topomap.app.compose.config_checks.check_overrides`: Hydra would refuse an unknown key or a preset
-    that does not fit with its own message) and every component's config stored.
-    ``user_configs``: the command line brings config folders of its own (``-cd``, ``-cp``,
-    ``-cn``), whose options topomap does not know."""
-    registry = registry or Registry.load(plugins_named(overrides))
-    check_overrides(overrides, registry, user_configs=user_configs)
-    store_configs(registry)
-    return registry
-
-
-def compose(overrides=(), registry: Registry | None = None, *, return_hydra_config=False):
-    """The composed config of ``topomap <overrides>`` (Hydra's compose API; for notebooks and
-    tests).  The registry's component configs are stored first (:func:`prepare`)."""
-    from hydra import compose as hydra_compose
-    from hydra import initialize_config_module
-
-    prepare(overrides, registry)
-    with initialize_config_module(version_base="1.3", config_module=CONFIG_MODULE):
-        return hydra_compose(config_name="config", overrides=list(overrides),
-                             return_hydra_config=return_hydra_config)
+__all__ = ["main", "list_plugins", "version_line"]
 
 
 def list_plugins(registry: Registry, file=None) -> None:
