@@ -111,15 +111,13 @@ PLUGIN = '''
 
 
 def test_a_plugin_adds_a_logger_through_the_components_hook(tmp_path):
-    import sys
-
     path = tmp_path / "remember_logger.py"
     path.write_text(textwrap.dedent(PLUGIN))
     registry = Registry.load([str(path)])
     cfg = compose([*SMALL, "output.figures=false", f"plugins=[{path}]", "logger=remember",
                    "logger.project=office"], registry)
     results = run(cfg, tmp_path / "out", registry=registry)
-    ((project, record),) = sys.modules["topomap_plugin_remember_logger"].RECORDS
+    ((project, record),) = registry.pm.get_plugin(str(path)).RECORDS
     assert project == "office" and isinstance(record, RunRecord)
     assert record.results is results and record.sweep_dir is None
     assert record.metrics()["ari"] == results["ground_truth"]["final"]["ari"]

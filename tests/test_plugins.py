@@ -202,6 +202,36 @@ def test_two_plugins_with_one_name_is_an_error_naming_both(tmp_path):
                       entry_points_group=None)
 
 
+OWN_CLASS = """
+from topomap import hookimpl
+from topomap.app.compose.hookspecs import Component
+from topomap.core.split.criteria import EntropyCriterion
+
+
+class {name}(EntropyCriterion):
+    pass
+
+
+@hookimpl
+def topomap_register_components():
+    return [Component("split", "{name}", {name})]
+"""
+
+
+def test_two_plugin_files_of_one_name_each_load_as_a_module_of_their_own(tmp_path):
+    """``a/plug.py`` and ``b/plug.py`` both load, and each one's class is found in the module
+    its ``__module__`` names (where pickle and typing look for it)."""
+    paths = []
+    for folder in ("a", "b"):
+        (tmp_path / folder).mkdir()
+        paths.append(write_plugin(tmp_path / folder / "plug.py",
+                                  OWN_CLASS.format(name=f"from_{folder}")))
+    reg = Registry.load([str(p) for p in paths], entry_points_group=None)
+    for name in ("from_a", "from_b"):
+        factory = reg.get("split", name).factory
+        assert getattr(sys.modules[factory.__module__], name, None) is factory
+
+
 def test_a_broken_plugin_is_reported_and_does_not_hide_the_others(tmp_path):
     bad = write_plugin(tmp_path / "broken.py", "raise RuntimeError('boom')\n")
     good = write_plugin(tmp_path / "good.py", COMPONENT.format(name="mine"))

@@ -11,6 +11,7 @@ and the others still load.  ``Registry.build(cfg)`` builds every component of a 
 
 from __future__ import annotations
 
+import hashlib
 import importlib
 import importlib.util
 import os
@@ -74,6 +75,13 @@ class PluginError:
         return f"plugin {self.name!r} (module {self.module}) failed to load: {self.error}"
 
 
+def plugin_module_name(path: Path) -> str:
+    """The module name a plugin file is loaded under: ``topomap_plugin_<stem>_<hash of its
+    folder>``, one per file, so that two files of one name in two folders are two modules."""
+    digest = hashlib.sha1(str(path.resolve().parent).encode()).hexdigest()[:8]
+    return f"topomap_plugin_{path.stem}_{digest}"
+
+
 def _import(ref: str):
     """Import ``"pkg.mod"``, ``"pkg.mod:attr"`` or ``"path/to/file.py[:attr]"``."""
     mod_ref, _, attr = ref.partition(":")
@@ -81,7 +89,7 @@ def _import(ref: str):
         path = Path(mod_ref).resolve()
         if not path.is_file():
             raise ImportError(f"no such file {path}")
-        name = f"topomap_plugin_{path.stem}"
+        name = plugin_module_name(path)
         spec = importlib.util.spec_from_file_location(name, path)
         module = importlib.util.module_from_spec(spec)
         sys.modules[name] = module
