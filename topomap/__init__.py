@@ -13,14 +13,9 @@ The package has three floors, each importing only the ones below it:
 ``import topomap`` loads the core only.
 """
 
-import sys as _sys
-
+from . import metrics
 from .core import MapLearner, TopologicalMap, Trajectory, load_trajectory, save_trajectory
-from .core import metrics
 from .core.data.rosbag import read_rosbag, write_rosbag
-
-# ``import topomap.metrics`` keeps working: the module lives in the core
-_sys.modules[f"{__name__}.metrics"] = metrics
 
 __all__ = ["MapLearner", "TopologicalMap", "Trajectory", "load_trajectory", "save_trajectory",
            "read_rosbag", "write_rosbag", "metrics", "hookimpl"]
