@@ -251,3 +251,19 @@ def test_every_config_folder_is_packaged():
     for folder in [p for p in CONF.rglob("*") if p.is_dir() and p.name != "__pycache__"]:
         name = "topomap.conf." + ".".join(folder.relative_to(CONF).parts)
         assert name in packages, f"{name} is missing from [tool.setuptools] packages"
+
+
+def test_the_rosbag_data_options_are_read_rosbags_own():
+    """``data=rosbag`` takes every option of :func:`topomap.read_rosbag` (but ``action_rule``, a
+    callable), with read_rosbag's defaults, beside ``path`` and ``heldout_path``."""
+    import inspect
+
+    from topomap import read_rosbag
+    from topomap.app.compose.schemas import fields_of, schema_of
+
+    fields = fields_of(schema_of(Registry.load(entry_points_group=None).get("data", "rosbag")))
+    wanted = {name: p.default for name, p in inspect.signature(read_rosbag).parameters.items()
+              if name not in ("path", "action_rule") and p.default is not p.empty}
+    assert {k: v for k, v in fields.items() if k in wanted} == wanted
+    assert set(fields) == {"component", "path", "heldout_path", "observation_topic",
+                           "action_topic", *wanted}

@@ -7,12 +7,16 @@ A data component has ``simulates`` (whether it needs the world, noise and explor
 
 from __future__ import annotations
 
-from typing import Any
+import dataclasses
+import inspect
+import typing
+from typing import Any, Optional
 
 import numpy as np
 
 from ...core.checks import ParameterError, check_count
 from ...core.data.rosbag import read_rosbag
+from ...core.data.rosbag.options import Options
 from ...core.data.trajectory import Trajectory, load_trajectory
 from ...worlds.explorers import RandomExplorer
 from ...worlds.mapping import heldout_judge, map_while_exploring, quality_curve
@@ -120,31 +124,49 @@ class FromFile:
         return None if self.heldout_path is None else load_trajectory(self.heldout_path)
 
 
+def _bag_options() -> list[inspect.Parameter]:
+    """The options of ``data=rosbag``, declared once, by :func:`topomap.read_rosbag`: the fields
+    of its checked options (:class:`~topomap.core.data.rosbag.options.Options`, with their types)
+    with its defaults, but ``action_rule``, a callable that no config can hold."""
+    hints = typing.get_type_hints(Options)
+    defaults = inspect.signature(read_rosbag).parameters
+    return [inspect.Parameter(f.name, inspect.Parameter.KEYWORD_ONLY,
+                              annotation=_names_if_list(hints[f.name]),
+                              default=defaults[f.name].default)
+            for f in dataclasses.fields(Options) if f.name != "action_rule"]
+
+
+def _names_if_list(hint):
+    """An option's type in the config: the lists of :func:`read_rosbag`'s options hold names
+    (field paths, action names, GDS names), so a list or tuple is a list of str."""
+    args = set(typing.get_args(hint))
+    if hint in (list, tuple) or (args and args - {type(None)} <= {list, tuple}):
+        return Optional[list[str]] if type(None) in args else list[str]
+    return hint
+
+
 class FromRosbag:
     """Learn from ROS bags (``pip install "topomap[ros]"``): one step per message on the action
     topic, the observation the latest message at or before it on the observation topic.
 
     Every parameter but ``path`` and ``heldout_path`` is an argument of
-    :func:`topomap.read_rosbag` (which documents the rules); ``path`` is one bag (a ROS 1 ``.bag``
-    file, a ROS 2 bag folder) or a list of bags, one episode each.  ``heldout_path`` (one bag or a
-    list) is a second recording of the same world the map is scored on.
+    :func:`topomap.read_rosbag` (which documents the rules, and declares them: this class's
+    signature is derived from it); ``path`` is one bag (a ROS 1 ``.bag`` file, a ROS 2 bag
+    folder) or a list of bags, one episode each.  ``heldout_path`` (one bag or a list) is a
+    second recording of the same world the map is scored on.
     """
 
     simulates = False
+    __signature__ = inspect.Signature([
+        inspect.Parameter("path", inspect.Parameter.POSITIONAL_OR_KEYWORD, annotation=Any),
+        *_bag_options(),
+        inspect.Parameter("heldout_path", inspect.Parameter.KEYWORD_ONLY, annotation=Any,
+                          default=None)])
 
-    def __init__(self, path: Any, observation_topic: str, action_topic: str,
-                 observation_fields: list[str] | None = None, scan_bins: int | None = None,
-                 max_range: float | None = None, gds_topic: str | None = None,
-                 gds_window: float = 0.5, action_names: list[str] | None = None,
-                 gds_names: list[str] | None = None, linear_threshold: float = 0.05,
-                 angular_threshold: float = 0.1, heldout_path: Any = None):
-        self.path, self.heldout_path = path, heldout_path
-        self.options = dict(
-            observation_topic=observation_topic, action_topic=action_topic,
-            observation_fields=observation_fields, scan_bins=scan_bins, max_range=max_range,
-            gds_topic=gds_topic or None, gds_window=gds_window, action_names=action_names,
-            gds_names=gds_names, linear_threshold=linear_threshold,
-            angular_threshold=angular_threshold)
+    def __init__(self, path: Any, **options):
+        bound = self.__signature__.bind(path, **options)  # a TypeError naming what is wrong
+        self.path, self.heldout_path = path, options.pop("heldout_path", None)
+        self.options = {k: v for k, v in bound.arguments.items() if k in options}
 
     def train(self, parts, seed: int, progress=None) -> Trajectory:
         return read_rosbag(self.path, **self.options)

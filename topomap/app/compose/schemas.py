@@ -84,7 +84,8 @@ def _parameters(factory):
     for p in inspect.signature(factory).parameters.values():
         if p.name in RUNTIME_ARGS or p.kind in (p.VAR_POSITIONAL, p.VAR_KEYWORD):
             continue
-        out.append((p.name, hints.get(p.name, Any), p.default))
+        annotation = hints.get(p.name, p.annotation)  # a signature made by hand: its own
+        out.append((p.name, Any if annotation is p.empty else annotation, p.default))
     return out
 
 
