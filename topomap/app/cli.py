@@ -26,7 +26,7 @@ from .compose.registry import Registry
 from .run.experiment import run
 from .run.interrupts import interrupt_on_sigterm
 from .run.job import run_job, write_status
-from .run.outputs import OutputDirInUse, claim_output_dir
+from .run.outputs import OutputDirInUse
 
 log = logging.getLogger("topomap")
 
@@ -129,9 +129,7 @@ def _single_run(cfg, out, registry: Registry) -> dict:
     """``topomap <overrides>`` without ``-m``: the run's results; a failed or interrupted run
     leaves ``status.json`` in its folder saying so, and ends the command with one line."""
     try:
-        if claim_output_dir(out, bool(cfg.output.overwrite)):
-            _restart_log(out)
-        return run(cfg, out, registry=registry)
+        return run(cfg, out, registry=registry, on_replaced=_restart_log)
     except OutputDirInUse as exc:  # another run's folder: leave it as it is
         sys.exit(f"topomap: error: {exc}")
     except KeyboardInterrupt:

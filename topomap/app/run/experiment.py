@@ -10,6 +10,7 @@ from __future__ import annotations
 import logging
 import sys
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 from ...core.learner import MapLearner
@@ -29,26 +30,43 @@ from .progress import Progress
 
 log = logging.getLogger("topomap")
 
-__all__ = ["run", "learn", "localize", "make_learner"]
+__all__ = ["run", "Experiment", "learn", "localize", "make_learner"]
+
+
+@dataclass(frozen=True)
+class Experiment:
+    """One run, once its components are built: its resolved config, its components, the
+    registry they came from, its folder, and where the jobs of a sweep share simulated
+    trajectories (None for a single run)."""
+
+    cfg: dict
+    parts: Parts
+    registry: Registry
+    output_dir: Path
+    cache_dir: Path | None = None
 
 
 def run(cfg, output_dir, *, registry: Registry | None = None, cache_dir=None,
-        needs_objective: bool = False) -> dict:
+        needs_objective: bool = False, on_replaced=None) -> dict:
     """Run one experiment described by ``cfg`` and write its outputs into ``output_dir``.
 
-    The config is checked (:func:`~topomap.app.compose.config_checks.check_config`), every component is built
-    from it (:meth:`Registry.build <topomap.app.compose.registry.Registry.build>`), before any data is
-    read; then ``task=learn`` (the default) learns a map (:func:`learn`) and ``task=localize``
-    applies the saved ``map`` to the data (:func:`localize`).  Returns the metrics dict.
+    The config is checked (:func:`~topomap.app.compose.config_checks.check_config`), every
+    component is built from it (:meth:`Registry.build
+    <topomap.app.compose.registry.Registry.build>`), before any data is read; then
+    ``task=learn`` (the default) learns a map (:func:`learn`) and ``task=localize`` applies the
+    saved ``map`` to the data (:func:`localize`).  Returns the metrics dict.
 
-    A folder that holds another run's outputs is refused (:class:`~topomap.app.run.outputs.OutputDirInUse`)
-    unless ``output.overwrite`` is true, which removes them first
-    (:func:`~topomap.app.run.outputs.claim_output_dir`).  ``needs_objective``: the run's
-    ``objective`` is optimised (an Optuna sweep), so data that cannot give it is an error before
-    learning.
+    A folder that holds another run's outputs is refused
+    (:class:`~topomap.app.run.outputs.OutputDirInUse`) unless ``output.overwrite`` is true,
+    which removes them first (:func:`~topomap.app.run.outputs.claim_output_dir`) and then calls
+    ``on_replaced(output_dir)`` (the command starts the run's log afresh).
+    ``needs_objective``: the run's ``objective`` is optimised (an Optuna sweep), so data that
+    cannot give it is an error before learning.
     """
     cfg = _as_dict(cfg)
-    claim_output_dir(output_dir, bool((cfg.get("output") or {}).get("overwrite", False)))
+    replaced = claim_output_dir(output_dir, bool((cfg.get("output") or {}).get("overwrite", False)))
+    if replaced and on_replaced is not None:
+        on_replaced(output_dir)
     registry = registry or Registry.load(cfg.get("plugins") or ())
     for err in registry.errors:
         log.warning("%s", err)
@@ -56,20 +74,18 @@ def run(cfg, output_dir, *, registry: Registry | None = None, cache_dir=None,
     localizing = cfg.get("task", "learn") == "localize"
     if localizing and not cfg.get("map"):
         raise ValueError("task=localize needs the map to apply: map=path/to/map.json")
-    parts = registry.build(cfg)
-    if localizing:
-        return localize(cfg, parts, output_dir)
-    return learn(cfg, parts, output_dir, registry, cache_dir, needs_objective)
+    experiment = Experiment(cfg, registry.build(cfg), registry, Path(output_dir),
+                            None if cache_dir is None else Path(cache_dir))
+    return localize(experiment) if localizing else learn(experiment, needs_objective)
 
 
-def learn(cfg: dict, parts: Parts, output_dir, registry: Registry, cache_dir=None,
-          needs_objective: bool = False) -> dict:
+def learn(experiment: Experiment, needs_objective: bool = False) -> dict:
     """Learn a map: data -> learner -> evaluation -> outputs.
 
     The learner's settings are checked before any data is simulated, so a bad setting fails
-    first; every file is written atomically.  ``cache_dir``: where simulated trajectories are
-    shared between runs (the jobs of a sweep).
+    first; every file is written atomically.
     """
+    cfg, parts, registry = experiment.cfg, experiment.parts, experiment.registry
     plugin_metrics: dict = {}
     shown = cfg["output"].get("progress", True) and sys.stderr.isatty()
     with Progress(shown) as progress, reporting(progress.on_progress if shown else None):
@@ -77,8 +93,8 @@ def learn(cfg: dict, parts: Parts, output_dir, registry: Registry, cache_dir=Non
         with config_keys():
             learner.check_params(n_gds=getattr(parts.world, "n_gds", 0))  # before any simulation
         check_room_for_clusters(cfg, parts)
-        (traj, heldout), t_data = load_data(cfg, parts, registry, cache_dir, progress,
-                                            learner=learner)
+        (traj, heldout), timings = load_data(cfg, parts, registry, experiment.cache_dir,
+                                             progress, learner=learner)
         check_cluster_count(getattr(parts.clusters, "ns", None), traj)
         objective = cfg.get("objective", "heldout_loglik")
         if needs_objective:
@@ -88,35 +104,38 @@ def learn(cfg: dict, parts: Parts, output_dir, registry: Registry, cache_dir=Non
         report_missed_target(learner)
         t0 = time.perf_counter()
         results = evaluate(learner, traj, heldout, parts)
-        t_data["evaluate"] = time.perf_counter() - t0
-        _write_learned(cfg, parts, registry, output_dir, traj, learner, results, t_data,
-                       plugin_metrics, objective, cache_dir)
+        timings["evaluate"] = time.perf_counter() - t0
+        _write_learned(experiment, traj, learner, results, timings=timings,
+                       plugin_metrics=plugin_metrics, objective=objective)
     return results
 
 
-def _write_learned(cfg, parts, registry, output_dir, traj, learner, results, t_data,
-                   plugin_metrics, objective, cache_dir) -> None:
+def _write_learned(experiment: Experiment, traj, learner, results, *, timings, plugin_metrics,
+                   objective) -> None:
     """Complete the results of a learned map, write the run's files and log the run."""
+    cfg, parts = experiment.cfg, experiment.parts
     results.update({
         "split_history": learner.split_history_, "entropy_trace": learner.entropies_,
-        "stop_reason": learner.stop_reason_, "timings": {**t_data, **learner.timings_},
+        "stop_reason": learner.stop_reason_, "timings": {**timings, **learner.timings_},
         "size_choice": getattr(learner, "size_choice_", None), "resized": _resized(learner),
         "mapping": _mapping(traj, results),
         "versions": versions(), "config": cfg, "plugin_metrics": plugin_metrics, "units": UNITS,
         "objective": {"name": objective, "value": objective_value(results, objective)},
-        "providers": {name: registry.provider(name, cfg[name]["component"])
+        "providers": {name: experiment.registry.provider(name, cfg[name]["component"])
                       for name, kind in KINDS.items() if kind.learner_arg},  # the learner's
     })
-    write_outputs(Path(output_dir), traj, learner, results, cfg, parts.world)
+    write_outputs(experiment.output_dir, traj, learner, results, cfg, parts.world)
     if parts.logger is not None:
-        sweep_dir = None if cache_dir is None else Path(cache_dir).parent  # <sweep>/.cache
-        parts.logger.log_run(RunRecord(Path(output_dir), cfg, results, start_dir=start_dir(),
-                                       sweep_dir=sweep_dir))
+        cache_dir = experiment.cache_dir
+        sweep_dir = None if cache_dir is None else cache_dir.parent  # <sweep>/.cache
+        parts.logger.log_run(RunRecord(experiment.output_dir, cfg, results,
+                                       start_dir=start_dir(), sweep_dir=sweep_dir))
 
 
-def localize(cfg: dict, parts: Parts, output_dir) -> dict:
+def localize(experiment: Experiment) -> dict:
     """Apply the saved map ``cfg["map"]`` to the data: the belief over states at every step
     (forward filtering), the Viterbi states and, with ground truth, their scores."""
+    cfg, parts = experiment.cfg, experiment.parts
     m = TopologicalMap.load(cfg["map"])
     with config_keys("data"):
         traj = parts.data.train(parts, int(cfg["seed"]))
@@ -125,7 +144,7 @@ def localize(cfg: dict, parts: Parts, output_dir) -> dict:
     beliefs, viterbi = m.filter(*args, **kw), m.predict(*args, **kw)
     results = {**localization_scores(m, traj, beliefs, viterbi), "config": cfg,
                "versions": versions(), "units": UNITS}
-    write_localization(Path(output_dir), traj, beliefs, viterbi, results)
+    write_localization(experiment.output_dir, traj, beliefs, viterbi, results)
     return results
 
 
