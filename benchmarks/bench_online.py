@@ -210,9 +210,9 @@ def child_explore(overrides, explorer: str, seed: int, steps: int) -> dict:
                                  f"data.n_steps={steps}", "data.curve_every=250",
                                  "learner.refit_every=500"])
     if explorer == "place-aware":
-        if not hasattr(parts.world, "successors"):
+        if not hasattr(parts.env, "successors"):
             return {"first": None, "curve": [], "skipped": "the world has no table of places"}
-        parts.explorer = PlaceAware(parts.world, copy.deepcopy(seed_streams(seed)[0]))
+        parts.explorer = PlaceAware(parts.env, copy.deepcopy(seed_streams(seed)[0]))
     traj = parts.data.train(parts, seed, learner=learner)
     curve = traj.meta["mapping"]["curve"]
     first = next((c["steps"] for c in curve if c["heldout_ari"] >= 0.95), None)

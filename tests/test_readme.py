@@ -151,7 +151,7 @@ def compose_checked(command, make_cfg):
             cfg["data"] = {"component": "simulate", "n_steps": 10, "heldout_steps": 0}
         try:
             parts = registry.build(cfg)
-            make_learner(cfg, parts).check_params(n_gds=getattr(parts.world, "n_gds", 0))
+            make_learner(cfg, parts).check_params(n_gds=getattr(parts.env, "n_gds", 0))
         except ValueError as exc:
             failed.append((job, str(exc)))
     return failed

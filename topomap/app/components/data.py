@@ -68,16 +68,16 @@ class Simulate:
     def train(self, parts, seed: int, progress=None, learner=None) -> Trajectory:
         rng_sim, rng_noise, _ = seed_streams(seed)
         explorer = parts.explorer if progress is None else progress.ticking(parts.explorer, self.n_steps)
-        every = self.maps_while_exploring(parts)
-        if every and learner is not None:
+        update_every = self.maps_while_exploring(parts)
+        if update_every and learner is not None:
             judge = heldout_judge(self.judging_walk(parts, seed))
-            traj, walk = map_while_exploring(parts.world, self.n_steps, explorer, learner,
-                                             parts.noise, rng_sim, rng_noise, every, judge)
+            traj, walk = map_while_exploring(parts.env, self.n_steps, explorer, learner,
+                                             parts.noise, rng_sim, rng_noise, update_every, judge)
             walk.flush()
-            traj.meta["mapping"] = {"every": every, "explorer": repr(parts.explorer),
+            traj.meta["mapping"] = {"every": update_every, "explorer": repr(parts.explorer),
                                     "curve": quality_curve(walk, traj.places)}
             return traj
-        traj = parts.world.simulate(self.n_steps, explorer, rng_sim)
+        traj = parts.env.simulate(self.n_steps, explorer, rng_sim)
         traj.observations = parts.noise.apply(traj.observations, rng_noise)
         return traj
 
@@ -86,7 +86,7 @@ class Simulate:
         ``min(n_steps, 10000)`` steps of :class:`~topomap.worlds.RandomExplorer`, from the seed's
         fourth random stream."""
         rng_sim, rng_noise = np.random.SeedSequence(int(seed)).spawn(4)[3].spawn(2)
-        traj = parts.world.simulate(min(self.n_steps, 10000), RandomExplorer(),
+        traj = parts.env.simulate(min(self.n_steps, 10000), RandomExplorer(),
                                     np.random.default_rng(rng_sim))
         traj.observations = parts.noise.apply(traj.observations, np.random.default_rng(rng_noise))
         return traj
@@ -95,7 +95,7 @@ class Simulate:
         if self.heldout_steps == 0:
             return None
         rng_sim, rng_noise = seed_streams(seed)[2].spawn(2)
-        traj = parts.world.simulate(self.heldout_steps, parts.explorer, rng_sim)
+        traj = parts.env.simulate(self.heldout_steps, parts.explorer, rng_sim)
         traj.observations = parts.noise.apply(traj.observations, rng_noise)
         return traj
 

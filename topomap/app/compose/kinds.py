@@ -28,7 +28,7 @@ class Kind:
         holding the built object.
     returns : str
         What the component's factory returns (the interface the app relies on).
-    world : bool
+    simulated : bool
         A part of the simulated world: built only when the data component simulates.
     learner_arg : str or None
         The :class:`~topomap.MapLearner` argument the built object is passed as.
@@ -36,7 +36,7 @@ class Kind:
 
     name: str
     returns: str
-    world: bool = False
+    simulated: bool = False
     learner_arg: str | None = None
 
 
@@ -44,9 +44,9 @@ class Kind:
 #: (it tells whether the world is built)
 KINDS = MappingProxyType({kind.name: kind for kind in (
     Kind("env", "a world: ``simulate(n_steps, explorer, rng) -> Trajectory`` (optional: "
-                "``plot_room(ax)``, an ``extra_actions=`` argument)", world=True),
-    Kind("noise", "``apply(observations, rng) -> observations`` (a new array)", world=True),
-    Kind("explorer", "``choose(executable_mask, rng) -> action id``", world=True),
+                "``plot_room(ax)``, an ``extra_actions=`` argument)", simulated=True),
+    Kind("noise", "``apply(observations, rng) -> observations`` (a new array)", simulated=True),
+    Kind("explorer", "``choose(executable_mask, rng) -> action id``", simulated=True),
     Kind("metric", "``fit_transform(X) -> Z``; K-means runs on ``Z``", learner_arg="metric"),
     Kind("clusters", "``choose(Z, random_state) -> ns``", learner_arg="clusters"),
     Kind("split", "``propose(counts) -> (side, score) | None``", learner_arg="criterion"),

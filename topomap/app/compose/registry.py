@@ -41,7 +41,7 @@ def autoload_disabled() -> bool:
 
 class Parts:
     """The components of one run, each built once from its config: one attribute per kind of
-    component (:data:`~topomap.app.compose.kinds.KINDS`), ``world`` standing for ``env``.
+    component (:data:`~topomap.app.compose.kinds.KINDS`), named as its config group.
 
     The parts of the world (``env``, ``noise``, ``explorer``) are None when the data component
     does not simulate (``data=file``).
@@ -53,11 +53,6 @@ class Parts:
             raise TypeError(f"Parts has no kind {', '.join(sorted(unknown))}")
         for kind in KINDS:
             setattr(self, kind, built.get(kind))
-
-    @property
-    def world(self):
-        """The world the data component simulates (the ``env`` component), or None."""
-        return self.env
 
     def __repr__(self) -> str:
         return f"Parts({', '.join(f'{k}={getattr(self, k)!r}' for k in KINDS)})"
@@ -265,7 +260,7 @@ class Registry:
         simulates = bool(getattr(data, "simulates", False))
         built = {"data": data}
         for kind in KINDS.values():
-            if kind.name in built or (kind.world and not simulates):
+            if kind.name in built or (kind.simulated and not simulates):
                 continue
             extra = self.world_actions(cfg["env"]) if kind.name == "env" else None
             built[kind.name] = self.make(kind.name, cfg[kind.name],

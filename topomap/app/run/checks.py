@@ -26,7 +26,7 @@ def check_room_for_clusters(cfg: dict, parts: Parts) -> None:
     stop = parts.stop
     if most is None or least is None or not isinstance(stop, TargetStates):
         return
-    n_gds = int(getattr(parts.world, "n_gds", 0) or 0)
+    n_gds = int(getattr(parts.env, "n_gds", 0) or 0)
     if least + n_gds <= stop.n_states < most + n_gds:
         log.info("clusters=%s searches %d to %d clusters: stop.n_states=%d leaves room for no "
                  "more%s", cfg["clusters"]["component"], least, stop.n_states - n_gds,

@@ -67,11 +67,11 @@ def evaluate(learner: MapLearner, traj: Trajectory, heldout: Trajectory | None,
                    heldout_steps=len(heldout))
         report("held-out scoring", 1, 1)
     if parts is not None and parts.evaluate is not None:
-        if parts.world is None or traj.places is None:
+        if parts.env is None or traj.places is None:
             raise ValueError("evaluate=navigation needs a simulated world with ground truth "
                              "(data=simulate)")
         out["navigation"] = parts.evaluate.evaluate(learner.map_, learner.labels_, traj.places,
-                                                    parts.world, parts.noise)
+                                                    parts.env, parts.noise)
     return out
 
 

@@ -91,7 +91,7 @@ def learn(experiment: Experiment, needs_objective: bool = False) -> dict:
     with Progress(shown) as progress, reporting(progress.on_progress if shown else None):
         learner = make_learner(cfg, parts, [progress.on_event, registry.learner_events(plugin_metrics)])
         with config_keys():
-            learner.check_params(n_gds=getattr(parts.world, "n_gds", 0))  # before any simulation
+            learner.check_params(n_gds=getattr(parts.env, "n_gds", 0))  # before any simulation
         check_room_for_clusters(cfg, parts)
         (traj, heldout), timings = load_data(cfg, parts, registry, experiment.cache_dir,
                                              progress, learner=learner)
@@ -124,7 +124,7 @@ def _write_learned(experiment: Experiment, traj, learner, results, *, timings, p
         "providers": {name: experiment.registry.provider(name, cfg[name]["component"])
                       for name, kind in KINDS.items() if kind.learner_arg},  # the learner's
     })
-    write_outputs(experiment.output_dir, traj, learner, results, cfg, parts.world)
+    write_outputs(experiment.output_dir, traj, learner, results, cfg, parts.env)
     if parts.logger is not None:
         cache_dir = experiment.cache_dir
         sweep_dir = None if cache_dir is None else cache_dir.parent  # <sweep>/.cache

@@ -126,14 +126,14 @@ def write_states(path: Path, traj, **columns) -> None:
                                               header=",".join(columns), comments=""))
 
 
-def write_outputs(out: Path, traj, learner, results, cfg, world=None) -> None:
+def write_outputs(out: Path, traj, learner, results, cfg, env=None) -> None:
     """Write every output file of a run into ``out``: all of them are written into a staging
     folder first and move into ``out`` together (:func:`staged`)."""
     with staged(out) as stage:
-        _write_outputs(stage, traj, learner, results, cfg, world)
+        _write_outputs(stage, traj, learner, results, cfg, env)
 
 
-def _write_outputs(out: Path, traj, learner, results, cfg, world=None) -> None:
+def _write_outputs(out: Path, traj, learner, results, cfg, env=None) -> None:
     t0 = time.perf_counter()
     save_trajectory(traj, out / "trajectory.npz")
     m = learner.map_
@@ -144,7 +144,7 @@ def _write_outputs(out: Path, traj, learner, results, cfg, world=None) -> None:
     if cfg["output"]["figures"]:
         from .. import plots
 
-        plots.write_figures(out, traj, learner, world, min_prob=cfg["output"]["min_prob"],
+        plots.write_figures(out, traj, learner, env, min_prob=cfg["output"]["min_prob"],
                             compound_state=cfg["output"].get("compound_state"))
         from ..plots.interactive import write_map_html
 
