@@ -92,7 +92,7 @@ def test_default_store_is_below_the_outputs_folder(tmp_path):
 
 
 PLUGIN = '''
-    from topomap.app.compose.hookspecs import Component, hookimpl
+    from topomap import Component, hookimpl
 
     RECORDS = []
 

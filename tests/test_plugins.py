@@ -182,8 +182,7 @@ def write_plugin(path: Path, body: str) -> Path:
 
 
 COMPONENT = """
-from topomap import hookimpl
-from topomap.app.compose.hookspecs import Component
+from topomap import Component, hookimpl
 from topomap.core.split.criteria import EntropyCriterion
 
 @hookimpl
@@ -203,8 +202,7 @@ def test_two_plugins_with_one_name_is_an_error_naming_both(tmp_path):
 
 
 OWN_CLASS = """
-from topomap import hookimpl
-from topomap.app.compose.hookspecs import Component
+from topomap import Component, hookimpl
 from topomap.core.split.criteria import EntropyCriterion
 
 
@@ -312,3 +310,15 @@ def test_pip_installed_plugin_is_found_through_its_entry_point(tmp_path, recordi
     assert [h["state"] for h in history(tmp_path)] == [6]
     cfg = json.loads((run_dir(tmp_path) / "metrics.json").read_text())["config"]
     assert cfg["split"] == {"component": "gtest", "alpha": 0.01}  # the YAML's default
+
+
+def test_a_plugin_imports_from_topomap_and_the_old_place_still_serves_with_a_warning():
+    import importlib
+
+    import topomap
+    from topomap.app.compose import hookspecs
+
+    assert topomap.Component is hookspecs.Component and topomap.hookimpl is hookspecs.hookimpl
+    old = importlib.import_module("topomap.app.hookspecs")
+    with pytest.warns(FutureWarning, match="from topomap import Component, hookimpl"):
+        assert old.Component is hookspecs.Component

@@ -18,14 +18,15 @@ from .core import MapLearner, TopologicalMap, Trajectory, load_trajectory, save_
 from .core.data.rosbag import read_rosbag, write_rosbag
 
 __all__ = ["MapLearner", "TopologicalMap", "Trajectory", "load_trajectory", "save_trajectory",
-           "read_rosbag", "write_rosbag", "metrics", "hookimpl"]
+           "read_rosbag", "write_rosbag", "metrics", "hookimpl", "Component"]
 __version__ = "0.2.0"
 
 
 def __getattr__(name):
-    """``topomap.hookimpl`` (the plugin marker) is loaded on first use, with pluggy."""
-    if name == "hookimpl":
-        from .app.compose.hookspecs import hookimpl
+    """What a plugin imports, ``topomap.hookimpl`` (the plugin marker) and ``topomap.Component``
+    (what it registers), is loaded on first use, with pluggy."""
+    if name in ("hookimpl", "Component"):
+        from .app.compose import hookspecs
 
-        return hookimpl
+        return getattr(hookspecs, name)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
