@@ -13,7 +13,8 @@ __all__ = ["evaluate", "localization_scores", "objective_value", "check_objectiv
 
 
 def _objective(name) -> str:
-    """The name of the objective ``name`` (its name, or an :class:`Objective` member) of
+    """The name of the objective ``name`` (its name, or a member of
+    :class:`~topomap.app.compose.schemas.Objective`) of
     :data:`~topomap.app.results.OBJECTIVES`."""
     name = getattr(name, "value", name)
     if name not in OBJECTIVES:
