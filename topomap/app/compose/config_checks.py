@@ -16,9 +16,9 @@ from importlib import resources
 
 from omegaconf import OmegaConf
 
+from .kinds import KINDS
 from .schemas import Config, LearnerConf, OutputConf, fields_of, schema_of
 from .store import read_yaml_options
-from .kinds import KINDS
 
 __all__ = ["check_overrides", "check_config", "group_options", "default_choices",
            "preset_overrides", "valid_keys"]

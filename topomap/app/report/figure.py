@@ -16,9 +16,9 @@ from pathlib import Path
 
 import numpy as np
 
+from ..plots.style import LEGEND_SIZE, PALETTE, TITLE_SIZE, pyplot, save_figure
 from ..results import METRICS
 from .columns import axis_values, cell_value, no_value, number, short
-from ..plots.style import LEGEND_SIZE, PALETTE, TITLE_SIZE, pyplot, save_figure
 
 __all__ = ["write_sweep_figure", "plot_sweep_line", "plot_sweep_heat_map", "plot_sweep_scatter",
            "is_grid"]
