@@ -9,11 +9,12 @@ module              its one job
 ``minigrid``        an adapter for Farama MiniGrid environments (optional package)
 ``common``          helpers the worlds share: argument checks, the table-driven random walk
 ``noise``           sensor noise models applied to noise-free observations
-``explorers``       how the simulated robot picks its next action
+``explorers/``      how the simulated robot picks its next action, one module per policy
+``mapping``         mapping while exploring: the learner fed as the robot walks
 ==================  ===========================================================================
 """
 
-from .explorers import ActiveExplorer, RandomExplorer, View
+from .explorers import ActiveExplorer, HistoryExplorer, PlanExplorer, RandomExplorer, View
 from .mapping import map_while_exploring
 from .gridroom import GridRoom
 from .minigrid import MiniGridWorld
@@ -22,5 +23,5 @@ from .office import OfficeWorld
 from .random_graph import RandomGraphWorld
 
 __all__ = ["DropoutNoise", "GaussianNoise", "GridRoom", "MiniGridWorld", "MultiplicativeNoise",
-           "NoNoise", "OfficeWorld", "RandomExplorer", "ActiveExplorer", "View", "RandomGraphWorld",
-           "map_while_exploring"]
+           "NoNoise", "OfficeWorld", "RandomExplorer", "ActiveExplorer", "HistoryExplorer",
+           "PlanExplorer", "View", "RandomGraphWorld", "map_while_exploring"]
