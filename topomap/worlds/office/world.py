@@ -23,7 +23,7 @@ import numpy as np
 
 from ...core.checks import ParameterError, check_count
 from ...core.data.trajectory import Trajectory
-from ..common import check_choice, check_simulate_args
+from ..checks import check_choice, check_simulate_args
 from ..explorers import show
 from .actions import Action, ApproachType, FollowWall, Pose
 from .geometry import CORNER_NAMES, TOL, check_positive, corner_points
