@@ -128,8 +128,8 @@ class RecordedPath:
             from ratinabox.Agent import Agent
             from ratinabox.Environment import Environment
 
-            x0, y0 = self.positions.min(axis=0)
-            x1, y1 = self.positions.max(axis=0)
+            x0, y0 = self.positions.min(axis=0) - 1.0  # a host for the spline, never walked
+            x1, y1 = self.positions.max(axis=0) + 1.0
             env = Environment(params={"boundary": [[x0, y0], [x1, y0], [x1, y1], [x0, y1]]})
             with isolated_global_rng(0), contextlib.redirect_stdout(io.StringIO()):
                 agent = Agent(env)  # (it draws a start point; it prints what it imported)
