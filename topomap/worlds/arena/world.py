@@ -104,7 +104,7 @@ class ArenaWorld:
     speed_mean, speed_coherence_time, rotational_velocity_std, \
 rotational_velocity_coherence_time, thigmotaxis, wall_repel_distance, wall_repel_strength : float
         ratinabox's random-motion parameters (m/s, s, rad/s, s, in [0, 1], m, -), with its
-        defaults, fitted to rats.
+        defaults, fitted to rats (keyword only, as the parameters after them).
     path_tolerance : float
         Metres a recorded position may lie off the floor (tracking noise); it is moved 1 mm
         inside.  Farther off is an error.
@@ -114,7 +114,7 @@ rotational_velocity_coherence_time, thigmotaxis, wall_repel_distance, wall_repel
 
     def __init__(self, layout: str | Layout = "auto", path: str | None = None, dt: float = 0.1,
                  start: float = 0.0, sensor: str | object = "range",
-                 actions: str | object = "compass", speed_mean: float = 0.08,
+                 actions: str | object = "compass", *, speed_mean: float = 0.08,
                  speed_coherence_time: float = 0.7, rotational_velocity_std: float = 2.0944,
                  rotational_velocity_coherence_time: float = 0.08, thigmotaxis: float = 0.5,
                  wall_repel_distance: float = 0.1, wall_repel_strength: float = 1.0,

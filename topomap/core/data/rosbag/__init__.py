@@ -36,9 +36,10 @@ Modules: ``read`` (:func:`read_rosbag`) with ``options`` (its arguments, checked
 ``common`` (the rosbags import, message types, error messages).
 """
 
-from .common import ACTION_TYPES, GDS_TYPES
+from .common import ACTION_TYPES, GDS_TYPES, POSITION_TYPES
 from .decode import twist_action
 from .read import read_rosbag
 from .write import write_rosbag
 
-__all__ = ["read_rosbag", "write_rosbag", "twist_action", "ACTION_TYPES", "GDS_TYPES"]
+__all__ = ["read_rosbag", "write_rosbag", "twist_action", "ACTION_TYPES", "GDS_TYPES",
+           "POSITION_TYPES"]

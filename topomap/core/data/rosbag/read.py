@@ -317,20 +317,17 @@ def read_rosbag(path, observation_topic: str, action_topic: str, *, observation_
     action_rule : callable, optional
         ``action_rule(message) -> name or id`` for action messages of any type.
     position_topic : str, optional
-        A pose or odometry topic (``geometry_msgs/PoseStamped``, ``PoseWithCovarianceStamped``,
-        ``Pose``, ``PointStamped``, ``Point``, ``TransformStamped`` or ``nav_msgs/Odometry``)
-        read as the steps' ``positions``: a step's position is that of the latest message at or
-        before it (steps before the first one are dropped), ``(T, 3)`` with ``z`` when some
-        ``z`` is not 0, else ``(T, 2)``.
+        A pose or odometry topic (types: ``rosbag.POSITION_TYPES``) read as ``positions``, each
+        step's from the latest message at or before it; ``(T, 3)`` if some ``z`` is not 0.
 
     Returns
     -------
     Trajectory
         Observations (float64; LaserScan ranges are float32 values), actions, ``gds`` (with a GDS
         topic), ``positions`` (with a position topic), ``lengths`` (when ``path`` is a list), the
-        names, and ``meta`` with ``source`` (``"rosbag"``), ``bags``, ``topics`` (topic ->
-        message type, of the first bag) and ``dropped_steps`` (per bag, the steps before the
-        first observation, or the first position).
+        names, and ``meta``: ``source`` (``"rosbag"``), ``bags``, ``topics`` (topic -> message
+        type, of the first bag), ``dropped_steps`` (per bag: before the first observation or
+        position).
 
     Raises
     ------
@@ -341,9 +338,8 @@ def read_rosbag(path, observation_topic: str, action_topic: str, *, observation_
     opts = make_options(observation_topic, action_topic, dict(
         observation_fields=observation_fields, scan_bins=scan_bins, max_range=max_range,
         gds_topic=gds_topic, gds_window=gds_window, action_names=action_names,
-        gds_names=gds_names, linear_threshold=linear_threshold,
-        angular_threshold=angular_threshold, action_rule=action_rule,
-        position_topic=position_topic))
+        gds_names=gds_names, linear_threshold=linear_threshold, position_topic=position_topic,
+        angular_threshold=angular_threshold, action_rule=action_rule))
     paths, many = _bag_list(path)
     episodes = [_read_episode(p, opts) for p in paths]
     return _assemble(episodes, opts, many)
