@@ -165,3 +165,17 @@ def test_without_ratinabox_the_import_says_how_to_install(monkeypatch):
     with pytest.raises(ImportError, match=r'pip install "topomap\[arena\]"') as err:
         importlib.import_module("topomap.worlds.arena")
     assert isinstance(err.value, ValueError) and "\n" not in str(err.value)
+
+
+def test_every_component_has_a_typed_config_of_plain_values():
+    import dataclasses
+
+    from topomap.app.config import schema_of
+    from topomap.app.hookspecs import Component
+
+    for factory in (ArenaWorld, RangeFinder, BoundaryVectorCells, ObjectVectorCells,
+                    CompassActions, TurnActions):
+        schema = schema_of(Component("env", "arena", factory))
+        types = {f.name: f.type for f in dataclasses.fields(schema)}
+        assert all(t in (int, float, bool, str, str | None) or str(t) == "typing.Optional[str]"
+                   for t in types.values()), (factory, types)

@@ -13,6 +13,7 @@ share).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -115,7 +116,7 @@ rotational_velocity_coherence_time, thigmotaxis, wall_repel_distance, wall_repel
     def __init__(self, layout: str | Layout = "auto", path: str | None = None, dt: float = 0.1,
                  start: float = 0.0, sensor: str | object = "range",
                  actions: str | object = "compass", *, speed_mean: float = 0.08,
-                 speed_coherence_time: float = 0.7, rotational_velocity_std: float = 2.0944,
+                 speed_coherence_time: float = 0.7, rotational_velocity_std: float = math.radians(120),
                  rotational_velocity_coherence_time: float = 0.08, thigmotaxis: float = 0.5,
                  wall_repel_distance: float = 0.1, wall_repel_strength: float = 1.0,
                  path_tolerance: float = 0.05, extra_actions=None):
