@@ -2,14 +2,18 @@
 
 import copy
 import json
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 from sklearn.metrics import adjusted_rand_score
 
-from topomap import MapLearner
+from topomap import MapLearner, TopologicalMap
 from topomap.app.run.experiment import run
-from topomap.worlds import ActiveExplorer, GridRoom, NoNoise, RandomExplorer, View
+from topomap.worlds import (ActiveExplorer, GridRoom, HistoryExplorer, NoNoise, PlanExplorer,
+                            RandomExplorer, View)
+from topomap.worlds.explorers.history import symbol_means
+from topomap.worlds.explorers.plan import novelty_values
 from topomap.worlds.mapping import heldout_judge, map_while_exploring, quality_curve
 
 
@@ -66,18 +70,28 @@ def test_the_active_explorer_does_not_depend_on_the_names_of_places():
         learner = MapLearner(3, 20, refit_every=200)
         traj, _ = map_while_exploring(world, 600, ActiveExplorer(update_every=100), learner,
                                       NoNoise(), np.random.default_rng(3),
-                                      np.random.default_rng(4), every=100)
+                                      np.random.default_rng(4), update_every=100)
         runs.append(traj)
     assert not np.array_equal(runs[0].places, runs[1].places)  # the names did change
     assert np.array_equal(perm[runs[0].places], runs[1].places)
     assert np.array_equal(runs[0].actions, runs[1].actions)
 
 
-def test_the_active_explorer_walks_at_random_until_a_map_exists():
+@pytest.mark.parametrize("make", [HistoryExplorer, PlanExplorer])
+def test_a_map_explorer_walks_at_random_until_a_map_exists(make):
     room = GridRoom(5, 4, 3)
-    a = room.simulate(100, ActiveExplorer(), np.random.default_rng(5))
+    a = room.simulate(100, make(), np.random.default_rng(5))
     b = room.simulate(100, RandomExplorer(), np.random.default_rng(5))
     assert np.array_equal(a.actions, b.actions)
+
+
+def test_explorer_active_is_the_history_policy_unless_the_route_is_plan():
+    history = ActiveExplorer(update_every=7, context=2, epsilon=0.25)
+    assert type(history) is HistoryExplorer
+    assert (history.update_every, history.context, history.epsilon) == (7, 2, 0.25)
+    plan = ActiveExplorer(update_every=7, route="plan", gamma=0.5, horizon=4, epsilon=0.25)
+    assert type(plan) is PlanExplorer
+    assert (plan.update_every, plan.gamma, plan.horizon, plan.epsilon) == (7, 0.5, 4, 0.25)
 
 
 def fitted(n_symbols=3):
@@ -86,11 +100,27 @@ def fitted(n_symbols=3):
     return room, MapLearner(n_symbols, 12).fit(traj.observations, traj.actions, n_actions=4)
 
 
-def test_the_history_route_balances_the_actions_taken_from_a_state():
+def test_a_history_state_reads_a_view_through_the_learners_symbols():
+    # the symbols are the learner's: symbol k's mean is the mean of the steps phase 1 gave k, and
+    # a place's view has the symbol the learner gave the steps at that place
+    room, learner = fitted()
+    traj = room.simulate(400, RandomExplorer(), np.random.default_rng(0))
+    X, sym = traj.observations, learner.labels_phase1_
+    means = symbol_means(learner.map_)
+    assert np.allclose(means, [X[sym == k].mean(0) for k in range(3)])
+    ex = HistoryExplorer()
+    ex.update(learner)
+    for p in np.unique(traj.places):
+        view = View(room.observe(p), room.executable_mask(p), -1, 0)
+        assert {ex.symbol_of(view)} == set(sym[traj.places == p].tolist())
+    assert ex.symbol_of(View(room.observe(0), room.executable_mask(0), 4, 0)) == -5  # a GDS
+
+
+def test_the_history_policy_balances_the_actions_taken_from_a_state():
     # context 0: the state is the current symbol alone.  Seen at the same symbol again and again
     # with two executable actions, the least-taken one is taken: after 2k choices, k each.
     room, learner = fitted()
-    ex = ActiveExplorer(context=0)
+    ex = HistoryExplorer(context=0)
     ex.update(learner)
     view = View(room.observe(0), np.array([True, True, False, False]), -1, 0)
     rng = np.random.default_rng(0)
@@ -102,14 +132,14 @@ def test_the_history_route_balances_the_actions_taken_from_a_state():
     assert picks.count(0) == picks.count(1) == 5
 
 
-def test_the_history_route_tells_states_apart_by_the_steps_before():
+def test_the_history_policy_tells_states_apart_by_the_steps_before():
     # context 1: symbol B reached from A by action 0 (state X) and by action 1 (state Y) are two
     # states with their own counts.  Going A -0-> B, A -1-> B, A -0-> B, A -1-> B (the moves
     # out of A forced by the mask), the second choice in X differs from the first in X, and the
     # second in Y from the first in Y, whatever was chosen in the other state.
     room, learner = fitted()
     pa, pb = (int(np.flatnonzero(room.place_symbols == k)[0]) for k in (0, 1))
-    ex = ActiveExplorer(context=1)
+    ex = HistoryExplorer(context=1)
     ex.update(learner)
     both = np.array([True, True, False, False])
     rng = np.random.default_rng(2)
@@ -125,11 +155,51 @@ def test_the_history_route_tells_states_apart_by_the_steps_before():
     assert picks[1][0] != picks[1][1]
 
 
-def test_the_plan_route_goes_to_the_action_never_taken():
+def ring_map():
+    """The map of a ring of three places, 0 -> 1 -> 2 -> 0 by action 0 and back by action 1, each
+    showing its own symbol: each action taken 40 times from places 0 and 1, twice from place 2
+    (the least known)."""
+    n = np.array([[40, 40], [40, 40], [2, 2]])
+    ring = np.array([[1, 2], [2, 0], [0, 1]])
+    trans = np.zeros((3, 2, 3), dtype=np.int64)
+    for s in range(3):
+        for a in range(2):
+            trans[s, a, ring[s, a]] = n[s, a]
+    return TopologicalMap(np.arange(3), np.full(3, -1), np.full(3, -1), np.eye(3),
+                          np.full((3, 3), 0.01), n.sum(1), n, trans)
+
+
+def test_novelty_values_carry_the_novelty_of_where_an_action_leads():
+    # an action taken n times is worth 1/sqrt(n+1), plus gamma times the best worth where it
+    # leads: from place 0, action 0 leads to place 1 (worth 1/sqrt(41)), action 1 to place 2
+    # (worth 1/sqrt(3))
+    m = ring_map()
+    counts, opened = m.action_counts.astype(float), np.zeros((3, 2), bool)
+    assert np.allclose(novelty_values(counts, opened, m.transition_probs, 0.5, 0),
+                       1 / np.sqrt(counts + 1))
+    q = novelty_values(counts, opened, m.transition_probs, 0.5, 1)
+    assert q[0] == pytest.approx([1 / np.sqrt(41) + 0.5 / np.sqrt(41),
+                                  1 / np.sqrt(41) + 0.5 / np.sqrt(3)])
+    assert q[1] == pytest.approx([1 / np.sqrt(41) + 0.5 / np.sqrt(3),
+                                  1 / np.sqrt(41) + 0.5 / np.sqrt(41)])
+
+
+@pytest.mark.parametrize("place, towards", [(0, 1), (1, 0)])
+def test_the_plan_policy_walks_towards_the_least_known_place(place, towards):
+    # from places 0 and 1 both actions were taken as often: the plan takes the one leading to
+    # place 2, whose actions were taken least (action 1 from place 0, action 0 from place 1)
+    ex = PlanExplorer(horizon=1)
+    ex.update(SimpleNamespace(map_=ring_map()))
+    mask = np.ones(2, bool)
+    ex.see(View(np.eye(3)[place], mask, -1, 0))
+    assert ex.choose(mask, np.random.default_rng(0)) == towards
+
+
+def test_the_plan_policy_goes_to_the_action_never_taken():
     # a room whose map has states where some actions were never taken: with the mask saying all
     # four are executable, the planner's one-step novelty picks a never-taken one
     room, learner = fitted(n_symbols=12)
-    ex = ActiveExplorer(route="plan", horizon=1)
+    ex = PlanExplorer(horizon=1)
     ex.update(learner)
     mask = np.ones(4, bool)
     ex.see(View(room.observe(0), mask, -1, 0))
@@ -137,6 +207,51 @@ def test_the_plan_route_goes_to_the_action_never_taken():
     never = np.flatnonzero(learner.map_.action_counts[s] == 0)
     pick = ex.choose(mask, np.random.default_rng(0))
     assert never.size and pick in never
+
+
+def walk_with_a_map(ex, steps=40):
+    """See and choose ``steps`` times in a 4 x 3 room with a map; the masks handed over are
+    read-only (writing to one raises), and are returned with copies made before each choice."""
+    room, learner = fitted()
+    ex.update(learner)
+    rng, p, handed = np.random.default_rng(1), 0, []
+    for t in range(steps):
+        mask = room.executable_mask(p)
+        mask.flags.writeable = False
+        ex.see(View(room.observe(p), mask, -1, t))
+        before = mask.copy()
+        a = ex.choose(mask, rng)
+        handed.append((before, mask))
+        p = room.step(p, a)
+    return handed
+
+
+@pytest.mark.parametrize("make", [HistoryExplorer, PlanExplorer])
+def test_choosing_leaves_the_mask_as_it_was(make):
+    for before, after in walk_with_a_map(make(epsilon=0.2)):
+        assert np.array_equal(before, after)
+
+
+@pytest.mark.parametrize("make", [HistoryExplorer, PlanExplorer])
+def test_an_explorer_has_all_its_state_from_its_making(make):
+    ex = make()
+    born = set(vars(ex))
+    walk_with_a_map(ex)
+    assert set(vars(ex)) == born
+
+
+def test_the_plan_policy_plans_once_a_step(monkeypatch):
+    from topomap.worlds.explorers import plan
+
+    calls = []
+
+    def counted(*args):
+        calls.append(1)
+        return novelty_values(*args)
+
+    monkeypatch.setattr(plan, "novelty_values", counted)
+    walk_with_a_map(PlanExplorer(), steps=40)
+    assert 0 < len(calls) <= 40
 
 
 def test_a_map_judged_on_a_walk_it_never_learned_from():
@@ -155,13 +270,25 @@ def test_the_quality_curve_follows_the_walk():
     judging = room.simulate(300, RandomExplorer(), np.random.default_rng(1))
     traj, walk = map_while_exploring(room, 1000, RandomExplorer(), learner, NoNoise(),
                                      np.random.default_rng(0), np.random.default_rng(1),
-                                     every=250, judge=heldout_judge(judging))
+                                     update_every=250, judge=heldout_judge(judging))
     walk.flush()
     curve = quality_curve(walk, traj.places)
     assert [c["steps"] for c in curve] == [250, 500, 750, 1000]
     assert curve[-1]["ari"] == pytest.approx(adjusted_rand_score(traj.places, learner.labels_))
     assert curve[-1]["heldout_ari"] == 1.0
     assert all(c["n_states"] == 12 for c in curve)
+
+
+def test_a_walk_maps_at_the_explorers_pace_unless_told_otherwise():
+    room = GridRoom(4, 3, 12)
+    args = (MapLearner(12, 12), NoNoise(), np.random.default_rng(0), np.random.default_rng(1))
+    _, walk = map_while_exploring(room, 300, HistoryExplorer(update_every=120), *args)
+    assert [c[0] for c in walk.checkpoints] == [120, 240]
+    _, walk = map_while_exploring(room, 300, HistoryExplorer(update_every=120),
+                                  MapLearner(12, 12), *args[1:], update_every=100)
+    assert [c[0] for c in walk.checkpoints] == [100, 200, 300]
+    with pytest.raises(ValueError, match="update_every"):  # a random walk has no pace of its own
+        map_while_exploring(room, 300, RandomExplorer(), *args)
 
 
 def test_explorer_active_from_the_command_line(tmp_path, make_cfg):
@@ -174,7 +301,7 @@ def test_explorer_active_from_the_command_line(tmp_path, make_cfg):
     assert [c["steps"] for c in mapping["curve"]] == [200, 400, 600, 800]
     assert all(0.0 <= c["heldout_ari"] <= 1.0 for c in mapping["curve"])
     assert mapping["batch_ari"] == pytest.approx(results["ground_truth"]["final"]["ari"])
-    assert mapping["explorer"].startswith("ActiveExplorer(")
+    assert mapping["explorer"].startswith("HistoryExplorer(")
     assert (tmp_path / "fig_mapping.png").is_file()
     # the curve's last ARI is that of the online map's labels of the steps walked
     states = np.loadtxt(tmp_path / "states.csv", delimiter=",", skiprows=1, dtype=int)
@@ -190,8 +317,19 @@ def test_a_random_run_without_a_curve_writes_no_mapping(tmp_path, make_cfg):
 
 
 @pytest.mark.parametrize("kw, key", [({"gamma": 1.5}, "gamma"), ({"epsilon": -0.1}, "epsilon"),
-                                     ({"update_every": 0}, "update_every"),
+                                     ({"update_every": 0}, "update_every"), ({"horizon": 0}, "horizon"),
                                      ({"route": "greedy"}, "route"), ({"context": -1}, "context")])
 def test_bad_explorer_settings_name_the_parameter(kw, key):
-    with pytest.raises(ValueError, match=key):
+    with pytest.raises(ValueError, match=key):  # every setting, whichever the route
         ActiveExplorer(**kw)
+    with pytest.raises(ValueError, match=key):
+        ActiveExplorer(**kw, route="plan") if key != "route" else ActiveExplorer(**kw)
+
+
+@pytest.mark.parametrize("make, kw", [(HistoryExplorer, {"context": 1.5}),
+                                      (HistoryExplorer, {"epsilon": 2}),
+                                      (PlanExplorer, {"gamma": 0}), (PlanExplorer, {"horizon": -1}),
+                                      (PlanExplorer, {"update_every": "often"})])
+def test_bad_settings_of_either_policy_name_the_parameter(make, kw):
+    with pytest.raises(ValueError, match=next(iter(kw))):
+        make(**kw)

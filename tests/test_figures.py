@@ -121,7 +121,7 @@ def test_states_figure_is_deterministic():
 def small_run():
     """A small gridroom walk (aliased: 3 symbols in 16 cells) and the map learned from it."""
     from topomap.worlds.explorers import RandomExplorer
-    from topomap.worlds.gridroom import GridRoom
+    from topomap.worlds.table.gridroom import GridRoom
 
     world = GridRoom(width=4, height=4, n_symbols=3, seed=1)
     traj = world.simulate(600, RandomExplorer(), np.random.default_rng(0))

@@ -18,7 +18,7 @@ SMALL = ["data.n_steps=300", "data.heldout_steps=100", "clusters=bic", "clusters
 
 def test_the_cores_loops_report_their_progress():
     from topomap.worlds.explorers import RandomExplorer
-    from topomap.worlds.gridroom import GridRoom
+    from topomap.worlds.table.gridroom import GridRoom
 
     traj = GridRoom(width=4, height=4, n_symbols=3, seed=1).simulate(
         400, RandomExplorer(), np.random.default_rng(0))

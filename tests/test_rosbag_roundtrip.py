@@ -19,7 +19,7 @@ from pathlib import Path
 
 import topomap
 from topomap.core.data.rosbag import read_rosbag, write_rosbag
-from topomap.worlds.gridroom import GridRoom
+from topomap.worlds.table.gridroom import GridRoom
 from topomap.worlds.explorers import RandomExplorer
 from topomap.core.data.trajectory import Trajectory
 

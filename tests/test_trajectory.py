@@ -42,7 +42,8 @@ def test_minimal_csv_by_hand(tmp_path):
     ("o0,action\n1,0.5\n", "actions must hold integers"),
     ("o0,action\n", "no data rows"),
     ("", "is empty"),
-    ("o0,action,x\n1,0,1\n", "both 'x' and 'y'"),
+    ("o0,action,x\n1,0,1\n", "position column.*x; positions need the columns x and y"),
+    ("o0,action,x,z\n1,0,1,2\n", "position column.*x, z; positions need"),
 ])
 def test_malformed_csv(tmp_path, text, match):
     p = tmp_path / "bad.csv"
@@ -88,4 +89,4 @@ def test_names_must_cover_ids():
     with pytest.raises(ValueError, match="only 2 action_names"):
         Trajectory(np.zeros((3, 1)), [0, 1, 2], action_names=["a", "b"])
     with pytest.raises(ValueError, match="positions must have shape"):
-        Trajectory(np.zeros((3, 1)), [0, 1, 1], positions=np.zeros((3, 3)))
+        Trajectory(np.zeros((3, 1)), [0, 1, 1], positions=np.zeros((3, 4)))

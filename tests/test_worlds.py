@@ -1,5 +1,6 @@
-"""Tests of the gridroom, random_graph and minigrid worlds: moves respect walls and edges, ground
-truth agrees with the noise-free observations, and a seed fixes the trajectory."""
+"""Tests of the table-driven worlds (their base, gridroom, random_graph) and minigrid: moves
+respect walls and edges, ground truth agrees with the noise-free observations, and a seed fixes
+the trajectory."""
 
 import importlib.util
 import sys
@@ -8,14 +9,15 @@ import networkx as nx
 import numpy as np
 import pytest
 
-from topomap.worlds.gridroom import MOVES, GridRoom
+from topomap.worlds.table import TableWorld
+from topomap.worlds.table.gridroom import MOVES, GridRoom
 from topomap.worlds.minigrid import (
     CHECKED_ENVS,
     MiniGridWorld,
     MissingDependencyError,
     encode_view,
 )
-from topomap.worlds.random_graph import RandomGraphWorld, random_strong_digraph
+from topomap.worlds.table.random_graph import RandomGraphWorld, random_strong_digraph
 from topomap.app.run.experiment import run
 from topomap.app.results import FIGURE_FILES, OUTPUT_FILES
 from topomap.worlds.explorers import RandomExplorer
@@ -35,6 +37,53 @@ class Recorder:
     def choose(self, mask, rng):
         self.masks.append(np.array(mask))
         return RandomExplorer().choose(mask, rng)
+
+
+# ------------------------------------------------------------------ the table-driven base
+
+
+class Line(TableWorld):
+    """Three places in a row, 0 - 1 - 2: action 0 goes right, action 1 left; places 0 and 2 show
+    symbol 0, place 1 symbol 1.  ``one_way``: nothing leads back from place 2."""
+
+    def __init__(self, one_way=False):
+        self.successors = np.array([[1, -1], [2, 0], [-1, -1 if one_way else 1]])
+        self.place_symbols = np.array([0, 1, 0])
+        self.embedding = np.array([[1.0, 0.0], [0.0, 1.0]])
+        self.place_positions = np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]])
+        self.action_names = ["right", "left"]
+
+    def meta(self):
+        return {"world": "line"}
+
+
+class Rightmost:
+    """Takes the lowest executable action: right while it can."""
+
+    def choose(self, mask, rng):
+        return int(np.flatnonzero(mask)[0])
+
+
+def test_a_table_world_walks_observes_and_draws_its_graph_from_its_tables():
+    line = Line()
+    start = int(np.random.default_rng(4).integers(3))  # the walk's first draw is its start
+    tr = line.simulate(6, Rightmost(), np.random.default_rng(4))
+    # right to place 2, then left (its only action) and right again, as the table says
+    expected = {0: [0, 1, 2, 1, 2, 1], 1: [1, 2, 1, 2, 1, 2], 2: [2, 1, 2, 1, 2, 1]}[start]
+    assert tr.places.tolist() == expected
+    assert tr.actions.tolist() == [0 if p < 2 else 1 for p in expected]
+    assert np.array_equal(tr.observations, np.eye(2)[[0, 1, 0]][expected])
+    assert np.array_equal(tr.positions[:, 0], expected)
+    assert tr.action_names == ["right", "left"] and tr.meta == {"world": "line"}
+    assert line.n_actions == 2
+    assert line.executable_mask(0).tolist() == [True, False]
+    assert np.array_equal(line.observe(2), [1.0, 0.0])
+    graph = line.place_graph()
+    assert graph.places.tolist() == [0, 1, 2]
+    assert graph.distances_to(2).tolist() == [2, 1, 0]
+    assert np.array_equal(graph.observations, np.eye(2)[[0, 1, 0]])
+    # from place 2 nothing leads back: the places a robot can go between are 0 and 1
+    assert Line(one_way=True).place_graph().places.tolist() == [0, 1]
 
 
 # ------------------------------------------------------------------ gridroom

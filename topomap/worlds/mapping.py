@@ -1,11 +1,11 @@
 """Mapping while exploring: a simulated walk whose map is learned as the steps arrive.
 
-:func:`map_while_exploring` walks a world with an explorer wrapped so that every ``every`` steps
-the steps seen are handed to :meth:`topomap.MapLearner.partial_fit`, and an explorer with
-``update(learner)`` gets the map learned so far.  What the explorer sees is what is recorded: the
-world's observation passed through the sensor noise model, one step at a time.  The labels of
-every step after every update are kept, so the map's quality against the steps taken can be
-measured afterwards against the world's places (which the explorer never sees).
+:func:`map_while_exploring` walks a world with an explorer wrapped so that every
+``update_every`` steps the steps seen are handed to :meth:`topomap.MapLearner.partial_fit`, and
+an explorer with ``update(learner)`` gets the map learned so far.  What the explorer sees is what
+is recorded: the world's observation passed through the sensor noise model, one step at a time.
+The labels of every step after every update are kept, so the map's quality against the steps
+taken can be measured afterwards against the world's places (which the explorer never sees).
 
 ARI on the steps taken so far flatters an explorer that stays in a small part of the world (few
 places, easily told apart), so a ``judge`` may also score the map at every update on a walk it
@@ -21,6 +21,7 @@ from dataclasses import replace
 import numpy as np
 from sklearn.metrics import adjusted_rand_score
 
+from ..core.checks import ParameterError, check_count
 from .explorers import View
 
 __all__ = ["MappingWalk", "map_while_exploring", "quality_curve", "heldout_judge"]
@@ -29,10 +30,10 @@ __all__ = ["MappingWalk", "map_while_exploring", "quality_curve", "heldout_judge
 class MappingWalk:
     """An explorer that feeds a learner while it walks (see the module docstring)."""
 
-    def __init__(self, explorer, learner, noise, rng_noise, every: int, n_actions: int | None,
-                 judge=None):
+    def __init__(self, explorer, learner, noise, rng_noise, update_every: int,
+                 n_actions: int | None, judge=None):
         self.explorer, self.learner, self.noise, self.rng = explorer, learner, noise, rng_noise
-        self.every, self.n_actions, self.judge = int(every), n_actions, judge
+        self.update_every, self.n_actions, self.judge = int(update_every), n_actions, judge
         self.obs, self.gds, self.actions = [], [], []
         self._done = 0
         self.checkpoints = []   # (steps, labels, states, seconds of partial_fit, judge's scores)
@@ -47,7 +48,7 @@ class MappingWalk:
     def choose(self, executable, rng) -> int:
         a = self.explorer.choose(executable, rng)
         self.actions.append(int(a))
-        if len(self.actions) - self._done >= self.every:
+        if len(self.actions) - self._done >= self.update_every:
             self.flush()
         return a
 
@@ -69,13 +70,19 @@ class MappingWalk:
 
 
 def map_while_exploring(world, n_steps: int, explorer, learner, noise, rng_sim, rng_noise,
-                        every: int, judge=None):
-    """Walk ``world`` for ``n_steps`` steps, learning the map every ``every`` steps.
+                        update_every: int | None = None, judge=None):
+    """Walk ``world`` for ``n_steps`` steps, learning the map every ``update_every`` steps (None:
+    the explorer's own ``update_every``).
 
     Returns ``(trajectory, walk)``: the trajectory holds the observations as the explorer saw them
     (noise applied), ``walk`` the :class:`MappingWalk` with its checkpoints.
     """
-    walk = MappingWalk(explorer, learner, noise, rng_noise, every,
+    if update_every is None:
+        update_every = getattr(explorer, "update_every", None)
+        if update_every is None:
+            raise ParameterError("update_every", "is needed: the explorer has no update_every")
+    update_every = check_count(update_every, "update_every")
+    walk = MappingWalk(explorer, learner, noise, rng_noise, update_every,
                        getattr(world, "n_actions", None), judge)
     traj = world.simulate(n_steps, walk, rng_sim)
     traj.observations = np.asarray(walk.obs, dtype=np.float64).reshape(traj.observations.shape)

@@ -32,7 +32,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..core.data.trajectory import Trajectory
-from .common import check_choice, check_no_extra_actions, check_simulate_args
+from .checks import check_choice, check_no_extra_actions, check_simulate_args
 from .explorers import show
 
 __all__ = ["MiniGridWorld", "MissingDependencyError", "encode_view", "VIEW_CHANNELS",

@@ -20,7 +20,8 @@ import numpy as np
 from ..core.checks import ParameterError, check_count
 from ..core.map.model import TopologicalMap
 
-__all__ = ["PlaceGraph", "place_graph", "state_places", "Navigation"]
+__all__ = ["PlaceGraph", "place_graph", "largest_component", "explored_graph", "state_places",
+           "Navigation"]
 
 
 @dataclass
@@ -71,15 +72,7 @@ def place_graph(world) -> PlaceGraph:
     return build()
 
 
-def table_graph(world) -> PlaceGraph:
-    """The place graph of a table-driven world (see :mod:`topomap.worlds.common`)."""
-    n = world.successors.shape[0]
-    return PlaceGraph(world.successors.copy(), world.embedding[world.place_symbols],
-                      np.full(n, -1, dtype=np.int64),
-                      _largest_component(world.successors, range(n)))
-
-
-def _largest_component(successors, ids) -> np.ndarray:
+def largest_component(successors, ids) -> np.ndarray:
     """The ids of the largest strongly connected part of the graph: the places a robot can go
     between in both directions (navigation starts and goals are drawn from them)."""
     import networkx as nx
@@ -106,7 +99,7 @@ def explored_graph(n_ids: int, n_actions: int, start, step, observe, gds) -> Pla
             if q not in seen:
                 seen.add(q)
                 todo.append(q)
-    places = _largest_component(succ, sorted(seen))
+    places = largest_component(succ, sorted(seen))
     first = obs[int(places[0])]
     observations = np.zeros((n_ids, first.size))
     gds_of = np.full(n_ids, -1, dtype=np.int64)

@@ -9,11 +9,11 @@ from __future__ import annotations
 from ...core.phase1 import clustering
 from ...core.split import criteria, stopping
 from ...worlds import explorers, noise
-from ...worlds.gridroom import GridRoom
+from ...worlds.table import GridRoom
 from ...worlds.minigrid import MiniGridWorld
 from ...worlds.navigation import Navigation
 from ...worlds.office import OfficeWorld
-from ...worlds.random_graph import RandomGraphWorld
+from ...worlds.table import RandomGraphWorld
 from ...core import size as auto
 from ...core.refine import methods as refine
 from ..components import data, loggers

@@ -9,10 +9,10 @@ Two file formats are read and written (``docs/file-formats.md`` describes them i
 
 ``.npz``
     arrays ``observations`` (T, D) float, ``actions`` (T,) int and optionally ``gds`` (T,) int,
-    ``places`` (T,) int, ``positions`` (T, 2) float, ``lengths`` (E,) int, ``action_names`` and
-    ``gds_names`` (string arrays).  Loaded with ``allow_pickle=False``.
+    ``places`` (T,) int, ``positions`` (T, 2 or 3) float, ``lengths`` (E,) int, ``action_names``
+    and ``gds_names`` (string arrays).  Loaded with ``allow_pickle=False``.
 ``.csv``
-    a header row ``o0,...,o{D-1},action[,gds][,place][,x,y][,episode]`` and one row per step.
+    a header row ``o0,...,o{D-1},action[,gds][,place][,x,y[,z]][,episode]`` and one row per step.
 """
 
 from __future__ import annotations
@@ -25,6 +25,7 @@ import numpy as np
 
 from ..stats import episode_masks
 from .files import atomic_write
+from .positions import POSITION_COLUMNS, check_positions, csv_positions
 
 __all__ = ["Trajectory", "load_trajectory", "save_trajectory", "check_sequences",
            "as_float_observations"]
@@ -201,8 +202,8 @@ class Trajectory:
         GDS id recognised at each step, ``-1`` for none.
     places : (T,) int array or None
         Ground-truth place id of each step.
-    positions : (T, 2) float array or None
-        Ground-truth position of each step.
+    positions : (T, 2) or (T, 3) float array or None
+        Ground-truth position of each step (metres: x, y and optionally z).
     lengths : (E,) int array or None
         Episode lengths (None: a single episode).
     action_names, gds_names : list of str or None
@@ -230,12 +231,7 @@ class Trajectory:
         if self.places is not None:
             self.places = _as_int_array(self.places, "places", T)
         if self.positions is not None:
-            P = _as_array(self.positions, "positions")
-            if P.dtype.kind not in "fiu":
-                raise ValueError(f"positions must be numbers, got values of type {P.dtype}")
-            if P.shape != (T, 2):
-                raise ValueError(f"positions must have shape ({T}, 2), got {P.shape}")
-            self.positions = P.astype(np.float64)
+            self.positions = check_positions(self.positions, T)
         if self.action_names is not None:
             self.action_names = _as_names(self.action_names, "action_names")
             if u.max() >= len(self.action_names):
@@ -315,7 +311,7 @@ def save_trajectory(traj: Trajectory, path, *, compress: bool | None = None) -> 
             header.append("place")
             cols.append(traj.places[:, None])
         if traj.positions is not None:
-            header += ["x", "y"]
+            header += POSITION_COLUMNS[:traj.positions.shape[1]]
             cols.append(traj.positions)
         if traj.lengths is not None:
             header.append("episode")
@@ -375,12 +371,12 @@ def _load_csv(path: Path) -> Trajectory:
         raise ValueError(f"trajectory file {path} is empty")
     header = [h.strip() for h in rows[0]]
     obs_cols = [i for i, h in enumerate(header) if h.startswith("o") and h[1:].isdigit()]
-    known = {"action", "gds", "place", "x", "y", "episode"}
+    known = {"action", "gds", "place", "episode", *POSITION_COLUMNS}
     unknown = [h for i, h in enumerate(header) if i not in obs_cols and h not in known]
     if unknown:
         raise ValueError(
             f"trajectory file {path}: unknown column(s) {', '.join(unknown)}; expected "
-            "o0..o{D-1}, action and optionally gds, place, x, y, episode"
+            "o0..o{D-1}, action and optionally gds, place, x, y, z, episode"
         )
     if not obs_cols:
         raise ValueError(f"trajectory file {path} has no observation columns o0, o1, ...")
@@ -389,8 +385,6 @@ def _load_csv(path: Path) -> Trajectory:
         raise ValueError(f"trajectory file {path}: observation columns must be {expected[0]}..{expected[-1]} in order")
     if "action" not in header:
         raise ValueError(f"trajectory file {path} has no 'action' column")
-    if ("x" in header) != ("y" in header):
-        raise ValueError(f"trajectory file {path} needs both 'x' and 'y' columns or neither")
     body = rows[1:]
     if not body:
         raise ValueError(f"trajectory file {path} has a header but no data rows")
@@ -413,8 +407,9 @@ def _load_csv(path: Path) -> Trajectory:
         kwargs["gds"] = col["gds"]
     if "place" in col:
         kwargs["places"] = col["place"]
-    if "x" in col:
-        kwargs["positions"] = np.column_stack([col["x"], col["y"]])
+    positions = csv_positions(header, col, path)
+    if positions is not None:
+        kwargs["positions"] = positions
     try:
         if "episode" in col:
             kwargs["lengths"] = _episode_lengths(col["episode"])

@@ -23,7 +23,7 @@ import numpy as np
 
 from ...core.checks import ParameterError, check_count
 from ...core.data.trajectory import Trajectory
-from ..common import check_choice, check_simulate_args
+from ..checks import check_choice, check_simulate_args
 from ..explorers import show
 from .actions import Action, ApproachType, FollowWall, Pose
 from .geometry import CORNER_NAMES, TOL, check_positive, corner_points
@@ -71,6 +71,8 @@ def make_layout(layout, n_objects, n_types, n_gds, width, height, reach, seed):
 
 class OfficeWorld:
     """Office room with aliased objects, a panoramic size sensor and 17 object/wall actions.
+
+    The room (``layout`` to ``height``) may be given by position, the rest by keyword only.
 
     Parameters
     ----------
@@ -128,7 +130,7 @@ class OfficeWorld:
     """Closest the robot gets to the surface of an object it slides around."""
 
     def __init__(self, layout: str | OfficeLayout = "paper", n_objects: int = 25,
-                 n_types: int = 15, n_gds: int = 2, width: float = 20.0, height: float = 14.0,
+                 n_types: int = 15, n_gds: int = 2, width: float = 20.0, height: float = 14.0, *,
                  reach: float = 1.0, view_range: float | None = 3.0, step_size: float = 0.25,
                  max_turn_deg: float = 90.0, max_action_steps: int = 400, seed: int = 0,
                  dock: bool = True, extra_actions: Sequence[Action] = ()):

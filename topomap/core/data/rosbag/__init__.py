@@ -10,8 +10,10 @@ How messages become steps (:func:`read_rosbag`)
     step's observation is the latest observation message recorded at or before it; steps before
     the first observation are dropped (their count per bag is kept in ``meta["dropped_steps"]``).
     With a GDS topic, a step gets the GDS of the GDS message nearest in time to it if that message
-    is at most ``gds_window`` seconds away (the earlier one on a tie), else none (-1).  Each bag
-    of a list is one episode (``lengths``).
+    is at most ``gds_window`` seconds away (the earlier one on a tie), else none (-1).  With a
+    position topic (a pose or odometry), a step's position is that of the latest position message
+    at or before it, and steps before the first one are dropped too.  Each bag of a list is one
+    episode (``lengths``).
 
 Observations
     ``sensor_msgs/LaserScan``: the ``ranges`` with every ``inf``/``nan`` replaced by the scan's
@@ -34,9 +36,10 @@ Modules: ``read`` (:func:`read_rosbag`) with ``options`` (its arguments, checked
 ``common`` (the rosbags import, message types, error messages).
 """
 
-from .common import ACTION_TYPES, GDS_TYPES
+from .common import ACTION_TYPES, GDS_TYPES, POSITION_TYPES
 from .decode import twist_action
 from .read import read_rosbag
 from .write import write_rosbag
 
-__all__ = ["read_rosbag", "write_rosbag", "twist_action", "ACTION_TYPES", "GDS_TYPES"]
+__all__ = ["read_rosbag", "write_rosbag", "twist_action", "ACTION_TYPES", "GDS_TYPES",
+           "POSITION_TYPES"]

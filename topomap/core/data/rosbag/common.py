@@ -16,6 +16,18 @@ INT32 = "std_msgs/msg/Int32"
 TWIST = "geometry_msgs/msg/Twist"
 TWIST_STAMPED = "geometry_msgs/msg/TwistStamped"
 FLOAT64_ARRAY = "std_msgs/msg/Float64MultiArray"
+#: message types accepted on the position topic, each with the dotted path of its position
+#: (a ``geometry_msgs/Point``, or ``Vector3`` for a transform)
+POSITION_TYPES = {
+    "geometry_msgs/msg/PoseStamped": "pose.position",
+    "geometry_msgs/msg/PoseWithCovarianceStamped": "pose.pose.position",
+    "nav_msgs/msg/Odometry": "pose.pose.position",
+    "geometry_msgs/msg/Pose": "position",
+    "geometry_msgs/msg/PointStamped": "point",
+    "geometry_msgs/msg/Point": "",
+    "geometry_msgs/msg/TransformStamped": "transform.translation",
+}
+POSE_STAMPED = "geometry_msgs/msg/PoseStamped"
 #: message types accepted on the action topic (any type when ``action_rule`` is given)
 ACTION_TYPES = (STRING, INT32, TWIST, TWIST_STAMPED)
 #: message types accepted on the GDS topic

@@ -11,10 +11,12 @@ import dataclasses
 
 import numpy as np
 
-from .common import ACTION_TYPES, GDS_TYPES, INT32, LASER_SCAN, STRING, TWIST, TWIST_STAMPED
+from .common import (ACTION_TYPES, GDS_TYPES, INT32, LASER_SCAN, POSITION_TYPES, STRING, TWIST,
+                     TWIST_STAMPED)
 from .options import Options
 
-__all__ = ["twist_action", "observation_decoder", "action_decoder", "gds_decoder"]
+__all__ = ["twist_action", "observation_decoder", "action_decoder", "gds_decoder",
+           "position_decoder"]
 
 
 def twist_action(linear_x: float, angular_z: float, linear_threshold: float = 0.05,
@@ -117,3 +119,19 @@ def gds_decoder(msgtype: str, opts: Options):
         return lambda msg: msg.data
     raise ValueError(f"GDS topic {opts.gds_topic} has type {msgtype}, which is not supported; "
                      f"supported types: {', '.join(GDS_TYPES)}")
+
+
+def position_decoder(msgtype: str, opts: Options):
+    """The decoder for position messages of ``msgtype`` (message -> ``(x, y, z)``), or a
+    ValueError listing the types that carry a position."""
+    if msgtype not in POSITION_TYPES:
+        raise ValueError(f"position topic {opts.position_topic} has type {msgtype}, which is not "
+                         f"supported; supported types: {', '.join(POSITION_TYPES)}")
+    parts = [p for p in POSITION_TYPES[msgtype].split(".") if p]
+
+    def decode(msg) -> tuple:
+        """The position (x, y, z) carried by ``msg``."""
+        for part in parts:
+            msg = getattr(msg, part)
+        return (float(msg.x), float(msg.y), float(msg.z))
+    return decode

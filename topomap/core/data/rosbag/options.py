@@ -20,6 +20,7 @@ class Options:
     scan_bins: int | None
     max_range: float | None
     gds_topic: str | None
+    position_topic: str | None
     gds_window: float
     action_names: list | None
     gds_names: list | None
@@ -28,8 +29,10 @@ class Options:
     action_rule: object
 
     def roles(self) -> list[tuple[str, str]]:
-        """``(role, topic)`` of each topic read: observation, action and, if any, GDS."""
-        extra = [] if self.gds_topic is None else [("GDS", self.gds_topic)]
+        """``(role, topic)`` of each topic read: observation, action and, if any, GDS and
+        position."""
+        extra = [(role, topic) for role, topic in (("GDS", self.gds_topic),
+                                                   ("position", self.position_topic)) if topic]
         return [("observation", self.observation_topic), ("action", self.action_topic), *extra]
 
 
@@ -60,11 +63,13 @@ def _field_list(fields) -> tuple | None:
 
 def make_options(observation_topic, action_topic, kw: dict) -> Options:
     """The arguments of :func:`~topomap.core.data.rosbag.read.read_rosbag`, checked."""
-    topics = [observation_topic, action_topic] + ([kw["gds_topic"]] if kw["gds_topic"] else [])
+    optional = [kw[k] for k in ("gds_topic", "position_topic") if kw[k]]
+    topics = [observation_topic, action_topic] + optional
     if not all(isinstance(t, str) and t for t in topics):
         raise ValueError(f"topics must be non-empty strings, got {topics!r}")
     if len(set(topics)) != len(topics):
-        raise ValueError(f"the observation, action and GDS topics must differ, got {topics!r}")
+        raise ValueError(f"the observation, action, GDS and position topics must differ, got "
+                         f"{topics!r}")
     if kw["action_rule"] is not None and not callable(kw["action_rule"]):
         raise ParameterError("action_rule", f"must be callable, got {kw['action_rule']!r}")
     return Options(
@@ -72,7 +77,7 @@ def make_options(observation_topic, action_topic, kw: dict) -> Options:
         observation_fields=_field_list(kw["observation_fields"]),
         scan_bins=None if kw["scan_bins"] is None else check_count(kw["scan_bins"], "scan_bins"),
         max_range=None if kw["max_range"] is None else _positive("max_range", kw["max_range"]),
-        gds_topic=kw["gds_topic"] or None,
+        gds_topic=kw["gds_topic"] or None, position_topic=kw["position_topic"] or None,
         gds_window=_positive("gds_window", kw["gds_window"], zero=True),
         action_names=_name_list("action_names", kw["action_names"]),
         gds_names=_name_list("gds_names", kw["gds_names"]),

@@ -10,7 +10,7 @@ import numpy as np
 from ..trajectory import Trajectory
 from ...checks import ParameterError
 from .common import _check_bag_path, _describe_failure, _one_line, _read_errors, _rosbags
-from .decode import action_decoder, gds_decoder, observation_decoder
+from .decode import action_decoder, gds_decoder, observation_decoder, position_decoder
 from .options import Options, make_options
 
 __all__ = ["read_rosbag"]
@@ -21,7 +21,8 @@ __all__ = ["read_rosbag"]
 
 @dataclasses.dataclass
 class _Episode:
-    """What one bag contributes: per step its observation row, action value and GDS value."""
+    """What one bag contributes: per step its observation row, action value, GDS value and
+    position."""
 
     path: Path
     observations: np.ndarray
@@ -29,6 +30,7 @@ class _Episode:
     gds: list | None
     dropped: int
     types: dict
+    positions: np.ndarray | None = None
 
 
 def _topic_listing(topics: dict) -> str:
@@ -122,6 +124,8 @@ def _read_streams(path: Path, opts: Options):
                         act: action_decoder(types[act], opts)}
             if opts.gds_topic is not None:
                 decoders[opts.gds_topic] = gds_decoder(types[opts.gds_topic], opts)
+            if opts.position_topic is not None:
+                decoders[opts.position_topic] = position_decoder(types[opts.position_topic], opts)
             return types, _collect(reader, types, decoders, obs)
     except _read_errors() as exc:  # first: UnicodeDecodeError is a ValueError too
         raise ValueError(_describe_failure(path, exc)) from None
@@ -154,22 +158,39 @@ def _match_gds(step_t: np.ndarray, gds_t: np.ndarray, window_ns: float) -> np.nd
     return np.where(np.minimum(d_left, d_right) <= window_ns, nearest, -1)
 
 
+def _no_step_left(path: Path, role: str, times: np.ndarray, topic: str, act_t: np.ndarray,
+                  action_topic: str) -> str:
+    """The message for a bag whose every step comes before the first message on ``topic``."""
+    return (f"bag {path}: all {times.size} {role}s on {topic} come after the last action on "
+            f"{action_topic} (first {role} at {times[0] / 1e9:.3f} s, last action at "
+            f"{act_t[-1] / 1e9:.3f} s), so no step has {'an' if role[0] in 'aeiou' else 'a'} "
+            f"{role}")
+
+
 def _read_episode(path: Path, opts: Options) -> _Episode:
     """Read one bag into the steps of one episode."""
     _check_bag_path(path)
     types, streams = _read_streams(path, opts)
-    for role, topic in opts.roles()[:2]:
-        if streams[topic][0].size == 0:
+    for role, topic in opts.roles():
+        if role != "GDS" and streams[topic][0].size == 0:
             raise ValueError(f"bag {path}: no messages on the {role} topic {topic}")
     obs_t, obs_rows = streams[opts.observation_topic]
     act_t, act_values = streams[opts.action_topic]
     obs_idx = np.searchsorted(obs_t, act_t, side="right") - 1
-    keep = np.flatnonzero(obs_idx >= 0)
-    if keep.size == 0:
-        raise ValueError(
-            f"bag {path}: all {obs_t.size} observations on {opts.observation_topic} come after the "
-            f"last action on {opts.action_topic} (first observation at {obs_t[0] / 1e9:.3f} s, "
-            f"last action at {act_t[-1] / 1e9:.3f} s), so no step has an observation")
+    keep = obs_idx >= 0
+    if not keep.any():
+        raise ValueError(_no_step_left(path, "observation", obs_t, opts.observation_topic,
+                                       act_t, opts.action_topic))
+    positions = None
+    if opts.position_topic is not None:
+        pos_t, pos_values = streams[opts.position_topic]
+        pos_idx = np.searchsorted(pos_t, act_t, side="right") - 1
+        keep &= pos_idx >= 0
+        if not keep.any():
+            raise ValueError(_no_step_left(path, "position", pos_t, opts.position_topic,
+                                           act_t, opts.action_topic))
+        positions = np.asarray(pos_values, dtype=np.float64)[pos_idx[keep]]
+    keep = np.flatnonzero(keep)
     X = _select_rows(obs_rows, obs_idx[keep], path, opts.observation_topic)
     gds = None
     if opts.gds_topic is not None:
@@ -177,7 +198,7 @@ def _read_episode(path: Path, opts: Options) -> _Episode:
         match = _match_gds(act_t[keep], gds_t, opts.gds_window * 1e9)
         gds = [None if m < 0 else gds_values[m] for m in match.tolist()]
     return _Episode(path, X, [act_values[i] for i in keep.tolist()], gds,
-                    int(act_t.size - keep.size), types)
+                    int(act_t.size - keep.size), types, positions)
 
 
 # ---------------------------------------------------------------------------------- assembly
@@ -229,9 +250,18 @@ def _assemble(episodes: list, opts: Options, many: bool) -> Trajectory:
     lengths = [len(e.actions) for e in episodes] if many else None
     try:
         return Trajectory(observations=X, actions=actions, gds=gds, lengths=lengths,
-                          action_names=action_names, gds_names=gds_names, meta=meta)
+                          action_names=action_names, gds_names=gds_names, meta=meta,
+                          positions=_positions(episodes, opts))
     except ValueError as exc:
         raise ValueError(f"{source}: {_one_line(exc)}") from None
+
+
+def _positions(episodes: list, opts: Options) -> np.ndarray | None:
+    """The steps' positions, ``(T, 3)`` when some ``z`` is not 0, else ``(T, 2)``; or None."""
+    if opts.position_topic is None:
+        return None
+    P = np.concatenate([e.positions for e in episodes])
+    return P if P[:, 2].any() else P[:, :2]
 
 
 def _reduce_bins(X: np.ndarray, bins: int, source: str, topic: str) -> np.ndarray:
@@ -257,7 +287,7 @@ def read_rosbag(path, observation_topic: str, action_topic: str, *, observation_
                 scan_bins: int | None = None, max_range: float | None = None,
                 gds_topic: str | None = None, gds_window: float = 0.5, action_names=None,
                 gds_names=None, linear_threshold: float = 0.05, angular_threshold: float = 0.1,
-                action_rule=None) -> Trajectory:
+                action_rule=None, position_topic: str | None = None) -> Trajectory:
     """Read one ROS bag, or a list of bags (one episode each), into a :class:`Trajectory`.
 
     Parameters
@@ -286,14 +316,18 @@ def read_rosbag(path, observation_topic: str, action_topic: str, *, observation_
         :func:`~topomap.core.data.rosbag.decode.twist_action` for Twist action topics.
     action_rule : callable, optional
         ``action_rule(message) -> name or id`` for action messages of any type.
+    position_topic : str, optional
+        A pose or odometry topic (types: ``rosbag.POSITION_TYPES``) read as ``positions``, each
+        step's from the latest message at or before it; ``(T, 3)`` if some ``z`` is not 0.
 
     Returns
     -------
     Trajectory
         Observations (float64; LaserScan ranges are float32 values), actions, ``gds`` (with a GDS
-        topic), ``lengths`` (when ``path`` is a list), the names, and ``meta`` with ``source``
-        (``"rosbag"``), ``bags``, ``topics`` (topic -> message type, of the first bag) and
-        ``dropped_steps`` (per bag, the steps before the first observation).
+        topic), ``positions`` (with a position topic), ``lengths`` (when ``path`` is a list), the
+        names, and ``meta``: ``source`` (``"rosbag"``), ``bags``, ``topics`` (topic -> message
+        type, of the first bag), ``dropped_steps`` (per bag: before the first observation or
+        position).
 
     Raises
     ------
@@ -304,7 +338,7 @@ def read_rosbag(path, observation_topic: str, action_topic: str, *, observation_
     opts = make_options(observation_topic, action_topic, dict(
         observation_fields=observation_fields, scan_bins=scan_bins, max_range=max_range,
         gds_topic=gds_topic, gds_window=gds_window, action_names=action_names,
-        gds_names=gds_names, linear_threshold=linear_threshold,
+        gds_names=gds_names, linear_threshold=linear_threshold, position_topic=position_topic,
         angular_threshold=angular_threshold, action_rule=action_rule))
     paths, many = _bag_list(path)
     episodes = [_read_episode(p, opts) for p in paths]

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from ..trajectory import Trajectory
-from .common import FLOAT64_ARRAY, INT32, LASER_SCAN, STRING, _positive, _rosbags
+from .common import FLOAT64_ARRAY, INT32, LASER_SCAN, POSE_STAMPED, STRING, _positive, _rosbags
 
 __all__ = ["write_rosbag"]
 
@@ -37,6 +37,7 @@ class _WriteSpec:
     action_topic: str
     gds_topic: str
     range_max: float
+    position_topic: str
 
 
 def _typestore(version: int):
@@ -77,6 +78,16 @@ def _label(store, value: int, names: list | None):
     return STRING, store.types[STRING](data=names[value])
 
 
+def _pose_message(store, position: np.ndarray, stamp_ns: int, seq: int):
+    """A ``geometry_msgs/PoseStamped`` at ``position`` (x, y and, if given, z), facing +x."""
+    types = store.types
+    xyz = [float(v) for v in position] + [0.0] * (3 - position.size)
+    pose = types["geometry_msgs/msg/Pose"](
+        position=types["geometry_msgs/msg/Point"](x=xyz[0], y=xyz[1], z=xyz[2]),
+        orientation=types["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0))
+    return types[POSE_STAMPED](header=_header(store, stamp_ns, seq, "map"), pose=pose)
+
+
 def _open_writer(out: Path, spec: _WriteSpec):
     """An unopened rosbags writer for a bag at ``out``."""
     rb = _rosbags()
@@ -99,6 +110,8 @@ def _write_episode(out: Path, traj: Trajectory, start: int, stop: int, spec: _Wr
                 "act": writer.add_connection(spec.action_topic, act_type, typestore=store)}
         if traj.gds is not None:
             conn["gds"] = writer.add_connection(spec.gds_topic, gds_type, typestore=store)
+        if traj.positions is not None:
+            conn["pos"] = writer.add_connection(spec.position_topic, POSE_STAMPED, typestore=store)
         for k, t in enumerate(range(start, stop)):
             stamp = spec.start_ns + k * spec.period_ns
             msg = _observation_message(store, traj.observations[t], stamp, k, spec)
@@ -108,6 +121,9 @@ def _write_episode(out: Path, traj: Trajectory, start: int, stop: int, spec: _Wr
             if traj.gds is not None and traj.gds[t] >= 0:
                 typ, msg = _label(store, traj.gds[t], traj.gds_names)
                 writer.write(conn["gds"], stamp, serialize(msg, typ))
+            if traj.positions is not None:
+                msg = _pose_message(store, traj.positions[t], stamp, k)
+                writer.write(conn["pos"], stamp, serialize(msg, POSE_STAMPED))
 
 
 def _target_paths(traj: Trajectory, path, version: int) -> list[Path]:
@@ -144,17 +160,17 @@ def _write_spec(traj: Trajectory, version, storage, scan, rate, start_time, topi
         raise ValueError(f"rate {rate!r} Hz is too high: steps need distinct nanosecond stamps")
     start_ns = round(_positive("start_time", start_time) * 1e9)
     obs_topic = topics[0] or ("/scan" if scan else "/observation")
-    if len({obs_topic, *topics[1:]}) != 3:
-        raise ValueError(f"the observation, action and GDS topics must differ, got "
+    if len({obs_topic, *topics[1:]}) != 4:
+        raise ValueError(f"the observation, action, GDS and position topics must differ, got "
                          f"{[obs_topic, *topics[1:]]!r}")
     return _WriteSpec(int(version), storage, bool(scan), period_ns, start_ns, obs_topic,
-                      topics[1], topics[2], float(max(traj.observations.max(), 0.0)))
+                      topics[1], topics[2], float(max(traj.observations.max(), 0.0)), topics[3])
 
 
 def write_rosbag(traj: Trajectory, path, *, version: int = 1, storage: str = "sqlite3",
                  scan: bool = True, rate: float = 10.0, start_time: float = 1.7e9,
                  observation_topic: str | None = None, action_topic: str = "/action",
-                 gds_topic: str = "/gds"):
+                 gds_topic: str = "/gds", position_topic: str = "/pose"):
     """Write ``traj`` as a ROS bag, one bag per episode; nothing appears unless all succeed.
 
     Step ``k`` of an episode is stamped ``start_time + k / rate`` seconds; its observation,
@@ -179,17 +195,19 @@ def write_rosbag(traj: Trajectory, path, *, version: int = 1, storage: str = "sq
         Steps per second.
     start_time : float
         Bag time of the first step, in seconds since the epoch.
-    observation_topic, action_topic, gds_topic : str
+    observation_topic, action_topic, gds_topic, position_topic : str
         Topic names; the observation topic defaults to ``/scan`` (scan) or ``/observation``.
         Actions are ``std_msgs/String`` names (``Int32`` ids without ``action_names``); GDS
-        likewise, written only at steps with a GDS.
+        likewise, written only at steps with a GDS; positions (if the trajectory has them) as
+        ``geometry_msgs/PoseStamped`` (``z`` = 0 for positions in the plane), read back with
+        ``read_rosbag(..., position_topic=...)``.
 
     Returns
     -------
     Path or list of Path, mirroring ``path``.
     """
     spec = _write_spec(traj, version, storage, scan, rate, start_time,
-                       (observation_topic, action_topic, gds_topic))
+                       (observation_topic, action_topic, gds_topic, position_topic))
     targets = _target_paths(traj, path, spec.version)
     staging = []
     try:

@@ -23,18 +23,22 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..core.checks import check_count
-from ..core.data.trajectory import Trajectory
-from .common import (assign_symbols, check_no_extra_actions, symbol_embedding,
-                     symbol_legend, walk)
+from ...core.checks import check_count
+from ..checks import check_no_extra_actions
+from .base import TableWorld, assign_symbols, symbol_embedding, symbol_legend
 
 __all__ = ["GridRoom"]
 
 #: the four moves as (dx, dy)
 MOVES = np.array([[0, 1], [1, 0], [0, -1], [-1, 0]], dtype=np.int64)
 MOVE_NAMES = ["north", "east", "south", "west"]
-class GridRoom:
+
+
+class GridRoom(TableWorld):
     """A ``width x height`` room of cells, each showing one of ``n_symbols`` symbols.
+
+    A :class:`~topomap.worlds.table.base.TableWorld`: it observes, walks (``simulate``) and gives
+    its place graph from its tables.
 
     Parameters
     ----------
@@ -79,19 +83,11 @@ class GridRoom:
         self.successors = np.where(inside, ny_ * self.width + nx_, -1)
         self.action_names = list(MOVE_NAMES)
 
-    @property
-    def n_actions(self) -> int:
-        return len(self.action_names)
-
     def place_of(self, x: int, y: int) -> int:
         """Place id of cell ``(x, y)``."""
         if not (0 <= x < self.width and 0 <= y < self.height):
             raise ValueError(f"cell ({x}, {y}) is outside the {self.width} x {self.height} room")
         return int(y) * self.width + int(x)
-
-    def executable_mask(self, place: int) -> np.ndarray:
-        """Which of the four moves stay inside the room from ``place``."""
-        return self.successors[place] >= 0
 
     def step(self, place: int, action: int) -> int:
         """The place one move away; raises ValueError when the wall blocks the move."""
@@ -101,30 +97,13 @@ class GridRoom:
                              "runs into the wall")
         return nxt
 
-    def observe(self, place: int) -> np.ndarray:
-        """Noise-free observation at ``place``."""
-        return self.embedding[self.place_symbols[place]].copy()
-
-    def place_graph(self):
-        """The true topology, for navigation (:mod:`topomap.worlds.navigation`)."""
-        from .navigation import table_graph
-
-        return table_graph(self)
-
-    def simulate(self, n_steps: int, explorer, rng: np.random.Generator) -> Trajectory:
-        """Random walk of ``n_steps`` steps from a cell drawn with ``rng``.
-
-        At each step the explorer picks one of the moves that stay inside the room
-        (``explorer.choose(mask, rng)``, called exactly once per step); the last step's action is
-        chosen but not executed.  Returns a :class:`Trajectory` with ``places`` (cell ids),
-        ``positions`` (cell centres) and noise-free ``observations``.
-        """
-        meta = {
+    def meta(self) -> dict:
+        """What a walk's trajectory records of the room: its size, symbols and seed."""
+        return {
             "world": "gridroom", "width": self.width, "height": self.height,
             "n_symbols": self.n_symbols, "obs_dim": self.obs_dim, "seed": self.seed,
             "place_symbols": self.place_symbols.tolist(),
         }
-        return walk(self, n_steps, explorer, rng, meta)
 
     def plot_room(self, ax, labels: bool = False):
         """Draw the cells, tinted by symbol (with a legend of the symbols beside the room), and the

@@ -8,7 +8,8 @@ Hamiltonian cycle (under a random action label), the others go to distinct rando
 
 Every place emits one of ``n_symbols`` symbols (each used at least once; ``n_symbols < n_places``
 gives perceptual aliasing).  The noise-free observation is the symbol's embedding (one-hot, or
-random non-negative vectors with ``obs_dim > 0``; see :func:`topomap.worlds.common.symbol_embedding`).
+random non-negative vectors with ``obs_dim > 0``; see
+:func:`topomap.worlds.table.base.symbol_embedding`).
 
 Ground truth: the place (``places``) and a fixed 2-D drawing of the graph (``positions``):
 networkx's ``spring_layout`` with ``seed`` (``layout="spring"``) or the places on a circle
@@ -21,10 +22,9 @@ import math
 
 import numpy as np
 
-from ..core.checks import check_count
-from ..core.data.trajectory import Trajectory
-from .common import (assign_symbols, check_no_extra_actions, symbol_embedding,
-                     symbol_legend, walk)
+from ...core.checks import check_count
+from ..checks import check_no_extra_actions
+from .base import TableWorld, assign_symbols, symbol_embedding, symbol_legend
 
 __all__ = ["RandomGraphWorld", "random_strong_digraph"]
 
@@ -48,8 +48,11 @@ def random_strong_digraph(n_places: int, out_degree: int, rng: np.random.Generat
     return succ
 
 
-class RandomGraphWorld:
+class RandomGraphWorld(TableWorld):
     """Random walk on a random strongly connected digraph with aliased place symbols.
+
+    A :class:`~topomap.worlds.table.base.TableWorld`: it observes, walks (``simulate``) and gives
+    its place graph from its tables.
 
     Parameters
     ----------
@@ -93,10 +96,6 @@ class RandomGraphWorld:
         self.place_positions = self._layout_positions()
         self.action_names = [f"edge {a}" for a in range(self.out_degree)]
 
-    @property
-    def n_actions(self) -> int:
-        return self.out_degree
-
     def to_networkx(self):
         """The place graph as an ``nx.DiGraph``; every arc carries its ``action``."""
         import networkx as nx
@@ -122,29 +121,14 @@ class RandomGraphWorld:
         # one scale for both axes, so the drawing keeps its shape (a circle stays a circle)
         return (P - (lo + hi) / 2) / max(float((hi - lo).max()), 1e-12) * side + side / 2
 
-    def observe(self, place: int) -> np.ndarray:
-        """Noise-free observation at ``place``."""
-        return self.embedding[self.place_symbols[place]].copy()
-
-    def place_graph(self):
-        """The true topology, for navigation (:mod:`topomap.worlds.navigation`)."""
-        from .navigation import table_graph
-
-        return table_graph(self)
-
-    def simulate(self, n_steps: int, explorer, rng: np.random.Generator) -> Trajectory:
-        """Random walk of ``n_steps`` steps from a place drawn with ``rng``.
-
-        ``explorer.choose(mask, rng)`` is called once per step (all actions executable); the last
-        step's action is chosen but not executed.
-        """
-        meta = {
+    def meta(self) -> dict:
+        """What a walk's trajectory records of the graph: its size, symbols, arcs and seed."""
+        return {
             "world": "random_graph", "n_places": self.n_places, "out_degree": self.out_degree,
             "n_symbols": self.n_symbols, "obs_dim": self.obs_dim, "layout": self.layout,
             "seed": self.seed, "place_symbols": self.place_symbols.tolist(),
             "successors": self.successors.tolist(),
         }
-        return walk(self, n_steps, explorer, rng, meta)
 
     def plot_room(self, ax, labels: bool = False):
         """Draw the place graph: faint arcs, places tinted by symbol (with a legend of the symbols

@@ -1,0 +1,43 @@
+"""The arena: continuous motion in a floor plan, built on ratinabox (``pip install "topomap[arena]"``).
+
+A robot's log, and a rat's path, are continuous motion sampled at the sensor's rate.  The arena
+simulates that with ratinabox (George et al. 2024, eLife, doi 10.7554/eLife.85274): its
+``Environment`` holds the floor plan, its ``Agent`` moves at random the way rats do, and its two
+recorded rat paths (Sargolini et al. 2006; Tanni et al. 2022) can be replayed.
+
+==================  ===========================================================================
+module              its one job
+==================  ===========================================================================
+``layouts``         floor plans: :class:`Layout`, the built-in layouts and their regions
+``floorplan``       a user's floor plan from a YAML or JSON file, checked entry by entry
+``geometry``        rays against walls, points against polygons, whole paths at once (numpy)
+``motion``          :class:`Motion` (the moves a path's samples make), ratinabox's random motion
+``paths``           recorded paths (ratinabox's rats, the user's files), resampled every ``dt``
+``sensors``         range finder, boundary-vector and object-vector cells
+``actions``         discrete actions read off the motion: compass octants, differential-drive turns
+``world``           :class:`ArenaWorld`: the world that ties them together
+``checks``          argument checks the components share
+==================  ===========================================================================
+"""
+
+from ..minigrid import MissingDependencyError
+
+try:
+    import ratinabox  # noqa: F401
+except ImportError as _exc:
+    raise MissingDependencyError(
+        f"the arena world needs the optional ratinabox package ({_exc}); "
+        'install it with: pip install "topomap[arena]"') from None
+
+from .actions import ACTION_RULES, CompassActions, TurnActions
+from .floorplan import floorplan_from_dict, load_floorplan
+from .layouts import LAYOUTS, Layout, builtin_layout
+from .motion import Motion
+from .paths import DATASETS, RecordedPath
+from .sensors import SENSORS, BoundaryVectorCells, ObjectVectorCells, RangeFinder
+from .world import Arena, ArenaWorld
+
+__all__ = ["ArenaWorld", "Arena", "Layout", "LAYOUTS", "builtin_layout", "load_floorplan",
+           "floorplan_from_dict", "Motion", "RecordedPath", "DATASETS", "RangeFinder",
+           "BoundaryVectorCells", "ObjectVectorCells", "SENSORS", "CompassActions",
+           "TurnActions", "ACTION_RULES", "MissingDependencyError"]

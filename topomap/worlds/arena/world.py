@@ -1,0 +1,221 @@
+"""The arena world: continuous motion in a floor plan, sensed and turned into actions.
+
+:class:`ArenaWorld` ties the pieces together: a layout (:mod:`.layouts`, :mod:`.floorplan`) made
+into a ratinabox ``Environment``; motion that is ratinabox's random ``Agent``
+(:func:`.motion.random_motion`) or a recorded path (:mod:`.paths`), sampled every ``dt``
+seconds; a sensor (:mod:`.sensors`) that reads all positions at once; an action rule
+(:mod:`.actions`) that reads the moves.  ``simulate(n_steps, explorer, rng)`` returns a
+:class:`~topomap.Trajectory` with noise-free observations, the actions and the true
+``positions``; no ``places``: the arena has no discrete places, its scores are in metres
+(:mod:`topomap.core.position_scores`, with :meth:`ArenaWorld.region_of` for the wrong-region
+share).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ...core.checks import ParameterError, check_count
+from ...core.data.trajectory import Trajectory
+from ..checks import check_no_extra_actions
+from ..explorers import RandomExplorer
+from .actions import make_action_rule
+from .checks import non_negative, positive
+from .floorplan import FLOORPLAN_SUFFIXES, load_floorplan
+from .layouts import Layout, builtin_layout
+from .motion import MOTION_PARAMETERS, Motion, random_motion
+from .paths import RecordedPath
+from .sensors import make_sensor
+
+__all__ = ["ArenaWorld", "Arena", "make_layout"]
+
+
+@dataclass(frozen=True, eq=False)
+class Arena:
+    """A layout and the ratinabox ``Environment`` built from it (objects added with their types,
+    renumbered ``0, 1, ...`` in increasing order)."""
+
+    layout: Layout
+    environment: object
+
+    @classmethod
+    def build(cls, layout: Layout) -> "Arena":
+        from ratinabox.Environment import Environment
+
+        env = Environment(params=layout.environment_params())
+        _, types = np.unique(layout.object_types, return_inverse=True)
+        for point, kind in zip(layout.objects, types):
+            env.add_object(point.tolist(), type=int(kind))
+        return cls(layout, env)
+
+
+def make_layout(layout, recording: RecordedPath | None) -> Layout:
+    """The :class:`Layout` meant by ``layout``: a Layout, a built-in name, a floor-plan file, or
+    ``"auto"`` (a shipped recording's box, else ``two_rooms``)."""
+    if isinstance(layout, Layout):
+        return layout
+    if not isinstance(layout, str):
+        raise ParameterError("layout", f"must be a layout name, a floor-plan file or a Layout, "
+                                       f"got {layout!r}")
+    if layout == "auto":
+        if recording is None:
+            return builtin_layout("two_rooms")
+        if recording.layout() is None:
+            raise ParameterError("layout", f"is needed for the recorded path {recording.source}: "
+                                           "give a built-in layout or a floor-plan file")
+        return recording.layout()
+    if Path(layout).suffix.lower() in FLOORPLAN_SUFFIXES:
+        return load_floorplan(layout)
+    return builtin_layout(layout)
+
+
+def _check_explorer(explorer) -> None:
+    if explorer is not None and type(explorer) is not RandomExplorer:
+        raise ValueError(f"explorer {explorer!r} cannot steer the arena: its motion is "
+                         "ratinabox's random motion or a recorded path (the random explorer is "
+                         "accepted and not consulted)")
+
+
+class ArenaWorld:
+    """Continuous motion in a floor plan, sensed every ``dt`` seconds (see the module docstring).
+
+    Parameters
+    ----------
+    layout : str or Layout
+        A built-in layout (``open``, ``two_rooms``, ``four_rooms``, ``corridor``), a floor-plan
+        file (``.yaml``, ``.yml``, ``.json``), a :class:`Layout`, or ``"auto"``: the box of a
+        shipped recording, else ``two_rooms``.
+    path : str or None
+        None: ratinabox's random motion.  ``"sargolini"``, ``"tanni"`` or a ``.npz`` / ``.csv``
+        file: that recorded path (:mod:`topomap.worlds.arena.paths`), the same for every rng.
+    dt : float
+        Seconds between two steps (the sensor's rate: 0.1 s is 10 Hz).
+    start : float
+        Seconds into a recorded path at which ``simulate`` starts.
+    sensor : str or sensor object
+        ``"range"``, ``"bvc"``, ``"ovc"`` (each with its defaults) or a sensor such as
+        ``RangeFinder(n_beams=12, max_range=3.0)``.
+    actions : str or action rule
+        ``"compass"``, ``"turns"`` (with their defaults) or a rule such as
+        ``TurnActions(angular_threshold=1.0)``.
+    speed_mean, speed_coherence_time, rotational_velocity_std, \
+rotational_velocity_coherence_time, thigmotaxis, wall_repel_distance, wall_repel_strength : float
+        ratinabox's random-motion parameters (m/s, s, rad/s, s, in [0, 1], m, -), with its
+        defaults, fitted to rats (keyword only, as the parameters after them).
+    path_tolerance : float
+        Metres a recorded position may lie off the floor (tracking noise); it is moved 1 mm
+        inside.  Farther off is an error.
+    extra_actions : list, optional
+        Not supported: the action rule fixes the actions.
+    """
+
+    def __init__(self, layout: str | Layout = "auto", path: str | None = None, dt: float = 0.1,
+                 start: float = 0.0, sensor: str | object = "range",
+                 actions: str | object = "compass", *, speed_mean: float = 0.08,
+                 speed_coherence_time: float = 0.7, rotational_velocity_std: float = math.radians(120),
+                 rotational_velocity_coherence_time: float = 0.08, thigmotaxis: float = 0.5,
+                 wall_repel_distance: float = 0.1, wall_repel_strength: float = 1.0,
+                 path_tolerance: float = 0.05, extra_actions=None):
+        check_no_extra_actions("arena", extra_actions)
+        self.dt = positive("dt", dt)
+        self.start = non_negative("start", start)
+        self.path_tolerance = non_negative("path_tolerance", path_tolerance)
+        self.recording = None if path in (None, "") else RecordedPath(path)
+        self.sensor = make_sensor(sensor)
+        self.action_rule = make_action_rule(actions)
+        values = (speed_mean, speed_coherence_time, rotational_velocity_std,
+                  rotational_velocity_coherence_time, thigmotaxis, wall_repel_distance,
+                  wall_repel_strength)
+        self.motion_params = {name: non_negative(name, v)
+                              for name, v in zip(MOTION_PARAMETERS, values)}
+        if self.motion_params["thigmotaxis"] > 1:
+            raise ParameterError("thigmotaxis", f"must be in [0, 1], got {thigmotaxis!r}")
+        self.arena = Arena.build(make_layout(layout, self.recording))
+
+    # ------------------------------------------------------------------ what the world offers
+    @property
+    def layout(self) -> Layout:
+        return self.arena.layout
+
+    @property
+    def action_names(self) -> list[str]:
+        return list(self.action_rule.action_names)
+
+    @property
+    def n_actions(self) -> int:
+        return len(self.action_names)
+
+    @property
+    def region_names(self) -> list[str]:
+        return self.layout.region_names
+
+    def region_of(self, positions) -> np.ndarray:
+        """The layout's region of each position (``(T,)`` ids into :attr:`region_names`)."""
+        return self.layout.region_of(positions)
+
+    @property
+    def path_steps(self) -> int | None:
+        """Steps of ``dt`` a recorded path holds after ``start`` (None for random motion)."""
+        return None if self.recording is None else self.recording.n_steps(self.start, self.dt)
+
+    # ------------------------------------------------------------------ walking
+    def simulate(self, n_steps: int, explorer, rng: np.random.Generator) -> Trajectory:
+        """``n_steps`` steps: random motion seeded from ``rng`` (one draw), or the recorded path
+        from ``start`` (``rng`` unused).  ``explorer`` must be None or the random explorer: it is
+        not consulted."""
+        n_steps = check_count(n_steps, "n_steps")
+        _check_explorer(explorer)
+        if self.recording is not None:
+            return self.walk_from(round(self.start / self.dt), n_steps)
+        seed = int(rng.integers(2**32))
+        samples = random_motion(self.arena.environment, n_steps, self.dt, self.motion_params, seed)
+        return self._trajectory(Motion.from_samples(samples, self.dt), {"seed": seed})
+
+    def walk_from(self, first_step: int, n_steps: int) -> Trajectory:
+        """Steps ``first_step`` to ``first_step + n_steps - 1`` of the recorded path (steps of
+        ``dt`` from its first sample): a held-out walk is a part the learner did not see."""
+        if self.recording is None:
+            raise ValueError("walk_from needs a recorded path (path=...); random motion is "
+                             "drawn by simulate")
+        first = check_count(first_step, "first_step", minimum=0)
+        n_steps = check_count(n_steps, "n_steps")
+        held = self.recording.n_steps(0.0, self.dt)
+        if first + n_steps > held:
+            raise ParameterError("n_steps", f"={n_steps} from step {first} exceeds the {held} "
+                                 f"steps of {self.dt:g} s the path {self.recording.source} holds")
+        samples = self.recording.resample(first * self.dt, self.dt, n_steps + 1)
+        samples, moved = self._onto_floor(samples, first)
+        motion = Motion.from_samples(samples, self.dt, t0=first * self.dt)
+        return self._trajectory(motion, {"first_step": first, "moved_onto_floor": moved})
+
+    def _onto_floor(self, samples: np.ndarray, first: int) -> tuple[np.ndarray, int]:
+        P, moved, worst = self.layout.move_inside(samples, self.path_tolerance)
+        if worst is not None and worst[1] > self.path_tolerance:
+            t = (first + worst[0]) * self.dt
+            raise ValueError(f"path {self.recording.source}: the position at {t:.2f} s lies "
+                             f"{worst[1]:.3f} m off the floor of layout {self.layout.name!r}, "
+                             f"more than path_tolerance={self.path_tolerance:g} m")
+        return P, int(moved.sum())
+
+    def _trajectory(self, motion: Motion, meta: dict) -> Trajectory:
+        X = self.sensor.sense(self.arena, motion)
+        u = np.asarray(self.action_rule.actions(motion), dtype=np.int64)
+        meta = {"world": "arena", "layout": self.layout.name, "dt": self.dt,
+                "path": None if self.recording is None else self.recording.source,
+                "sensor": repr(self.sensor), "actions": repr(self.action_rule), **meta}
+        return Trajectory(observations=X, actions=u, positions=motion.positions,
+                          action_names=self.action_names, meta=meta)
+
+    def plot_room(self, ax):
+        """Draw the floor plan (ratinabox's drawing) on ``ax``; returns ``ax``."""
+        self.arena.environment.plot_environment(fig=ax.figure, ax=ax, autosave=False)
+        return ax
+
+    def __repr__(self) -> str:
+        source = "random motion" if self.recording is None else self.recording.source
+        return (f"ArenaWorld(layout={self.layout.name!r}, {source}, dt={self.dt:g}, "
+                f"sensor={self.sensor!r}, actions={self.action_rule!r})")
