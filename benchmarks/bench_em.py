@@ -34,9 +34,9 @@ from pathlib import Path
 import numpy as np
 from omegaconf import OmegaConf
 
-from topomap.app.cli import compose
-from topomap.app.experiment import load_data
-from topomap.app.registry import Registry
+from topomap.app.compose.command_line import compose
+from topomap.app.run.data import load_data
+from topomap.app.compose.registry import Registry
 from topomap.core.learner import MapLearner
 from topomap.core.metrics import adjusted_rand, nmi
 

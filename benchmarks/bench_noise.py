@@ -37,9 +37,10 @@ from pathlib import Path
 
 import numpy as np
 
-from topomap.app.cli import compose
-from topomap.app.experiment import _as_dict, load_data, make_learner
-from topomap.app.registry import Registry
+from topomap.app.compose.command_line import compose
+from topomap.app.run.data import load_data
+from topomap.app.run.experiment import _as_dict, make_learner
+from topomap.app.compose.registry import Registry
 from topomap.core import metrics as M
 from topomap.core.refine.methods import CSCGRefinement, EMRefinement
 

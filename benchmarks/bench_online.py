@@ -90,15 +90,15 @@ def peak_rss_mib() -> float:
 
 def compose(overrides):
     os.environ.setdefault("TOPOMAP_DISABLE_PLUGIN_AUTOLOAD", "1")
-    from topomap.app.cli import compose as hydra_compose
-    from topomap.app.experiment import _as_dict
+    from topomap.app.compose.command_line import compose as hydra_compose
+    from topomap.app.run.experiment import _as_dict
 
     return _as_dict(hydra_compose([*overrides, "output.progress=false", "output.figures=false"]))
 
 
 def build(overrides):
-    from topomap.app.experiment import make_learner
-    from topomap.app.registry import Registry
+    from topomap.app.run.experiment import make_learner
+    from topomap.app.compose.registry import Registry
 
     cfg = compose(overrides)
     parts = Registry.load(()).build(cfg)
@@ -204,15 +204,15 @@ EXPLORERS = {"random": ["explorer=random"], "active": ["explorer=active"],
 def child_explore(overrides, explorer: str, seed: int, steps: int) -> dict:
     import copy
 
-    from topomap.app.data import seed_streams
+    from topomap.app.components.data import seed_streams
 
     cfg, parts, learner = build([*overrides, *EXPLORERS[explorer], f"seed={seed}",
                                  f"data.n_steps={steps}", "data.curve_every=250",
                                  "learner.refit_every=500"])
     if explorer == "place-aware":
-        if not hasattr(parts.world, "successors"):
+        if not hasattr(parts.env, "successors"):
             return {"first": None, "curve": [], "skipped": "the world has no table of places"}
-        parts.explorer = PlaceAware(parts.world, copy.deepcopy(seed_streams(seed)[0]))
+        parts.explorer = PlaceAware(parts.env, copy.deepcopy(seed_streams(seed)[0]))
     traj = parts.data.train(parts, seed, learner=learner)
     curve = traj.meta["mapping"]["curve"]
     first = next((c["steps"] for c in curve if c["heldout_ari"] >= 0.95), None)

@@ -15,9 +15,10 @@ import time
 
 from omegaconf import OmegaConf
 
-from topomap.app.cli import compose
-from topomap.app.experiment import load_data, make_learner
-from topomap.app.registry import Registry
+from topomap.app.compose.command_line import compose
+from topomap.app.run.data import load_data
+from topomap.app.run.experiment import make_learner
+from topomap.app.compose.registry import Registry
 from topomap.core.metrics import evaluate
 
 

@@ -25,10 +25,10 @@ import shlex
 import statistics
 import tempfile
 
-from topomap.app.cli import compose
-from topomap.app.config_checks import preset_overrides
-from topomap.app.experiment import run
-from topomap.app.registry import Registry
+from topomap.app.compose.command_line import compose
+from topomap.app.compose.config_checks import preset_overrides
+from topomap.app.run.experiment import run
+from topomap.app.compose.registry import Registry
 
 TEN_K = "data.n_steps=10000"
 GRID12 = "env=gridroom env.width=12 env.height=12 env.n_symbols=8 clusters.ns=8 stop.n_states=144"

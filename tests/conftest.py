@@ -16,7 +16,7 @@ sys.path.insert(0, str(pathlib.Path(__file__).parent))
 @pytest.fixture
 def make_cfg():
     """``make_cfg(overrides=(), hydra=False)``: the config ``topomap <overrides>`` composes."""
-    from topomap.app.cli import compose
+    from topomap.app.compose.command_line import compose
 
     def make(overrides=(), hydra=False):
         return compose(overrides, return_hydra_config=hydra)

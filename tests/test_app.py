@@ -13,9 +13,9 @@ from omegaconf import MISSING
 from omegaconf.errors import ValidationError
 
 from topomap import TopologicalMap, load_trajectory
-from topomap.app.experiment import run
-from topomap.app.outputs import FIGURE_FILES, OUTPUT_FILES
-from topomap.app.registry import Registry
+from topomap.app.run.experiment import run
+from topomap.app.results import FIGURE_FILES, OUTPUT_FILES
+from topomap.app.compose.registry import Registry
 
 CONF = Path(__file__).resolve().parents[1] / "conf"
 PLUGINS = Path(__file__).resolve().parents[1] / "plugins"
@@ -66,7 +66,7 @@ def test_every_experiment_preset_composes(preset, make_cfg):
 def _signature_defaults(factory):
     import inspect
 
-    from topomap.app.config import RUNTIME_ARGS
+    from topomap.app.compose.schemas import RUNTIME_ARGS
 
     return {p.name: (MISSING if p.default is p.empty else p.default)
             for p in inspect.signature(factory).parameters.values()
@@ -76,7 +76,7 @@ def _signature_defaults(factory):
 def test_every_config_field_matches_its_factory_signature():
     """Built-ins (derived configs) and the example plugins (one derived, two hand-written):
     the config's fields are exactly the factory's parameters, with the same defaults."""
-    from topomap.app.config import fields_of, schema_of
+    from topomap.app.compose.schemas import fields_of, schema_of
 
     plugins = [str(PLUGINS / "topomap-gainratio" / "topomap_gainratio.py"),
                str(PLUGINS / "topomap-gtest" / "topomap_gtest" / "__init__.py")]
@@ -91,7 +91,7 @@ def test_every_config_field_matches_its_factory_signature():
             assert fields.pop("seed") == "${seed}" and expected.pop("seed") is not MISSING
         assert fields == expected, (kind, name)
         kinds.add(kind)
-    from topomap.app.hookspecs import KINDS
+    from topomap.app.compose.hookspecs import KINDS
 
     assert kinds == set(KINDS)
 
@@ -100,8 +100,8 @@ def test_a_hand_written_config_that_disagrees_with_the_factory_is_caught():
     """The check above can fail: a config whose default drifted from the constructor's."""
     from dataclasses import dataclass
 
-    from topomap.app.config import fields_of, schema_of
-    from topomap.app.hookspecs import Component
+    from topomap.app.compose.schemas import fields_of, schema_of
+    from topomap.app.compose.hookspecs import Component
     from topomap.core.phase1.clustering import FixedClusters
 
     @dataclass
@@ -251,3 +251,19 @@ def test_every_config_folder_is_packaged():
     for folder in [p for p in CONF.rglob("*") if p.is_dir() and p.name != "__pycache__"]:
         name = "topomap.conf." + ".".join(folder.relative_to(CONF).parts)
         assert name in packages, f"{name} is missing from [tool.setuptools] packages"
+
+
+def test_the_rosbag_data_options_are_read_rosbags_own():
+    """``data=rosbag`` takes every option of :func:`topomap.read_rosbag` (but ``action_rule``, a
+    callable), with read_rosbag's defaults, beside ``path`` and ``heldout_path``."""
+    import inspect
+
+    from topomap import read_rosbag
+    from topomap.app.compose.schemas import fields_of, schema_of
+
+    fields = fields_of(schema_of(Registry.load(entry_points_group=None).get("data", "rosbag")))
+    wanted = {name: p.default for name, p in inspect.signature(read_rosbag).parameters.items()
+              if name not in ("path", "action_rule") and p.default is not p.empty}
+    assert {k: v for k, v in fields.items() if k in wanted} == wanted
+    assert set(fields) == {"component", "path", "heldout_path", "observation_topic",
+                           "action_topic", *wanted}

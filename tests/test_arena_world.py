@@ -170,8 +170,8 @@ def test_without_ratinabox_the_import_says_how_to_install(monkeypatch):
 def test_every_component_has_a_typed_config_of_plain_values():
     import dataclasses
 
-    from topomap.app.config import schema_of
-    from topomap.app.hookspecs import Component
+    from topomap import Component
+    from topomap.app.compose.schemas import schema_of
 
     for factory in (ArenaWorld, RangeFinder, BoundaryVectorCells, ObjectVectorCells,
                     CompassActions, TurnActions):

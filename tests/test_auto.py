@@ -8,7 +8,7 @@ import pytest
 from sklearn.metrics import adjusted_rand_score
 
 from topomap import MapLearner
-from topomap.app.experiment import run
+from topomap.app.run.experiment import run
 from topomap.core.size import AutoStates, SizeScores, UpTo, bic, parameter_count, split_holdout
 
 from worlds import ring

@@ -39,7 +39,7 @@ def test_every_cross_reference_in_a_docstring_resolves():
 def test_the_docs_give_the_number_of_clusters_bic_picks(make_cfg, tmp_path):
     import json
 
-    from topomap.app.experiment import run
+    from topomap.app.run.experiment import run
 
     (said,) = re.findall(r"BIC over Gaussian mixtures\s+gives (\d+) clusters",
                          (ROOT / "docs" / "choosing-size.md").read_text())

@@ -9,7 +9,7 @@ import pytest
 from sklearn.metrics import adjusted_rand_score
 
 from topomap import MapLearner, TopologicalMap
-from topomap.app.experiment import run
+from topomap.app.run.experiment import run
 from topomap.worlds import (ActiveExplorer, GridRoom, HistoryExplorer, NoNoise, PlanExplorer,
                             RandomExplorer, View)
 from topomap.worlds.explorers.history import symbol_means

@@ -7,7 +7,7 @@ import sys
 
 import pytest
 
-from topomap.app.cli import compose
+from topomap.app.compose.command_line import compose
 
 
 @pytest.mark.parametrize("overrides, message", [

@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 
 from topomap import TopologicalMap, load_trajectory
-from topomap.app.experiment import run
-from topomap.app.outputs import HTML_FILES
+from topomap.app.run.experiment import run
+from topomap.app.results import HTML_FILES
 from topomap.app.plots.interactive import NODE_COLOURS, SVG_MAX_STATES, map_figure
 from topomap.app.plots.run import _state_positions, compound_mask
 
@@ -26,7 +26,7 @@ SMALL = ["data.n_steps=400", "data.heldout_steps=0", "clusters.ns=8", "stop.n_st
 
 @pytest.fixture(scope="module")
 def office_run(tmp_path_factory):
-    from topomap.app.cli import compose
+    from topomap.app.compose.command_line import compose
 
     out = tmp_path_factory.mktemp("office")
     run(compose(SMALL), out)

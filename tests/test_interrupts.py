@@ -7,12 +7,14 @@ import json
 import signal
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
 import pytest
 
-from topomap.app import experiment, outputs, plots
+from topomap.app import plots
+from topomap.app.run import experiment, job, outputs
 
 SMALL = ["data.n_steps=200", "data.heldout_steps=0", "output.figures=false",
          "output.progress=false", "clusters.ns=6"]
@@ -20,6 +22,7 @@ SMALL = ["data.n_steps=200", "data.heldout_steps=0", "output.figures=false",
 PLUGIN = '''
 """Test plugin: {which} writes ``{marker}`` once phase 1 is done, then waits."""
 import os
+import threading
 import time
 
 from hydra.core.hydra_config import HydraConfig
@@ -76,7 +79,7 @@ def test_ctrl_c_ends_a_sweep_with_its_report(tmp_path):
     status = json.loads((job_dir / "status.json").read_text())
     assert status["status"] == "interrupted"
     assert not (job_dir / "map.json").exists() and not (sweep / "2").exists()
-    rebuilt = subprocess.run([sys.executable, "-m", "topomap.app.sweep", str(sweep)],
+    rebuilt = subprocess.run([sys.executable, "-m", "topomap.app.report", str(sweep)],
                              capture_output=True, text=True, timeout=120)
     assert "sweep of 3 jobs, 1 completed, 0 failed, 1 interrupted, 1 not started" in rebuilt.stdout
 
@@ -131,6 +134,32 @@ def test_a_sweep_job_that_is_interrupted_says_so_and_ends_the_sweep(tmp_path, ma
                                                                     monkeypatch):
     monkeypatch.setattr(outputs, "_write_outputs", interrupted)
     with pytest.raises(KeyboardInterrupt):
-        experiment.run_job(small_cfg(make_cfg), tmp_path / "0", sweep_dir=tmp_path)
+        job.run_job(small_cfg(make_cfg), tmp_path / "0", sweep_dir=tmp_path)
     assert [p.name for p in (tmp_path / "0").iterdir()] == ["status.json"]
     assert json.loads((tmp_path / "0" / "status.json").read_text())["status"] == "interrupted"
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_while_a_sweep_runs_an_interrupt_carries_the_sweep_and_its_end_gives_the_handlers_back(
+        tmp_path, sig, capsys):
+    """Ctrl-C or SIGTERM during a sweep is a KeyboardInterrupt that carries the sweep (whoever
+    catches it writes the report); once the sweep ends, the signals are handled as before."""
+    from omegaconf import OmegaConf
+
+    from topomap.app.report.callback import SweepInterrupted, SweepReport
+
+    if threading.current_thread() is not threading.main_thread():
+        pytest.skip("signals reach the main thread only")
+    config = OmegaConf.create({"hydra": {"sweep": {"dir": str(tmp_path)}}})
+    callback = SweepReport(figure=False)
+    before = signal.getsignal(sig)
+    callback.on_multirun_start(config)
+    try:
+        with pytest.raises(KeyboardInterrupt) as caught:
+            signal.raise_signal(sig)
+        assert isinstance(caught.value, SweepInterrupted)
+        assert caught.value.write_report() == tmp_path / "summary.csv"
+        assert "topomap: sweep of 0 jobs" in capsys.readouterr().out
+    finally:
+        callback.on_multirun_end(config)
+    assert signal.getsignal(sig) is before

@@ -6,10 +6,10 @@ import textwrap
 
 import pytest
 
-from topomap.app.cli import compose
-from topomap.app.experiment import run
-from topomap.app.loggers import MLflowLogger, RunRecord
-from topomap.app.registry import Registry
+from topomap.app.compose.command_line import compose
+from topomap.app.run.experiment import run
+from topomap.app.components.loggers import MLflowLogger, RunRecord
+from topomap.app.compose.registry import Registry
 
 SMALL = ["data.n_steps=300", "data.heldout_steps=200", "clusters.ns=8", "stop.n_states=12",
          "output.progress=false"]
@@ -92,7 +92,7 @@ def test_default_store_is_below_the_outputs_folder(tmp_path):
 
 
 PLUGIN = '''
-    from topomap.app.hookspecs import Component, hookimpl
+    from topomap import Component, hookimpl
 
     RECORDS = []
 
@@ -111,15 +111,13 @@ PLUGIN = '''
 
 
 def test_a_plugin_adds_a_logger_through_the_components_hook(tmp_path):
-    import sys
-
     path = tmp_path / "remember_logger.py"
     path.write_text(textwrap.dedent(PLUGIN))
     registry = Registry.load([str(path)])
     cfg = compose([*SMALL, "output.figures=false", f"plugins=[{path}]", "logger=remember",
                    "logger.project=office"], registry)
     results = run(cfg, tmp_path / "out", registry=registry)
-    ((project, record),) = sys.modules["topomap_plugin_remember_logger"].RECORDS
+    ((project, record),) = registry.pm.get_plugin(str(path)).RECORDS
     assert project == "office" and isinstance(record, RunRecord)
     assert record.results is results and record.sweep_dir is None
     assert record.metrics()["ari"] == results["ground_truth"]["final"]["ari"]

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from topomap import MapLearner
-from topomap.app.experiment import run
+from topomap.app.run.experiment import run
 
 
 @pytest.mark.parametrize("key", ["data.n_steps", "clusters.ns", "stop.n_states", "learner.n_init",

@@ -140,7 +140,7 @@ SMALL = ["data.n_steps=600", "data.heldout_steps=0", "output.figures=false",
 def test_evaluate_navigation_reports_success_and_path_length(make_cfg, tmp_path):
     import json
 
-    from topomap.app.experiment import run
+    from topomap.app.run.experiment import run
 
     results = run(make_cfg([*SMALL, "evaluate=navigation", "evaluate.episodes=20"]), tmp_path)
     nav = json.loads((tmp_path / "metrics.json").read_text())["navigation"]
@@ -151,7 +151,7 @@ def test_evaluate_navigation_reports_success_and_path_length(make_cfg, tmp_path)
 
 def test_task_localize_applies_a_saved_map_to_a_recording(make_cfg, tmp_path):
     from topomap import TopologicalMap, load_trajectory
-    from topomap.app.experiment import run
+    from topomap.app.run.experiment import run
 
     run(make_cfg(SMALL), tmp_path / "learn")
     rec = tmp_path / "learn" / "trajectory.npz"

@@ -6,8 +6,9 @@ import sys
 
 import pytest
 
-from topomap.app.experiment import run
-from topomap.app.outputs import FIGURE_FILES, OutputDirInUse
+from topomap.app.run.experiment import run
+from topomap.app.results import FIGURE_FILES
+from topomap.app.run.outputs import OutputDirInUse
 
 SMALL = ["data.n_steps=200", "data.heldout_steps=0", "output.progress=false", "clusters.ns=6",
          "stop.n_states=10"]

@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from topomap import Trajectory, save_trajectory
-from topomap.app.hookspecs import TopomapSpecs
-from topomap.app.registry import Registry
+from topomap.app.compose.hookspecs import TopomapSpecs
+from topomap.app.compose.registry import Registry
 
 ROOT = Path(__file__).resolve().parents[1]
 PLUGINS = ROOT / "plugins"
@@ -158,7 +158,7 @@ def test_autoload_switch_keeps_installed_action_plugins_out(tmp_path):
 def test_cached_trajectory_key_names_the_loaded_plugins(make_cfg):
     from omegaconf import OmegaConf
 
-    from topomap.app.data import trajectory_key
+    from topomap.app.run.data import trajectory_key
 
     cfg = OmegaConf.to_container(make_cfg(), resolve=True)
     assert trajectory_key(cfg, plugins=["turnback"]) != trajectory_key(cfg)
@@ -182,8 +182,7 @@ def write_plugin(path: Path, body: str) -> Path:
 
 
 COMPONENT = """
-from topomap import hookimpl
-from topomap.app.hookspecs import Component
+from topomap import Component, hookimpl
 from topomap.core.split.criteria import EntropyCriterion
 
 @hookimpl
@@ -200,6 +199,35 @@ def test_two_plugins_with_one_name_is_an_error_naming_both(tmp_path):
     with pytest.raises(ValueError, match="registered by two plugins: 'topomap.builtins'"):
         Registry.load([str(write_plugin(tmp_path / "plug_c.py", COMPONENT.format(name="entropy")))],
                       entry_points_group=None)
+
+
+OWN_CLASS = """
+from topomap import Component, hookimpl
+from topomap.core.split.criteria import EntropyCriterion
+
+
+class {name}(EntropyCriterion):
+    pass
+
+
+@hookimpl
+def topomap_register_components():
+    return [Component("split", "{name}", {name})]
+"""
+
+
+def test_two_plugin_files_of_one_name_each_load_as_a_module_of_their_own(tmp_path):
+    """``a/plug.py`` and ``b/plug.py`` both load, and each one's class is found in the module
+    its ``__module__`` names (where pickle and typing look for it)."""
+    paths = []
+    for folder in ("a", "b"):
+        (tmp_path / folder).mkdir()
+        paths.append(write_plugin(tmp_path / folder / "plug.py",
+                                  OWN_CLASS.format(name=f"from_{folder}")))
+    reg = Registry.load([str(p) for p in paths], entry_points_group=None)
+    for name in ("from_a", "from_b"):
+        factory = reg.get("split", name).factory
+        assert getattr(sys.modules[factory.__module__], name, None) is factory
 
 
 def test_a_broken_plugin_is_reported_and_does_not_hide_the_others(tmp_path):
@@ -244,7 +272,7 @@ def test_every_hook_is_documented():
 def test_progress_hook_sees_every_split_and_records_metrics(tmp_path, make_cfg):
     from test_app import small
 
-    from topomap.app.experiment import run
+    from topomap.app.run.experiment import run
 
     plug = write_plugin(tmp_path / "recorder.py", """
         from topomap import hookimpl
@@ -282,3 +310,15 @@ def test_pip_installed_plugin_is_found_through_its_entry_point(tmp_path, recordi
     assert [h["state"] for h in history(tmp_path)] == [6]
     cfg = json.loads((run_dir(tmp_path) / "metrics.json").read_text())["config"]
     assert cfg["split"] == {"component": "gtest", "alpha": 0.01}  # the YAML's default
+
+
+def test_a_plugin_imports_from_topomap_and_the_old_place_still_serves_with_a_warning():
+    import importlib
+
+    import topomap
+    from topomap.app.compose import hookspecs
+
+    assert topomap.Component is hookspecs.Component and topomap.hookimpl is hookspecs.hookimpl
+    old = importlib.import_module("topomap.app.hookspecs")
+    with pytest.warns(FutureWarning, match="from topomap import Component, hookimpl"):
+        assert old.Component is hookspecs.Component

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from topomap import MapLearner
-from topomap.app.experiment import run
+from topomap.app.run.experiment import run
 from topomap.core.phase1.clustering import BICClusters
 from topomap.core.progress import reporting
 

@@ -18,9 +18,9 @@ from pathlib import Path
 import pytest
 from omegaconf import OmegaConf
 
-from topomap.app.cli import overrides_of, plugins_named
-from topomap.app.experiment import make_learner, run
-from topomap.app.registry import Registry
+from topomap.app.compose.command_line import overrides_of, plugins_named
+from topomap.app.run.experiment import make_learner, run
+from topomap.app.compose.registry import Registry
 
 ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"
@@ -151,7 +151,7 @@ def compose_checked(command, make_cfg):
             cfg["data"] = {"component": "simulate", "n_steps": 10, "heldout_steps": 0}
         try:
             parts = registry.build(cfg)
-            make_learner(cfg, parts).check_params(n_gds=getattr(parts.world, "n_gds", 0))
+            make_learner(cfg, parts).check_params(n_gds=getattr(parts.env, "n_gds", 0))
         except ValueError as exc:
             failed.append((job, str(exc)))
     return failed

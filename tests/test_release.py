@@ -67,3 +67,18 @@ def test_the_package_is_typed():
     assert "py.typed" in meta["tool"]["setuptools"]["package-data"]["topomap"]
     hints = typing.get_type_hints(MapLearner.fit)
     assert {"observations", "actions", "gds", "lengths", "n_actions", "return"} <= set(hints)
+
+
+def test_topomap_metrics_is_a_module_of_its_own_and_import_topomap_loads_the_core_alone():
+    """``from topomap.metrics import ...`` imports a module of that name (no alias of another
+    module planted in ``sys.modules``), and ``import topomap`` loads no app layer."""
+    code = ("import sys, topomap\n"
+            "from topomap.metrics import adjusted_rand, evaluate\n"
+            "from topomap.core import metrics as core\n"
+            "assert topomap.metrics.__name__ == 'topomap.metrics', topomap.metrics.__name__\n"
+            "assert adjusted_rand is core.adjusted_rand and evaluate is core.evaluate\n"
+            "assert sys.modules['topomap.core.metrics'] is core\n"
+            "print(sorted({'hydra', 'pluggy', 'omegaconf'} & set(sys.modules)))\n")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.strip() == "[]"

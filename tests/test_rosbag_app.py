@@ -9,7 +9,7 @@ import pytest
 pytest.importorskip("rosbags")
 
 from topomap import read_rosbag, save_trajectory, write_rosbag  # noqa: E402
-from topomap.app.experiment import run  # noqa: E402
+from topomap.app.run.experiment import run  # noqa: E402
 from topomap.worlds import GridRoom, RandomExplorer  # noqa: E402
 
 LEARN = ["clusters.ns=4", "stop.n_states=48", "output.figures=false", "output.progress=false"]
@@ -71,3 +71,19 @@ def test_without_rosbags_installed_the_message_says_how_to_get_it(walk, tmp_path
     r = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True, text=True,
                        timeout=60)
     assert 'pip install "topomap[ros]"' in r.stdout, r.stderr
+
+
+def test_the_command_reads_the_steps_positions_from_a_pose_topic(tmp_path, make_cfg):
+    """``data.position_topic`` is read_rosbag's ``position_topic``: the run's trajectory holds the
+    positions the bag's ``/pose`` messages carry."""
+    from topomap import load_trajectory
+
+    traj = GridRoom().simulate(600, RandomExplorer(), np.random.default_rng(3))
+    traj.places = None
+    bag = write_rosbag(traj, tmp_path / "walk.bag")
+    run(make_cfg(["data=rosbag", f"data.path={bag}", "data.observation_topic=/scan",
+                  "data.action_topic=/action", "data.position_topic=/pose", "clusters.ns=4",
+                  "stop.n_states=10", "output.figures=false", "output.progress=false"]),
+        tmp_path / "out")
+    assert np.array_equal(load_trajectory(tmp_path / "out" / "trajectory.npz").positions,
+                          traj.positions)

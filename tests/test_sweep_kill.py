@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from topomap.app.sweep import main as report_main
+from topomap.app.report.cli import main as report_main
 
 pytestmark = pytest.mark.slow  # every test reads a real sweep, started (and killed) as a process
 
@@ -94,7 +94,7 @@ def test_a_killed_job_is_incomplete_and_no_finished_job_is_lost(killed_sweep):
     sweep, killed = killed_sweep
     assert not (sweep / "summary.csv").exists()  # the sweep died before its report
     assert not (sweep / "2").exists()  # the job after the killed one never started
-    result = subprocess.run([sys.executable, "-m", "topomap.app.sweep", str(sweep)],
+    result = subprocess.run([sys.executable, "-m", "topomap.app.report", str(sweep)],
                             capture_output=True, text=True, timeout=120)
     assert result.returncode == 0, result.stderr
     assert "sweep of 3 jobs, 1 completed, 0 failed, 1 incomplete, 1 not started" in result.stdout
@@ -187,3 +187,17 @@ def test_a_half_written_job_folder_is_reported_with_its_reason(killed_sweep, tmp
     else:
         assert rows["7"]["ari"] == "" and f"job 7 incomplete: {rows['7']['error']}" in \
             capsys.readouterr().out
+
+
+def test_a_column_is_read_where_its_file_has_it_and_is_none_wherever_it_does_not():
+    """A run's numbers are read the same whatever else its metrics.json holds: a missing level,
+    a level that is no mapping, a text that looks like an interpolation all give None."""
+    from topomap.app.results import METRICS
+
+    ari, fit_time = METRICS["ari"], METRICS["fit_time"]
+    assert ari.read({"ground_truth": {"final": {"ari": 0.5}}, "config": {"x": "${nope}"}}) == 0.5
+    for broken in ({}, {"ground_truth": None}, {"ground_truth": [1, 2]},
+                   {"ground_truth": {"final": {"ari": "${nope}"}}}, {"ground_truth": 3}):
+        assert ari.read(broken) is None
+    assert fit_time.read({"timings": {"phase1": 1.0, "phase2": 2.5}}) == 3.5  # summed
+    assert fit_time.read({"timings": {"phase1": 1.0}}) is None  # not all of its places

@@ -14,11 +14,15 @@ import pytest
 from omegaconf import OmegaConf
 
 from topomap import TopologicalMap, load_trajectory
-from topomap.app.data import trajectory_key
-from topomap.app.experiment import load_data, run
-from topomap.app.registry import Registry
-from topomap.app.sweep import METRICS, SweepReport, main as report_main, write_report
-from topomap.app.experiment import run_job
+from topomap.app.run.data import trajectory_key
+from topomap.app.run.data import load_data
+from topomap.app.run.experiment import run
+from topomap.app.compose.registry import Registry
+from topomap.app.report.callback import SweepReport
+from topomap.app.report.cli import main as report_main
+from topomap.app.report.summary import write_report
+from topomap.app.results import METRICS
+from topomap.app.run.job import run_job
 
 PNG = b"\x89PNG\r\n\x1a\n"
 SMALL = ["data.n_steps=200", "data.heldout_steps=150", "output.figures=false",
@@ -277,7 +281,7 @@ def test_ray_cluster_preset_joins_a_running_cluster(make_cfg):
 
 
 def test_the_objective_needs_its_data_and_names_the_keys(tmp_path, make_cfg):
-    from topomap.app.evaluate import objective_value
+    from topomap.app.run.evaluate import objective_value
 
     cfg = make_cfg([*SMALL, "data.heldout_steps=0"])
     with pytest.raises(ValueError, match="objective=heldout_loglik needs held-out data: "
@@ -311,7 +315,7 @@ def test_report_lists_crashed_and_unfinished_jobs(tmp_path, monkeypatch, make_cf
     def crash(*args, **kwargs):
         raise RuntimeError("disk on fire")
 
-    monkeypatch.setattr("topomap.app.experiment.run", crash)
+    monkeypatch.setattr("topomap.app.run.job.run", crash)
     assert run_job(cfg, job_dir(1, ["stop.n_states=11"]), sweep_dir=tmp_path) is None
     st = status(tmp_path / "1")
     assert st["status"] == "failed" and st["error"] == "RuntimeError: disk on fire"
@@ -411,7 +415,7 @@ def test_sweep_preset_and_slurm_example_compose(make_cfg):
     paper = make_cfg(["experiment=pricai2002"])
     for key in ("env", "noise", "explorer", "data", "seed", "clusters", "stop"):
         assert cfg[key] == paper[key], key
-    assert cfg.hydra.callbacks.sweep_report._target_ == "topomap.app.sweep.SweepReport"
+    assert cfg.hydra.callbacks.sweep_report._target_ == "topomap.app.report.callback.SweepReport"
 
     pytest.importorskip("hydra_plugins.hydra_submitit_launcher")
     slurm = make_cfg(["hydra/launcher=slurm", "hydra.launcher.partition=short"], hydra=True)

@@ -6,7 +6,8 @@ import logging
 import numpy as np
 import pytest
 
-from topomap.app.experiment import STEPS_PER_SYMBOL, run
+from topomap.app.run.checks import STEPS_PER_SYMBOL
+from topomap.app.run.experiment import run
 
 SMALL = ["data.n_steps=300", "data.heldout_steps=0", "output.progress=false",
          "output.figures=false"]

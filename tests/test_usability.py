@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from topomap import MapLearner, load_trajectory
-from topomap.app.experiment import run
+from topomap.app.run.experiment import run
 from topomap.core.data.trajectory import check_sequences
 
 PLUGINS = Path(__file__).resolve().parents[1] / "plugins"
@@ -161,7 +161,7 @@ def test_one_dimensional_observations_are_refused_with_a_reshape_hint():
 
 
 def test_a_sweep_cell_without_a_completed_job_says_why():
-    from topomap.app.sweep_columns import no_value
+    from topomap.app.report.columns import no_value
 
     assert no_value([{"status": "incomplete"}]) == "incomplete"
     assert no_value([{"status": "failed"}, {"status": "incomplete"}]) == "failed/incomplete"

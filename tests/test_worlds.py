@@ -18,8 +18,8 @@ from topomap.worlds.minigrid import (
     encode_view,
 )
 from topomap.worlds.table.random_graph import RandomGraphWorld, random_strong_digraph
-from topomap.app.experiment import run
-from topomap.app.outputs import FIGURE_FILES, OUTPUT_FILES
+from topomap.app.run.experiment import run
+from topomap.app.results import FIGURE_FILES, OUTPUT_FILES
 from topomap.worlds.explorers import RandomExplorer
 from topomap.core.data.trajectory import Trajectory
 

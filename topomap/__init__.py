@@ -13,24 +13,20 @@ The package has three floors, each importing only the ones below it:
 ``import topomap`` loads the core only.
 """
 
-import sys as _sys
-
+from . import metrics
 from .core import MapLearner, TopologicalMap, Trajectory, load_trajectory, save_trajectory
-from .core import metrics
 from .core.data.rosbag import read_rosbag, write_rosbag
 
-# ``import topomap.metrics`` keeps working: the module lives in the core
-_sys.modules[f"{__name__}.metrics"] = metrics
-
 __all__ = ["MapLearner", "TopologicalMap", "Trajectory", "load_trajectory", "save_trajectory",
-           "read_rosbag", "write_rosbag", "metrics", "hookimpl"]
+           "read_rosbag", "write_rosbag", "metrics", "hookimpl", "Component"]
 __version__ = "0.2.0"
 
 
 def __getattr__(name):
-    """``topomap.hookimpl`` (the plugin marker) is loaded on first use, with pluggy."""
-    if name == "hookimpl":
-        from .app.hookspecs import hookimpl
+    """What a plugin imports, ``topomap.hookimpl`` (the plugin marker) and ``topomap.Component``
+    (what it registers), is loaded on first use, with pluggy."""
+    if name in ("hookimpl", "Component"):
+        from .app.compose import hookspecs
 
-        return hookimpl
+        return getattr(hookspecs, name)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

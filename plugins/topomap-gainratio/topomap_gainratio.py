@@ -10,8 +10,7 @@ score has fallen below ``ratio`` times the score of the first split (an elbow cr
 from dataclasses import dataclass
 from typing import Optional
 
-from topomap import hookimpl
-from topomap.app.hookspecs import Component
+from topomap import Component, hookimpl
 
 
 @dataclass

@@ -1,4 +1,4 @@
-"""The ``topomap`` command: Hydra composes ``conf/`` and :func:`topomap.app.experiment.run` does the work.
+"""The ``topomap`` command: Hydra composes ``conf/`` and :func:`topomap.app.run.experiment.run` does the work.
 
     topomap                                   # the paper's experiment, outputs in outputs/runs/...
     topomap clusters.ns=15 stop.n_states=40
@@ -8,10 +8,11 @@
     topomap --version                         # topomap's version (with Hydra's and Python's)
 
 The line from the command to the work, each step once: :func:`main` reads the plugins named on the
-command line (with Hydra's own parsers), loads the :class:`~topomap.app.registry.Registry`,
-screens the command line and stores every component's typed config (:func:`prepare`); Hydra
-composes the config of each job and :func:`~topomap.app.experiment.run` takes it from there:
-the config is checked, the components are built, the map is learned, evaluated and written.
+command line (with Hydra's own parsers), loads the :class:`~topomap.app.compose.registry.Registry`,
+screens the command line and stores every component's typed config
+(:func:`~topomap.app.compose.command_line.prepare`); Hydra composes the config of each job and
+:func:`~topomap.app.run.experiment.run` takes it from there: the config is checked, the
+components are built, the map is learned, evaluated and written.
 """
 
 from __future__ import annotations
@@ -20,75 +21,22 @@ import logging
 import sys
 from pathlib import Path
 
-from .config import store_configs
-from .config_checks import check_overrides
-from .experiment import interrupt_on_sigterm, run, run_job, write_status
-from .outputs import OutputDirInUse, claim_output_dir
-from .registry import Registry
+from .compose.command_line import CONFIG_MODULE, overrides_of, prepare
+from .compose.registry import Registry
+from .run.experiment import run
+from .run.interrupts import interrupt_on_sigterm
+from .run.job import run_job, write_status
+from .run.outputs import OutputDirInUse
 
 log = logging.getLogger("topomap")
 
-__all__ = ["main", "overrides_of", "plugins_named", "prepare", "compose", "list_plugins"]
-
-CONFIG_MODULE = "topomap.conf"
-
-
-def overrides_of(argv) -> list[str]:
-    """The overrides (``key=value`` words) of a command line, as Hydra's own parser reads it."""
-    from hydra._internal.utils import get_args_parser
-
-    args, _ = get_args_parser().parse_known_args(list(argv))
-    return list(args.overrides or [])
-
-
-def plugins_named(overrides) -> list[str]:
-    """The plugin modules the overrides name (``plugins=[a,b]``), read with Hydra's override
-    parser: their components' configs must be stored before Hydra composes."""
-    from hydra.core.override_parser.overrides_parser import OverridesParser
-
-    try:
-        overrides = OverridesParser.create().parse_overrides(list(overrides))
-    except Exception:  # a syntax error: Hydra reports it when it parses the same line
-        return []
-    for override in overrides:
-        if override.key_or_group.lstrip("+~") != "plugins":
-            continue
-        if override.is_sweep_override():
-            raise ValueError("plugins cannot be swept; list every plugin in one plugins=[...]")
-        value = override.value()
-        return [str(v) for v in (value if isinstance(value, list) else [value]) if v]
-    return []
-
-
-def prepare(overrides, registry: Registry | None = None, *, user_configs: bool = False) -> Registry:
-    """What must happen before Hydra composes the config of ``topomap <overrides>``: the registry
-    (of the plugins the overrides name, unless given), the command line screened
-    (:func:`~topomap.app.config_checks.check_overrides`: Hydra would refuse an unknown key or a preset
-    that does not fit with its own message) and every component's config stored.
-    ``user_configs``: the command line brings config folders of its own (``-cd``, ``-cp``,
-    ``-cn``), whose options topomap does not know."""
-    registry = registry or Registry.load(plugins_named(overrides))
-    check_overrides(overrides, registry, user_configs=user_configs)
-    store_configs(registry)
-    return registry
-
-
-def compose(overrides=(), registry: Registry | None = None, *, return_hydra_config=False):
-    """The composed config of ``topomap <overrides>`` (Hydra's compose API; for notebooks and
-    tests).  The registry's component configs are stored first (:func:`prepare`)."""
-    from hydra import compose as hydra_compose
-    from hydra import initialize_config_module
-
-    prepare(overrides, registry)
-    with initialize_config_module(version_base="1.3", config_module=CONFIG_MODULE):
-        return hydra_compose(config_name="config", overrides=list(overrides),
-                             return_hydra_config=return_hydra_config)
+__all__ = ["main", "list_plugins", "version_line"]
 
 
 def list_plugins(registry: Registry, file=None) -> None:
     """Print every registered component by kind, and every action a plugin adds to a world, with
     the plugin that provides it."""
-    from .config import fields_of, schema_of
+    from .compose.schemas import fields_of, schema_of
 
     file = sys.stdout if file is None else file
     last = None
@@ -157,7 +105,7 @@ def optimising(sweeper) -> bool:
 
 def _task(cfg, registry: Registry):
     """One run (or one job of a sweep) of the composed config ``cfg``; returns the run's
-    ``objective`` (:data:`~topomap.app.evaluate.OBJECTIVES`) for a sweeper to optimise, None for
+    ``objective`` (:data:`~topomap.app.results.OBJECTIVES`) for a sweeper to optimise, None for
     a failed job."""
     from hydra.core.hydra_config import HydraConfig
 
@@ -181,9 +129,7 @@ def _single_run(cfg, out, registry: Registry) -> dict:
     """``topomap <overrides>`` without ``-m``: the run's results; a failed or interrupted run
     leaves ``status.json`` in its folder saying so, and ends the command with one line."""
     try:
-        if claim_output_dir(out, bool(cfg.output.overwrite)):
-            _restart_log(out)
-        return run(cfg, out, registry=registry)
+        return run(cfg, out, registry=registry, on_replaced=_restart_log)
     except OutputDirInUse as exc:  # another run's folder: leave it as it is
         sys.exit(f"topomap: error: {exc}")
     except KeyboardInterrupt:
@@ -221,12 +167,12 @@ def _restart_log(out) -> None:
 INTERRUPTED = 130
 
 
-def _interrupted() -> None:
+def _interrupted(exc: KeyboardInterrupt) -> None:
     """After Ctrl-C or SIGTERM outside a single run's own handling: a sweep writes its report
     (with the interrupted job and the jobs that did not start); then one line, exit 130."""
-    from .sweep import interrupted_sweep_report
+    from .report.callback import SweepInterrupted
 
-    where = interrupted_sweep_report()
+    where = exc.write_report() if isinstance(exc, SweepInterrupted) else None
     print("topomap: interrupted" + (f"; sweep report in {where}" if where else ""),
           file=sys.stderr)
     sys.exit(INTERRUPTED)
@@ -265,8 +211,8 @@ def main() -> None:
         registry = prepare(overrides_of(argv), user_configs=_user_configs(argv))
     except ValueError as exc:
         sys.exit(f"topomap: error: {exc}")
-    except KeyboardInterrupt:
-        _interrupted()
+    except KeyboardInterrupt as exc:
+        _interrupted(exc)
 
     @hydra.main(version_base="1.3", config_path=f"pkg://{CONFIG_MODULE}", config_name="config")
     def topomap(cfg):
@@ -274,8 +220,8 @@ def main() -> None:
 
     try:
         topomap()
-    except KeyboardInterrupt:
-        _interrupted()
+    except KeyboardInterrupt as exc:
+        _interrupted(exc)
 
 
 if __name__ == "__main__":

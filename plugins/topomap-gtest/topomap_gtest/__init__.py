@@ -13,8 +13,7 @@ not split at all; among the others the largest ``-log10 p`` wins.
 import numpy as np
 from scipy.stats import chi2
 
-from topomap import hookimpl
-from topomap.app.hookspecs import Component
+from topomap import Component, hookimpl
 from topomap.core.split.criteria import EntropyCriterion
 
 

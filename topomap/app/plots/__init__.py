@@ -1,5 +1,5 @@
-"""Every figure topomap draws: a run's (:mod:`.run` and :mod:`.curves`, after the paper's
-Figs. 4-7) and a sweep's (:mod:`.sweep`), in one style (:mod:`.style`)."""
+"""The figures of a run (:mod:`.run` and :mod:`.curves`, after the paper's Figs. 4-7), in one
+style (:mod:`.style`) that the sweep's figure (:mod:`topomap.app.report.figure`) shares."""
 
 from .curves import plot_entropy, plot_mapping
 from .run import compound_mask, plot_map, plot_split, plot_states, write_figures

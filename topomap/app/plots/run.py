@@ -60,11 +60,11 @@ def _jitter(P, seed=0):
     return P + np.random.default_rng(seed).normal(0, 0.0075 * max(span, 1.0), P.shape)
 
 
-def _room(ax, world, positions, faint=False):
+def _room(ax, env, positions, faint=False):
     """The world's room (or bare limits around ``positions``); ``faint`` fades it into a
     background and drops its legend, so that colours are the states'."""
-    if world is not None and hasattr(world, "plot_room"):
-        world.plot_room(ax, labels=False)
+    if env is not None and hasattr(env, "plot_room"):
+        env.plot_room(ax, labels=False)
     else:
         ax.set_aspect("equal")
         lo, hi = positions.min(axis=0), positions.max(axis=0)
@@ -164,14 +164,14 @@ def _spots(labels, positions, places, S, min_share=0.1):
     return state[keep], sums[keep] / counts[keep, None], compound[state[keep]]
 
 
-def plot_states(ax, traj, labels, world=None, title=""):
+def plot_states(ax, traj, labels, env=None, title=""):
     """Observation points (jittered positions) in the style of their state, with each state's
     number at its mean position; a compound state (steps of more than one ground-truth place) is
     ringed and numbered at each of its places (see :func:`_spots`).  Numbers and rings are left
     out beyond :data:`MAX_STATE_NUMBERS` numbers.  Returns ``ax``."""
     labels = np.asarray(labels)
     S = int(labels.max()) + 1
-    _room(ax, world, traj.positions, faint=True)
+    _room(ax, env, traj.positions, faint=True)
     P = _jitter(traj.positions)
     styles = state_styles(S)
     colours = np.array([c for c, _ in styles])
@@ -260,7 +260,7 @@ def _table_rows(m, s) -> int:
     return int(np.count_nonzero(m.transition_counts[s].sum(axis=1)))
 
 
-def plot_split(fig, traj, learner, world=None, state=None):
+def plot_split(fig, traj, learner, env=None, state=None):
     """A compound phase-1 state (left) and the states the split made of it (right), each in its
     style of :func:`plot_states`, with their transition tables below (the split, not a later
     refinement: :func:`_split_stage`).  The tables' row is as tall as the longest table needs.
@@ -284,7 +284,7 @@ def plot_split(fig, traj, learner, world=None, state=None):
     top = [fig.add_subplot(grid[0, :3]), fig.add_subplot(grid[0, 3:])]
     P = _jitter(traj.positions)
     for ax, labels, m in zip(top, (learner.labels_phase1_, labels1), (m0, m1)):
-        _room(ax, world, traj.positions, faint=True)
+        _room(ax, env, traj.positions, faint=True)
         _clouds(ax, traj, P, labels, sel, m.state_label)
     top[0].set_title(f"state {state} after clustering ({sel.sum()} steps)", fontsize=TITLE_SIZE)
     top[1].set_title(f"after splitting: states {', '.join(map(str, after))}", fontsize=TITLE_SIZE)
@@ -350,7 +350,7 @@ def _nodes(ax, P, states, kinds, diameter, numbered):
             ax.text(x, y, str(s), ha="center", va="center", fontsize=5.5, zorder=5)
 
 
-def plot_map(ax, traj, learner, world=None, min_prob=0.8):
+def plot_map(ax, traj, learner, env=None, min_prob=0.8):
     """The learned map at the states' mean positions, arcs where some P(x'|x,u) > min_prob;
     numbered nodes (spread apart where they coincide) up to :data:`MAX_MAP_NUMBERS` states, small
     dots beyond; compound states lavender (when the ground truth is known), GDS states gold.  One legend
@@ -358,7 +358,7 @@ def plot_map(ax, traj, learner, world=None, min_prob=0.8):
     m = learner.map_
     G = m.to_networkx(min_prob=min_prob)
     means = _state_positions(learner.labels_, traj.positions, m.n_states)
-    _room(ax, world, traj.positions)
+    _room(ax, env, traj.positions)
     room_legend = ax.get_legend()
     keep = np.array([s for s in G.nodes if np.isfinite(means[s]).all()], dtype=int)
     G = G.subgraph(keep.tolist())
@@ -383,8 +383,8 @@ def plot_map(ax, traj, learner, world=None, min_prob=0.8):
     return ax
 
 
-def write_figures(out: Path, traj, learner, world=None, *, min_prob=0.8, compound_state=None):
-    """Write the figures of :data:`topomap.app.outputs.FIGURE_FILES` that the data allows
+def write_figures(out: Path, traj, learner, env=None, *, min_prob=0.8, compound_state=None):
+    """Write the figures of :data:`topomap.app.results.FIGURE_FILES` that the data allows
     (the room figures need ground-truth positions); the drawing's progress is reported as
     ``"drawing figures"`` (:mod:`topomap.core.progress`)."""
     plt = pyplot()
@@ -406,22 +406,22 @@ def write_figures(out: Path, traj, learner, world=None, *, min_prob=0.8, compoun
     if traj.positions is not None:
         refined = _refined(learner)
         fig, axes = plt.subplots(1, 3 if refined else 2, figsize=(18 if refined else 12, 4.9))
-        plot_states(axes[0], traj, learner.labels_phase1_, world,
+        plot_states(axes[0], traj, learner.labels_phase1_, env,
                     f"after clustering: {learner.map_phase1_.n_states} states")
         split_labels, split_map = _split_stage(learner)
-        plot_states(axes[1], traj, split_labels, world,
+        plot_states(axes[1], traj, split_labels, env,
                     f"after splitting: {split_map.n_states} states")
         if refined:
-            plot_states(axes[2], traj, learner.labels_, world,
+            plot_states(axes[2], traj, learner.labels_, env,
                         f"after the refinement: {learner.map_.n_states} states")
         drawn(fig, "fig_states.png")
         fig = plt.figure(figsize=(13, 6.6))
-        if not plot_split(fig, traj, learner, world, compound_state):
+        if not plot_split(fig, traj, learner, env, compound_state):
             plt.close(fig)
             fig = None
         drawn(fig, "fig_split.png")
         fig, ax = plt.subplots(figsize=(8, 6))
-        plot_map(ax, traj, learner, world, min_prob)
+        plot_map(ax, traj, learner, env, min_prob)
         drawn(fig, "fig_map.png")
     fig, ax = plt.subplots(figsize=(6.5, 3.5))
     plot_entropy(ax, learner)

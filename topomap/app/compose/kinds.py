@@ -1,9 +1,9 @@
 """The kinds of component a run is made of, declared once.
 
 Every list of kinds in the app is :data:`KINDS` or derived from it: the kinds a plugin's
-:class:`~topomap.app.hookspecs.Component` may have, the config groups of the top-level config
-(:class:`topomap.app.config.Config`), the components of a run and the order they are built in
-(:class:`topomap.app.registry.Parts`), the :class:`~topomap.MapLearner` arguments they fill (and
+:class:`~topomap.app.compose.hookspecs.Component` may have, the config groups of the top-level config
+(:class:`topomap.app.compose.schemas.Config`), the components of a run and the order they are built in
+(:class:`topomap.app.compose.registry.Parts`), the :class:`~topomap.MapLearner` arguments they fill (and
 the config keys the learner's errors are reported under), and the plugins behind the learner's
 components in ``metrics.json``.
 """
@@ -24,11 +24,11 @@ class Kind:
     ----------
     name : str
         The kind's name: ``Component.kind``, the config group that selects the component
-        (``topomap split=<name>``) and the attribute of :class:`~topomap.app.registry.Parts`
+        (``topomap split=<name>``) and the attribute of :class:`~topomap.app.compose.registry.Parts`
         holding the built object.
     returns : str
         What the component's factory returns (the interface the app relies on).
-    world : bool
+    simulated : bool
         A part of the simulated world: built only when the data component simulates.
     learner_arg : str or None
         The :class:`~topomap.MapLearner` argument the built object is passed as.
@@ -36,7 +36,7 @@ class Kind:
 
     name: str
     returns: str
-    world: bool = False
+    simulated: bool = False
     learner_arg: str | None = None
 
 
@@ -44,9 +44,9 @@ class Kind:
 #: (it tells whether the world is built)
 KINDS = MappingProxyType({kind.name: kind for kind in (
     Kind("env", "a world: ``simulate(n_steps, explorer, rng) -> Trajectory`` (optional: "
-                "``plot_room(ax)``, an ``extra_actions=`` argument)", world=True),
-    Kind("noise", "``apply(observations, rng) -> observations`` (a new array)", world=True),
-    Kind("explorer", "``choose(executable_mask, rng) -> action id``", world=True),
+                "``plot_room(ax)``, an ``extra_actions=`` argument)", simulated=True),
+    Kind("noise", "``apply(observations, rng) -> observations`` (a new array)", simulated=True),
+    Kind("explorer", "``choose(executable_mask, rng) -> action id``", simulated=True),
     Kind("metric", "``fit_transform(X) -> Z``; K-means runs on ``Z``", learner_arg="metric"),
     Kind("clusters", "``choose(Z, random_state) -> ns``", learner_arg="clusters"),
     Kind("split", "``propose(counts) -> (side, score) | None``", learner_arg="criterion"),
@@ -58,6 +58,6 @@ KINDS = MappingProxyType({kind.name: kind for kind in (
                  "``heldout(parts, seed)`` return Trajectory objects (or None)"),
     Kind("evaluate", "``evaluate(map, labels, places, world, noise) -> dict``, or None for no "
                      "extra evaluation"),
-    Kind("logger", "``log_run(record)`` with a :class:`~topomap.app.loggers.RunRecord` once the "
+    Kind("logger", "``log_run(record)`` with a :class:`~topomap.app.components.loggers.RunRecord` once the "
                    "run has written its outputs, or None for no logging"),
 )})

@@ -1,5 +1,5 @@
 """Closed configs: the command line and the composed config checked against the schemas of
-:mod:`topomap.app.config`, in topomap's words.
+:mod:`topomap.app.compose.schemas`, in topomap's words.
 
 :func:`check_config` checks the composed config once, before anything is built (a key no schema
 of the selected components declares, added with ``+`` or by a YAML file; a required value left
@@ -16,8 +16,9 @@ from importlib import resources
 
 from omegaconf import OmegaConf
 
-from .config import Config, LearnerConf, OutputConf, fields_of, read_yaml_options, schema_of
 from .kinds import KINDS
+from .schemas import Config, LearnerConf, OutputConf, fields_of, schema_of
+from .store import read_yaml_options
 
 __all__ = ["check_overrides", "check_config", "group_options", "default_choices",
            "preset_overrides", "valid_keys"]

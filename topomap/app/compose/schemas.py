@@ -7,11 +7,10 @@ key fails at once, and a config can never drift from the constructor it feeds.  
 a parameter named ``seed`` defaults to the run's ``${seed}``, and the arguments the app supplies
 itself (:data:`RUNTIME_ARGS`) are not config fields.
 
-:func:`store_configs` puts every component's config into Hydra's ConfigStore as ``<kind>/<name>``
-(with the values of a plugin's own YAML file for it, if it ships one) and the top-level schema as
-``topomap_schema``; ``conf/config.yaml`` composes them.
+:func:`~topomap.app.compose.store.store_configs` puts them into Hydra's ConfigStore, where
+``conf/config.yaml`` composes them.
 
-Closed configs: Hydra checks the types; :mod:`topomap.app.config_checks` checks the command line
+Closed configs: Hydra checks the types; :mod:`topomap.app.compose.config_checks` checks the command line
 and the composed config against these schemas, naming the nearest valid key.
 """
 
@@ -19,22 +18,22 @@ from __future__ import annotations
 
 import dataclasses
 import inspect
-import re
 import typing
+from contextlib import contextmanager
 from dataclasses import MISSING as _NO_DEFAULT
 from dataclasses import dataclass, field, make_dataclass
 from enum import Enum
-from importlib import resources
-from pathlib import Path
 from typing import Any, Optional
 
-from omegaconf import II, MISSING, OmegaConf
+from omegaconf import II, MISSING
 
-from ..core.learner import MapLearner
+from ...core.checks import ParameterError
+from ...core.learner import MapLearner
+from ..results import OBJECTIVES
 from .kinds import KINDS
 
 __all__ = ["Config", "RunConf", "Objective", "LearnerConf", "OutputConf", "RUNTIME_ARGS", "schema_of",
-           "learner_schema", "learner_key", "store_configs", "read_yaml_options", "fields_of"]
+           "learner_schema", "learner_key", "config_keys", "fields_of"]
 
 #: factory arguments the app passes itself; never config fields
 RUNTIME_ARGS = frozenset({"extra_actions"})
@@ -85,7 +84,8 @@ def _parameters(factory):
     for p in inspect.signature(factory).parameters.values():
         if p.name in RUNTIME_ARGS or p.kind in (p.VAR_POSITIONAL, p.VAR_KEYWORD):
             continue
-        out.append((p.name, hints.get(p.name, Any), p.default))
+        annotation = hints.get(p.name, p.annotation)  # a signature made by hand: its own
+        out.append((p.name, Any if annotation is p.empty else annotation, p.default))
     return out
 
 
@@ -135,12 +135,9 @@ class Task(Enum):
     localize = "localize"
 
 
-class Objective(Enum):
-    """The value a run returns to a sweeper that optimises it (``hydra/sweeper=optuna``); both
-    are better when larger (:data:`topomap.app.evaluate.OBJECTIVES`)."""
-
-    heldout_loglik = "heldout_loglik"
-    ari = "ari"
+#: The value a run returns to a sweeper that optimises it (``hydra/sweeper=optuna``): one of
+#: :data:`~topomap.app.results.OBJECTIVES`
+Objective = Enum("Objective", {name: name for name in OBJECTIVES}, module=__name__)
 
 
 @dataclass
@@ -159,113 +156,13 @@ class RunConf:
 
 
 #: The top level of a run's config: the run settings, one group per kind of component
-#: (:data:`~topomap.app.kinds.KINDS`; each holds a ``<kind>/<name>`` config), ``learner`` and
+#: (:data:`~topomap.app.compose.kinds.KINDS`; each holds a ``<kind>/<name>`` config), ``learner`` and
 #: ``output``.
 Config = make_dataclass("Config", [
     *((kind, Any, field(default=MISSING)) for kind in KINDS),
     ("learner", LearnerConf, field(default_factory=LearnerConf)),
     ("output", OutputConf, field(default_factory=OutputConf)),
 ], bases=(RunConf,))
-
-
-# ------------------------------------------------------------------------------ plugin YAML files
-_PACKAGE_HEADER = re.compile(r"^#\s*@package\s+(\S+)", re.MULTILINE)
-
-
-def _yaml_folder(path: str):
-    """A Traversable for ``pkg://package.sub`` or ``file:///abs/dir`` (or a plain path)."""
-    if path.startswith("pkg://"):
-        try:
-            return resources.files(path[len("pkg://"):].replace("/", "."))
-        except ImportError as exc:
-            raise ValueError(f"config folder {path} cannot be imported ({exc})") from None
-    folder = Path(path[len("file://"):] if path.startswith("file://") else path)
-    if not folder.is_dir():
-        raise ValueError(f"config folder {path} does not exist")
-    return folder
-
-
-def read_yaml_options(path: str) -> list[tuple[str, str, str, str | None]]:
-    """``(group, option, text, package)`` of every ``<group>/<option>.yaml`` below ``path``."""
-    out = []
-
-    def walk(folder, group):
-        for item in sorted(folder.iterdir(), key=lambda i: i.name):
-            if item.is_dir() and not item.name.startswith(("_", ".")):
-                walk(item, f"{group}/{item.name}" if group else item.name)
-            elif item.name.endswith(".yaml") and group:
-                text = item.read_text()
-                header = _PACKAGE_HEADER.search(text)
-                out.append((group, item.name[:-5], text, header.group(1) if header else None))
-
-    walk(_yaml_folder(path), "")
-    return out
-
-
-def _merge_yaml(schema, text: str, name: str):
-    """A component's typed config with the values of its YAML file (which may name the legacy
-    ``<name>_schema`` in its defaults list; that entry is implied)."""
-    values = OmegaConf.create(text) or OmegaConf.create({})
-    defaults = [d for d in values.pop("defaults", []) if d not in (f"{name}_schema", "_self_")]
-    if defaults:
-        raise ValueError(f"config option {name}.yaml: a component's YAML file may only set values "
-                         f"(its defaults list names {list(defaults)})")
-    return OmegaConf.merge(OmegaConf.structured(schema), values)
-
-
-def store_configs(registry) -> None:
-    """Put the top-level schema and every component's config into Hydra's ConfigStore."""
-    from hydra.core.config_store import ConfigStore
-
-    cs = ConfigStore.instance()
-    cs.store(name="topomap_schema", node=Config)
-    files = {}
-    for path, provider in registry.config_paths():
-        try:
-            options = read_yaml_options(path)
-        except ValueError as exc:
-            raise ValueError(f"plugin {provider!r}: {exc}") from None
-        for group, option, text, package in options:
-            files[(group, option)] = (text, package, provider)
-    for kind, name, comp, provider in registry.items():
-        text = files.pop((kind, name), (None,))[0]
-        node = schema_of(comp) if text is None else _merge_yaml(schema_of(comp), text, name)
-        cs.store(group=kind, name=name, node=node, provider=provider)
-    for (group, option), (text, package, provider) in files.items():
-        cs.store(group=group, name=option, node=OmegaConf.create(text), package=package,
-                 provider=provider)
-    store_optuna_sweeper(cs)
-
-
-def store_optuna_sweeper(cs) -> None:
-    """``hydra/sweeper=optuna`` set for topomap, when the Optuna sweeper plugin is installed
-    (``pip install "topomap[optuna]"``): the plugin's own config (``OptunaSweeperConf``), but
-    maximising (both of topomap's objectives are better when larger; the plugin minimises by
-    default), one trial at a time, and going on past jobs that cannot run (``max_failure_rate``:
-    such a job is a failed trial and a row of ``summary.csv``, as in a grid); and its default
-    sampler, ``hydra/sweeper/sampler=tpe``, seeded by the run's ``seed`` (the same command
-    proposes the same trials).  Every field can still be set: ``hydra.sweeper.n_trials=30``."""
-    try:
-        from hydra_plugins.hydra_optuna_sweeper.config import OptunaSweeperConf, TPESamplerConfig
-    except ImportError:
-        return
-    from hydra.core.plugins import Plugins
-
-    Plugins.instance()  # Hydra's first plugin scan stores the plugin's options: let it come first
-
-    @dataclass
-    class TopomapOptunaSweeperConf(OptunaSweeperConf):
-        direction: Any = "maximize"
-        n_jobs: int = 1
-        max_failure_rate: float = 1.0
-
-    @dataclass
-    class SeededTPESamplerConf(TPESamplerConfig):
-        seed: Optional[int] = II("seed")
-
-    cs.store(group="hydra/sweeper", name="optuna", node=TopomapOptunaSweeperConf, provider="topomap")
-    cs.store(group="hydra/sweeper/sampler", name="tpe", node=SeededTPESamplerConf,
-             provider="topomap")
 
 
 def fields_of(schema) -> dict:
@@ -290,3 +187,15 @@ def learner_key(param: str) -> str:
     if head in groups:
         return groups[head] + dot + rest
     return f"learner.{param}" if param in fields_of(LearnerConf) else param
+
+
+@contextmanager
+def config_keys(group: str | None = None):
+    """Name the parameter of a :class:`~topomap.core.checks.ParameterError` raised inside by its
+    config key: ``<group>.<param>`` for a component of ``group``, else the key of a
+    :class:`MapLearner` parameter (:func:`~topomap.app.compose.schemas.learner_key`)."""
+    try:
+        yield
+    except ParameterError as err:
+        key = f"{group}.{err.param}" if group else learner_key(err.param)
+        raise err.renamed(key) from err.__cause__

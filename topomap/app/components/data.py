@@ -1,4 +1,4 @@
-"""Data components: where a run's trajectories come from, and the cache a sweep shares them in.
+"""Data components: where a run's trajectories come from.
 
 A data component has ``simulates`` (whether it needs the world, noise and explorer),
 ``train(parts, seed, progress)`` -> the :class:`~topomap.Trajectory` learned from, and
@@ -7,24 +7,21 @@ A data component has ``simulates`` (whether it needs the world, noise and explor
 
 from __future__ import annotations
 
-import hashlib
-import json
-import logging
-from pathlib import Path
-from typing import Any
+import dataclasses
+import inspect
+import typing
+from typing import Any, Optional
 
 import numpy as np
 
-from ..core.checks import ParameterError, check_count
-from ..core.data.rosbag import read_rosbag
-from ..core.data.trajectory import Trajectory, load_trajectory, save_trajectory
-from ..worlds.explorers import RandomExplorer
-from ..worlds.mapping import heldout_judge, map_while_exploring, quality_curve
+from ...core.checks import ParameterError, check_count
+from ...core.data.rosbag import read_rosbag
+from ...core.data.rosbag.options import Options
+from ...core.data.trajectory import Trajectory, load_trajectory
+from ...worlds.explorers import RandomExplorer
+from ...worlds.mapping import heldout_judge, map_while_exploring, quality_curve
 
-log = logging.getLogger("topomap")
-
-__all__ = ["Simulate", "FromFile", "FromRosbag", "trajectory_key", "TrajectoryCache",
-           "seed_streams"]
+__all__ = ["Simulate", "FromFile", "FromRosbag", "seed_streams"]
 
 
 def seed_streams(seed: int):
@@ -71,16 +68,16 @@ class Simulate:
     def train(self, parts, seed: int, progress=None, learner=None) -> Trajectory:
         rng_sim, rng_noise, _ = seed_streams(seed)
         explorer = parts.explorer if progress is None else progress.ticking(parts.explorer, self.n_steps)
-        every = self.maps_while_exploring(parts)
-        if every and learner is not None:
+        update_every = self.maps_while_exploring(parts)
+        if update_every and learner is not None:
             judge = heldout_judge(self.judging_walk(parts, seed))
-            traj, walk = map_while_exploring(parts.world, self.n_steps, explorer, learner,
-                                             parts.noise, rng_sim, rng_noise, every, judge)
+            traj, walk = map_while_exploring(parts.env, self.n_steps, explorer, learner,
+                                             parts.noise, rng_sim, rng_noise, update_every, judge)
             walk.flush()
-            traj.meta["mapping"] = {"every": every, "explorer": repr(parts.explorer),
+            traj.meta["mapping"] = {"every": update_every, "explorer": repr(parts.explorer),
                                     "curve": quality_curve(walk, traj.places)}
             return traj
-        traj = parts.world.simulate(self.n_steps, explorer, rng_sim)
+        traj = parts.env.simulate(self.n_steps, explorer, rng_sim)
         traj.observations = parts.noise.apply(traj.observations, rng_noise)
         return traj
 
@@ -89,7 +86,7 @@ class Simulate:
         ``min(n_steps, 10000)`` steps of :class:`~topomap.worlds.RandomExplorer`, from the seed's
         fourth random stream."""
         rng_sim, rng_noise = np.random.SeedSequence(int(seed)).spawn(4)[3].spawn(2)
-        traj = parts.world.simulate(min(self.n_steps, 10000), RandomExplorer(),
+        traj = parts.env.simulate(min(self.n_steps, 10000), RandomExplorer(),
                                     np.random.default_rng(rng_sim))
         traj.observations = parts.noise.apply(traj.observations, np.random.default_rng(rng_noise))
         return traj
@@ -98,7 +95,7 @@ class Simulate:
         if self.heldout_steps == 0:
             return None
         rng_sim, rng_noise = seed_streams(seed)[2].spawn(2)
-        traj = parts.world.simulate(self.heldout_steps, parts.explorer, rng_sim)
+        traj = parts.env.simulate(self.heldout_steps, parts.explorer, rng_sim)
         traj.observations = parts.noise.apply(traj.observations, rng_noise)
         return traj
 
@@ -127,31 +124,49 @@ class FromFile:
         return None if self.heldout_path is None else load_trajectory(self.heldout_path)
 
 
+def _bag_options() -> list[inspect.Parameter]:
+    """The options of ``data=rosbag``, declared once, by :func:`topomap.read_rosbag`: the fields
+    of its checked options (:class:`~topomap.core.data.rosbag.options.Options`, with their types)
+    with its defaults, but ``action_rule``, a callable that no config can hold."""
+    hints = typing.get_type_hints(Options)
+    defaults = inspect.signature(read_rosbag).parameters
+    return [inspect.Parameter(f.name, inspect.Parameter.KEYWORD_ONLY,
+                              annotation=_names_if_list(hints[f.name]),
+                              default=defaults[f.name].default)
+            for f in dataclasses.fields(Options) if f.name != "action_rule"]
+
+
+def _names_if_list(hint):
+    """An option's type in the config: the lists of :func:`read_rosbag`'s options hold names
+    (field paths, action names, GDS names), so a list or tuple is a list of str."""
+    args = set(typing.get_args(hint))
+    if hint in (list, tuple) or (args and args - {type(None)} <= {list, tuple}):
+        return Optional[list[str]] if type(None) in args else list[str]
+    return hint
+
+
 class FromRosbag:
     """Learn from ROS bags (``pip install "topomap[ros]"``): one step per message on the action
     topic, the observation the latest message at or before it on the observation topic.
 
     Every parameter but ``path`` and ``heldout_path`` is an argument of
-    :func:`topomap.read_rosbag` (which documents the rules); ``path`` is one bag (a ROS 1 ``.bag``
-    file, a ROS 2 bag folder) or a list of bags, one episode each.  ``heldout_path`` (one bag or a
-    list) is a second recording of the same world the map is scored on.
+    :func:`topomap.read_rosbag` (which documents the rules, and declares them: this class's
+    signature is derived from it); ``path`` is one bag (a ROS 1 ``.bag`` file, a ROS 2 bag
+    folder) or a list of bags, one episode each.  ``heldout_path`` (one bag or a list) is a
+    second recording of the same world the map is scored on.
     """
 
     simulates = False
+    __signature__ = inspect.Signature([
+        inspect.Parameter("path", inspect.Parameter.POSITIONAL_OR_KEYWORD, annotation=Any),
+        *_bag_options(),
+        inspect.Parameter("heldout_path", inspect.Parameter.KEYWORD_ONLY, annotation=Any,
+                          default=None)])
 
-    def __init__(self, path: Any, observation_topic: str, action_topic: str,
-                 observation_fields: list[str] | None = None, scan_bins: int | None = None,
-                 max_range: float | None = None, gds_topic: str | None = None,
-                 gds_window: float = 0.5, action_names: list[str] | None = None,
-                 gds_names: list[str] | None = None, linear_threshold: float = 0.05,
-                 angular_threshold: float = 0.1, heldout_path: Any = None):
-        self.path, self.heldout_path = path, heldout_path
-        self.options = dict(
-            observation_topic=observation_topic, action_topic=action_topic,
-            observation_fields=observation_fields, scan_bins=scan_bins, max_range=max_range,
-            gds_topic=gds_topic or None, gds_window=gds_window, action_names=action_names,
-            gds_names=gds_names, linear_threshold=linear_threshold,
-            angular_threshold=angular_threshold)
+    def __init__(self, path: Any, **options):
+        bound = self.__signature__.bind(path, **options)  # a TypeError naming what is wrong
+        self.path, self.heldout_path = path, options.pop("heldout_path", None)
+        self.options = {k: v for k, v in bound.arguments.items() if k in options}
 
     def train(self, parts, seed: int, progress=None) -> Trajectory:
         return read_rosbag(self.path, **self.options)
@@ -163,58 +178,3 @@ class FromRosbag:
             return read_rosbag(self.heldout_path, **self.options)
         except ParameterError as err:  # read_rosbag's path is this heldout_path
             raise (err.renamed("heldout_path") if err.param == "path" else err) from None
-
-
-def trajectory_key(cfg, kind: str = "train", plugins=()) -> str:
-    """A hash of every setting that determines a simulated trajectory.
-
-    ``kind`` is ``"train"`` (the trajectory learned from) or ``"heldout"`` (the one scored);
-    ``plugins`` the loaded plugins (a plugin may add actions to the world).  Two configs with the
-    same key simulate the same trajectory, whatever their learner settings.
-    """
-    data = dict(cfg["data"])
-    if kind == "train":
-        data.pop("heldout_steps", None)
-    elif kind == "heldout":
-        hold = data.get("heldout_steps")
-        data["heldout_steps"] = data.get("n_steps") if hold is None else hold
-    else:
-        raise ValueError(f"kind must be 'train' or 'heldout', not {kind!r}")
-    payload = {"kind": kind, "data": data, "seed": cfg["seed"],
-               "plugins": sorted({str(p) for p in cfg.get("plugins") or ()} | set(plugins)),
-               **{k: dict(cfg[k]) for k in ("env", "noise", "explorer")}}
-    text = json.dumps(payload, sort_keys=True, default=str)
-    return hashlib.sha256(text.encode()).hexdigest()[:16]
-
-
-class TrajectoryCache:
-    """A folder of simulated trajectories shared by the jobs of a sweep.
-
-    :meth:`get` loads ``<folder>/<name>.npz`` or builds and stores it (a build that returns None,
-    "no trajectory", is not stored), holding a lock file
-    (``filelock.SoftFileLock``, which works on a cluster's shared file system) so that parallel
-    jobs build each trajectory once; the file itself is written atomically.
-    """
-
-    def __init__(self, folder, timeout: float = 3600.0):
-        self.folder = Path(folder)
-        self.timeout = float(timeout)
-
-    def get(self, name: str, build) -> Trajectory | None:
-        from filelock import SoftFileLock, Timeout
-
-        path = self.folder / f"{name}.npz"
-        self.folder.mkdir(parents=True, exist_ok=True)
-        try:
-            with SoftFileLock(str(path.with_suffix(".lock")), timeout=self.timeout):
-                if path.is_file():
-                    log.info("trajectory %s: reused from %s", name, path)
-                    return load_trajectory(path)
-                traj = build()
-                if traj is not None:
-                    save_trajectory(traj, path)
-                return traj
-        except Timeout:
-            raise ValueError(f"waited {self.timeout:.0f} s for {path} (lock "
-                             f"{path.with_suffix('.lock')}); if no job is building it, delete "
-                             "the lock file") from None

@@ -5,7 +5,6 @@ from __future__ import annotations
 import json
 import os
 import shutil
-import signal
 import sys
 import tempfile
 import time
@@ -15,49 +14,17 @@ from pathlib import Path
 
 import numpy as np
 
-from ..core.data.files import atomic_write
-from ..core.data.trajectory import save_trajectory
+from ...core.data.files import atomic_write
+from ...core.data.trajectory import save_trajectory
+from ..results import (FIGURE_FILES, LOCALIZE_FILES, MAPPING_FIGURES, METRICS_FILE, OUTPUT_FILES,
+                       STATUS_FILE)
+from .interrupts import held_signals
 
-__all__ = ["OUTPUT_FILES", "FIGURE_FILES", "HTML_FILES", "MAPPING_FIGURES", "LOCALIZE_FILES", "STATUS_FILE",
-           "write_outputs", "write_localization", "versions", "write_json", "staged",
-           "held_signals", "own_files", "claim_output_dir", "OutputDirInUse"]
+__all__ = ["write_outputs", "write_localization", "versions", "write_json", "staged",
+           "own_files", "claim_output_dir", "OutputDirInUse"]
 
-#: the status of a sweep job (``completed``, ``failed`` or ``interrupted``) and of a run that
-#: failed or was interrupted, with the error
-STATUS_FILE = "status.json"
 #: where a run stages its files before they move into its folder (hidden, removed afterwards)
 STAGE_PREFIX = ".topomap-partial-"
-
-#: files every run writes, with what they hold (figures only with ``output.figures``)
-OUTPUT_FILES = {
-    "trajectory.npz": "the observations and actions learned from (plus GDS, ground truth)",
-    "map.json": "the learned map (states, observation models, counts, split history)",
-    "map.graphml": "the map as a graph: arcs where P(x'|x,u) > output.min_prob",
-    "states.csv": "step, state after phase 1, final state (and ground-truth place)",
-    "metrics.json": "entropies, ARI/NMI/purity/compound states, splits, timings, versions, config",
-}
-#: files a ``task=localize`` run writes
-LOCALIZE_FILES = {
-    "states.csv": "step, filtered state (argmax of the belief), Viterbi state (and place)",
-    "beliefs.npz": "beliefs: (T, S) belief over the map's states at every step (past only)",
-    "metrics.json": "log-likelihood, ARI/NMI/purity of both state sequences, config, versions",
-}
-FIGURE_FILES = {
-    "fig_states.png": "observation points coloured by state after clustering, after splitting and "
-                      "(with refine) after the refinement (the paper's Fig. 4, right)",
-    "fig_split.png": "a compound state before and after its split, with transition tables (Figs. 5-6)",
-    "fig_map.png": "the learned map at the states' mean positions, arcs where P > min_prob (Fig. 7)",
-    "fig_entropy.png": "H(u|x), H(x'|x,u) and their sum after each split (and after the refinement)",
-}
-#: the interactive map every run writes with its figures (``output.figures``)
-HTML_FILES = {
-    "map.html": "the learned map to zoom, pan and hover (states, visits, places, transitions); "
-                "one self-contained file, plotly's JavaScript inlined",
-}
-#: the figure a run that maps while exploring (``data.curve_every`` > 0) adds
-MAPPING_FIGURES = {
-    "fig_mapping.png": "mapping while exploring: the map's ARI against the steps taken",
-}
 
 
 def own_files(out) -> list[Path]:
@@ -97,20 +64,8 @@ def claim_output_dir(out, overwrite: bool = False) -> list[str]:
     return [p.name for p in found]
 
 
-@contextmanager
-def held_signals():
-    """Hold SIGINT and SIGTERM back inside (they are delivered on leaving): a few renames that
-    must happen together are not cut in half by Ctrl-C or a kill."""
-    sigs = {signal.SIGINT, signal.SIGTERM}
-    old = signal.pthread_sigmask(signal.SIG_BLOCK, sigs)
-    try:
-        yield
-    finally:
-        signal.pthread_sigmask(signal.SIG_SETMASK, old)
-
-
 #: files moved into a run's folder last, in this order: a reader that finds them finds the rest
-_LAST = ("metrics.json", STATUS_FILE)
+_LAST = (METRICS_FILE, STATUS_FILE)
 
 
 @contextmanager
@@ -171,14 +126,14 @@ def write_states(path: Path, traj, **columns) -> None:
                                               header=",".join(columns), comments=""))
 
 
-def write_outputs(out: Path, traj, learner, results, cfg, world=None) -> None:
+def write_outputs(out: Path, traj, learner, results, cfg, env=None) -> None:
     """Write every output file of a run into ``out``: all of them are written into a staging
     folder first and move into ``out`` together (:func:`staged`)."""
     with staged(out) as stage:
-        _write_outputs(stage, traj, learner, results, cfg, world)
+        _write_outputs(stage, traj, learner, results, cfg, env)
 
 
-def _write_outputs(out: Path, traj, learner, results, cfg, world=None) -> None:
+def _write_outputs(out: Path, traj, learner, results, cfg, env=None) -> None:
     t0 = time.perf_counter()
     save_trajectory(traj, out / "trajectory.npz")
     m = learner.map_
@@ -187,16 +142,16 @@ def _write_outputs(out: Path, traj, learner, results, cfg, world=None) -> None:
     write_states(out / "states.csv", traj, state_phase1=learner.labels_phase1_,
                  state=learner.labels_)
     if cfg["output"]["figures"]:
-        from . import plots
+        from .. import plots
 
-        plots.write_figures(out, traj, learner, world, min_prob=cfg["output"]["min_prob"],
+        plots.write_figures(out, traj, learner, env, min_prob=cfg["output"]["min_prob"],
                             compound_state=cfg["output"].get("compound_state"))
-        from .plots.interactive import write_map_html
+        from ..plots.interactive import write_map_html
 
         write_map_html(out / "map.html", m, learner.labels_, traj.positions, traj.places,
                        min_prob=cfg["output"]["min_prob"], seed=int(cfg["seed"]))
     results["timings"]["outputs"] = time.perf_counter() - t0
-    write_json(out / "metrics.json", results)
+    write_json(out / METRICS_FILE, results)
 
 
 def write_localization(out: Path, traj, beliefs, viterbi, results) -> None:
@@ -215,4 +170,4 @@ def _write_localization(out: Path, traj, beliefs, viterbi, results) -> None:
             np.savez_compressed(fh, beliefs=beliefs)
 
     atomic_write(out / "beliefs.npz", save_beliefs)
-    write_json(out / "metrics.json", results)
+    write_json(out / METRICS_FILE, results)

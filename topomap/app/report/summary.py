@@ -1,32 +1,30 @@
 """The sweep report: the table that compares the jobs of ``topomap -m ...``.
 
 Every job of a sweep (any Hydra launcher: the basic one, ``joblib``, ``submitit_local`` or
-``submitit_slurm``) runs :func:`topomap.app.experiment.run_job`, which learns from the trajectory
+``submitit_slurm``) runs :func:`topomap.app.run.job.run_job`, which learns from the trajectory
 cached in ``<sweep dir>/.cache/`` and writes ``status.json`` into its folder: ``completed``, or
 ``failed`` with the error (the job then returns normally, so the sweep goes on and Hydra still ends
 it with the report).
 
-When the multirun ends, the :class:`SweepReport` callback (registered in ``conf/config.yaml`` as
-``hydra.callbacks.sweep_report``) reads every job's folder and writes into the sweep folder
+:func:`write_report` reads every job's folder and writes into the sweep folder
 
 * ``summary.csv``: one row per job (swept values, status, states, ARI/NMI/purity, entropies,
   held-out log-likelihood, times, error), and
 * ``summary_<metric>.png``: the metric over the swept values (a heat map for two swept keys, a
-  line for one; no figure otherwise),
+  line for one; no figure otherwise);
 
-and prints the metric as a table.  The report can be rebuilt at any time, e.g. for another metric
-or after an interrupted sweep::
+:func:`print_report` prints the metric as a table.  The Hydra callback
+:class:`~topomap.app.report.callback.SweepReport` does both when a multirun ends, and
+``python -m topomap.app.report`` (:mod:`topomap.app.report.cli`) at any time, e.g. for another
+metric or after an interrupted sweep.
 
-    python -m topomap.app.sweep outputs/sweeps/2026-01-01/12-00-00-000000 --metric heldout_loglik
-
-The job folders are read by :mod:`topomap.app.sweep_jobs`, the figures drawn by
-:mod:`topomap.app.plots.sweep`; the CSV's columns, the table's and the figures' labels and the best
-job all follow the column list :data:`topomap.app.sweep_columns.COLUMNS`.
+The job folders are read by :mod:`topomap.app.report.jobs`, the figures drawn by
+:mod:`topomap.app.report.figure`; the CSV's columns, the table's and the figures' labels and the best
+job all follow the column list :data:`topomap.app.results.COLUMNS`.
 """
 
 from __future__ import annotations
 
-import argparse
 import csv
 import io
 import logging
@@ -35,17 +33,15 @@ import sys
 from dataclasses import dataclass
 from pathlib import Path
 
-from hydra.experimental.callback import Callback
-
-from ..core.data.files import atomic_write
-from .sweep_columns import (METRICS, axis_values, best_row, check_metric, header, mean, no_value,
-                            number, row, short)
-from .plots.sweep import is_grid
-from .sweep_jobs import not_started, planned_jobs, read_jobs, swept_keys
+from ...core.data.files import atomic_write
+from ..results import METRICS, check_metric
+from .columns import axis_values, best_row, header, mean, no_value, number, row, short
+from .figure import is_grid
+from .jobs import not_started, planned_jobs, read_jobs, swept_keys
 
 log = logging.getLogger("topomap")
 
-__all__ = ["SweepReport", "write_report", "read_jobs", "swept_keys", "METRICS", "SUMMARY_FILE"]
+__all__ = ["Report", "write_report", "print_report", "SUMMARY_FILE"]
 
 SUMMARY_FILE = "summary.csv"
 
@@ -95,7 +91,7 @@ def write_report(sweep_dir, *, metric: str = "ari", figure: bool = True,
         if all(math.isnan(number(r[metric])) for r in rows):
             log.warning("sweep report: no job has a value for %s; no figure", metric)
         else:
-            from .plots.sweep import write_sweep_figure
+            from .figure import write_sweep_figure
 
             fig_path = sweep_dir / f"summary_{metric}.png"
             write_sweep_figure(fig_path, rows, keys, metric, best)
@@ -161,7 +157,9 @@ def _table(report: Report) -> str:
     return "\n".join("  ".join(v.rjust(w) for v, w in zip(line, widths)) for line in lines)
 
 
-def _print_report(report: Report, file=None) -> None:
+def print_report(report: Report, file=None) -> None:
+    """Print ``report``: the jobs by status, the metric as a table, the best job, the first
+    failures and where the report is."""
     file = sys.stdout if file is None else file
     n, failed = len(report.rows), report.failed
     counts = {st: sum(r["status"] == st for r in failed)
@@ -184,115 +182,3 @@ def _print_report(report: Report, file=None) -> None:
         print(f"topomap: ... and {len(listed) - 5} more (see {report.summary.name})", file=file)
     print(f"topomap: report in {report.summary}" +
           (f" and {report.figure.name}" if report.figure else ""), file=file)
-
-
-# ---------------------------------------------------------------------------------- entry points
-class SweepReport(Callback):
-    """Hydra callback: write the sweep report when a multirun ends.
-
-    Parameters (``hydra.callbacks.sweep_report.<name>=...``)
-    ---------------------------------------------------------
-    metric : str or None
-        Summary column shown in the figure and the printed table, one of :data:`METRICS`; None
-        (the default): the run's ``objective`` when the sweeper optimises it (Optuna), else
-        ``ari`` (the final ARI).
-    figure : bool
-        Write ``summary_<metric>.png``.
-    strict : bool
-        Exit with status 1 after writing the report if any job failed (default: failed jobs are
-        rows of the report and the command succeeds).
-    """
-
-    #: the sweep under way in this process (its report and multirun config), for
-    #: :func:`interrupted_sweep_report`
-    running = None
-
-    def __init__(self, metric: str | None = None, figure: bool = True, strict: bool = False):
-        if metric is not None:
-            check_metric(metric, "hydra.callbacks.sweep_report.metric")
-        self.metric, self.figure, self.strict = metric, bool(figure), bool(strict)
-
-    def metric_of(self, config) -> str:
-        """The column the report shows for the multirun ``config``."""
-        from omegaconf import OmegaConf
-
-        if self.metric is not None:
-            return self.metric
-        sweeper = OmegaConf.select(config, "hydra.sweeper", default=None)
-        if sweeper is not None and "direction" in sweeper:
-            objective = OmegaConf.select(config, "objective", default="heldout_loglik")
-            return str(getattr(objective, "value", objective))  # an Objective, or its name
-        return "ari"
-
-    def on_multirun_start(self, config, **kwargs) -> None:
-        """Stop a search before its first job when it would optimise the wrong way: the
-        sweeper's ``direction`` against the objective's (:data:`~topomap.app.evaluate.OBJECTIVES`)."""
-        from omegaconf import OmegaConf
-
-        from .evaluate import OBJECTIVES
-
-        SweepReport.running = (self, config)
-        direction = OmegaConf.select(config, "hydra.sweeper.direction", default=None)
-        direction = getattr(direction, "name", direction)  # the plugin's Direction enum, or text
-        objective = OmegaConf.select(config, "objective", default=None)
-        objective = getattr(objective, "value", objective)
-        wanted = OBJECTIVES.get(objective, {}).get("direction")
-        if isinstance(direction, str) and wanted and direction != wanted:
-            sys.exit(f"topomap: error: hydra.sweeper.direction={direction}, but "
-                     f"objective={objective} is better when "
-                     f"{'larger' if wanted == 'maximize' else 'smaller'}; give "
-                     f"hydra.sweeper.direction={wanted}")
-
-    def on_multirun_end(self, config, **kwargs) -> None:
-        SweepReport.running = None
-        sweep_dir = Path(str(config.hydra.sweep.dir))
-        report = write_report(sweep_dir, metric=self.metric_of(config), figure=self.figure,
-                              multirun_cfg=config)
-        _print_report(report)
-        if report.failed:
-            log.warning("%d of %d jobs did not complete; their errors are in %s",
-                        len(report.failed), len(report.rows), report.summary)
-            if self.strict:
-                sys.exit(f"topomap: error: {len(report.failed)} of {len(report.rows)} jobs "
-                         f"did not complete; see {report.summary}")
-
-
-def interrupted_sweep_report() -> Path | None:
-    """After Ctrl-C or SIGTERM ended the sweep under way in this process: write and print its
-    report (the interrupted job and those that did not start are rows of it); returns the
-    summary's path, None when no sweep was under way."""
-    if SweepReport.running is None:
-        return None
-    callback, config = SweepReport.running
-    SweepReport.running = None
-    sweep_dir = Path(str(config.hydra.sweep.dir))
-    from omegaconf import OmegaConf
-
-    if (sweep_dir / "multirun.yaml").is_file():  # the job config Hydra saved, with the plan
-        config = OmegaConf.load(sweep_dir / "multirun.yaml")
-    report = write_report(sweep_dir, metric=callback.metric_of(config), figure=callback.figure,
-                          multirun_cfg=config)
-    _print_report(report)
-    return report.summary
-
-
-def main(argv=None) -> int:
-    """``python -m topomap.app.sweep SWEEP_DIR [--metric M] [--no-figure]``: rebuild a sweep report."""
-    parser = argparse.ArgumentParser(prog="python -m topomap.app.sweep", description=main.__doc__)
-    parser.add_argument("sweep_dir", type=Path)
-    parser.add_argument("--metric", default="ari", choices=list(METRICS))
-    parser.add_argument("--no-figure", dest="figure", action="store_false")
-    args = parser.parse_args(argv)
-    if not args.sweep_dir.is_dir():
-        parser.error(f"{args.sweep_dir} is not a folder")
-    report = write_report(args.sweep_dir, metric=args.metric, figure=args.figure)
-    if not report.rows:
-        print(f"topomap: error: no job folders (holding .hydra/) under {args.sweep_dir}",
-              file=sys.stderr)
-        return 1
-    _print_report(report)
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

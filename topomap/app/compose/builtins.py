@@ -1,22 +1,22 @@
 """topomap's own components, registered through the same hook as any plugin's.
 
 This list is the only place a built-in is declared: its class (whose signature is its typed config,
-see :mod:`topomap.app.config`), the name users write, and a line for ``topomap --list-plugins``.
+see :mod:`topomap.app.compose.schemas`), the name users write, and a line for ``topomap --list-plugins``.
 """
 
 from __future__ import annotations
 
-from ..core.phase1 import clustering
-from ..core.split import criteria, stopping
-from ..worlds import explorers, noise
-from ..worlds.table import GridRoom
-from ..worlds.minigrid import MiniGridWorld
-from ..worlds.navigation import Navigation
-from ..worlds.office import OfficeWorld
-from ..worlds.table import RandomGraphWorld
-from ..core import size as auto
-from ..core.refine import methods as refine
-from . import data, loggers
+from ...core.phase1 import clustering
+from ...core.split import criteria, stopping
+from ...worlds import explorers, noise
+from ...worlds.table import GridRoom
+from ...worlds.minigrid import MiniGridWorld
+from ...worlds.navigation import Navigation
+from ...worlds.office import OfficeWorld
+from ...worlds.table import RandomGraphWorld
+from ...core import size as auto
+from ...core.refine import methods as refine
+from ..components import data, loggers
 from .hookspecs import Component, hookimpl
 
 

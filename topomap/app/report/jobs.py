@@ -1,20 +1,25 @@
 """Reading a sweep: the job folders that ``topomap -m ...`` left, and the keys the sweep varies.
 
 Every job of a sweep writes its folder (Hydra's ``.hydra/``, then ``status.json`` and
-``metrics.json``, see :func:`topomap.app.experiment.run_job`); :func:`read_jobs` reads them back
+``metrics.json``, see :func:`topomap.app.run.job.run_job`); :func:`read_jobs` reads them back
 as :class:`Job` records, whatever a crash or a kill left behind, and :func:`swept_keys` names the
-keys whose values tell the jobs apart.  :mod:`topomap.app.sweep` builds the report from them.
+keys whose values tell the jobs apart.  :mod:`topomap.app.report.summary` builds the report from them.
 """
 
 from __future__ import annotations
 
+import itertools
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from .experiment import CACHE_DIR, STATUS_FILE
+from ..results import CACHE_DIR, METRICS_FILE, STATUS_FILE
 
 __all__ = ["Job", "read_jobs", "swept_keys", "planned_jobs", "not_started", "STATUSES"]
+
+#: the ``_target_`` of Hydra's basic sweeper in a multirun config (a name read in the config: the
+#: sweeper itself, a private class of Hydra's, is not imported)
+BASIC_SWEEPER = "hydra._internal.core_plugins.basic_sweeper.BasicSweeper"
 
 #: the status of a job in the report: completed, failed or interrupted (its ``status.json``
 #: says so), incomplete (no status: still running, killed or lost) or not started (a job of
@@ -82,20 +87,20 @@ def _read_job(path: Path, index: int) -> Job:
     problems: list[str] = []
     overrides = _read_overrides(path, problems)
     status = _read_json(path / STATUS_FILE, problems)
-    metrics = _read_json(path / "metrics.json", problems)
+    metrics = _read_json(path / METRICS_FILE, problems)
     state = status.get("status")
     if state is None:  # no status.json: the job ended (or was stopped) before writing it
         state = "completed" if metrics else "incomplete"
-        if not (path / STATUS_FILE).exists() and not (path / "metrics.json").exists():
-            problems.append(f"no {STATUS_FILE} or metrics.json: the job is still running, or "
+        if not (path / STATUS_FILE).exists() and not (path / METRICS_FILE).exists():
+            problems.append(f"no {STATUS_FILE} or {METRICS_FILE}: the job is still running, or "
                             "was killed or lost")
     elif state not in ("completed", "failed", "interrupted"):
         problems.append(f"{STATUS_FILE} gives the unknown status {state!r}")
         state = "incomplete"
     if state == "completed" and not metrics:
         state = "incomplete"
-        if not (path / "metrics.json").is_file():
-            problems.append("metrics.json is missing")
+        if not (path / METRICS_FILE).is_file():
+            problems.append(f"{METRICS_FILE} is missing")
     errors = [str(status["error"])] if status.get("error") else []
     return Job(num=_job_num(path, index), path=path, overrides=overrides, status=state,
                error="; ".join(errors + problems) or None,
@@ -147,14 +152,12 @@ def planned_jobs(multirun_cfg) -> list[dict[str, str]] | None:
     """The overrides (``{key: value}``) of every job the sweep of ``multirun_cfg`` was to run, in
     job order, when its sweeper plans them ahead (Hydra's basic sweeper: every combination of
     the swept values); None when it does not tell (e.g. an optimising sweeper)."""
-    from hydra._internal.core_plugins.basic_sweeper import BasicSweeper
     from hydra.core.override_parser.overrides_parser import OverridesParser
     from omegaconf import OmegaConf
 
     if multirun_cfg is None:
         return None
-    target = OmegaConf.select(multirun_cfg, "hydra.sweeper._target_", default=None)
-    if target != f"{BasicSweeper.__module__}.{BasicSweeper.__name__}":
+    if OmegaConf.select(multirun_cfg, "hydra.sweeper._target_", default=None) != BASIC_SWEEPER:
         return None
     task = OmegaConf.select(multirun_cfg, "hydra.overrides.task", default=None)
     params = OmegaConf.select(multirun_cfg, "hydra.sweeper.params", default=None)
@@ -162,10 +165,26 @@ def planned_jobs(multirun_cfg) -> list[dict[str, str]] | None:
     texts += [str(o) for o in (OmegaConf.to_container(task) if task is not None else [])]
     try:  # as the basic sweeper reads them: its params, then the command line's
         overrides = OverridesParser.create().parse_overrides(texts)
-        batches = BasicSweeper.split_arguments(overrides, None)
     except Exception:  # an override the basic sweeper would not take: no plan to compare
         return None
-    return [dict(_key_value(o) for o in job) for batch in batches for job in batch]
+    return _combinations(overrides)
+
+
+def _combinations(overrides) -> list[dict[str, str]] | None:
+    """Every combination of the overrides' values, in the order Hydra's basic sweeper runs them
+    (the last override of a key wins, in the place of its first); None when a sweep is not a
+    list of values (the basic sweeper refuses it)."""
+    values: dict[str, list[str]] = {}
+    for override in overrides:
+        key = override.get_key_element()
+        if not override.is_sweep_override():
+            values[key] = [override.get_value_element_as_str()]
+        elif override.is_discrete_sweep():
+            values[key] = list(override.sweep_string_iterator())
+        else:
+            return None
+    return [{_key_value(f"{key}={value}")[0]: value for key, value in zip(values, job)}
+            for job in itertools.product(*values.values())]
 
 
 def not_started(jobs: list[Job], plan, sweep_dir) -> list[Job]:

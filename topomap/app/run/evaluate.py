@@ -2,48 +2,40 @@
 
 from __future__ import annotations
 
-from ..core import metrics as M
-from ..core.learner import MapLearner
-from ..core.progress import report
-from ..core.data.trajectory import Trajectory
+from ...core import metrics as M
+from ...core.learner import MapLearner
+from ...core.progress import report
+from ...core.data.trajectory import Trajectory
 
-__all__ = ["evaluate", "localization_scores", "OBJECTIVES", "objective_value", "check_objective"]
+from ..results import METRICS, OBJECTIVES
 
-#: what a run can return to an optimising sweeper (the config key ``objective``): where the value
-#: is in the run's results, which way is better (the sweeper's ``direction``) and what it needs
-OBJECTIVES = {
-    "heldout_loglik": {"place": ("heldout_loglik",), "direction": "maximize",
-                       "needs": "held-out data: data.heldout_steps > 0 (data=simulate; default: "
-                                "data.n_steps) or data.heldout_path (data=file, data=rosbag)"},
-    "ari": {"place": ("ground_truth", "final", "ari"), "direction": "maximize",
-            "needs": "ground truth (the places of a simulated world, or a recording with them)"},
-}
+__all__ = ["evaluate", "localization_scores", "objective_value", "check_objective"]
 
 
-def _objective(name) -> tuple[str, dict]:
-    """``(name, entry of OBJECTIVES)`` for an objective's name or :class:`Objective` member."""
+def _objective(name) -> str:
+    """The name of the objective ``name`` (its name, or a member of
+    :class:`~topomap.app.compose.schemas.Objective`) of
+    :data:`~topomap.app.results.OBJECTIVES`."""
     name = getattr(name, "value", name)
     if name not in OBJECTIVES:
         raise ValueError(f"objective={name!r} is not one of {', '.join(OBJECTIVES)}")
-    return name, OBJECTIVES[name]
+    return name
 
 
 def check_objective(name, traj: Trajectory, heldout: Trajectory | None) -> None:
     """Refuse, before learning, data that cannot give the objective ``name`` (a ValueError
     naming the config keys to set)."""
-    name, objective = _objective(name)
+    name = _objective(name)
     missing = heldout is None if name == "heldout_loglik" else traj.places is None
     if missing:
         other = next(n for n in OBJECTIVES if n != name)
-        raise ValueError(f"objective={name} needs {objective['needs']}; or choose "
+        raise ValueError(f"objective={name} needs {OBJECTIVES[name]}; or choose "
                          f"objective={other}")
 
 
 def objective_value(results: dict, name) -> float | None:
     """The objective ``name`` of a run's ``results`` (None where the run has no value for it)."""
-    value = results
-    for key in _objective(name)[1]["place"]:
-        value = value.get(key) if isinstance(value, dict) else None
+    value = METRICS[_objective(name)].read(results)
     return None if value is None else float(value)
 
 
@@ -76,11 +68,11 @@ def evaluate(learner: MapLearner, traj: Trajectory, heldout: Trajectory | None,
                    heldout_steps=len(heldout))
         report("held-out scoring", 1, 1)
     if parts is not None and parts.evaluate is not None:
-        if parts.world is None or traj.places is None:
+        if parts.env is None or traj.places is None:
             raise ValueError("evaluate=navigation needs a simulated world with ground truth "
                              "(data=simulate)")
         out["navigation"] = parts.evaluate.evaluate(learner.map_, learner.labels_, traj.places,
-                                                    parts.world, parts.noise)
+                                                    parts.env, parts.noise)
     return out
 
 

@@ -7,7 +7,7 @@ for the run figures (:mod:`topomap.app.plots`), every ``plot_*`` function draws 
 Figure) it is given and returns it, and the style is theirs: the palette's first colour for the
 values, its red for the best job and for values no job completed, the same font sizes, PNG files
 written by :func:`~topomap.app.plots.save_figure`.  A value's label is its summary column's
-(:data:`topomap.app.sweep_columns.METRICS`).
+(:data:`topomap.app.results.METRICS`).
 """
 
 from __future__ import annotations
@@ -16,8 +16,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..sweep_columns import METRICS, axis_values, cell_value, no_value, number, short
-from .style import LEGEND_SIZE, PALETTE, TITLE_SIZE, pyplot, save_figure
+from ..plots.style import LEGEND_SIZE, PALETTE, TITLE_SIZE, pyplot, save_figure
+from ..results import METRICS
+from .columns import axis_values, cell_value, no_value, number, short
 
 __all__ = ["write_sweep_figure", "plot_sweep_line", "plot_sweep_heat_map", "plot_sweep_scatter",
            "is_grid"]

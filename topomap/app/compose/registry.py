@@ -11,6 +11,7 @@ and the others still load.  ``Registry.build(cfg)`` builds every component of a 
 
 from __future__ import annotations
 
+import hashlib
 import importlib
 import importlib.util
 import os
@@ -22,7 +23,7 @@ from pathlib import Path
 import pluggy
 
 from . import builtins, hookspecs
-from ..core.checks import ParameterError
+from ...core.checks import ParameterError
 from .hookspecs import Component
 from .kinds import KINDS
 
@@ -40,7 +41,7 @@ def autoload_disabled() -> bool:
 
 class Parts:
     """The components of one run, each built once from its config: one attribute per kind of
-    component (:data:`~topomap.app.kinds.KINDS`), ``world`` standing for ``env``.
+    component (:data:`~topomap.app.compose.kinds.KINDS`), named as its config group.
 
     The parts of the world (``env``, ``noise``, ``explorer``) are None when the data component
     does not simulate (``data=file``).
@@ -52,11 +53,6 @@ class Parts:
             raise TypeError(f"Parts has no kind {', '.join(sorted(unknown))}")
         for kind in KINDS:
             setattr(self, kind, built.get(kind))
-
-    @property
-    def world(self):
-        """The world the data component simulates (the ``env`` component), or None."""
-        return self.env
 
     def __repr__(self) -> str:
         return f"Parts({', '.join(f'{k}={getattr(self, k)!r}' for k in KINDS)})"
@@ -74,6 +70,13 @@ class PluginError:
         return f"plugin {self.name!r} (module {self.module}) failed to load: {self.error}"
 
 
+def plugin_module_name(path: Path) -> str:
+    """The module name a plugin file is loaded under: ``topomap_plugin_<stem>_<hash of its
+    folder>``, one per file, so that two files of one name in two folders are two modules."""
+    digest = hashlib.sha1(str(path.resolve().parent).encode()).hexdigest()[:8]
+    return f"topomap_plugin_{path.stem}_{digest}"
+
+
 def _import(ref: str):
     """Import ``"pkg.mod"``, ``"pkg.mod:attr"`` or ``"path/to/file.py[:attr]"``."""
     mod_ref, _, attr = ref.partition(":")
@@ -81,7 +84,7 @@ def _import(ref: str):
         path = Path(mod_ref).resolve()
         if not path.is_file():
             raise ImportError(f"no such file {path}")
-        name = f"topomap_plugin_{path.stem}"
+        name = plugin_module_name(path)
         spec = importlib.util.spec_from_file_location(name, path)
         module = importlib.util.module_from_spec(spec)
         sys.modules[name] = module
@@ -251,13 +254,13 @@ class Registry:
 
     def build(self, cfg) -> Parts:
         """Every component of the run ``cfg`` (a mapping), each built once, in the order of
-        :data:`~topomap.app.kinds.KINDS` -- the data component first: the parts of the world are
+        :data:`~topomap.app.compose.kinds.KINDS` -- the data component first: the parts of the world are
         built only when it simulates."""
         data = self.make("data", cfg["data"])
         simulates = bool(getattr(data, "simulates", False))
         built = {"data": data}
         for kind in KINDS.values():
-            if kind.name in built or (kind.world and not simulates):
+            if kind.name in built or (kind.simulated and not simulates):
                 continue
             extra = self.world_actions(cfg["env"]) if kind.name == "env" else None
             built[kind.name] = self.make(kind.name, cfg[kind.name],

@@ -19,11 +19,13 @@ from contextlib import nullcontext
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from ..results import COLUMNS, METRICS_FILE, select
+
 __all__ = ["RunRecord", "MLflowLogger", "ARTIFACTS"]
 
 #: the files of a run a logger keeps (those the run wrote): the map, its graph, the metrics and
 #: every figure
-ARTIFACTS = ("map.json", "map.graphml", "metrics.json", "map.html", "fig_*.png")
+ARTIFACTS = ("map.json", "map.graphml", METRICS_FILE, "map.html", "fig_*.png")
 
 
 def _flatten(value, prefix="") -> dict[str, str]:
@@ -33,12 +35,6 @@ def _flatten(value, prefix="") -> dict[str, str]:
             out.update(_flatten(v, f"{prefix}{k}."))
         return out
     return {prefix[:-1]: "null" if value is None else str(value)}
-
-
-def _lookup(data, place: str):
-    for key in place.split("."):
-        data = data.get(key) if isinstance(data, dict) else None
-    return data
 
 
 @dataclass
@@ -75,20 +71,18 @@ class RunRecord:
         ``H_o``, ``H_u``, ``H_x``, ``heldout_loglik``, ``n_states``, ``n_states_phase1``, ...),
         ``n_states_split`` for a refined run, ``objective`` and every timing as
         ``time_<part>`` (seconds)."""
-        from .sweep_columns import COLUMNS
-
         out = {}
         for column in COLUMNS:
-            if column.file != "metrics.json":
+            if column.file != METRICS_FILE:
                 continue
             places = (column.place,) if isinstance(column.place, str) else column.place
-            values = [_lookup(self.results, p) for p in places]
+            values = [select(self.results, p) for p in places]
             if all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values):
                 out[column.name] = float(sum(values))
-        split = _lookup(self.results, "n_states.split")
+        split = select(self.results, "n_states.split")
         if split is not None:
             out["n_states_split"] = float(split)
-        objective = _lookup(self.results, "objective.value")
+        objective = select(self.results, "objective.value")
         if objective is not None:
             out["objective"] = float(objective)
         for part, seconds in (self.results.get("timings") or {}).items():
@@ -144,7 +138,7 @@ class MLflowLogger:
         if importlib.util.find_spec("mlflow") is None:
             raise ValueError('needs the mlflow package: pip install "topomap[mlflow]"')
         if not experiment:
-            from ..core.checks import ParameterError
+            from ...core.checks import ParameterError
 
             raise ParameterError("experiment", "must name an MLflow experiment")
         self.tracking_uri = tracking_uri

@@ -1,0 +1,76 @@
+"""The command line before Hydra composes it, and the config it composes.
+
+What must happen before Hydra composes the config of ``topomap <overrides>``, each once
+(:func:`prepare`): the plugins the overrides name (:func:`plugins_named`) are loaded into the
+:class:`~topomap.app.compose.registry.Registry`, the command line is screened in topomap's words
+(:func:`~topomap.app.compose.config_checks.check_overrides`) and every component's typed config
+is stored (:func:`~topomap.app.compose.store.store_configs`).  :func:`compose` gives the config
+Hydra composes from it (Hydra's compose API; for notebooks and tests).
+
+One private Hydra API remains: :func:`overrides_of` reads the command line with Hydra's own
+argument parser (``hydra._internal.utils.get_args_parser``), for Hydra has no public one, and
+a parser of our own would have to follow every flag Hydra adds (which of them take a value).
+"""
+
+from __future__ import annotations
+
+from .config_checks import check_overrides
+from .registry import Registry
+from .store import store_configs
+
+__all__ = ["CONFIG_MODULE", "overrides_of", "plugins_named", "prepare", "compose"]
+
+#: the package of topomap's Hydra configs (``conf/``)
+CONFIG_MODULE = "topomap.conf"
+
+
+def overrides_of(argv) -> list[str]:
+    """The overrides (``key=value`` words) of a command line, as Hydra's own parser reads it."""
+    from hydra._internal.utils import get_args_parser
+
+    args, _ = get_args_parser().parse_known_args(list(argv))
+    return list(args.overrides or [])
+
+
+def plugins_named(overrides) -> list[str]:
+    """The plugin modules the overrides name (``plugins=[a,b]``), read with Hydra's override
+    parser: their components' configs must be stored before Hydra composes."""
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+
+    try:
+        overrides = OverridesParser.create().parse_overrides(list(overrides))
+    except Exception:  # a syntax error: Hydra reports it when it parses the same line
+        return []
+    for override in overrides:
+        if override.key_or_group.lstrip("+~") != "plugins":
+            continue
+        if override.is_sweep_override():
+            raise ValueError("plugins cannot be swept; list every plugin in one plugins=[...]")
+        value = override.value()
+        return [str(v) for v in (value if isinstance(value, list) else [value]) if v]
+    return []
+
+
+def prepare(overrides, registry: Registry | None = None, *, user_configs: bool = False) -> Registry:
+    """What must happen before Hydra composes the config of ``topomap <overrides>``: the registry
+    (of the plugins the overrides name, unless given), the command line screened
+    (:func:`~topomap.app.compose.config_checks.check_overrides`: Hydra would refuse an unknown key or a preset
+    that does not fit with its own message) and every component's config stored.
+    ``user_configs``: the command line brings config folders of its own (``-cd``, ``-cp``,
+    ``-cn``), whose options topomap does not know."""
+    registry = registry or Registry.load(plugins_named(overrides))
+    check_overrides(overrides, registry, user_configs=user_configs)
+    store_configs(registry)
+    return registry
+
+
+def compose(overrides=(), registry: Registry | None = None, *, return_hydra_config=False):
+    """The composed config of ``topomap <overrides>`` (Hydra's compose API; for notebooks and
+    tests).  The registry's component configs are stored first (:func:`prepare`)."""
+    from hydra import compose as hydra_compose
+    from hydra import initialize_config_module
+
+    prepare(overrides, registry)
+    with initialize_config_module(version_base="1.3", config_module=CONFIG_MODULE):
+        return hydra_compose(config_name="config", overrides=list(overrides),
+                             return_hydra_config=return_hydra_config)

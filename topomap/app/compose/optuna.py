@@ -1,0 +1,43 @@
+"""``hydra/sweeper=optuna`` set for topomap: the Optuna sweeper plugin's config, maximising,
+seeded by the run's ``seed`` (:func:`store_optuna_sweeper`, called by
+:func:`~topomap.app.compose.store.store_configs`)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Optional
+
+from omegaconf import II
+
+__all__ = ["store_optuna_sweeper"]
+
+
+def store_optuna_sweeper(cs) -> None:
+    """``hydra/sweeper=optuna`` set for topomap, when the Optuna sweeper plugin is installed
+    (``pip install "topomap[optuna]"``): the plugin's own config (``OptunaSweeperConf``), but
+    maximising (both of topomap's objectives are better when larger; the plugin minimises by
+    default), one trial at a time, and going on past jobs that cannot run (``max_failure_rate``:
+    such a job is a failed trial and a row of ``summary.csv``, as in a grid); and its default
+    sampler, ``hydra/sweeper/sampler=tpe``, seeded by the run's ``seed`` (the same command
+    proposes the same trials).  Every field can still be set: ``hydra.sweeper.n_trials=30``."""
+    try:
+        from hydra_plugins.hydra_optuna_sweeper.config import OptunaSweeperConf, TPESamplerConfig
+    except ImportError:
+        return
+    from hydra.core.plugins import Plugins
+
+    Plugins.instance()  # Hydra's first plugin scan stores the plugin's options: let it come first
+
+    @dataclass
+    class TopomapOptunaSweeperConf(OptunaSweeperConf):
+        direction: Any = "maximize"
+        n_jobs: int = 1
+        max_failure_rate: float = 1.0
+
+    @dataclass
+    class SeededTPESamplerConf(TPESamplerConfig):
+        seed: Optional[int] = II("seed")
+
+    cs.store(group="hydra/sweeper", name="optuna", node=TopomapOptunaSweeperConf, provider="topomap")
+    cs.store(group="hydra/sweeper/sampler", name="tpe", node=SeededTPESamplerConf,
+             provider="topomap")
