@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..core.data.files import atomic_write
+from ..core.data.atomic import atomic_write
 from ..core.data.trajectory import save_trajectory
 
 __all__ = ["OUTPUT_FILES", "FIGURE_FILES", "HTML_FILES", "MAPPING_FIGURES", "LOCALIZE_FILES", "STATUS_FILE",

@@ -37,7 +37,7 @@ from pathlib import Path
 
 from hydra.experimental.callback import Callback
 
-from ..core.data.files import atomic_write
+from ..core.data.atomic import atomic_write
 from .sweep_columns import (METRICS, axis_values, best_row, check_metric, header, mean, no_value,
                             number, row, short)
 from .plots.sweep import is_grid
