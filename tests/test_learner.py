@@ -165,6 +165,22 @@ def test_target_state_count_is_reached_and_stop_rules_are_swappable():
     assert learner.stop_reason_ == "stopping rule"
 
 
+def test_the_old_names_criterion_and_stopping_still_work_with_a_warning():
+    from sklearn.base import clone
+
+    X, u, _ = ring(n_steps=600, n_places=8, aliased=[(1, 5), (3, 7)])
+    new = MapLearner(n_clusters=6, split=EntropyCriterion(), stop=MinGain(0.5)).fit(X, u)
+    old = MapLearner(n_clusters=6, criterion=EntropyCriterion(), stopping=MinGain(0.5))
+    with pytest.warns(FutureWarning, match="stopping= was renamed stop="):
+        old.fit(X, u)
+    assert np.array_equal(old.labels_, new.labels_)
+    assert old.map_.info["stopping"] == new.map_.info["stopping"] == repr(MinGain(0.5))
+    assert isinstance(clone(old).get_params()["stopping"], MinGain)
+    assert MapLearner().get_params()["criterion"] == "deprecated"
+    with pytest.raises(ValueError, match="^stopping is the deprecated name of stop: give stop"):
+        MapLearner(stop=MinGain(0.5), stopping=MinGain(0.5)).fit(X, u)
+
+
 def test_reevaluating_only_neighbours_of_a_split_changes_nothing(monkeypatch):
     rng = np.random.default_rng(3)
     succ = rng.integers(0, 40, size=(40, 5))

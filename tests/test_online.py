@@ -145,7 +145,7 @@ def test_a_failed_first_pass_keeps_nothing():
     learner = MapLearner(12, 200)  # more states than the room's steps can split into
     with pytest.raises(ValueError):
         learner.partial_fit(traj.observations[:5], traj.actions[:5], n_actions=4)
-    assert not hasattr(learner, "map_") and not hasattr(learner, "online_")
+    assert [name for name in vars(learner) if name.endswith("_")] == []  # nothing learned
     learner.set_params(n_states=12).partial_fit(traj.observations[5:], traj.actions[5:],
                                                 n_actions=4)
     assert learner.online_["n_steps"] == 95 and learner.labels_.shape == (95,)
