@@ -107,7 +107,8 @@ def make_components(learner):
         raise ParameterError("reg_covar", f"must be a positive number, got {learner.reg_covar!r}")
     check_count(learner.n_init, "n_init")
     check_count(learner.sample_size, "sample_size", allow_none=True)
-    learner._online_settings()
+    check_count(learner.window, "window")
+    check_count(learner.refit_every, "refit_every")
     return clusters, make_metric(learner.metric), criterion, stopping
 
 

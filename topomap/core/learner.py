@@ -227,7 +227,8 @@ class MapLearner(BaseEstimator):
         """
         warn_renamed(self, stacklevel=2)
         X, u, g, _ = check_sequences(observations, actions, gds, None, min_length=1)
-        window, every = self._online_settings()
+        window, every = check_count(self.window, "window"), check_count(self.refit_every,
+                                                                        "refit_every")
         state = getattr(self, "_online", None) or OnlineState(Window(window))
         starts = np.zeros(X.shape[0], dtype=bool)
         starts[0] = new_episode or state.n_steps == 0
@@ -267,9 +268,6 @@ class MapLearner(BaseEstimator):
     def _learned(self) -> dict:
         """The learned attributes (names ending in ``_``), to restore after a failed call."""
         return {k: v for k, v in vars(self).items() if k.endswith("_") and not k.startswith("_")}
-
-    def _online_settings(self) -> tuple[int, int]:
-        return check_count(self.window, "window"), check_count(self.refit_every, "refit_every")
 
     def _refine(self, data: FitData, splitter: Splitter, refinement, told: int | None) -> None:
         """Re-estimate every state jointly (:mod:`topomap.core.refine.methods`); the split map
