@@ -40,7 +40,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-from sklearn.metrics import pairwise_distances_argmin
+from sklearn.metrics.pairwise import euclidean_distances
 
 from .refine.clones import decode, make_layout
 from .stats import majority_match
@@ -136,9 +136,11 @@ class Codebook:
         return int(self.means.shape[0])
 
     def symbols(self, X: np.ndarray) -> np.ndarray:
-        """The symbol of every row: its nearest mean (Euclidean; scikit-learn's
-        ``pairwise_distances_argmin``)."""
-        return pairwise_distances_argmin(X, self.means).astype(np.int64)
+        """The symbol of every row: its nearest mean (scikit-learn's squared Euclidean
+        distances, one matrix product; its ``pairwise_distances_argmin`` gives the same symbols
+        but starts OpenMP threads, 17-74 ms a call of 1,000 rows on a busy two-core machine
+        against 0.2 ms)."""
+        return euclidean_distances(X, self.means, squared=True).argmin(axis=1).astype(np.int64)
 
 
 def lengths_of(starts: np.ndarray) -> np.ndarray:
