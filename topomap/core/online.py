@@ -26,9 +26,8 @@ always a state of the current map (or -1): a chunk's steps get the states they a
 pass gives the window's steps the states of its fit, decodes with the new map the steps that
 left the window since the pass before, and translates the labels of the steps before them from
 the last map's states to the new map's (each old state to the new state most of its steps since
-the last pass now hold; -1 if none of them has one): one integer lookup per step, the only part
-of a call whose cost grows with the steps seen (about 1.5 ms per million steps, once per
-pass).
+the last pass now hold; -1 if none of them has one): one integer lookup per step, once per pass,
+the only part of a call whose cost grows with the steps seen.
 
 Memory kept: the window (``window`` rows of observations, actions, GDS ids) and the map's tables,
 bounded by the world, not by the steps; and, per step seen, five int32 in the record: its symbol,
