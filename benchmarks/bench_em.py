@@ -65,8 +65,8 @@ def fit(registry, command: str, T: int, seed: int, method: str, data=None):
     if data is None:
         data, _ = load_data(cfg, parts, registry)
     traj, heldout = data
-    learner = MapLearner(clusters=parts.clusters, metric=parts.metric, criterion=parts.split,
-                         stopping=parts.stop, refine=parts.refine, random_state=seed,
+    learner = MapLearner(clusters=parts.clusters, metric=parts.metric, split=parts.split,
+                         stop=parts.stop, refine=parts.refine, random_state=seed,
                          **cfg["learner"])
     t0 = time.perf_counter()
     learner.fit_trajectory(traj)

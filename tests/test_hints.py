@@ -48,3 +48,20 @@ def test_the_command_prints_one_line_instead_of_hydras_message(args, line, tmp_p
                        capture_output=True, text=True, timeout=120)
     assert r.returncode == 1 and r.stderr.splitlines() == [line], r.stderr
     assert not (tmp_path / "outputs").exists()
+
+
+def test_the_soft_settings_are_typed_config_keys_under_refine():
+    """``refine.soft.<key>``, derived from the refinement's ``soft`` default
+    (:class:`~topomap.core.refine.soft.SoftSettings`): every field, its default, its type."""
+    from dataclasses import asdict
+
+    from topomap.core.refine.soft import SoftSettings
+
+    cfg = compose(["refine=em", "refine.soft.conf_warmup=10"])
+    assert dict(cfg.refine.soft) == dict(asdict(SoftSettings()), conf_warmup=10)
+    assert dict(compose(["refine=cscg"]).refine.soft) == asdict(SoftSettings())
+    with pytest.raises(ValueError, match="did you mean refine.soft.conf_warmup"):
+        compose(["refine=em", "refine.soft.warmup=10"])
+    with pytest.raises(Exception) as err:  # Hydra's error, from OmegaConf's type check
+        compose(["refine=em", "refine.soft.conf_warmup=abc"])
+    assert "refine.soft.conf_warmup" in str(err.value) + str(err.value.__cause__)

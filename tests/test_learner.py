@@ -89,7 +89,7 @@ def test_gds_states_are_never_split():
 def test_gds_state_stays_whole_even_when_it_is_the_only_candidate():
     X, u, places = ring(n_steps=300, aliased=[])
     gds = np.where(places == 2, 0, -1)
-    learner = MapLearner(n_clusters=5, stopping=MinGain(0.0, max_states=20)).fit(X, u, gds=gds)
+    learner = MapLearner(n_clusters=5, stop=MinGain(0.0, max_states=20)).fit(X, u, gds=gds)
     assert all(learner.map_.state_gds[r["state"]] < 0 for r in learner.split_history_)
     assert (learner.map_.state_parent[learner.map_.state_gds >= 0] == -1).all()
 
@@ -159,10 +159,26 @@ def test_target_state_count_is_reached_and_stop_rules_are_swappable():
     assert MapLearner(n_clusters=6, n_states=9).fit(X, u).map_.n_states == 9
     # min_gain: each aliased pair has four distinct neighbours, so splitting it gains 1 bit
     # (H(x'|u) drops from 1 to 0); every other state is already deterministic (gain 0)
-    learner = MapLearner(n_clusters=6, stopping=MinGain(0.5)).fit(X, u)
+    learner = MapLearner(n_clusters=6, stop=MinGain(0.5)).fit(X, u)
     assert learner.map_.n_states == 8
     assert all(r["gain"] >= 0.5 for r in learner.split_history_)
     assert learner.stop_reason_ == "stopping rule"
+
+
+def test_the_old_names_criterion_and_stopping_still_work_with_a_warning():
+    from sklearn.base import clone
+
+    X, u, _ = ring(n_steps=600, n_places=8, aliased=[(1, 5), (3, 7)])
+    new = MapLearner(n_clusters=6, split=EntropyCriterion(), stop=MinGain(0.5)).fit(X, u)
+    old = MapLearner(n_clusters=6, criterion=EntropyCriterion(), stopping=MinGain(0.5))
+    with pytest.warns(FutureWarning, match="stopping= was renamed stop="):
+        old.fit(X, u)
+    assert np.array_equal(old.labels_, new.labels_)
+    assert old.map_.info["stopping"] == new.map_.info["stopping"] == repr(MinGain(0.5))
+    assert isinstance(clone(old).get_params()["stopping"], MinGain)
+    assert MapLearner().get_params()["criterion"] == "deprecated"
+    with pytest.raises(ValueError, match="^stopping is the deprecated name of stop: give stop"):
+        MapLearner(stop=MinGain(0.5), stopping=MinGain(0.5)).fit(X, u)
 
 
 def test_reevaluating_only_neighbours_of_a_split_changes_nothing(monkeypatch):
@@ -305,8 +321,8 @@ def test_bad_settings_are_named():
     X, u, _ = ring(n_steps=50)
     with pytest.raises(ValueError, match="^n_states=4 is below the 5 states"):
         MapLearner(n_clusters=5, n_states=4).fit(X, u)
-    with pytest.raises(ValueError, match="^stopping.n_states=4 is below the 5 states"):
-        MapLearner(n_clusters=5, stopping=TargetStates(4)).fit(X, u)
+    with pytest.raises(ValueError, match="^stop.n_states=4 is below the 5 states"):
+        MapLearner(n_clusters=5, stop=TargetStates(4)).fit(X, u)
     with pytest.raises(ValueError, match="^n_clusters=60 is more than the 50 distinct"):
         MapLearner(n_clusters=60, n_states=70).fit(X, u)
     with pytest.raises(ValueError, match="^clusters.ns=60 is more than the 50 distinct"):
@@ -350,8 +366,8 @@ def test_min_gain_has_a_default_cap_of_three_times_the_initial_states():
     u = rng.integers(4, size=3000)  # noise: every split gains a little
     rule = MinGain(min_gain=0.0)
     before = vars(rule).copy()
-    learner = MapLearner(n_clusters=3, stopping=rule).fit(X, u)
+    learner = MapLearner(n_clusters=3, stop=rule).fit(X, u)
     assert learner.map_.n_states == 9 and learner.stop_reason_ == "stopping rule"
     assert vars(rule) == before  # the parameter is not changed by fit
-    capped = MapLearner(n_clusters=3, stopping=MinGain(0.0, max_states=5)).fit(X, u)
+    capped = MapLearner(n_clusters=3, stop=MinGain(0.0, max_states=5)).fit(X, u)
     assert capped.map_.n_states == 5

@@ -73,10 +73,13 @@ def test_labels_and_map_follow_every_call():
                             n_actions=4)
         seen += chunk
         assert learner.labels_.shape == (seen,) and (learner.labels_ >= 0).all()
-        assert learner.labels_.max() < learner.map_.n_states
         assert learner.online_["n_steps"] == seen
-    # the map's counts hold the window's steps and every step decoded since the last pass
-    assert learner.map_.state_counts.sum() <= seen
+        assert learner.labels_.max() < learner.map_.n_states  # states of the current map
+        # the map's counts: every step the last pass learned from and every step decoded since,
+        # and every transition between two of them inside the walk (one episode here)
+        since = learner.labels_[learner.online_["pass_from"]:]
+        assert learner.map_.state_counts.sum() == since.size
+        assert learner.map_.transition_counts.sum() == since.size - 1
 
 
 def test_a_call_touches_its_own_steps_not_those_before():
@@ -86,10 +89,12 @@ def test_a_call_touches_its_own_steps_not_those_before():
     for before in (4000, 20000):
         learner = MapLearner(3, 20, window=3000, refit_every=5000)
         learner.partial_fit(X[:before], u[:before], n_actions=4)  # a pass on the last 3000
-        assert learner.online_["last_work"] == {"decoded": 0, "pass": 3000}
+        # the steps before the window are decoded with the pass's map
+        assert learner.online_["last_work"] == {"decoded": before - 3000, "pass": 3000,
+                                                "relabelled": 0}
         learner.partial_fit(X[before:before + 700], u[before:before + 700])
         works[before] = learner.online_["last_work"]
-    assert works[4000] == works[20000] == {"decoded": 700 + CONTEXT, "pass": 0}
+    assert works[4000] == works[20000] == {"decoded": 700 + CONTEXT, "pass": 0, "relabelled": 0}
 
 
 def test_memory_beyond_the_per_step_record_is_bounded():
@@ -140,7 +145,33 @@ def test_a_failed_first_pass_keeps_nothing():
     learner = MapLearner(12, 200)  # more states than the room's steps can split into
     with pytest.raises(ValueError):
         learner.partial_fit(traj.observations[:5], traj.actions[:5], n_actions=4)
-    assert online.OnlineState is not None and not hasattr(learner, "map_")
+    assert [name for name in vars(learner) if name.endswith("_")] == []  # nothing learned
+    learner.set_params(n_states=12).partial_fit(traj.observations[5:], traj.actions[5:],
+                                                n_actions=4)
+    assert learner.online_["n_steps"] == 95 and learner.labels_.shape == (95,)
+
+
+def test_a_failed_pass_keeps_the_map_before_it():
+    traj = walk(4, 3, 12, 600, seed=8)
+    X, u = traj.observations, traj.actions
+    learner = MapLearner(12, 12, refit_every=100).partial_fit(X[:300], u[:300], n_actions=4)
+    m, labels = learner.map_, learner.labels_.copy()
+    learner.set_params(n_states=5)  # below the 12 states of phase 1: the next pass fails
+    with pytest.raises(ValueError, match="n_states=5 is below the 12 states"):
+        learner.partial_fit(X[300:], u[300:])
+    assert learner.map_ is m and learner.online_["n_steps"] == 300
+    assert np.array_equal(learner.labels_, labels) and learner.split_history_ == []
+
+
+def test_n_actions_may_grow_on_any_call():
+    traj = walk(4, 3, 12, 600, seed=11)
+    X, u = traj.observations, traj.actions
+    learner = MapLearner(12, 12, refit_every=10000).partial_fit(X[:300], u[:300])
+    assert learner.map_.n_actions == 4
+    learner.partial_fit(X[300:400], u[300:400], n_actions=6)  # two actions not taken yet
+    assert learner.map_.n_actions == 6 and learner.online_["n_passes"] == 2
+    with pytest.raises(ValueError, match="n_actions is 5 but the steps use 6 actions"):
+        learner.partial_fit(X[400:], u[400:], n_actions=5)
 
 
 def test_fit_starts_over_and_settings_are_checked():
@@ -183,9 +214,18 @@ def test_symbols_are_fixed_once_steps_leave_the_window():
     codebooks = []
     for i in range(0, 4000, 500):
         learner.partial_fit(X[i:i + 500], u[i:i + 500], n_actions=4)
-        codebooks.append(learner._online.codebook.copy())
+        codebooks.append(learner._online.codebook.means.copy())
     # passes at 500, 1000 and 1500 steps see every step and re-learn the symbols; from 2000 on
     # the window has lost steps and the codebook of the pass at 1500 stays
     assert not np.array_equal(codebooks[0], codebooks[2])
     assert all(np.array_equal(codebooks[2], c) for c in codebooks[3:])
     assert learner.online_["n_passes"] == 8
+
+
+def test_majority_match_gives_each_state_the_state_most_of_its_steps_hold():
+    from topomap.core.stats import majority_match
+
+    a = np.array([0, 0, 0, 1, 1, 2, -1, 3])
+    b = np.array([3, 3, 1, 0, 0, -1, 2, 2])
+    # state 0: two steps in 3, one in 1; 1: both in 0; 2: its step has none; 3: in 2
+    assert majority_match(a, b, 5, 4).tolist() == [3, 0, -1, 2, -1]

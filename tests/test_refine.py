@@ -5,7 +5,9 @@ import pytest
 from sklearn.metrics import adjusted_rand_score
 
 from topomap.core.checks import ParameterError
-from topomap.core.refine.methods import CSCGRefinement, EMRefinement, SymbolSequence
+from topomap.core.refine.methods import CSCGRefinement, EMRefinement
+from topomap.core.refine.sequence import SymbolSequence
+from topomap.core.refine.soft import SoftSettings
 from topomap.core.refine.structure import merge_states, same_partition, split_compounds
 from topomap.core.stats import episode_masks
 from topomap.worlds import GridRoom, RandomExplorer
@@ -53,7 +55,7 @@ def test_refine_recovers_every_place_of_an_aliased_ring(seed):
     """The split is given as one state per symbol (it found nothing to split)."""
     sym, u, places = ring_walk(3000, RING, seed)
     fit = refine_fit(sym, u, [3000], 2, 6, np.arange(6), random_state=seed)
-    assert adjusted_rand_score(places, fit.labels) == 1.0 and fit.n_states == 8
+    assert adjusted_rand_score(places, fit.labels_) == 1.0 and fit.n_states_ == 8
 
 
 @pytest.mark.parametrize("seed", range(3))
@@ -61,13 +63,13 @@ def test_refine_recovers_every_cell_of_a_small_grid(seed):
     """The split is given as many states per symbol as there are cells (its usual size)."""
     sym, u, places = grid_walk(4000, seed)
     fit = refine_fit(sym, u, [4000], 4, 3, ROOM.place_symbols, random_state=seed)
-    assert adjusted_rand_score(places, fit.labels) == 1.0 and fit.n_states == 12
+    assert adjusted_rand_score(places, fit.labels_) == 1.0 and fit.n_states_ == 12
 
 
 def test_refine_respects_episodes():
     sym, u, places = ring_walk(3000, RING, 0)
     fit = refine_fit(sym, u, [1000, 1500, 500], 2, 6, np.arange(6))
-    assert adjusted_rand_score(places, fit.labels) == 1.0
+    assert adjusted_rand_score(places, fit.labels_) == 1.0
 
 
 def test_cscg_nearly_recovers_the_ring():
@@ -75,15 +77,15 @@ def test_cscg_nearly_recovers_the_ring():
     answer on this ring at a tenth of the time); it may leave a duplicate or two."""
     sym, u, places = ring_walk(3000, RING, 1)
     fit = cscg_fit(sym, u, [3000], 2, 6, random_state=1, clones_per_symbol=20)
-    assert adjusted_rand_score(places, fit.labels) > 0.9
+    assert adjusted_rand_score(places, fit.labels_) > 0.9
 
 
 def test_gds_ids_keep_one_state():
     """A symbol id past n_symbols is a GDS: one clone, one state."""
     sym, u, places = ring_walk(3000, [0, 1, 2, 3, 1, 4, 2, 6], 2)  # id 6 = GDS of place 7
     fit = refine_fit(sym, u, [3000], 2, 6, np.arange(6), random_state=2)
-    assert np.sum(fit.state_symbol == 6) == 1
-    assert adjusted_rand_score(places, fit.labels) == 1.0
+    assert np.sum(fit.state_symbol_ == 6) == 1
+    assert adjusted_rand_score(places, fit.labels_) == 1.0
 
 
 def test_merge_joins_duplicates_of_one_place():
@@ -179,10 +181,58 @@ class _Fragments:
         self.guard = guard
 
     def fit(self, seq, split_state_symbol, random_state):
+        self.labels_ = 2 * seq.sym + np.arange(seq.sym.size) % 2
+        self.state_symbol_ = np.repeat(np.arange(seq.n_ids), 2)
+        return self
+
+
+class _OldFragments(_Fragments):
+    """The same, written to the contract before 0.3: ``fit`` returns a ``CloneFit``."""
+
+    def fit(self, seq, split_state_symbol, random_state):
         from topomap.core.refine.methods import CloneFit
 
-        labels = 2 * seq.sym + np.arange(seq.sym.size) % 2
-        return CloneFit(labels, np.repeat(np.arange(seq.n_ids), 2))
+        super().fit(seq, split_state_symbol, random_state)
+        return CloneFit(self.labels_, self.state_symbol_)
+
+
+def test_an_old_style_refinement_still_works_and_warns():
+    from topomap import MapLearner
+
+    sym, u, _ = ring_walk(3000, RING, 0)
+    X = noisy(sym, 6)
+    new = MapLearner(n_clusters=6, n_states=8, refine=_Fragments(False), refined_size="free")
+    old = MapLearner(n_clusters=6, n_states=8, refine=_OldFragments(False), refined_size="free")
+    with pytest.warns(FutureWarning, match="returned a CloneFit"):
+        old.fit(X, u)
+    assert np.array_equal(old.labels_, new.fit(X, u).labels_) and old.map_.n_states == 12
+
+
+def test_soft_settings_reach_the_refinement_and_the_map_file_label():
+    """A warm-up longer than Baum-Welch's iterations (30 at most) never learns the confusion
+    matrix: every soft round ends with the misread rate it started from, ``init_error``."""
+    from topomap import MapLearner
+
+    sym, u, _ = ring_walk(3000, RING, 0)
+    learner = MapLearner(n_clusters=6, n_states=6, refine=EMRefinement(
+        evidence="soft", soft={"rounds": 1, "conf_warmup": 100})).fit(noisy(sym, 6), u)
+    rounds = learner.refine_info_["soft_rounds"]
+    assert len(rounds) == 2  # one soft round and a hard one after it, then the last soft round
+    assert [r["conf_offdiag"] for r in rounds] == pytest.approx([0.2, 0.2], abs=1e-12)
+    assert "soft=SoftSettings(rounds=1, conf_warmup=100)" in learner.map_.info["refine"]
+    learned = MapLearner(n_clusters=6, n_states=6, refine=EMRefinement(
+        evidence="soft", soft={"rounds": 1})).fit(noisy(sym, 6), u)
+    assert learned.refine_info_["soft_rounds"][0]["conf_offdiag"] < 0.1
+
+
+def test_the_learner_refines_a_clone_and_never_changes_its_refine():
+    from topomap import MapLearner
+
+    sym, u, _ = ring_walk(3000, RING, 0)
+    refine = EMRefinement(max_rounds=3)
+    learner = MapLearner(n_clusters=6, n_states=6, refine=refine).fit(noisy(sym, 6), u)
+    assert learner.refine is refine and not hasattr(refine, "labels_")
+    assert learner.map_.info["refine"] == refine.provenance()
 
 
 @pytest.mark.parametrize("guard", [True, False])
@@ -251,21 +301,29 @@ def test_the_refinements_store_their_parameters_as_given():
     assert params["clone_factor"] == 2 and params["prefix"] is em.prefix
     assert set(params) == {"clone_factor", "prefix", "prefix_visits", "max_rounds", "row_prior",
                            "tol", "max_iter", "prune", "merge_threshold", "split_z", "spare",
-                           "init_noise", "guard", "budget", "evidence"}
+                           "init_noise", "guard", "budget", "evidence", "soft"}
     twin = clone(em)
     assert twin is not em and twin.get_params() == params
     assert CSCGRefinement(clones_per_symbol=5).set_params(tol=0.5).get_params() == {
         "clones_per_symbol": 5, "pseudocount": 2e-3, "max_iter": 1000, "tol": 0.5,
-        "evidence": "auto"}
+        "evidence": "auto", "soft": SoftSettings()}
 
 
-def test_the_refinements_repr_is_the_form_map_json_stores():
-    assert repr(EMRefinement()) == (
+def test_the_repr_is_the_estimators_and_the_provenance_the_form_map_json_stores():
+    assert repr(EMRefinement()) == "EMRefinement()"
+    assert repr(EMRefinement(prefix=500, soft={"rounds": 2})) == (
+        "EMRefinement(prefix=500, soft={'rounds': 2})")
+    assert EMRefinement().provenance() == (
         "EMRefinement(clone_factor=2, prefix=2000, prefix_visits=40, max_rounds=8, guard=True, "
         "settings=EMSettings(row_prior=0.5, tol=1e-06, max_iter=50, prune=0.0001, "
         "merge_threshold=6.63, split_z=3.09, spare=2, init_noise=1.0))")
-    assert repr(CSCGRefinement(clones_per_symbol=4, tol=0)) == (
+    assert CSCGRefinement(clones_per_symbol=4, tol=0).provenance() == (
         "CSCGRefinement(clones_per_symbol=4, pseudocount=0.002, max_iter=1000, tol=0.0)")
+    # soft settings changed from their defaults are named, the others not
+    assert ("evidence='soft', soft=SoftSettings(conf_warmup=10), settings=EMSettings("
+            in EMRefinement(evidence="soft", soft={"conf_warmup": 10}).provenance())
+    assert CSCGRefinement(soft=SoftSettings(rounds=1)).provenance().endswith(
+        "tol=0.0, soft=SoftSettings(rounds=1))")
 
 
 @pytest.mark.parametrize("cls, params, message", [
@@ -282,12 +340,20 @@ def test_the_refinements_repr_is_the_form_map_json_stores():
     (CSCGRefinement, dict(max_iter=0), "max_iter must be a positive integer, got 0"),
     (CSCGRefinement, dict(pseudocount=float("nan")), "pseudocount must be > 0, got nan"),
     (CSCGRefinement, dict(tol=-1.0), "tol must be >= 0, got -1.0"),
+    (EMRefinement, dict(soft={"conf_warmup": -1}),
+     "soft.conf_warmup must be a non-negative integer, got -1"),
+    (CSCGRefinement, dict(soft={"floor": 0.0}), r"soft.floor must be in \(0, 1\), got 0.0"),
+    (EMRefinement, dict(soft={"warmup": 3}), "soft.warmup is not a soft setting; the settings "
+                                              "are rounds, min_steps"),
+    (EMRefinement, dict(soft=3), "soft must be SoftSettings or a mapping of its fields, got 3"),
 ])
 def test_bad_parameters_are_refused_by_name(cls, params, message):
-    """The error names the core parameter; the app says it as its config key."""
+    """Checked by ``check_params`` (and ``fit``), not by ``__init__``; the error names the core
+    parameter, the app says it as its config key."""
+    refinement = cls(**params)  # stored as given
     with pytest.raises(ParameterError, match=f"^{message}") as err:
-        cls(**params)
-    assert err.value.param == next(iter(params))
+        refinement.check_params()
+    assert err.value.param.split(".")[0] == next(iter(params))
     assert "refine." not in str(err.value)
     assert str(err.value.renamed(f"refine.{err.value.param}")).startswith("refine.")
 

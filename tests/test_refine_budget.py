@@ -4,8 +4,10 @@ import numpy as np
 import pytest
 from sklearn.metrics import adjusted_rand_score
 
-from topomap.core.refine.budget import evidence_budget, place_lower_bound, split_budget
-from topomap.core.refine.methods import EMRefinement, SymbolSequence
+from topomap.core.refine.budget import (distinct_rows, evidence_budget, place_lower_bound,
+                                        split_budget)
+from topomap.core.refine.methods import EMRefinement
+from topomap.core.refine.sequence import SymbolSequence
 from test_refine import ring_walk
 
 
@@ -26,8 +28,8 @@ def test_a_view_shared_by_k_places_gets_at_least_k_clones(k):
     assert evidence_budget(split, seq, 2, 2)[0] >= k
     assert split_budget(split, seq, 2, 2)[0] == 4
     fit = EMRefinement(budget="evidence").fit(seq, split, 0)
-    assert adjusted_rand_score(places, fit.labels) == 1.0
-    assert np.sum(fit.state_symbol == 0) == k
+    assert adjusted_rand_score(places, fit.labels_) == 1.0
+    assert np.sum(fit.state_symbol_ == 0) == k
 
 
 def test_the_lower_bound_never_exceeds_the_places_of_a_deterministic_world():
@@ -54,4 +56,16 @@ def test_gds_ids_keep_one_clone_under_the_evidence_budget():
 
 def test_unknown_budget_is_refused():
     with pytest.raises(ValueError, match="^budget must be one of split, evidence, got 'nope'"):
-        EMRefinement(budget="nope")
+        EMRefinement(budget="nope").check_params()
+
+
+@pytest.mark.parametrize("dims", [(3, 4, 5), (2**40, 2**40, 3)])
+def test_distinct_rows_are_numpys_unique_rows(dims):
+    """Numbered in mixed radix when the rows fit in int64 numbers, np.unique over rows when they
+    do not (2**40 x 2**40 x 3): the same rows and counts either way."""
+    rng = np.random.default_rng(0)
+    rows = np.column_stack([rng.integers(min(d, 4), size=500) for d in dims])
+    rows[:, 0] += dims[0] - 4 if dims[0] > 4 else 0
+    want = np.unique(rows, axis=0, return_counts=True)
+    got = distinct_rows(rows, dims)
+    assert np.array_equal(got[0], want[0]) and np.array_equal(got[1], want[1])

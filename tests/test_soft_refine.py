@@ -6,7 +6,8 @@ import itertools
 import numpy as np
 import pytest
 
-from topomap.core.refine.methods import CSCGRefinement, EMRefinement, SymbolSequence
+from topomap.core.refine.methods import CSCGRefinement, EMRefinement
+from topomap.core.refine.sequence import SymbolSequence
 from topomap.core.refine.soft import SoftSettings, initial_confusion, soft_round
 from topomap.core.refine.soft_kernels import (SoftData, SoftModel, SoftStats, soft_backward,
                                               soft_candidates, soft_forward, soft_offsets,
@@ -122,13 +123,13 @@ def test_soft_refinement_recovers_ring_with_misreads():
     sym, u, lengths, place, wrong = _ring_walk()
     seq = _seq(sym, u, lengths)
     hard = EMRefinement(evidence="hard").fit(seq, RING, 0)
-    assert hard.n_states > RING.size  # misreads multiply the hard refinement's states
+    assert hard.n_states_ > RING.size  # misreads multiply the hard refinement's states
     fit = EMRefinement(evidence="soft").fit(seq, RING, 0)
-    assert fit.n_states == RING.size
-    assert same_partition(fit.labels, place)  # every step, misread ones too, in its place's state
+    assert fit.n_states_ == RING.size
+    assert same_partition(fit.labels_, place)  # every step, misread ones too, in its place's state
     # the state of every misread step emits the place's true symbol
-    np.testing.assert_array_equal(fit.state_symbol[fit.labels[wrong]], RING[place[wrong]])
-    assert fit.info["soft"] == "on"
+    np.testing.assert_array_equal(fit.state_symbol_[fit.labels_[wrong]], RING[place[wrong]])
+    assert fit.info_["soft"] == "on"
 
 
 def test_auto_keeps_hard_result_without_misreads():
@@ -136,9 +137,9 @@ def test_auto_keeps_hard_result_without_misreads():
     seq = _seq(sym, u, lengths)
     hard = EMRefinement(evidence="hard").fit(seq, RING, 0)
     auto = EMRefinement().fit(seq, RING, 0)
-    np.testing.assert_array_equal(auto.labels, hard.labels)
-    assert auto.info["soft"] == "skipped"
-    assert same_partition(auto.labels, place)
+    np.testing.assert_array_equal(auto.labels_, hard.labels_)
+    assert auto.info_["soft"] == "skipped"
+    assert same_partition(auto.labels_, place)
 
 
 def test_soft_round_learns_confusion():
@@ -155,7 +156,7 @@ def test_cscg_soft_evidence_runs():
     sym, u, lengths, place, _ = _ring_walk(T=3000, misread=0.04)
     fit = CSCGRefinement(clones_per_symbol=8, max_iter=100, evidence="soft").fit(
         _seq(sym, u, lengths), RING, 0)
-    assert fit.info["soft"] == "on" and fit.labels.size == sym.size
+    assert fit.info_["soft"] == "on" and fit.labels_.size == sym.size
 
 
 def test_gds_never_confused():
@@ -164,9 +165,32 @@ def test_gds_never_confused():
     np.testing.assert_array_equal(C[3:, 3:], np.eye(2))
 
 
+def test_gds_stay_exact_after_the_confusion_matrix_is_learned():
+    """Places 0 and 4 are GDS 0 and 1 (ids 3 and 4 past the 3 K-means symbols), every other
+    step misread 6 % of the time: after EM has learned the confusion matrix, the GDS rows and
+    columns are still exactly the identity (no K-means symbol is read as a GDS, no GDS as
+    anything else), while the K-means rows have learned their misreads; every GDS step is
+    decoded to its own id and no other step to a GDS id."""
+    sym, u, lengths, place, _ = _ring_walk(misread=0.06, seed=2)
+    gds_place = {0: 3, 4: 4}
+    sym = sym.copy()
+    for p, g in gds_place.items():
+        sym[place == p] = g
+    seq = SymbolSequence.build(sym, u, lengths, 3, 3)
+    state_symbol = np.array([gds_place.get(p, RING[p]) for p in range(RING.size)])
+    fit = soft_round(seq, place, state_symbol, settings=SoftSettings())
+    C = fit.conf
+    np.testing.assert_array_equal(C[3:, :], np.eye(5)[3:])
+    np.testing.assert_array_equal(C[:, 3:], np.eye(5)[:, 3:])
+    assert 0.02 < fit.info["conf_offdiag"] < 0.1  # the K-means rows did learn
+    is_gds = sym >= 3
+    np.testing.assert_array_equal(fit.sym[is_gds], sym[is_gds])
+    assert not np.any(fit.sym[~is_gds] >= 3)
+
+
 def test_bad_evidence_rejected():
     with pytest.raises(ValueError, match="evidence"):
-        EMRefinement(evidence="fuzzy")
+        EMRefinement(evidence="fuzzy").check_params()
 
 
 def test_gds_steps_stay_in_their_state():
@@ -178,9 +202,9 @@ def test_gds_steps_stay_in_their_state():
     seq = SymbolSequence.build(sym, u, lengths, 3, 3)
     split_symbol = np.where(np.arange(RING.size) == 0, -1, RING)
     fit = EMRefinement(evidence="soft").fit(seq, split_symbol, 0)
-    gds_states = np.flatnonzero(fit.state_symbol == 3)
+    gds_states = np.flatnonzero(fit.state_symbol_ == 3)
     assert gds_states.size == 1
-    np.testing.assert_array_equal(fit.labels == gds_states[0], place == 0)
-    assert fit.n_states == RING.size
+    np.testing.assert_array_equal(fit.labels_ == gds_states[0], place == 0)
+    assert fit.n_states_ == RING.size
     # every step in its place's state but the last two, both misread (nothing follows them)
-    assert same_partition(fit.labels[:-2], place[:-2])
+    assert same_partition(fit.labels_[:-2], place[:-2])

@@ -1,18 +1,31 @@
-"""The learning core: trajectories, the paper's two phases, the map and its metrics.
+"""The learning core: trajectories, the paper's two phases, the refinement, the map, metrics.
 
-numpy and scikit-learn only: nothing here imports Hydra, pluggy or a simulator.
+It needs numpy, scikit-learn, numba (the compiled kernels), threadpoolctl and networkx (the
+map's graphs and plans), and ``rosbags`` only to read or write ROS bags; nothing here imports
+Hydra, pluggy or a simulator.  The rooms follow the method's order, each holding the kernels it
+uses:
 
 ==================  ===========================================================================
 module              its one job
 ==================  ===========================================================================
-``trajectory``      :class:`Trajectory`, input validation, ``.npz`` / ``.csv`` files
-``clustering``      phase 1: distance metrics, cluster-count policies, K-means symbols
-``splitting``       phase 2: transition instances, bottom-up merge, split criteria, stopping rules
+``data``            :class:`Trajectory`, a fit's checked input, ``.npz`` / ``.csv`` files,
+                    ROS bags, atomic writes
+``phase1``          phase 1: distance metrics, cluster-count policies, K-means symbols
+``split``           phase 2: transition instances, the bottom-up merge, split criteria,
+                    stopping rules
+``refine``          the refinement after the split: EM over clone-structured maps, soft
+                    symbol evidence, structure moves, resizing
+``map``             :class:`TopologicalMap`: estimation, entropies, inference, files, planning
+``size``            ``stop=auto``: the number of states by held-out likelihood or BIC
+``components``      the learner's parameters made into a fit's components
+``refining``        the learner's refinement stage: the refined map, the BIC guard
+``online``          what :meth:`MapLearner.partial_fit` keeps between calls
 ``learner``         :class:`MapLearner`, the estimator that runs the phases
-``map``             :class:`TopologicalMap`: probabilities, entropies, decoding, JSON, GraphML
 ``metrics``         learned states against ground-truth places (ARI, NMI, purity, ...)
-``stats``           counts and entropies shared by the modules above
-``files``           atomic file writes
+``stats``, ``sums`` counts, entropies and state matching shared by the rooms; numpy's
+                    pairwise sums, compiled
+``checks``          :class:`~topomap.core.checks.ParameterError`: errors naming a parameter
+``progress``        progress reports of long loops, for whoever listens
 ==================  ===========================================================================
 """
 

@@ -5,20 +5,29 @@ error naming the learner's own parameter (:func:`naming`)."""
 from __future__ import annotations
 
 import copy
+import warnings
 from contextlib import contextmanager
+
+from sklearn.base import clone
 
 from .checks import ParameterError, check_count
 from .phase1.clustering import FixedClusters, make_metric
-from .refine.methods import REFINEMENTS
+from .refine.methods import REFINEMENTS, CloneFit
 from .size import AutoStates
 from .split.criteria import CRITERIA
 from .split.stopping import TargetStates
 
-__all__ = ["make_components", "make_refinement", "naming", "within_told_size"]
+__all__ = ["make_components", "make_refinement", "fit_refinement", "refinement_label", "naming",
+           "within_told_size", "renamed_params", "warn_renamed", "DEPRECATED", "RENAMED"]
 
 #: the learner's own parameter behind a parameter of a component it makes itself
 #: (``FixedClusters(n_clusters)``, ``TargetStates(n_states)``)
-_MADE_FROM = {("clusters", "ns"): "n_clusters", ("stopping", "n_states"): "n_states"}
+_MADE_FROM = {("clusters", "ns"): "n_clusters", ("stop", "n_states"): "n_states"}
+#: the default of a deprecated parameter: not given
+DEPRECATED = "deprecated"
+#: deprecated learner parameters: their new names and the new names' defaults (given, a
+#: deprecated parameter warns and stands for the new one)
+RENAMED = {"criterion": ("split", "entropy"), "stopping": ("stop", None)}
 
 
 @contextmanager
@@ -28,35 +37,65 @@ def naming(learner, arg: str, **own: str):
     the learner's own parameter when the learner made the component from it
     (``n_clusters``), and ``own[param]`` for a setting passed on under another name
     (``method`` is ``phase1``)."""
+    given = getattr(learner, arg)
+    old = next((o for o, (n, _) in RENAMED.items() if n == arg), None)
+    if given is None and old is not None and getattr(learner, old) is not DEPRECATED:
+        given = getattr(learner, old)  # passed under its deprecated name
     try:
         yield
     except ParameterError as err:
         if err.param in own:
             name = own[err.param]
-        elif getattr(learner, arg) is None:
+        elif given is None:
             name = _MADE_FROM.get((arg, err.param), err.param)
         else:
             name = f"{arg}.{err.param}"
         raise err.renamed(name) from err.__cause__
 
 
+def renamed_params(learner) -> dict:
+    """``{"split": ..., "stop": ...}``: the learner's ``split`` and ``stop``, or the deprecated
+    ``criterion`` / ``stopping`` when given instead (given beside the new name set too, a
+    :class:`ParameterError`)."""
+    out = {}
+    for old, (new, default) in RENAMED.items():
+        value, given = getattr(learner, new), getattr(learner, old)
+        if not (isinstance(given, str) and given == DEPRECATED):
+            if value is not default and value != default:
+                raise ParameterError(old, f"is the deprecated name of {new}: give {new} only")
+            value = given
+        out[new] = value
+    return out
+
+
+def warn_renamed(learner, stacklevel: int) -> None:
+    """A ``FutureWarning`` for every deprecated parameter ``learner`` was given."""
+    for old, (new, _) in RENAMED.items():
+        given = getattr(learner, old)
+        if not (isinstance(given, str) and given == DEPRECATED):
+            warnings.warn(f"MapLearner's {old}= was renamed {new}= in 0.3 and goes in 0.4; "
+                          f"pass {new}= instead", FutureWarning, stacklevel=stacklevel + 1)
+
+
 def make_components(learner):
-    """``(clusters, metric, criterion, stopping)`` of a fit by ``learner``, its other settings
-    checked; a stopping rule may keep state during a fit (e.g. its limit), so a fit works on a
-    copy and the parameter itself is never changed."""
+    """``(clusters, metric, criterion, stopping)`` of a fit by ``learner`` (its ``clusters``,
+    ``metric``, ``split`` and ``stop``), its other settings checked; a stopping rule may keep
+    state during a fit (e.g. its limit), so a fit works on a copy and the parameter itself is
+    never changed."""
+    params = renamed_params(learner)
     with naming(learner, "clusters"):
         clusters = (learner.clusters if learner.clusters is not None
                     else FixedClusters(learner.n_clusters))
-    if learner.stopping is not None:
-        stopping = copy.deepcopy(learner.stopping)
+    if params["stop"] is not None:
+        stopping = copy.deepcopy(params["stop"])
     else:
         stopping = (AutoStates() if learner.n_states == "auto"
                     else TargetStates(learner.n_states))
-    criterion = learner.criterion
+    criterion = params["split"]
     if isinstance(criterion, str):
         if criterion not in CRITERIA:
-            raise ParameterError("criterion", f"{criterion!r} is unknown; choose one of "
-                                              f"{', '.join(sorted(CRITERIA))}")
+            raise ParameterError("split", f"{criterion!r} is unknown; choose one of "
+                                          f"{', '.join(sorted(CRITERIA))}")
         criterion = CRITERIA[criterion]()
     if learner.refined_size not in ("told", "free"):
         raise ParameterError("refined_size",
@@ -68,12 +107,15 @@ def make_components(learner):
         raise ParameterError("reg_covar", f"must be a positive number, got {learner.reg_covar!r}")
     check_count(learner.n_init, "n_init")
     check_count(learner.sample_size, "sample_size", allow_none=True)
-    learner._online_settings()
+    check_count(learner.window, "window")
+    check_count(learner.refit_every, "refit_every")
     return clusters, make_metric(learner.metric), criterion, stopping
 
 
 def make_refinement(refine):
-    """The refinement object of the learner's ``refine`` (None: the paper's method alone)."""
+    """The refinement a fit uses for the learner's ``refine`` (None: the paper's method alone): a
+    new built-in for a name, else a clone of the object (``sklearn.base.clone``; a deep copy of
+    an object that is not a scikit-learn estimator), so fitting it never changes ``refine``."""
     if isinstance(refine, str):
         if refine == "none":
             return None
@@ -84,7 +126,29 @@ def make_refinement(refine):
     if refine is not None and not callable(getattr(refine, "fit", None)):
         raise ParameterError("refine", f"{refine!r} has no fit(sequence, split_state_symbol, "
                                        "random_state) method")
-    return refine
+    return None if refine is None else clone(refine, safe=False)
+
+
+def fit_refinement(refinement, seq, split_state_symbol, random_state: int) -> CloneFit:
+    """Fit ``refinement`` and return what it learned as a :class:`CloneFit`.
+
+    A refinement's ``fit`` returns the refinement, its ``labels_``, ``state_symbol_`` and
+    ``info_`` set (``info_`` optional).  A ``fit`` that returns a ``CloneFit`` itself (the
+    contract before 0.3) is still accepted, with a ``FutureWarning``, until 0.4."""
+    out = refinement.fit(seq, split_state_symbol, random_state)
+    if isinstance(out, CloneFit):
+        warnings.warn(f"{type(refinement).__name__}.fit returned a CloneFit; since 0.3 a "
+                      "refinement's fit returns self with labels_, state_symbol_ and info_ set "
+                      "(a CloneFit is refused from 0.4)", FutureWarning, stacklevel=3)
+        return out
+    return CloneFit(out.labels_, out.state_symbol_, dict(getattr(out, "info_", {})))
+
+
+def refinement_label(refinement) -> str:
+    """What map.json stores as ``info["refine"]``: the refinement's :meth:`provenance` when it
+    has one (the built-ins), else its ``repr``."""
+    provenance = getattr(refinement, "provenance", None)
+    return provenance() if callable(provenance) else repr(refinement)
 
 
 def within_told_size(clusters, stopping, n_gds: int):

@@ -12,27 +12,28 @@ from numpy.typing import ArrayLike
 from sklearn.base import BaseEstimator
 from sklearn.utils.validation import check_is_fitted
 
-from . import online
 from .checks import check_count
-from .components import make_components, make_refinement, naming, within_told_size
+from .components import (DEPRECATED, fit_refinement, make_components, make_refinement, naming,
+                         refinement_label, warn_renamed, within_told_size)
+from .refining import bic_scores, heldout_scores, refined_from, resized, symbol_map
+from .online import OnlineState, Window, lengths_of
 from .phase1.clustering import cluster_observations
-from .size import (AutoStates, bic, parameter_count, probe_sizes, refined_sizes,
-                   split_holdout)
+from .size import AutoStates, probe_sizes, split_holdout
 from .map.model import TopologicalMap
-from .refine.methods import CloneFit, SymbolSequence
-from .refine.resize import resize
+from .refine.sequence import SymbolSequence
 from .split.engine import Splitter
 from .split.stopping import TargetStates
-from .data.trajectory import FitData, check_fit_data
+from .data.trajectory import FitData, check_fit_data, check_sequences
 
 __all__ = ["MapLearner"]
+
 
 class MapLearner(BaseEstimator):
     """Learn a topological map from observations and actions (Yairi, Togami & Hori, 2002).
 
     Phase 1 clusters the non-GDS observations with K-means into ``ns`` symbols, one state each, and
-    adds one fixed state per GDS id.  Phase 2 repeatedly splits the state whose split gains the
-    most, until the stopping rule fires.  A scikit-learn estimator: ``get_params``,
+    adds one state per GDS id (never split).  Phase 2 repeatedly splits the state whose split
+    gains the most, until the stopping rule fires.  A scikit-learn estimator: ``get_params``,
     ``set_params`` and ``sklearn.base.clone`` work, and ``fit`` never changes the parameters.
 
     Parameters
@@ -40,7 +41,7 @@ class MapLearner(BaseEstimator):
     n_clusters : int
         ``ns``, the number of K-means clusters (used when ``clusters`` is None).
     n_states : int or "auto"
-        Target state count (used when ``stopping`` is None); ``"auto"`` chooses it by the
+        Target state count (used when ``stop`` is None); ``"auto"`` chooses it by the
         held-out log-likelihood (:class:`topomap.core.size.AutoStates`).
     clusters : object, optional
         Cluster-count policy with ``choose(Z, random_state)`` returning ``ns`` or ``(ns, details)``
@@ -48,11 +49,12 @@ class MapLearner(BaseEstimator):
     metric : str or object
         ``"euclidean"`` (default), ``"standardized"``, ``"cosine"`` or an object with
         ``fit_transform(X)``.
-    criterion : str or object
-        ``"entropy"`` (default) or an object with ``propose(counts) -> (side, score) | None``.
-    stopping : object, optional
-        Stopping rule with ``check(n_initial)`` and ``should_stop(n_states, best_score)``.
-        Default: ``TargetStates(n_states)``.
+    split : str or object
+        The split criterion (the config's ``split``): ``"entropy"`` (default) or an object with
+        ``propose(counts) -> (side, score) | None``.
+    stop : object, optional
+        The stopping rule (the config's ``stop``), with ``check(n_initial)`` and
+        ``should_stop(n_states, best_score)``.  Default: ``TargetStates(n_states)``.
     covariance_type : {"diag", "full"}
         Form of the Gaussian observation models.
     reg_covar : float
@@ -70,9 +72,10 @@ class MapLearner(BaseEstimator):
         A refinement phase after the split (:mod:`topomap.core.refine.methods`): ``"em"`` re-estimates
         every state jointly with EM over a clone budget sized by the split, merges states that
         are one place and splits compound ones (maps that stay right under heavy aliasing);
-        ``"cscg"`` is EM alone from phase 1 with CSCG's recipe, ignoring the split; an object
-        with ``fit(sequence, split_state_symbol, random_state) -> CloneFit``.  None (default):
-        the paper's method alone.
+        ``"cscg"`` is EM alone from phase 1 with CSCG's recipe, ignoring the split; or an
+        estimator whose ``fit(sequence, split_state_symbol, random_state)`` returns itself with
+        ``labels_``, ``state_symbol_`` and ``info_`` (a fit refines a clone of it).  None
+        (default): the paper's method alone.
     refined_size : "told" or "free"
         With a refinement and a told number of states (``n_states`` an int, or a
         :class:`~topomap.core.split.stopping.TargetStates` rule): ``"told"`` (default) brings the
@@ -88,15 +91,20 @@ class MapLearner(BaseEstimator):
         Seed of K-means (the only random part of the method).
     callbacks : sequence of callables
         Each is called as ``callback(event, info)`` with ``event`` in ``"phase1"``, ``"split"``,
-        ``"refine"`` (after a refinement), ``"done"`` and ``info`` a dict (``learner``, ``labels``, ``entropies`` and, for splits, the
-        history record).  Used to log progress or record extra metrics.  ``labels`` of a split is
-        the learner's working array, changed in place by later splits: copy it to keep it.
+        ``"refine"`` (after a refinement), ``"done"`` and ``info`` a dict (``learner``,
+        ``labels``, ``entropies`` and, for splits, the history record), by every fit, the wider
+        passes of :meth:`partial_fit` included (on the window's steps).  Used to log progress or
+        record extra metrics.  ``labels`` of a split is the learner's working array, changed in
+        place by later splits: copy it to keep it.
+    criterion, stopping : deprecated
+        The names of ``split`` and ``stop`` before 0.3: still accepted, with a
+        ``FutureWarning``, until 0.4.
 
     Attributes
     ----------
-    labels_ : (T,) int -- the state of every step (of every step seen, after :meth:`partial_fit`)
-    labels_phase1_ : (T,) int -- the state of every step after phase 1
-    labels_split_ : (T,) int -- the state of every step after phase 2 (before any refinement)
+    labels_ : (T,) int -- the state of every step (of every step seen after :meth:`partial_fit`)
+    labels_phase1_, labels_split_ : (T,) int -- the state of every step after phase 1 and after
+        phase 2, before any refinement (not kept by :meth:`partial_fit`)
     map_ : TopologicalMap -- the final map (refined, with ``refine``)
     map_phase1_ : TopologicalMap -- the map before any split
     map_split_ : TopologicalMap -- the map after splitting (``map_`` without ``refine``)
@@ -110,6 +118,8 @@ class MapLearner(BaseEstimator):
     entropies_ : list of dict -- ``H_o``, ``H_u``, ``H_x`` after phase 1 and after every split
     stop_reason_ : str
     timings_ : dict -- seconds spent in ``phase1``, ``phase2`` (and ``refine``)
+    online_ : dict -- after :meth:`partial_fit`: steps seen, calls, wider passes, the steps the
+        last call touched, the first step the last pass learned from, the bytes kept
     """
 
     #: re-evaluate every state after each split instead of only the neighbours of the new state
@@ -117,17 +127,18 @@ class MapLearner(BaseEstimator):
     _recompute_all = False
 
     def __init__(self, n_clusters: int = 20, n_states: int = 30, *, clusters=None,
-                 metric="euclidean", criterion="entropy", stopping=None,
+                 metric="euclidean", split="entropy", stop=None,
                  covariance_type: str = "diag", reg_covar: float = 1e-3, n_init: int = 3,
                  phase1: str = "auto", sample_size: int | None = None, refine=None,
                  refined_size: str = "told", window: int = 20000, refit_every: int = 2000,
-                 random_state: int = 0, callbacks=()):
+                 random_state: int = 0, callbacks=(), criterion=DEPRECATED,
+                 stopping=DEPRECATED):
         self.n_clusters = n_clusters
         self.n_states = n_states
         self.clusters = clusters
         self.metric = metric
-        self.criterion = criterion
-        self.stopping = stopping
+        self.split = split
+        self.stop = stop
         self.covariance_type = covariance_type
         self.reg_covar = reg_covar
         self.n_init = n_init
@@ -139,20 +150,8 @@ class MapLearner(BaseEstimator):
         self.refit_every = refit_every
         self.random_state = random_state
         self.callbacks = callbacks
-
-    @property
-    def labels_(self) -> np.ndarray:
-        st = self.__dict__.get("_online")
-        if st is not None:
-            return online.all_labels(st, self.__dict__.get("map_"))
-        try:
-            return self.__dict__["_labels"]
-        except KeyError:
-            raise AttributeError("'MapLearner' object has no attribute 'labels_' (not fitted)") from None
-
-    @labels_.setter
-    def labels_(self, labels) -> None:
-        self.__dict__["_labels"] = labels
+        self.criterion = criterion
+        self.stopping = stopping
 
     # ------------------------------------------------------------------ the paper's method
     def fit(self, observations: ArrayLike, actions: ArrayLike, gds: ArrayLike | None = None,
@@ -165,14 +164,23 @@ class MapLearner(BaseEstimator):
         -1 for "no GDS", ``lengths`` the episode lengths when several episodes are concatenated.
         A fit forgets any earlier :meth:`partial_fit`.
         """
+        warn_renamed(self, stacklevel=2)
         data = check_fit_data(observations, actions, gds, lengths, n_actions, action_names,
                               gds_names)
-        self.n_features_in_ = data.X.shape[1]
+        self._online = None
+        return self._fit(data)
+
+    def _fit(self, data: FitData, symbols: np.ndarray | None = None) -> Self:
+        """Phase 1, the split, the map and the refinement on checked ``data``, forgetting what an
+        earlier fit (or pass) learned.  ``symbols``: the K-means symbol of every non-GDS step,
+        given instead of running K-means (a wider pass of :meth:`partial_fit` gives the
+        codebook's)."""
         clusters, metric, criterion, stopping = make_components(self)
         refinement = make_refinement(self.refine)
         self._forget_fit()
+        self.n_features_in_ = data.X.shape[1]
         t0 = time.perf_counter()
-        splitter = self._phase1(data, clusters, metric, criterion, stopping)
+        splitter = self._phase1(data, clusters, metric, criterion, stopping, symbols)
         told = stopping.n_states if isinstance(stopping, TargetStates) else None
         auto = stopping if isinstance(stopping, AutoStates) else None
         if auto is not None:
@@ -213,87 +221,93 @@ class MapLearner(BaseEstimator):
         a call does not grow with the steps seen before it: its chunk is decoded with the map and
         counted, and every ``refit_every`` steps a wider pass re-learns the map from the latest
         ``window`` steps (:mod:`topomap.core.online` says what is kept).  ``n_actions``,
-        ``action_names`` and ``gds_names`` may be given with any call.  :meth:`fit` starts over.
-        Returns ``self``.
+        ``action_names`` and ``gds_names`` may be given with any call (more actions than the
+        map has bring a wider pass).  A call that fails changes nothing.  :meth:`fit` starts
+        over.  Returns ``self``.
         """
-        return online.partial_fit(self, observations, actions, gds, new_episode=new_episode,
-                                  n_actions=n_actions, action_names=action_names,
-                                  gds_names=gds_names)
+        warn_renamed(self, stacklevel=2)
+        X, u, g, _ = check_sequences(observations, actions, gds, None, min_length=1)
+        window, every = check_count(self.window, "window"), check_count(self.refit_every,
+                                                                        "refit_every")
+        state = getattr(self, "_online", None) or OnlineState(Window(window))
+        starts = np.zeros(X.shape[0], dtype=bool)
+        starts[0] = new_episode or state.n_steps == 0
+        saved, learned = state.snapshot(), self._learned()
+        try:
+            state.take(X, u, g, starts, n_actions, action_names, gds_names)
+            if state.needs_pass(getattr(self, "map_", None), every):
+                self._online_pass(state, X)
+            else:
+                self.map_ = state.decode_chunk(self.map_, X.shape[0])
+        except BaseException:
+            state.restore(saved)
+            self._forget_fit()
+            for name, value in learned.items():
+                setattr(self, name, value)
+            raise
+        state.n_calls += 1
+        self._online = state
+        self.labels_ = state.record.labels
+        self.online_ = state.summary()
+        return self
 
-    @property
-    def online_(self) -> dict:
-        """What :meth:`partial_fit` has done: steps seen, calls, wider passes, the steps the last
-        call's kernels touched and the bytes kept (``per_step`` is the O(T) part)."""
-        st = self.__dict__.get("_online")
-        if st is None:
-            raise AttributeError("'MapLearner' object has no attribute 'online_' (no partial_fit)")
-        return {"n_steps": st.n_steps, "n_calls": st.n_calls, "n_passes": st.n_passes,
-                "last_work": dict(st.last_work), "memory": st.memory()}
+    def _online_pass(self, state: OnlineState, X_call) -> None:
+        """Learn the map from the window (:meth:`_fit` with the codebook's symbols, or with
+        K-means while the window holds every step seen) and bind ``state`` to it."""
+        Xw, uw, gw, sw, first = state.window.arrays()
+        plain = gw < 0
+        symbols, present = state.window_symbols(first, plain)
+        self._fit(check_fit_data(Xw, uw, gw, lengths_of(sw), state.n_actions, state.action_names,
+                                 state.gds_names), symbols)
+        if symbols is None:  # phase 1's K-means symbols of every step seen become the codebook
+            state.learn_codebook(X_call, Xw, plain, self.labels_phase1_[plain], self.n_clusters_,
+                                 first)
+        state.after_pass(self.map_, self.labels_, gw, first, present)
+        del self.labels_phase1_, self.labels_split_  # the window's: labels_ covers every step
 
-    def _online_settings(self) -> tuple[int, int]:
-        return check_count(self.window, "window"), check_count(self.refit_every, "refit_every")
-
-    def _keep_refined(self, data: FitData, refined: TopologicalMap, labels) -> bool:
-        """Whether the refined map's BIC (actions and transitions, :func:`topomap.core.size.bic`)
-        is no worse than the split map's; both BICs and the map kept go into ``refine_info_``."""
-        has_next = data.masks[1]
-        n_next = int(has_next.sum())
-        scores = {name: bic(m.entropies(), parameter_count(x, data.u, data.n_actions, has_next),
-                            data.u.size, n_next)
-                  for name, m, x in (("split", self.map_split_, self.labels_split_),
-                                     ("refined", refined, labels))}
-        keep = scores["refined"] <= scores["split"]
-        self.refine_info_.update(bic=scores, kept="refined" if keep else "split")
-        return keep
+    def _learned(self) -> dict:
+        """The learned attributes (names ending in ``_``), to restore after a failed call."""
+        return {k: v for k, v in vars(self).items() if k.endswith("_") and not k.startswith("_")}
 
     def _refine(self, data: FitData, splitter: Splitter, refinement, told: int | None) -> None:
-        """Re-estimate every state jointly (:mod:`topomap.core.refine.methods`); the split map stays as
-        ``map_split_``.  Refined states have no parent; ``map_.info["refined_from"]`` names, for
-        each, the split state most of its steps held."""
+        """Re-estimate every state jointly (:mod:`topomap.core.refine.methods`); the split map
+        stays as ``map_split_``.  With ``guard``, the refined map is kept only when its BIC is no
+        worse (both BICs and the map kept go into ``refine_info_``).  Refined states have no
+        parent; ``map_.info["refined_from"]`` names, for each, the split state most of its steps
+        held."""
         ns = self.n_clusters_
         seq = SymbolSequence.build(self.labels_phase1_, data.u, data.lengths, data.n_actions, ns)
-        split_symbol = np.where(np.asarray(splitter.gds) < 0, splitter.symbol, -1)
-        fit = refinement.fit(seq, split_symbol, self.random_state)
+        with naming(self, "refine"):
+            fit = fit_refinement(refinement, seq, self._split_symbol(splitter), self.random_state)
         if told is not None and self.refined_size == "told" and fit.n_states != told:
-            labels, state_symbol, resized = resize(fit.labels, fit.state_symbol, data.u,
-                                                   data.n_actions, data.masks, told,
-                                                   fit.state_symbol >= ns, splitter.criterion)
-            fit = CloneFit(labels, state_symbol, dict(fit.info, resized=resized))
-        sym = fit.state_symbol
-        refined = self._symbol_map(data, slice(None), data.lengths, fit.labels, sym,
-                                   action_names=data.action_names, gds_names=data.gds_names,
-                                   split_history=self.split_history_,
-                                   info=dict(self.map_split_.info))
+            fit = resized(fit, data, told, splitter.criterion, ns)
+        refined = symbol_map(data, slice(None), data.lengths, fit.labels, fit.state_symbol, ns,
+                             covariance_type=self.covariance_type, reg_covar=self.reg_covar,
+                             action_names=data.action_names, gds_names=data.gds_names,
+                             split_history=self.split_history_, info=dict(self.map_split_.info))
         self.refine_info_ = dict(fit.info)
-        if getattr(refinement, "guard", False) and not self._keep_refined(data, refined, fit.labels):
-            self.map_ = self.map_split_ = replace(self.map_split_, info=dict(
-                self.map_split_.info, refine=repr(refinement), refine_info=self.refine_info_))
-            return
-        self.labels_, self.map_ = fit.labels, refined
-        pairs = np.unique(fit.labels * splitter.n_states + self.labels_split_, return_counts=True)
-        origin = np.full(sym.size, -1, dtype=np.int64)
-        for code, _ in sorted(zip(*pairs), key=lambda p: p[1]):  # the largest count wins
-            origin[code // splitter.n_states] = code % splitter.n_states
-        self.entropies_.append(dict(self.map_.entropies(), n_states=self.map_.n_states,
+        record = {"refine": refinement_label(refinement), "refine_info": self.refine_info_}
+        if getattr(refinement, "guard", False):
+            scores = bic_scores(data, {"split": (self.map_split_, self.labels_split_),
+                                       "refined": (refined, fit.labels)})
+            keep = scores["refined"] <= scores["split"]
+            self.refine_info_.update(bic=scores, kept="refined" if keep else "split")
+            if not keep:
+                self.map_ = self.map_split_ = replace(
+                    self.map_split_, info=dict(self.map_split_.info, **record))
+                return
+        self.labels_ = fit.labels
+        self.entropies_.append(dict(refined.entropies(), n_states=refined.n_states,
                                     iteration=len(self.split_history_) + 1, stage="refined"))
-        self.map_ = replace(self.map_, entropy_history=self.entropies_, info=dict(
-            self.map_.info, refine=repr(refinement), refine_info=self.refine_info_,
-            refined_from=origin.tolist()))
+        origin = refined_from(fit.labels, self.labels_split_, fit.n_states, splitter.n_states)
+        self.map_ = replace(refined, entropy_history=self.entropies_,
+                            info=dict(refined.info, **record, refined_from=origin))
         self._emit("refine", labels=self.labels_, entropies=self.entropies_[-1], map=self.map_)
 
-    def _symbol_map(self, data: FitData, steps: slice, lengths, labels, sym, **kw) -> TopologicalMap:
-        """The map of a labelling whose states emit the symbol ids ``sym`` (K-means symbols,
-        then GDS ids), estimated on ``data``'s ``steps``."""
-        ns = self.n_clusters_
-        gds_ids = np.unique(data.gds[data.gds >= 0])
-        is_gds = sym >= ns
-        state_gds = np.full(sym.size, -1, dtype=np.int64)
-        state_gds[is_gds] = gds_ids[sym[is_gds] - ns]
-        return TopologicalMap.from_labels(
-            data.X[steps], data.u[steps], labels, lengths=lengths,
-            state_symbol=np.where(is_gds, -1, sym), state_gds=state_gds,
-            state_parent=np.full(sym.size, -1), n_actions=data.n_actions,
-            covariance_type=self.covariance_type, reg_covar=self.reg_covar, **kw)
+    @staticmethod
+    def _split_symbol(splitter: Splitter) -> np.ndarray:
+        """The symbol of every split state, -1 for GDS states: a refinement's second argument."""
+        return np.where(np.asarray(splitter.gds) < 0, splitter.symbol, -1)
 
     def _choose_refined_size(self, data: FitData, splitter: Splitter, refinement,
                              rule: AutoStates) -> int:
@@ -303,29 +317,23 @@ class MapLearner(BaseEstimator):
         L, held, cut = split_holdout(data.u.size, data.lengths, rule.holdout)
         seq = SymbolSequence.build(self.labels_phase1_[:cut], data.u[:cut], L, data.n_actions,
                                    self.n_clusters_)
-        split_symbol = np.where(np.asarray(splitter.gds) < 0, splitter.symbol, -1)
-        fit = refinement.fit(seq, split_symbol, self.random_state)
-        fixed = fit.state_symbol >= self.n_clusters_
-        n_min = int(np.unique(seq.sym).size)
-        scores = {}
-        for n in refined_sizes(fit.n_states, n_min):
-            labels, sym, _ = resize(fit.labels, fit.state_symbol, seq.u, data.n_actions,
-                                    seq.masks(), n, fixed, splitter.criterion)
-            m = self._symbol_map(data, slice(0, cut), L, labels, sym)
-            scores[int(sym.size)] = float(m.score(data.X[cut:], data.u[cut:],
-                                                  gds=data.gds[cut:], lengths=held))
+        with naming(self, "refine"):
+            fit = fit_refinement(refinement, seq, self._split_symbol(splitter), self.random_state)
+        scores = heldout_scores(data, seq, fit, held, splitter.criterion, self.n_clusters_,
+                                covariance_type=self.covariance_type, reg_covar=self.reg_covar)
         chosen = max(sorted(scores), key=lambda n: scores[n])
         self.size_choice_["refined"] = {"own": fit.n_states, "chosen": chosen, "scores": scores}
         return chosen
 
-    def _phase1(self, data: FitData, clusters, metric, criterion, stopping) -> Splitter:
-        """K-means symbols, one state each, plus one fixed state per GDS id (paper Section 3.2)."""
+    def _phase1(self, data: FitData, clusters, metric, criterion, stopping,
+                symbols=None) -> Splitter:
+        """K-means symbols (or the ``symbols`` given), one state each, plus one state per GDS id,
+        never split (paper Section 3.2)."""
         plain = data.gds < 0
         if plain.sum() < 1:
             raise ValueError("every step is labelled as a GDS; no observations are left to cluster")
-        given = self.__dict__.get("_given_symbols")  # a wider pass of partial_fit
-        if given is not None:
-            symbols, choice = given, {"method": "online codebook"}
+        if symbols is not None:
+            choice = {"method": "online codebook"}
         else:
             searched = within_told_size(clusters, stopping, np.unique(data.gds[~plain]).size)
             with naming(self, "clusters", method="phase1"):
@@ -340,7 +348,7 @@ class MapLearner(BaseEstimator):
         labels = np.empty(data.X.shape[0], dtype=np.int64)
         labels[plain] = symbols
         labels[~plain] = ns + np.searchsorted(gds_ids, data.gds[~plain])
-        with naming(self, "stopping"):
+        with naming(self, "stop"):
             stopping.check(ns + gds_ids.size)
         self.labels_phase1_ = labels.copy()
         self.split_history_, self.entropies_ = [], []
@@ -366,19 +374,22 @@ class MapLearner(BaseEstimator):
 
     def check_params(self, n_gds: int = 0) -> None:
         """Check what can be checked before any data is seen; raise a
-        :class:`~topomap.core.checks.ParameterError` naming the parameter (``n_states``, or
-        ``stopping.n_states`` for a stopping rule passed as ``stopping``).
-
-        Besides the parameters themselves, the stopping rule is checked against the states
-        phase 1 will create: at least ``min_clusters`` of the cluster-count policy (when it tells)
-        plus ``n_gds``, the number of GDS the data is expected to hold.  ``fit`` checks again
-        with the real counts.
-        """
+        :class:`~topomap.core.checks.ParameterError` naming the parameter (``n_states``,
+        ``stop.n_states`` for a stopping rule passed as ``stop``, ``refine.<param>`` for the
+        refinement's).  The stopping rule is also checked against the states phase 1 will
+        create: at least ``min_clusters`` of the cluster-count policy (when it tells) plus
+        ``n_gds``, the GDS the data is expected to hold.  ``fit`` checks again with the real
+        counts."""
+        warn_renamed(self, stacklevel=2)
         clusters, _, _, stopping = make_components(self)
         least = getattr(clusters, "min_clusters", None)
         if least is not None:
-            with naming(self, "stopping"):
+            with naming(self, "stop"):
                 stopping.check(int(least) + int(n_gds))
+        refinement = make_refinement(self.refine)
+        if callable(getattr(refinement, "check_params", None)):
+            with naming(self, "refine"):
+                refinement.check_params()
 
     # ------------------------------------------------------------------ helpers
     def _choose_size(self, data: FitData, splitter: Splitter, rule: AutoStates) -> int:
@@ -402,13 +413,10 @@ class MapLearner(BaseEstimator):
 
     # ------------------------------------------------------------------ conveniences
     def _forget_fit(self) -> None:
-        """Drop every attribute a previous ``fit`` learned (names ending in ``_``), so a refit
-        never shows the last fit's refinement, size choice or split map as its own."""
-        for name in [k for k in vars(self) if k.endswith("_") and not k.startswith("_")
-                     and k != "n_features_in_"]:
+        """Drop every attribute an earlier fit learned (names ending in ``_``), so a refit never
+        shows the last fit's refinement, size choice or split map as its own."""
+        for name in self._learned():
             delattr(self, name)
-        for name in ("_labels", "_online"):
-            self.__dict__.pop(name, None)
 
     def fit_trajectory(self, traj):
         """Fit on a :class:`topomap.Trajectory`, carrying its names and episode lengths."""

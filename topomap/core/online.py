@@ -5,26 +5,33 @@ seen before it:
 
 * **Symbols.** While the window still holds every step seen, every pass runs phase 1's K-means
   on all of them (a walk no longer than the window is learned as :meth:`MapLearner.fit` learns
-  it).  Once steps have left the window, the symbols of the last such pass are fixed (a codebook
-  of the symbols' mean observations), and a new step takes the symbol of the nearest mean: for
-  the Euclidean metric (the paper's) this is K-means' own assignment.  Symbols are then fixed
-  rather than updated (``MiniBatchKMeans.partial_fit``) because every state, count and label is
-  defined on them: moving a centre would silently change the symbol of steps already counted.
+  it).  Once steps have left the window, the symbols of the last such pass are fixed (a
+  :class:`Codebook` of the symbols' mean observations), and a new step takes the symbol of the
+  nearest mean: for the Euclidean metric (the paper's) this is K-means' own assignment.  Symbols
+  are then fixed rather than updated (``MiniBatchKMeans.partial_fit``) because every state,
+  count and label is defined on them: moving a centre would silently change the symbol of steps
+  already counted.
 * **Every chunk** is decoded with the current map (Viterbi over the chunk's symbols and actions,
   continuing from the last steps before it) and its transitions are added to the map's count
   tables: only the rows of the states the chunk visits change.
 * **A wider pass** re-learns the map's structure -- the split, the refinement, ``stop=auto``'s
-  size choice: :meth:`MapLearner.fit` with the codebook's symbols -- on a bounded window of the
+  size choice: the learner's fit with the codebook's symbols -- on a bounded window of the
   latest ``window`` steps.  It runs on the first call, then whenever the steps since the last
   pass reach ``refit_every`` or the steps the map was last learned from (so passes come at
   doubling sizes early on), and at once when a chunk brings a GDS id, an action or a symbol the
-  map does not know.
+  map does not know, or a call declares more actions (``n_actions``) than the map has.
+
+**Labels.** Every step's label is kept in the :class:`StepRecord` (``labels_`` is a view of it),
+always a state of the current map (or -1): a chunk's steps get the states they are decoded to; a
+pass gives the window's steps the states of its fit, decodes with the new map the steps that
+left the window since the pass before, and translates the labels of the steps before them from
+the last map's states to the new map's (each old state to the new state most of its steps since
+the last pass now hold; -1 if none of them has one): one integer lookup per step, once per pass,
+the only part of a call whose cost grows with the steps seen.
 
 Memory kept: the window (``window`` rows of observations, actions, GDS ids) and the map's tables,
-bounded by the world, not by the steps; and, per step seen, five int32: its symbol, action and
-GDS id (from which ``labels_`` is decoded), whether an episode starts there, and the label it was
-decoded to when it arrived, so O(T) small integers in all.  Reading ``labels_``
-decodes the steps before the window with the current map: O(T), once per call (cached).
+bounded by the world, not by the steps; and, per step seen, five int32 in the record: its symbol,
+action and GDS id, whether an episode starts there, and its label, so O(T) small integers.
 """
 
 from __future__ import annotations
@@ -32,10 +39,12 @@ from __future__ import annotations
 from dataclasses import dataclass, field, replace
 
 import numpy as np
+from sklearn.metrics.pairwise import euclidean_distances
 
 from .refine.clones import decode, make_layout
+from .stats import majority_match
 
-__all__ = ["GrowingInts", "Window", "OnlineState", "decode_symbols", "nearest_symbols"]
+__all__ = ["StepRecord", "Window", "Codebook", "OnlineState", "decode_symbols", "lengths_of"]
 
 #: steps before a chunk decoded with it, so a chunk's first states are not guessed blind
 CONTEXT = 16
@@ -43,38 +52,37 @@ CONTEXT = 16
 PSEUDOCOUNT = 1e-3
 
 
-class GrowingInts:
-    """An int32 array that grows by amortised doubling (the O(T) per-step record)."""
+class StepRecord:
+    """Five int32 values for every step seen -- its symbol (-1 at a GDS), action, GDS id,
+    episode start (1 or 0) and label -- in one array grown by doubling, so :attr:`labels` is a
+    view of every step's label, not a copy."""
 
     def __init__(self):
-        self._a = np.empty(1024, dtype=np.int32)
+        self._rows = np.empty((5, 1024), dtype=np.int32)
         self.size = 0
 
-    def extend(self, values) -> None:
-        values = np.asarray(values)
-        need = self.size + values.size
-        if need > self._a.size:
-            grown = np.empty(max(need, 2 * self._a.size), dtype=np.int32)
-            grown[:self.size] = self._a[:self.size]
-            self._a = grown
-        self._a[self.size:need] = values
-        self.size = need
+    def append(self, sym, act, gds, start) -> None:
+        """Record a chunk's steps (their labels -1 until they are decoded)."""
+        n = self.size + len(act)
+        if n > self._rows.shape[1]:
+            grown = np.empty((5, max(n, 2 * self._rows.shape[1])), np.int32)
+            grown[:, :self.size] = self._rows[:, :self.size]
+            self._rows = grown
+        self._rows[:, self.size:n] = [sym, act, gds, start, np.full(len(act), -1)]
+        self.size = n
 
-    def truncate_or_pad(self, n: int) -> None:
-        """Keep the first ``n`` values, padding with -1 when fewer are stored."""
-        if n <= self.size:
-            self.size = n
-        else:
-            self.extend(np.full(n - self.size, -1))
+    def _field(self, i: int) -> np.ndarray:
+        return self._rows[i, :self.size]
 
-    @property
-    def values(self) -> np.ndarray:
-        """A view of the stored values."""
-        return self._a[:self.size]
+    sym = property(lambda self: self._field(0), doc="the symbol of every step (-1 at a GDS)")
+    act = property(lambda self: self._field(1), doc="the action of every step")
+    gds = property(lambda self: self._field(2), doc="the GDS id of every step (-1: none)")
+    start = property(lambda self: self._field(3), doc="1 where an episode starts, else 0")
+    labels = property(lambda self: self._field(4), doc="the label of every step (-1: none)")
 
     @property
     def nbytes(self) -> int:
-        return int(self._a.nbytes)
+        return int(self._rows.nbytes)
 
 
 @dataclass
@@ -96,40 +104,48 @@ class Window:
             self.first += dropped
 
     def arrays(self):
-        """``(X, u, gds, starts)`` of the last ``capacity`` steps (the oldest chunk trimmed); the
-        first step always starts an episode."""
+        """``(X, u, gds, starts, first)`` of the last ``capacity`` steps (the oldest chunk
+        trimmed), ``first`` the index of their first step; that step always starts an episode."""
         X, u, g, s = (np.concatenate([c[i] for c in self.chunks]) for i in range(4))
         cut = max(0, X.shape[0] - self.capacity)
         X, u, g, s = X[cut:], u[cut:], g[cut:], s[cut:].copy()
         s[0] = True
         return X, u, g, s, self.first + cut
 
-    def tail(self, n: int):
-        """``(u, gds, starts)`` of the last ``n`` steps (fewer when the window holds fewer)."""
-        parts, have = [], 0
-        for c in reversed(self.chunks):
-            parts.append(c)
-            have += c[0].shape[0]
-            if have >= n:
-                break
-        u, g, s = (np.concatenate([c[i] for c in reversed(parts)])[-n:] for i in (1, 2, 3))
-        return u, g, s
-
     @property
     def nbytes(self) -> int:
         return int(sum(a.nbytes for c in self.chunks for a in c))
+
+
+@dataclass(frozen=True)
+class Codebook:
+    """The fixed symbols: the mean observation of every K-means symbol (K, D)."""
+
+    means: np.ndarray
+
+    @classmethod
+    def from_symbols(cls, X: np.ndarray, sym: np.ndarray, K: int) -> "Codebook":
+        """The mean of the rows of ``X`` of every symbol ``0..K-1`` of ``sym``."""
+        sums = np.zeros((K, X.shape[1]))
+        np.add.at(sums, sym, X)
+        return cls(sums / np.maximum(np.bincount(sym, minlength=K), 1)[:, None])
+
+    @property
+    def size(self) -> int:
+        return int(self.means.shape[0])
+
+    def symbols(self, X: np.ndarray) -> np.ndarray:
+        """The symbol of every row: its nearest mean (scikit-learn's squared Euclidean
+        distances, one matrix product; its ``pairwise_distances_argmin`` gives the same symbols
+        but starts OpenMP threads, which on a chunk of a thousand rows cost far more than the
+        product)."""
+        return euclidean_distances(X, self.means, squared=True).argmin(axis=1).astype(np.int64)
 
 
 def lengths_of(starts: np.ndarray) -> np.ndarray:
     """Episode lengths of a run of steps from its episode-start flags (the first step starts)."""
     first = np.flatnonzero(starts)
     return np.diff(np.concatenate([first, [starts.size]])).astype(np.int64)
-
-
-def nearest_symbols(X: np.ndarray, codebook: np.ndarray) -> np.ndarray:
-    """The symbol of every row: the index of its nearest codebook row (squared Euclidean)."""
-    d = (X * X).sum(1)[:, None] - 2.0 * X @ codebook.T + (codebook * codebook).sum(1)[None, :]
-    return np.argmin(d, axis=1).astype(np.int64)
 
 
 def decode_symbols(ids, u, starts, state_id, transitions, n_ids: int):
@@ -143,7 +159,7 @@ def decode_symbols(ids, u, starts, state_id, transitions, n_ids: int):
     """
     ids = np.asarray(ids, dtype=np.int64)
     u = np.asarray(u, dtype=np.int64)
-    S, A = transitions.shape[0], transitions.shape[1]
+    A = transitions.shape[1]
     per = np.bincount(state_id, minlength=n_ids)
     known = (ids < n_ids) & (ids >= 0)
     known[known] = per[ids[known]] > 0
@@ -180,241 +196,173 @@ def _block_counts(lay, order, transitions) -> np.ndarray:
 
 @dataclass
 class OnlineState:
-    """What ``partial_fit`` keeps between calls (see the module docstring)."""
+    """What ``partial_fit`` keeps between calls (see the module docstring): the window, the
+    record, the codebook, the symbol id every state of the map emits, and the pass schedule."""
 
     window: Window
-    n_actions: int | None = None
+    record: StepRecord = field(default_factory=StepRecord)
+    n_actions: int = 0
     action_names: list | None = None
     gds_names: list | None = None
-    codebook: np.ndarray | None = None       # (K, D) mean observation of every symbol
+    codebook: Codebook | None = None
     gds_ids: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
-    sym: GrowingInts = field(default_factory=GrowingInts)    # symbol id per step (-1: GDS)
-    act: GrowingInts = field(default_factory=GrowingInts)
-    gds: GrowingInts = field(default_factory=GrowingInts)
-    start: GrowingInts = field(default_factory=GrowingInts)  # 1 where an episode starts
-    labels: GrowingInts = field(default_factory=GrowingInts)  # per step, as decoded at the time
-    state_id: np.ndarray | None = None        # (S,) the symbol id every state of the map emits
+    state_id: np.ndarray | None = None         # (S,) the symbol id every state of the map emits
     n_ids: int = 0                             # symbol ids: K-means symbols, then known GDS ids
     pass_first: int = 0                        # first step of the last pass's window
     pass_steps: int = 0                        # steps seen at the last pass
     n_calls: int = 0
     n_passes: int = 0
     last_work: dict = field(default_factory=dict)
-    cached_labels: np.ndarray | None = None
 
     @property
     def n_steps(self) -> int:
-        return self.sym.size
+        return self.record.size
+
+    def snapshot(self):
+        """What :meth:`restore` brings back when a call fails."""
+        w = self.window
+        return (list(w.chunks), w.size, w.first, self.record.size, self.n_actions,
+                self.action_names, self.gds_names)
+
+    def restore(self, saved) -> None:
+        w = self.window
+        (w.chunks, w.size, w.first, self.record.size, self.n_actions, self.action_names,
+         self.gds_names) = saved
+
+    def take(self, X, u, g, starts, n_actions, action_names, gds_names) -> None:
+        """Record a chunk (its steps' symbols: the codebook's) and the names and action count
+        the call gives (``n_actions`` may grow on any call, never shrink)."""
+        if self.codebook is not None and X.shape[1] != self.codebook.means.shape[1]:
+            raise ValueError(f"observations have {X.shape[1]} features but the earlier steps "
+                             f"had {self.codebook.means.shape[1]}")
+        if n_actions is not None and int(n_actions) < max(self.n_actions, int(u.max()) + 1):
+            raise ValueError(f"n_actions is {int(n_actions)} but the steps use "
+                             f"{max(self.n_actions, int(u.max()) + 1)} actions")
+        self.action_names = self.action_names if action_names is None else action_names
+        self.gds_names = self.gds_names if gds_names is None else gds_names
+        sym = np.full(X.shape[0], -1, dtype=np.int64)
+        plain = g < 0
+        if self.codebook is not None and plain.any():
+            sym[plain] = self.codebook.symbols(X[plain])
+        self.window.push(X, u, g, starts)
+        self.record.append(sym, u, g, starts)
+        names = 0 if self.action_names is None else len(self.action_names)
+        self.n_actions = max(self.n_actions, int(u.max()) + 1, int(n_actions or 0), names)
 
     def ids(self, sym, g) -> np.ndarray:
         """Symbol ids of steps: K-means symbols, then ``K + i`` for the ``i``-th known GDS id
         (-1 for a GDS id the map does not know)."""
-        K = 0 if self.codebook is None else self.codebook.shape[0]
         out = np.asarray(sym, dtype=np.int64).copy()
-        is_g = np.asarray(g) >= 0
+        g = np.asarray(g)
+        is_g = g >= 0
         if is_g.any():
-            pos = np.searchsorted(self.gds_ids, g[is_g])
-            pos = np.minimum(pos, max(self.gds_ids.size - 1, 0))
-            found = self.gds_ids.size > 0
-            ok = found & (self.gds_ids[pos] == g[is_g]) if found else np.zeros(pos.size, bool)
-            out[is_g] = np.where(ok, K + pos, -1)
+            pos = np.minimum(np.searchsorted(self.gds_ids, g[is_g]), max(self.gds_ids.size - 1, 0))
+            ok = (self.gds_ids[pos] == g[is_g]) if self.gds_ids.size else np.zeros(pos.size, bool)
+            out[is_g] = np.where(ok, self.codebook.size + pos, -1)
         return out
 
-    def memory(self) -> dict:
-        """Bytes kept: the per-step record (O(T)) and the rest (bounded)."""
-        per_step = sum(a.nbytes for a in (self.sym, self.act, self.gds, self.start, self.labels))
-        return {"per_step": per_step, "window": self.window.nbytes,
-                "codebook": 0 if self.codebook is None else int(self.codebook.nbytes)}
+    def needs_pass(self, m, every: int) -> bool:
+        """A pass is due: no map yet, ``refit_every`` (or, early on, as many steps as the last
+        pass saw) new steps, more actions than the map has, or a GDS id or symbol the map does
+        not know."""
+        if self.codebook is None or self.state_id is None or m is None:
+            return True
+        if self.n_steps - self.pass_steps >= min(every, max(self.pass_steps, 1)):
+            return True
+        if self.n_actions > m.n_actions:
+            return True
+        since = slice(self.pass_steps, self.n_steps)
+        ids = self.ids(self.record.sym[since], self.record.gds[since])
+        per = np.bincount(self.state_id, minlength=self.n_ids)
+        return bool((ids < 0).any() or (per[ids] == 0).any())
 
-
-def replace_counts(m, state_counts, action_counts, transition_counts):
-    """The map ``m`` with new count tables (observation models and records unchanged)."""
-    return replace(m, state_counts=state_counts, action_counts=action_counts,
-                   transition_counts=transition_counts)
-
-
-# ---------------------------------------------------------------------------------- the calls
-#: learned attributes a pass hands from the window's fit to the learner (the ``labels_*`` of the
-#: window are not: ``labels_`` covers every step)
-PASSED_ON = ("map_", "map_phase1_", "map_split_", "split_history_", "entropies_", "stop_reason_",
-             "n_clusters_", "cluster_choice_", "phase1_method_", "n_features_in_", "refine_info_",
-             "size_choice_", "timings_")
-
-
-def partial_fit(learner, observations, actions, gds=None, *, new_episode: bool = False,
-                n_actions=None, action_names=None, gds_names=None):
-    """:meth:`topomap.MapLearner.partial_fit` (see the module docstring)."""
-    from .data.trajectory import check_sequences
-
-    X, u, g, _ = check_sequences(observations, actions, gds, None, min_length=1)
-    window, every = learner._online_settings()
-    st = learner.__dict__.get("_online")
-    if st is None:
-        learner._forget_fit()
-        st = OnlineState(Window(window), n_actions=None if n_actions is None else int(n_actions),
-                         action_names=action_names, gds_names=gds_names)
-    elif st.codebook is not None and X.shape[1] != st.codebook.shape[1]:
-        raise ValueError(f"observations have {X.shape[1]} features but the earlier steps had "
-                         f"{st.codebook.shape[1]}")
-    if action_names is not None:
-        st.action_names = action_names
-    if gds_names is not None:
-        st.gds_names = gds_names
-    starts = np.zeros(X.shape[0], dtype=bool)
-    starts[0] = new_episode or st.n_steps == 0
-    saved = _snapshot(st)
-    try:
-        _take(st, X, u, g, starts)
-        if _needs_pass(learner, st, every):
-            _pass(learner, st, X)
-        else:
-            _chunk(learner, st, X.shape[0])
-    except BaseException:
-        _restore(st, saved)
-        raise
-    st.n_calls += 1
-    st.cached_labels = None
-    learner._online = st
-    return learner
-
-
-def _snapshot(st: OnlineState):
-    w = st.window
-    return (list(w.chunks), w.size, w.first, st.n_steps, st.labels.size, st.n_actions,
-            st.codebook)
-
-
-def _restore(st: OnlineState, saved) -> None:
-    w = st.window
-    w.chunks, w.size, w.first, n, n_lab, st.n_actions, st.codebook = saved
-    for rec in (st.sym, st.act, st.gds, st.start):
-        rec.size = n
-    st.labels.truncate_or_pad(n_lab)
-
-
-def _take(st: OnlineState, X, u, g, starts) -> None:
-    """Record a chunk: its steps' symbols (nearest codebook row), actions, GDS ids, starts."""
-    sym = np.full(X.shape[0], -1, dtype=np.int64)
-    plain = g < 0
-    if st.codebook is not None and plain.any():
-        sym[plain] = nearest_symbols(X[plain], st.codebook)
-    st.window.push(X, u, g, starts)
-    for rec, v in ((st.sym, sym), (st.act, u), (st.gds, g), (st.start, starts)):
-        rec.extend(v)
-    st.n_actions = max(st.n_actions or 0, int(u.max()) + 1,
-                       len(st.action_names) if st.action_names is not None else 0)
-
-
-def _needs_pass(learner, st: OnlineState, every: int) -> bool:
-    """A pass is due: no map yet, ``refit_every`` (or, early on, as many steps as the last pass
-    saw) new steps, or a GDS id, action or symbol the map does not know."""
-    if st.codebook is None or st.state_id is None:
-        return True
-    new = st.n_steps - st.pass_steps
-    if new >= min(every, max(st.pass_steps, 1)):
-        return True
-    m = learner.map_
-    since = slice(st.pass_steps, st.n_steps)
-    if int(st.act.values[since].max()) >= m.n_actions:
-        return True
-    ids = st.ids(st.sym.values[since], st.gds.values[since])
-    per = np.bincount(st.state_id, minlength=st.n_ids)
-    return bool((ids < 0).any() or (per[ids] == 0).any())
-
-
-def _pass(learner, st: OnlineState, X_call) -> None:
-    """Learn the map from the window (:meth:`MapLearner.fit` with the codebook's symbols)."""
-    from sklearn.base import clone
-
-    Xw, uw, gw, sw, first = st.window.arrays()
-    plain = gw < 0
-    inner = clone(learner)
-    inner.callbacks = ()
-    present = None
-    relearn = st.codebook is None or first == 0   # the window still holds every step seen
-    if not relearn:
-        sym = st.sym.values[first:].astype(np.int64)[plain]
+    def window_symbols(self, first: int, plain: np.ndarray):
+        """``(symbols, present)`` a pass fits the window from ``first`` on with: the codebook's
+        symbols of its non-GDS steps (``plain``), renumbered ``0..`` over the symbols
+        ``present`` in it; ``(None, None)`` while the window holds every step seen (K-means
+        runs again)."""
+        if self.codebook is None or first == 0:
+            return None, None
+        sym = self.record.sym[first:].astype(np.int64)[plain]
         present = np.unique(sym)
-        inner._given_symbols = np.searchsorted(present, sym)
-    inner.fit(Xw, uw, gw, lengths_of(sw), n_actions=st.n_actions, action_names=st.action_names,
-              gds_names=st.gds_names)
-    if relearn:  # phase 1's K-means symbols of every step seen become the codebook
-        sym = inner.labels_phase1_[plain]
-        K = inner.n_clusters_
-        counts = np.bincount(sym, minlength=K)[:, None]
-        st.codebook = np.zeros((K, Xw.shape[1]))
-        np.add.at(st.codebook, sym, Xw[plain])
-        st.codebook /= np.maximum(counts, 1)
-        present = np.arange(K)
-        rec = st.sym.values
-        rec[first:][plain] = sym
-        if first > 0:  # the first pass comes at the first call: its steps before the window
-            old = np.flatnonzero(st.gds.values[:first] < 0)
-            rec[old] = nearest_symbols(X_call[old], st.codebook)
-    m = inner.map_
-    st.gds_ids = np.unique(gw[gw >= 0]).astype(np.int64)
-    K = st.codebook.shape[0]
-    st.n_ids = K + st.gds_ids.size
-    is_g = m.state_gds >= 0
-    st.state_id = np.where(is_g, K + np.searchsorted(st.gds_ids, m.state_gds),
-                           present[np.maximum(m.state_symbol, 0)]).astype(np.int64)
-    for name in PASSED_ON:
-        if hasattr(inner, name):
-            setattr(learner, name, getattr(inner, name))
-    st.labels.truncate_or_pad(first)  # labels before the window are decoded when read
-    st.labels.extend(inner.labels_)
-    st.pass_first, st.pass_steps = first, st.n_steps
-    st.n_passes += 1
-    st.last_work = {"decoded": 0, "pass": int(Xw.shape[0])}
+        return np.searchsorted(present, sym), present
+
+    def learn_codebook(self, X_call, Xw, plain, symbols, K: int, first: int) -> None:
+        """The codebook of a pass that ran K-means on the window (``symbols`` of its ``plain``
+        steps); the window's steps take those symbols, and the steps before it (all in the
+        call's ``X_call``, at the first call) their nearest means."""
+        self.codebook = Codebook.from_symbols(Xw[plain], symbols, K)
+        self.record.sym[first:][plain] = symbols
+        if first > 0:
+            old = np.flatnonzero(self.record.gds[:first] < 0)
+            self.record.sym[old] = self.codebook.symbols(X_call[old])
+
+    def after_pass(self, m, labels, gw, first: int, present) -> None:
+        """Bind the state to the map ``m`` a pass learned from the window (from step ``first``,
+        GDS ids ``gw``, its steps' ``labels``) and relabel every step with ``m``'s states: the
+        window's steps get ``labels``, the steps that left the window since the last pass are
+        decoded with ``m``, and the steps before them are translated from the last map's states
+        (each to the state of ``m`` most of its steps since the last pass now hold)."""
+        n_old = 0 if self.state_id is None else self.state_id.size
+        self.gds_ids = np.unique(gw[gw >= 0]).astype(np.int64)
+        K = self.codebook.size
+        present = np.arange(K) if present is None else present
+        self.n_ids = K + self.gds_ids.size
+        self.state_id = np.where(m.state_gds >= 0, K + np.searchsorted(self.gds_ids, m.state_gds),
+                                 present[np.maximum(m.state_symbol, 0)]).astype(np.int64)
+        rec, since = self.record, slice(self.pass_first, self.pass_steps)
+        before = rec.labels[since].copy()  # the last map's states
+        left = slice(self.pass_first, first)
+        rec.labels[first:] = labels
+        rec.labels[left] = decode_symbols(self.ids(rec.sym[left], rec.gds[left]), rec.act[left],
+                                          rec.start[left].astype(bool), self.state_id,
+                                          m.transition_counts, self.n_ids)
+        old = rec.labels[:self.pass_first]
+        if old.size:  # new state of every old state, and -1 (at index -1) for -1
+            match = np.append(majority_match(before, rec.labels[since], n_old, m.n_states), -1)
+            np.take(match.astype(np.int32), old, out=old)
+        self.last_work = {"decoded": first - self.pass_first, "pass": int(gw.size),
+                          "relabelled": int(old.size)}
+        self.pass_first, self.pass_steps = first, self.n_steps
+        self.n_passes += 1
+
+    def decode_chunk(self, m, n: int):
+        """The map ``m`` with the last ``n`` steps decoded (after up to :data:`CONTEXT` steps
+        before them) and their counts added to its tables."""
+        rec, total = self.record, self.n_steps
+        lo = max(self.pass_first, total - n - CONTEXT)
+        sl = slice(lo, total)
+        path = decode_symbols(self.ids(rec.sym[sl], rec.gds[sl]), rec.act[sl],
+                              rec.start[sl].astype(bool), self.state_id, m.transition_counts,
+                              self.n_ids)
+        rec.labels[total - n:] = path[-n:]
+        self.last_work = {"decoded": int(total - lo), "pass": 0, "relabelled": 0}
+        j = max(total - n - 1, self.pass_first)  # the transition into the chunk counts too
+        return add_counts(m, rec.labels[j:], rec.act[j:], rec.start[j:], total - j - n)
+
+    def summary(self) -> dict:
+        """``online_``: steps seen, calls, wider passes, the steps the last call's kernels
+        touched (decoded; learned from and relabelled by a pass), the first step the last pass
+        learned from, and the bytes kept (``per_step`` is the O(T) part)."""
+        return {"n_steps": self.n_steps, "n_calls": self.n_calls, "n_passes": self.n_passes,
+                "last_work": dict(self.last_work), "pass_from": self.pass_first,
+                "memory": {"per_step": self.record.nbytes, "window": self.window.nbytes,
+                           "codebook": 0 if self.codebook is None
+                           else int(self.codebook.means.nbytes)}}
 
 
-def _chunk(learner, st: OnlineState, n: int) -> None:
-    """Decode the chunk's ``n`` steps with the map (after up to :data:`CONTEXT` steps before it)
-    and add its counts to the map's tables."""
-    m = learner.map_
-    total = st.n_steps
-    lo = max(st.pass_first, total - n - CONTEXT)
-    sl = slice(lo, total)
-    starts = st.start.values[sl].astype(bool)
-    ids = st.ids(st.sym.values[sl], st.gds.values[sl])
-    u = st.act.values[sl].astype(np.int64)
-    path = decode_symbols(ids, u, starts, st.state_id, m.transition_counts, st.n_ids)
-    st.labels.extend(path[-n:])
-    # counts of the chunk: its steps, and its transitions including the one into its first step
+def add_counts(m, labels, actions, starts, n_old: int):
+    """The map ``m`` with the counts of a run of labelled steps added: the steps and actions of
+    all but the first ``n_old`` of them (counted already), and every transition between them
+    inside an episode.  Steps labelled -1 are left out."""
+    x, a = labels.astype(np.int64), actions.astype(np.int64)
     S, A = m.n_states, m.n_actions
-    x = st.labels.values[total - n:].astype(np.int64)
-    a = st.act.values[total - n:].astype(np.int64)
-    ok = x >= 0
-    state_counts = m.state_counts + np.bincount(x[ok], minlength=S)
-    action_counts = m.action_counts + np.bincount(x[ok] * A + a[ok], minlength=S * A).reshape(S, A)
-    j = max(total - n - 1, st.pass_first)
-    xs = st.labels.values[j:].astype(np.int64)
-    us = st.act.values[j:].astype(np.int64)
-    nxt = ~st.start.values[j + 1:total].astype(bool)
-    t = np.flatnonzero(nxt & (xs[:-1] >= 0) & (xs[1:] >= 0))
-    trans = m.transition_counts + np.bincount((xs[t] * A + us[t]) * S + xs[t + 1],
+    new = x[n_old:] >= 0
+    state_counts = m.state_counts + np.bincount(x[n_old:][new], minlength=S)
+    action_counts = m.action_counts + np.bincount(x[n_old:][new] * A + a[n_old:][new],
+                                                  minlength=S * A).reshape(S, A)
+    t = np.flatnonzero((starts[1:] == 0) & (x[:-1] >= 0) & (x[1:] >= 0))
+    trans = m.transition_counts + np.bincount((x[t] * A + a[t]) * S + x[t + 1],
                                               minlength=S * A * S).reshape(S, A, S)
-    learner.map_ = replace_counts(m, state_counts, action_counts, trans)
-    st.last_work = {"decoded": int(total - lo), "pass": 0}
-
-
-def all_labels(st: OnlineState, m) -> np.ndarray:
-    """``labels_`` of an online fit: the steps before the last pass's window decoded with the
-    current map ``m`` (O(T), cached until the next call), then the labels kept since."""
-    if st.cached_labels is not None:
-        return st.cached_labels
-    if st.state_id is None:
-        out = np.full(st.n_steps, -1, dtype=np.int64)
-    else:
-        n = st.pass_first
-        kept = st.labels.values[n:].astype(np.int64)
-        if n == 0:
-            out = kept
-        else:
-            starts = st.start.values[:n].astype(bool)
-            ids = st.ids(st.sym.values[:n], st.gds.values[:n])
-            before = decode_symbols(ids, st.act.values[:n], starts, st.state_id,
-                                    m.transition_counts, st.n_ids)
-            out = np.concatenate([before, kept])
-    st.cached_labels = out
-    return out
+    return replace(m, state_counts=state_counts, action_counts=action_counts,
+                   transition_counts=trans)

@@ -1,4 +1,4 @@
-"""Counts and entropies shared by the phases and the map.
+"""Counts and entropies shared by the phases and the map, and matching two labellings' states.
 
 Everything the method measures of the discrete model is a function of integer counts: how often
 each state occurs, takes each action, and reaches each next state; entropies are in bits.  Where a
@@ -12,7 +12,7 @@ import numpy as np
 
 from .sums import sparse_pairwise_sum
 
-__all__ = ["xlogx", "weighted_entropy", "conditional_entropy", "sparse_conditional_entropy",
+__all__ = ["majority_match", "xlogx", "weighted_entropy", "conditional_entropy", "sparse_conditional_entropy",
            "normalise", "episode_masks", "count_tables"]
 
 _SHIFT = np.int64(32)
@@ -97,3 +97,17 @@ def count_tables(labels, actions, n_states: int, n_actions: int, has_next):
     t = np.flatnonzero(has_next)
     trans = np.bincount((x[t] * A + u[t]) * S + x[t + 1], minlength=S * A * S).reshape(S, A, S)
     return state, action, trans
+
+
+def majority_match(a, b, n_a: int, n_b: int) -> np.ndarray:
+    """(n_a,) for every state of the labelling ``a``, the state of ``b`` most of its steps hold
+    (ties: the larger state of ``b``; -1 for a state none of whose steps has a state in ``b``).
+    ``a`` and ``b`` label the same steps; -1 in either is left out."""
+    a, b = np.asarray(a, dtype=np.int64), np.asarray(b, dtype=np.int64)
+    both = (a >= 0) & (b >= 0)
+    codes, counts = np.unique(a[both] * n_b + b[both], return_counts=True)
+    out = np.full(n_a, -1, dtype=np.int64)
+    for code, _ in sorted(zip(codes, counts), key=lambda p: p[1]):  # the largest count wins
+        out[code // n_b] = code % n_b
+    return out
+

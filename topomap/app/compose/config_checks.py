@@ -12,6 +12,7 @@ job.
 
 from __future__ import annotations
 
+import dataclasses
 from importlib import resources
 
 from omegaconf import OmegaConf
@@ -25,7 +26,14 @@ __all__ = ["check_overrides", "check_config", "group_options", "default_choices"
 
 
 def _keys_of(schema, prefix: str) -> set[str]:
-    return {f"{prefix}.{k}" for k in fields_of(schema)}
+    """``<prefix>.<field>`` of every field, and of the fields of a nested settings config
+    (``refine.soft.<key>``)."""
+    keys = set()
+    for name, default in fields_of(schema).items():
+        keys.add(f"{prefix}.{name}")
+        if dataclasses.is_dataclass(default):
+            keys |= _keys_of(type(default), f"{prefix}.{name}")
+    return keys
 
 
 def valid_keys(registry) -> set[str]:

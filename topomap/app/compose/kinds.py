@@ -49,11 +49,13 @@ KINDS = MappingProxyType({kind.name: kind for kind in (
     Kind("explorer", "``choose(executable_mask, rng) -> action id``", simulated=True),
     Kind("metric", "``fit_transform(X) -> Z``; K-means runs on ``Z``", learner_arg="metric"),
     Kind("clusters", "``choose(Z, random_state) -> ns``", learner_arg="clusters"),
-    Kind("split", "``propose(counts) -> (side, score) | None``", learner_arg="criterion"),
+    Kind("split", "``propose(counts) -> (side, score) | None``", learner_arg="split"),
     Kind("stop", "``check(n_initial)``; ``should_stop(n_states, best_score)``",
-         learner_arg="stopping"),
-    Kind("refine", "``fit(sequence, split_state_symbol, random_state) -> CloneFit`` "
-                   "(:mod:`topomap.core.refine.methods`), or None for none", learner_arg="refine"),
+         learner_arg="stop"),
+    Kind("refine", "``fit(sequence, split_state_symbol, random_state)`` returning itself with "
+                   "``labels_``, ``state_symbol_`` (and ``info_``) set "
+                   "(:mod:`topomap.core.refine.methods`; a ``CloneFit`` returned instead is "
+                   "accepted until 0.4), or None for none", learner_arg="refine"),
     Kind("data", "``simulates`` (bool); ``train(parts, seed, progress)`` and "
                  "``heldout(parts, seed)`` return Trajectory objects (or None)"),
     Kind("evaluate", "``evaluate(map, labels, places, world, noise) -> dict``, or None for no "

@@ -28,25 +28,32 @@ from typing import Any, Optional
 from omegaconf import II, MISSING
 
 from ...core.checks import ParameterError
+from ...core.components import RENAMED
 from ...core.learner import MapLearner
 from ..results import OBJECTIVES
 from .kinds import KINDS
 
 __all__ = ["Config", "RunConf", "Objective", "LearnerConf", "OutputConf", "RUNTIME_ARGS", "schema_of",
-           "learner_schema", "learner_key", "config_keys", "fields_of"]
+           "settings_schema", "learner_schema", "learner_key", "config_keys", "fields_of"]
 
 #: factory arguments the app passes itself; never config fields
 RUNTIME_ARGS = frozenset({"extra_actions"})
 #: MapLearner arguments that are not ``learner.*`` fields: the components, the run's seed and
-#: callbacks, and the settings the components stand for (``n_clusters``: ``clusters.ns``, ...)
+#: callbacks, the settings the components stand for (``n_clusters``: ``clusters.ns``, ...) and
+#: the deprecated names of components (``criterion``, ``stopping``)
 _LEARNER_COMPONENT_ARGS = frozenset({kind.learner_arg for kind in KINDS.values() if kind.learner_arg}
-                                    | {"n_clusters", "n_states", "random_state", "callbacks"})
+                                    | {"n_clusters", "n_states", "random_state", "callbacks"}
+                                    | set(RENAMED))
 _PRIMITIVES = (int, float, bool, str)
 
 
 def _config_type(annotation, default):
     """The OmegaConf field type for a parameter: its annotation where OmegaConf can check it, else
-    the type of its default (``str | OfficeLayout`` with default ``"paper"`` gives ``str``)."""
+    the type of its default (``str | OfficeLayout`` with default ``"paper"`` gives ``str``); a
+    parameter whose default is a dataclass instance (``EMRefinement``'s ``soft``) gets a nested
+    config of that dataclass's fields (``refine.soft.<key>``, :func:`settings_schema`)."""
+    if dataclasses.is_dataclass(default) and not isinstance(default, type):
+        return settings_schema(type(default))
     args = [a for a in typing.get_args(annotation) if a is not type(None)]
     optional = type(None) in typing.get_args(annotation)
     if annotation in _PRIMITIVES:
@@ -63,9 +70,20 @@ def _config_type(annotation, default):
     return Any
 
 
+def settings_schema(settings) -> type:
+    """The typed config of a settings dataclass: its fields, their types and defaults, in a
+    dataclass of its own that Hydra may change (the settings class may be frozen)."""
+    hints = typing.get_type_hints(settings)
+    return make_dataclass(f"{settings.__name__}Conf", [
+        _field(f.name, _config_type(hints.get(f.name, Any), f.default), f.default)
+        for f in dataclasses.fields(settings)])
+
+
 def _field(name: str, typ, default):
     if default is inspect.Parameter.empty:
         return (name, typ, field(default=MISSING))
+    if dataclasses.is_dataclass(default) and not isinstance(default, type):
+        return (name, typ, field(default_factory=typ))
     if name == "seed":
         return (name, typ, field(default=II("seed")))
     if isinstance(default, (list, tuple, dict)):
@@ -180,7 +198,7 @@ def fields_of(schema) -> dict:
 
 def learner_key(param: str) -> str:
     """The config key of a :class:`MapLearner` parameter an error names: a component's parameter
-    under its group (``stopping.n_states`` -> ``stop.n_states``), the learner's own settings under
+    under its group (``refine.prefix``, ``stop.n_states``), the learner's own settings under
     ``learner`` (``reg_covar`` -> ``learner.reg_covar``); any other name is kept."""
     head, dot, rest = param.partition(".")
     groups = {kind.learner_arg: name for name, kind in KINDS.items() if kind.learner_arg}

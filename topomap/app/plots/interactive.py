@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ...core.data.files import atomic_write
+from ...core.data.atomic import atomic_write
 from .run import _state_positions, compound_mask
 
 __all__ = ["map_figure", "write_map_html", "node_positions", "SVG_MAX_STATES", "NODE_COLOURS"]

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ...core.data.files import atomic_write
+from ...core.data.atomic import atomic_write
 
 __all__ = ["PALETTE", "MARKERS", "TITLE_SIZE", "LEGEND_SIZE", "MAX_STATE_NUMBERS", "MAX_MAP_NUMBERS",
            "HALO", "pyplot", "save_figure", "state_styles"]

@@ -33,7 +33,7 @@ import sys
 from dataclasses import dataclass
 from pathlib import Path
 
-from ...core.data.files import atomic_write
+from ...core.data.atomic import atomic_write
 from ..results import METRICS, check_metric
 from .columns import axis_values, best_row, header, mean, no_value, number, row, short
 from .figure import is_grid

@@ -60,7 +60,7 @@ def check_cluster_count(ns: int | None, traj) -> None:
 
 def report_missed_target(learner) -> None:
     """Warn when the split stopped short of the told number of states, saying why."""
-    rule = learner.stopping
+    rule = learner.stop
     told = rule.n_states if isinstance(rule, TargetStates) else None
     made = learner.map_split_.n_states
     if told is not None and made < told:

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ...core.data.files import atomic_write
+from ...core.data.atomic import atomic_write
 from ...core.data.trajectory import save_trajectory
 from ..results import (FIGURE_FILES, LOCALIZE_FILES, MAPPING_FIGURES, METRICS_FILE, OUTPUT_FILES,
                        STATUS_FILE)

@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from ..stats import episode_masks
-from .files import atomic_write
+from .atomic import atomic_write
 from .positions import POSITION_COLUMNS, check_positions, csv_positions
 
 __all__ = ["Trajectory", "load_trajectory", "save_trajectory", "check_sequences",

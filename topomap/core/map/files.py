@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..data.files import atomic_write
+from ..data.atomic import atomic_write
 
 __all__ = ["FORMAT_VERSION", "checked_fields", "check_tables", "to_dict", "from_dict", "save",
            "load", "to_networkx", "to_graphml"]

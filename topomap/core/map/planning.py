@@ -7,9 +7,15 @@ The planning graph has one arc ``x -> x'`` for every pair seen at least once, we
 
 from __future__ import annotations
 
+from weakref import WeakKeyDictionary
+
 import numpy as np
 
 __all__ = ["plan", "planning_graph"]
+
+#: the planning graphs built so far: map -> {min_prob: graph}.  A map never changes and is
+#: hashed by identity, so its graphs stay right; they go when the map goes.
+_GRAPHS: WeakKeyDictionary = WeakKeyDictionary()
 
 
 def plan(m, start: int, goal, min_prob: float = 0.0) -> list[int]:
@@ -43,10 +49,10 @@ def plan(m, start: int, goal, min_prob: float = 0.0) -> list[int]:
 
 def planning_graph(m, min_prob: float):
     """The arcs :func:`plan` may use on the map ``m``, weighted by ``-log max_u P(x'|x,u)``
-    (cached on the map: its tables never change)."""
+    (kept in :data:`_GRAPHS` for the map's lifetime: its tables never change)."""
     import networkx as nx
 
-    cache = m.__dict__.setdefault("_plan_graphs", {})
+    cache = _GRAPHS.setdefault(m, {})
     if min_prob not in cache:
         P = np.where(m.transition_counts > 0, m.transition_probs, 0.0)
         best = P.argmax(axis=1)  # (S, S'): the action of each arc

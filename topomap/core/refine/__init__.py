@@ -1,8 +1,11 @@
 """The refinement after the split: EM over clones of the symbols, and structure moves.
 
-``methods`` -- the refinements :class:`topomap.MapLearner` takes, one object per method
-(``EMRefinement``, ``CSCGRefinement``), each reading top-down from its ``fit``;
-``clones`` -- the clone-structured HMM they fit (layout, Baum-Welch, Viterbi training);
-``structure`` -- merging bisimilar states and splitting compound ones; ``kernels`` -- the compiled
-clone EM; ``convergence`` -- when an iterative fit stops.
+``methods`` -- the refinements :class:`topomap.MapLearner` takes, one estimator per method
+(``EMRefinement``, ``CSCGRefinement``), each reading top-down from its ``fit``, which sequences
+hard and soft rounds; ``sequence`` -- their input, the steps as symbol ids; ``clones`` -- the
+clone-structured HMM they fit (layout, Baum-Welch, Viterbi training); ``budget`` -- the clones
+the first EM stage gets; ``structure`` -- merging bisimilar states and splitting compound ones;
+``soft`` -- the soft round (misread symbols as evidence) and its settings; ``resize`` -- bringing
+a refined map to the told number of states; ``kernels``, ``soft_kernels`` -- the compiled clone
+EM; ``convergence`` -- when an iterative fit stops.
 """

@@ -227,11 +227,11 @@ def random_counts(lay: Layout, rng: np.random.Generator) -> np.ndarray:
     return rng.random(int(lay.boff[-1]))
 
 
-def clone_budget(n_symbols: int, n_fixed: int, per_symbol) -> np.ndarray:
+def clone_budget(n_symbols: int, n_gds: int, per_symbol) -> np.ndarray:
     """Clones per symbol id: ``per_symbol`` (int or (n_symbols,) array) for the K-means symbols,
-    then one for each of the ``n_fixed`` GDS ids (GDS states stay fixed and unique)."""
+    then one for each of the ``n_gds`` GDS ids (a GDS state stays unique)."""
     free = np.broadcast_to(np.asarray(per_symbol, dtype=np.int64), (n_symbols,))
-    return np.concatenate([free, np.ones(n_fixed, dtype=np.int64)])
+    return np.concatenate([free, np.ones(n_gds, dtype=np.int64)])
 
 
 def init_from_path(lay: Layout, path, n_steps: int, rng, noise: float = 1.0) -> np.ndarray:

@@ -1,14 +1,16 @@
-"""The refinement phase: EM over clone-structured maps after the paper's split, and EM alone.
+"""The refinements after the paper's split: EM over clone-structured maps, and EM alone.
 
-Both work on the discrete sequence phase 1 produces (a :class:`SymbolSequence`): ``sym[t]`` is the
-K-means symbol of step ``t`` (``0..ns-1``) or ``ns + g`` for a step recognised as GDS ``g``
-(``labels_phase1_`` of :class:`topomap.MapLearner`).  GDS ids always get exactly one clone, so GDS
-states stay fixed and unique.  Transitions are CSCG's ``P(x'|x,u)`` (the action is an input).
+Both work on the discrete sequence phase 1 produces (a
+:class:`~topomap.core.refine.sequence.SymbolSequence`).  GDS ids always get exactly one clone, so
+GDS states stay unique and are never merged or split.  Transitions are CSCG's ``P(x'|x,u)`` (the
+action is an input).
 
-Each method is one estimator-like object, the component :class:`topomap.MapLearner` takes:
-``__init__`` stores its parameters (the knobs users configure) as given, and
-``fit(sequence, split_state_symbol, random_state)`` returns a :class:`CloneFit`, a hard labelling
-of the steps into states, each state emitting one symbol.
+Each method is a scikit-learn estimator, the component :class:`topomap.MapLearner` takes:
+``__init__`` stores its parameters as given, ``fit(sequence, split_state_symbol, random_state)``
+checks them and returns the estimator, its learned attributes ending in ``_``: ``labels_`` (a
+state per step), ``state_symbol_`` (the symbol id every state emits), ``n_states_`` and
+``info_`` (the stages, stored in map.json).  The learner fits a clone, so its own ``refine``
+never changes.  :meth:`provenance` is the text map.json stores as ``info["refine"]``.
 
 * :class:`EMRefinement` (``refine="em"``) -- after the paper's split: EM learns the structure on a
   prefix with a clone budget sized by the split, the prefix grows until the structure settles,
@@ -18,31 +20,38 @@ of the steps into states, each state emitting one symbol.
 * :class:`CSCGRefinement` (``refine="cscg"``) -- EM alone: many clones per symbol, random start,
   Baum-Welch to convergence, Viterbi training.
 
-The clone-structured HMM they share (layout, Baum-Welch, Viterbi training) is
-:mod:`topomap.core.refine.clones`.
+Both read every step's symbol as exact in a *hard round*; with ``evidence`` other than
+``"hard"``, :meth:`CloneRefinement.fit` alternates hard rounds with the soft rounds of
+:mod:`topomap.core.refine.soft` (the symbol read is evidence, misreads are corrected), set by the
+``soft`` parameter (:class:`~topomap.core.refine.soft.SoftSettings`).  The clone-structured HMM
+they share (layout, Baum-Welch, Viterbi training) is :mod:`topomap.core.refine.clones`.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from collections.abc import Mapping
+from dataclasses import dataclass, field, fields, replace
+from typing import Self
 
 import numpy as np
 from sklearn.base import BaseEstimator
 
 from ..checks import ParameterError, check_count
-from ..stats import episode_masks
 from .budget import BUDGETS
-from .clones import (Layout, clone_budget, fit_clones, init_from_path, make_layout, random_counts,
+from .clones import (Layout, clone_budget, fit_clones, init_from_path, random_counts,
                      states_to_clones)
-from .soft import apply_evidence, check_evidence
+from .sequence import SymbolSequence
+from .soft import (SoftSettings, check_evidence, keep_states, merge_twins, min_steps_of,
+                   misread_rate, soft_round, soft_settings)
 from .structure import merge_states, same_partition, split_compounds
 
-__all__ = ["CloneFit", "SymbolSequence", "EMRefinement", "CSCGRefinement", "REFINEMENTS"]
+__all__ = ["CloneFit", "CloneRefinement", "EMRefinement", "CSCGRefinement", "REFINEMENTS"]
 
 
 @dataclass
 class CloneFit:
-    """A learned clone-structured map as a hard labelling.
+    """A labelling of the steps into states, each state emitting one symbol: what one hard round
+    gives (and what a refinement's ``fit`` returned before it returned the estimator).
 
     Attributes
     ----------
@@ -63,70 +72,103 @@ class CloneFit:
         return int(self.state_symbol.size)
 
 
-@dataclass(frozen=True)
-class SymbolSequence:
-    """The discrete input of the EM phases.
-
-    ``sym`` (T,) symbol ids (K-means symbols ``0..n_symbols-1``, then GDS ids), ``u`` (T,) actions,
-    ``lengths`` episode lengths, ``n_ids`` the number of symbol ids (K-means symbols + GDS).
-    """
-
-    sym: np.ndarray
-    u: np.ndarray
-    lengths: np.ndarray
-    n_actions: int
-    n_ids: int
-    n_symbols: int
-
-    @classmethod
-    def build(cls, sym, u, lengths, n_actions: int, n_symbols: int) -> "SymbolSequence":
-        """From array-likes; symbol ids past ``n_symbols`` are GDS ids."""
-        sym = np.asarray(sym, dtype=np.int64)
-        return cls(sym, np.asarray(u, dtype=np.int64), np.asarray(lengths, dtype=np.int64),
-                   int(n_actions), max(int(sym.max()) + 1, int(n_symbols)), int(n_symbols))
-
-    @property
-    def T(self) -> int:
-        """Number of steps."""
-        return int(self.sym.size)
-
-    @property
-    def n_gds(self) -> int:
-        """Number of GDS ids (symbol ids from ``n_symbols`` on)."""
-        return self.n_ids - self.n_symbols
-
-    def head(self, n_steps: int) -> "SymbolSequence":
-        """The first ``n_steps`` steps (the last episode cut short)."""
-        if n_steps >= self.T:
-            return self
-        ends = np.cumsum(self.lengths)
-        k = int(np.searchsorted(ends, n_steps))
-        lengths = self.lengths[:k + 1].copy()
-        lengths[-1] -= ends[k] - n_steps
-        return SymbolSequence(self.sym[:n_steps], self.u[:n_steps], lengths, self.n_actions,
-                              self.n_ids, self.n_symbols)
-
-    def layout(self, budget) -> Layout:
-        """The sequence bound to ``budget`` clones per symbol id."""
-        return make_layout(self.sym, self.u, self.lengths, budget, self.n_actions)
-
-    def masks(self):
-        """``(has_prev, has_next)`` of every step."""
-        return episode_masks(self.T, self.lengths)
-
-
 def _check(ok: bool, param: str, value, what: str) -> None:
     """A :class:`ParameterError` naming ``param`` unless ``ok``."""
     if not ok:
         raise ParameterError(param, f"must be {what}, got {value!r}")
 
 
-#: the knobs of every EM round of :class:`EMRefinement`, in the order its ``repr`` lists them
+class CloneRefinement(BaseEstimator):
+    """What the built-in refinements share: ``fit`` as a template -- check the parameters, a
+    hard round (the subclass's :meth:`_hard_round`), then, unless ``evidence="hard"``, hard and
+    soft rounds in turn (:meth:`_soft_rounds`) -- and the ``evidence`` and ``soft`` parameters."""
+
+    name = ""
+
+    def fit(self, seq: SymbolSequence, split_state_symbol=None, random_state: int = 0) -> Self:
+        """Refine ``seq``; ``split_state_symbol`` is the symbol of every split state
+        (``map_.state_symbol``, -1 for GDS).  Sets ``labels_``, ``state_symbol_``, ``n_states_``
+        and ``info_`` (with ``evidence`` other than ``"hard"`` also ``"soft"`` and
+        ``"soft_rounds"``); returns ``self``."""
+        self.check_params()
+        fit = self._hard_round(seq, split_state_symbol, random_state)
+        if self.evidence != "hard":
+            n_reference = None if split_state_symbol is None else len(split_state_symbol)
+            fit = self._soft_rounds(seq, fit, n_reference, random_state)
+        self.labels_, self.state_symbol_, self.info_ = fit.labels, fit.state_symbol, fit.info
+        self.n_states_ = fit.n_states
+        return self
+
+    def check_params(self) -> None:
+        """Check the parameters (``fit`` does); a :class:`ParameterError` names the bad one."""
+        check_evidence(self.evidence)
+        soft_settings(self.soft)
+
+    def _hard_round(self, seq: SymbolSequence, split_state_symbol, random_state: int) -> CloneFit:
+        raise NotImplementedError
+
+    def _soft_rounds(self, seq: SymbolSequence, hard_fit: CloneFit, n_reference, random_state):
+        """Hard and soft rounds in turn, from the hard round ``hard_fit`` on ``seq``:
+
+        1. ``soft.rounds`` times: twin states merged, small states dropped, a soft round (over
+           the states found plus ``soft.spare`` clones per symbol), every step's symbol replaced
+           by the symbol of its decoded clone, and a hard round on the corrected symbols; until a
+           hard round gives back the labelling it started from;
+        2. a last soft round without spare clones gives the map.
+
+        With ``evidence="auto"``, the hard round is kept when the first soft round finds fewer
+        misreads than ``soft.detect``.  ``n_reference`` is the state count a fractional
+        ``soft.min_steps`` refers to (the split's; default: the hard round's)."""
+        s = soft_settings(self.soft)
+        if self.evidence == "soft":
+            s = replace(s, detect=-1.0)
+        rng = np.random.default_rng(random_state)
+        labels, state_symbol = hard_fit.labels, hard_fit.state_symbol
+        n_ref = state_symbol.size if n_reference is None else int(n_reference)
+        min_steps = min_steps_of(s, seq.T, n_ref)
+        conf, rounds = None, []
+        for r in range(s.rounds):
+            labels, state_symbol, n_merged = merge_twins(seq, labels, state_symbol, s.twin_merge)
+            keep = keep_states(seq, labels, state_symbol, min_steps if s.prune_every else 0,
+                               s.twin)
+            soft = soft_round(seq, labels, state_symbol, conf, spare=s.spare, settings=s,
+                              rng=rng, keep=keep)
+            conf = soft.conf
+            rounds.append({"states_in": int(state_symbol.size), "twins_merged": n_merged,
+                           **soft.info})
+            if r == 0 and max(soft.info["corrected"], misread_rate(conf, seq.n_symbols)) < s.detect:
+                return CloneFit(hard_fit.labels, hard_fit.state_symbol,
+                                {**hard_fit.info, "soft": "skipped", "soft_rounds": rounds})
+            split_symbol = np.where(soft.state_symbol < seq.n_symbols, soft.state_symbol, -1)
+            hard = self._hard_round(replace(seq, sym=soft.sym), split_symbol, random_state)
+            settled = (hard.n_states == state_symbol.size
+                       and same_partition(hard.labels, labels))
+            labels, state_symbol = hard.labels, hard.state_symbol
+            rounds[-1]["hard_states"] = int(state_symbol.size)
+            if settled:
+                break
+        labels, state_symbol, _ = merge_twins(seq, labels, state_symbol, s.twin_merge)
+        keep = keep_states(seq, labels, state_symbol, min_steps, s.twin)
+        soft = soft_round(seq, labels, state_symbol, conf, spare=0, settings=s, rng=rng, keep=keep)
+        rounds.append({"states_in": int(keep.sum()), **soft.info})
+        return CloneFit(soft.labels, soft.state_symbol,
+                        {**hard_fit.info, "soft": "on", "soft_rounds": rounds})
+
+    def _provenance_soft(self) -> str:
+        """``soft=SoftSettings(...)`` naming the soft settings changed from their defaults ("" for
+        none), for :meth:`provenance`."""
+        s, default = soft_settings(self.soft), SoftSettings()
+        changed = [f"{f.name}={getattr(s, f.name)!r}" for f in fields(SoftSettings)
+                   if getattr(s, f.name) != getattr(default, f.name)]
+        return f"soft=SoftSettings({', '.join(changed)})" if changed else ""
+
+
+#: the knobs of every EM round of :class:`EMRefinement`, in the order :meth:`provenance` lists
 _EM_ROUND = ("row_prior", "tol", "max_iter", "prune", "merge_threshold", "split_z", "spare",
              "init_noise")
 
 
-class EMRefinement(BaseEstimator):
+class EMRefinement(CloneRefinement):
     """``refine="em"``: re-estimate every state jointly after the split.
 
     1. Structure on a prefix of ``max(prefix, prefix_visits x split states)`` steps (about
@@ -156,6 +198,11 @@ class EMRefinement(BaseEstimator):
     places showing it (the same action sequence from the view followed by that many different
     symbol sequences), ``"split"`` only ``clone_factor`` x its split states + ``spare``.
 
+    ``evidence`` (:data:`~topomap.core.refine.soft.EVIDENCE`): ``"auto"`` (default) corrects
+    misread symbols when the first soft round finds some, ``"soft"`` always, ``"hard"`` never;
+    ``soft`` holds the soft rounds' settings (:class:`~topomap.core.refine.soft.SoftSettings`, or
+    a mapping of some of its fields, e.g. ``{"conf_warmup": 10}``).
+
     With ``guard`` (the default) the learner keeps the refined map only if its BIC (actions and
     transitions) is no worse than the split map's: refinement never trades a good split map for a
     fragmented one (with many actions and few visits per place and action, the split test of
@@ -164,11 +211,12 @@ class EMRefinement(BaseEstimator):
 
     name = "em"
 
-    def __init__(self, clone_factor: int = 2, prefix: int = 2000, prefix_visits: int = 40,
+    def __init__(self, *, clone_factor: int = 2, prefix: int = 2000, prefix_visits: int = 40,
                  max_rounds: int = 8, row_prior: float = 0.5, tol: float = 1e-6,
                  max_iter: int = 50, prune: float = 1e-4, merge_threshold: float = 6.63,
                  split_z: float = 3.09, spare: int = 2, init_noise: float = 1.0,
-                 guard: bool = True, budget: str = "evidence", evidence: str = "auto"):
+                 guard: bool = True, budget: str = "evidence", evidence: str = "auto",
+                 soft: SoftSettings | Mapping = SoftSettings()):
         self.clone_factor = clone_factor
         self.prefix = prefix
         self.prefix_visits = prefix_visits
@@ -184,9 +232,9 @@ class EMRefinement(BaseEstimator):
         self.guard = guard
         self.budget = budget
         self.evidence = evidence
-        self._check_params()
+        self.soft = soft
 
-    def _check_params(self) -> None:
+    def check_params(self) -> None:
         for param in ("clone_factor", "prefix", "max_rounds", "max_iter"):
             check_count(getattr(self, param), param)
         for param in ("prefix_visits", "spare"):
@@ -195,33 +243,24 @@ class EMRefinement(BaseEstimator):
         _check(self.tol >= 0, "tol", self.tol, ">= 0")
         _check(0 <= self.prune < 1, "prune", self.prune, "in [0, 1)")
         _check(self.budget in BUDGETS, "budget", self.budget, f"one of {', '.join(BUDGETS)}")
-        check_evidence(self.evidence)
+        super().check_params()
 
-    def __repr__(self) -> str:
-        # the form map.json stores (info["refine"]): the EM round's knobs grouped as "settings"
+    def provenance(self) -> str:
+        """The text map.json stores as ``info["refine"]``: the refinement and its settings in the
+        file's fixed form -- the EM round's knobs grouped as ``settings=EMSettings(...)`` (a
+        label of the file format, not a class), ``budget``, ``evidence`` and ``soft`` only when
+        changed from their defaults."""
         rounds = ", ".join(f"{k}={getattr(self, k)!r}" for k in _EM_ROUND)
-        budget = "" if self.budget == "evidence" else f"budget={self.budget!r}, "
-        budget += "" if self.evidence == "auto" else f"evidence={self.evidence!r}, "
+        changed = "" if self.budget == "evidence" else f"budget={self.budget!r}, "
+        changed += "" if self.evidence == "auto" else f"evidence={self.evidence!r}, "
+        soft = self._provenance_soft()
+        changed += f"{soft}, " if soft else ""
         return (f"EMRefinement(clone_factor={self.clone_factor}, prefix={self.prefix}, "
                 f"prefix_visits={self.prefix_visits}, max_rounds={self.max_rounds}, "
-                f"guard={bool(self.guard)}, {budget}settings=EMSettings({rounds}))")
+                f"guard={bool(self.guard)}, {changed}settings=EMSettings({rounds}))")
 
-    def fit(self, seq: SymbolSequence, split_state_symbol, random_state: int = 0) -> CloneFit:
-        """Refine the split of ``seq``; ``split_state_symbol`` is the symbol of every split state
-        (``map_.state_symbol``, -1 for GDS).  Returns a :class:`CloneFit` whose labels are the
-        last merged Viterbi labelling; its info holds ``(steps, states, EM iterations)`` of every
-        stage and the number of rounds on all steps; with ``evidence`` other than ``"hard"`` it
-        is the soft-evidence refinement's (:func:`topomap.core.refine.soft.apply_evidence`)."""
-        self._check_params()
-
-        def hard(s: SymbolSequence, state_symbol) -> CloneFit:
-            return self._fit_symbols(s, state_symbol, random_state)
-
-        return apply_evidence(self.evidence, seq, hard(seq, split_state_symbol), hard,
-                              len(split_state_symbol), random_state)
-
-    def _fit_symbols(self, seq: SymbolSequence, split_state_symbol, random_state: int) -> CloneFit:
-        """The refinement taking every step's symbol as exact."""
+    def _hard_round(self, seq: SymbolSequence, split_state_symbol, random_state: int) -> CloneFit:
+        """The refinement taking every step's symbol as exact (stages 1 to 3 above)."""
         rng = np.random.default_rng(random_state)
         split_state_symbol = np.asarray(split_state_symbol)
         n_split = int(np.sum(split_state_symbol >= 0))
@@ -289,7 +328,8 @@ class EMRefinement(BaseEstimator):
             stages.append((seq.T, int(state_symbol.size), iters))
 
 
-class CSCGRefinement(BaseEstimator):
+
+class CSCGRefinement(CloneRefinement):
     """``refine="cscg"``: EM alone from phase 1 with CSCG's recipe (George et al., 2021), written
     afresh on the clone kernels, ignoring the split; the comparison the paper asked for.
 
@@ -297,48 +337,41 @@ class CSCGRefinement(BaseEstimator):
     counts, Baum-Welch with ``pseudocount`` per transition entry until it gains less than ``tol``
     nats per step (0: CSCG's rule, until the log-likelihood stops rising; checked from iteration
     10 on) or ``max_iter`` iterations, then Viterbi training without pseudocount; clones the final
-    Viterbi path never visits are dropped.
+    Viterbi path never visits are dropped.  ``evidence`` and ``soft`` as for
+    :class:`EMRefinement` (``split_state_symbol`` of ``fit`` only sizes the soft rounds' pruning).
     """
 
     name = "cscg"
 
-    def __init__(self, clones_per_symbol: int = 70, pseudocount: float = 2e-3,
-                 max_iter: int = 1000, tol: float = 0.0, evidence: str = "auto"):
+    def __init__(self, *, clones_per_symbol: int = 70, pseudocount: float = 2e-3,
+                 max_iter: int = 1000, tol: float = 0.0, evidence: str = "auto",
+                 soft: SoftSettings | Mapping = SoftSettings()):
         self.clones_per_symbol = clones_per_symbol
         self.pseudocount = pseudocount
         self.max_iter = max_iter
         self.tol = tol
         self.evidence = evidence
-        self._check_params()
+        self.soft = soft
 
-    def _check_params(self) -> None:
-        check_evidence(self.evidence)
+    def check_params(self) -> None:
+        super().check_params()
         check_count(self.clones_per_symbol, "clones_per_symbol")
         check_count(self.max_iter, "max_iter")
         _check(self.pseudocount > 0, "pseudocount", self.pseudocount, "> 0")
         _check(self.tol >= 0, "tol", self.tol, ">= 0")
 
-    def __repr__(self) -> str:
+    def provenance(self) -> str:
+        """The text map.json stores as ``info["refine"]``: the refinement and its settings in the
+        file's fixed form (``evidence`` and ``soft`` only when changed from their defaults)."""
+        soft = self._provenance_soft()
         return (f"CSCGRefinement(clones_per_symbol={int(self.clones_per_symbol)}, "
                 f"pseudocount={float(self.pseudocount)}, max_iter={int(self.max_iter)}, "
                 f"tol={float(self.tol)}"
-                f"{'' if self.evidence == 'auto' else f', evidence={self.evidence!r}'})")
+                f"{'' if self.evidence == 'auto' else f', evidence={self.evidence!r}'}"
+                f"{', ' + soft if soft else ''})")
 
-    def fit(self, seq: SymbolSequence, split_state_symbol=None, random_state: int = 0) -> CloneFit:
-        """Fit ``seq`` (``split_state_symbol`` only sizes the soft-evidence pruning).  Returns a
-        :class:`CloneFit` whose info holds Baum-Welch's iterations and last log-likelihood,
-        Viterbi training's and the number of clones (and the soft rounds, with ``evidence``)."""
-        self._check_params()
-
-        def hard(s: SymbolSequence, _state_symbol) -> CloneFit:
-            return self._fit_symbols(s, random_state)
-
-        n_reference = None if split_state_symbol is None else len(split_state_symbol)
-        return apply_evidence(self.evidence, seq, hard(seq, split_state_symbol), hard,
-                              n_reference, random_state)
-
-    def _fit_symbols(self, seq: SymbolSequence, random_state: int) -> CloneFit:
-        """EM alone taking every step's symbol as exact."""
+    def _hard_round(self, seq: SymbolSequence, split_state_symbol, random_state: int) -> CloneFit:
+        """EM alone taking every step's symbol as exact (the split is not used)."""
         lay = seq.layout(clone_budget(seq.n_symbols, seq.n_gds, self.clones_per_symbol))
         rng = np.random.default_rng(random_state)
         labels, state_symbol, em, viterbi = fit_clones(

@@ -10,7 +10,7 @@ brought to that number:
 * too few: the paper's split (:class:`topomap.core.split.engine.Splitter`, the learner's
   criterion) continues on the refined labelling.
 
-GDS states (``fixed``) are never merged or split.
+GDS states (those whose ``state_gds`` is a GDS id, not -1) are never merged or split.
 """
 
 from __future__ import annotations
@@ -52,12 +52,12 @@ def _relabel(labels: np.ndarray, state_symbol: np.ndarray, i: int, j: int):
     return labels, np.delete(state_symbol, j)
 
 
-def _pairs(state_symbol: np.ndarray, fixed: np.ndarray, among=None):
-    """Same-symbol pairs ``(i, j)``, ``i < j``, of states that may merge (with ``among``: only the
-    pairs with a member in it)."""
+def _pairs(state_symbol: np.ndarray, is_gds: np.ndarray, among=None):
+    """Same-symbol pairs ``(i, j)``, ``i < j``, of states that may merge, GDS states left out
+    (with ``among``: only the pairs with a member in it)."""
     out = []
-    for s in np.unique(state_symbol[~fixed]):
-        members = np.flatnonzero((state_symbol == s) & ~fixed)
+    for s in np.unique(state_symbol[~is_gds]):
+        members = np.flatnonzero((state_symbol == s) & ~is_gds)
         for a, i in enumerate(members):
             for j in members[a + 1:]:
                 if among is None or i in among or j in among:
@@ -73,22 +73,23 @@ def _touched(C: np.ndarray, i: int, j: int) -> set:
     return {i, *np.flatnonzero(rows > 0).tolist()} - {j}
 
 
-def merge_to(labels, state_symbol, u, n_actions: int, has_next, n_target: int, fixed):
+def merge_to(labels, state_symbol, u, n_actions: int, has_next, n_target: int, state_gds):
     """Merge same-symbol states, the least log-likelihood lost first (ties: the smallest pair),
-    until ``n_target`` remain or no two mergeable states share a symbol.  Returns
+    until ``n_target`` remain or no two mergeable states share a symbol; ``state_gds`` (S,) is
+    every state's GDS id (-1: none), and GDS states never merge.  Returns
     ``(labels, state_symbol, n_merged)``.  A merge recomputes only the losses of the pairs it
     touches (:func:`_touched`)."""
     labels = np.asarray(labels, dtype=np.int64)
     state_symbol = np.asarray(state_symbol, dtype=np.int64)
-    fixed = np.asarray(fixed, dtype=bool)
+    is_gds = np.asarray(state_gds) >= 0
     _, N, C = count_tables(labels, u, state_symbol.size, n_actions, has_next)
-    losses = {pair: _merge_loss(C, N, *pair) for pair in _pairs(state_symbol, fixed)}
+    losses = {pair: _merge_loss(C, N, *pair) for pair in _pairs(state_symbol, is_gds)}
     merged = 0
     while state_symbol.size > n_target and losses:
         i, j = min(losses, key=lambda pair: (losses[pair], pair))
         touched = _touched(C, i, j)
         labels, state_symbol = _relabel(labels, state_symbol, i, j)
-        fixed = np.delete(fixed, j)
+        is_gds = np.delete(is_gds, j)
         merged += 1
         _, N, C = count_tables(labels, u, state_symbol.size, n_actions, has_next)
         shift = {k: k - (k > j) for k in range(state_symbol.size + 1) if k != j}
@@ -97,17 +98,18 @@ def merge_to(labels, state_symbol, u, n_actions: int, has_next, n_target: int, f
                   if j not in (a, b) and a not in touched and b not in touched
                   and shift[a] not in touched and shift[b] not in touched}
         losses.update({pair: _merge_loss(C, N, *pair)
-                       for pair in _pairs(state_symbol, fixed, among=touched)})
+                       for pair in _pairs(state_symbol, is_gds, among=touched)})
     return labels, state_symbol, merged
 
 
-def split_to(labels, state_symbol, u, n_actions: int, masks, n_target: int, fixed, criterion):
+def split_to(labels, state_symbol, u, n_actions: int, masks, n_target: int, state_gds,
+             criterion):
     """Split with ``criterion`` (the paper's split on the refined labelling) until ``n_target``
-    states or no state can be split.  Returns ``(labels, state_symbol, n_split)``."""
+    states or no state can be split (GDS states, ``state_gds`` not -1, never are).  Returns
+    ``(labels, state_symbol, n_split)``."""
     state_symbol = np.asarray(state_symbol, dtype=np.int64)
-    gds = np.where(np.asarray(fixed, dtype=bool), 0, -1)
     splitter = Splitter(np.array(labels, dtype=np.int64), u, n_actions, *masks,
-                        symbol=state_symbol.tolist(), gds=gds.tolist(),
+                        symbol=state_symbol.tolist(), gds=np.asarray(state_gds).tolist(),
                         obs_entropy=np.zeros(state_symbol.size), criterion=criterion)
     n_split = 0
     while splitter.n_states < n_target and (best := splitter.best()) is not None:
@@ -116,16 +118,16 @@ def split_to(labels, state_symbol, u, n_actions: int, masks, n_target: int, fixe
     return splitter.labels.copy(), np.asarray(splitter.symbol, dtype=np.int64), n_split
 
 
-def resize(labels, state_symbol, u, n_actions: int, masks, n_target: int, fixed, criterion):
-    """``(labels, state_symbol, info)`` with ``n_target`` states where the data allow it;
-    ``info`` says what was done (``{"from": S, "to": S', "merged": m, "split": k}``)."""
+def resize(labels, state_symbol, u, n_actions: int, masks, n_target: int, state_gds, criterion):
+    """``(labels, state_symbol, info)`` with ``n_target`` states where the data allow it (GDS
+    states, ``state_gds`` (S,) not -1, stay as they are); ``info`` says what was done (``{"from": S, "to": S', "merged": m, "split": k}``)."""
     S = int(np.asarray(state_symbol).size)
     merged = split = 0
     if S > n_target:
         labels, state_symbol, merged = merge_to(labels, state_symbol, u, n_actions, masks[1],
-                                                n_target, fixed)
+                                                n_target, state_gds)
     elif S < n_target:
         labels, state_symbol, split = split_to(labels, state_symbol, u, n_actions, masks,
-                                               n_target, fixed, criterion)
+                                               n_target, state_gds, criterion)
     info = {"from": S, "to": int(np.asarray(state_symbol).size), "merged": merged, "split": split}
     return labels, state_symbol, info

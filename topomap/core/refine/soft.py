@@ -8,38 +8,38 @@ reads ``r`` with probability ``C[k, r]`` (the confusion matrix, learned by EM wi
 favours the diagonal; GDS ids are never confused), so a step may be explained by a clone of
 another symbol, which corrects the reading.
 
-Soft EM cannot create structure, and a hard refinement on misread symbols creates too much, so the
-two alternate (:func:`soft_refine`):
-
-1. the hard refinement on the symbols as read;
-2. ``rounds`` times: a soft round (Baum-Welch with soft evidence over the states found plus
-   ``spare`` clones per symbol, then Viterbi), every step's symbol replaced by the symbol of its
-   decoded clone, and the hard refinement again on the corrected symbols;
-3. states with fewer than ``min_steps`` steps are dropped (the residue of misreads) and a last soft
-   round without spare clones gives the map.
-
-Kernels: :mod:`topomap.core.refine.soft_kernels`.
+This module holds the soft round (:func:`soft_round`: Baum-Welch with soft evidence, then
+Viterbi) and its pieces: the settings (:class:`SoftSettings`), the confusion matrix, the misread
+rate, merging twin states (:func:`merge_twins`) and choosing the states a round keeps
+(:func:`keep_states`).  Soft EM cannot create structure and a hard refinement on misread symbols
+creates too much, so the two alternate; :mod:`topomap.core.refine.methods` sequences the hard and
+soft rounds.  Kernels: :mod:`topomap.core.refine.soft_kernels`.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+import numbers
+from collections.abc import Mapping
+from dataclasses import dataclass, fields, replace
 
 import numpy as np
 
-from ..checks import ParameterError
+from ..checks import ParameterError, check_count
 from ..progress import report
-from .structure import same_partition
+from .clones import compact_labels
+from .convergence import ConvergenceMonitor
 from .soft_kernels import (SoftData, SoftModel, SoftStats, soft_backward, soft_candidates,
                            soft_forward, soft_offsets, soft_viterbi)
 
-__all__ = ["SoftSettings", "SoftFit", "EVIDENCE", "soft_round", "soft_refine", "misread_rate",
-           "apply_evidence"]
+__all__ = ["SoftSettings", "soft_settings", "SoftFit", "EVIDENCE", "check_evidence", "soft_round",
+           "misread_rate", "merge_twins", "keep_states", "min_steps_of"]
 
 
 @dataclass(frozen=True)
 class SoftSettings:
-    """Knobs of the soft-evidence refinement.
+    """Knobs of the soft-evidence refinement (the ``soft`` parameter of
+    :class:`~topomap.core.refine.methods.EMRefinement` and
+    :class:`~topomap.core.refine.methods.CSCGRefinement`; ``refine.soft.<key>`` in the config).
 
     ``rounds`` soft round + hard refinement cycles; ``min_steps`` states with fewer steps are
     dropped before every soft round (0: keep all; a float below 1 is a fraction of the mean
@@ -57,8 +57,7 @@ class SoftSettings:
     ``twin_merge``: the predecessor overlap above which a small state is the residue of misreads
     / a state is merged into its twin of another symbol (:func:`merge_twins`); ``conf_warmup``:
     EM iterations with the confusion matrix held at its start before it is learned (0: from the
-    first; 10 rescued gridroom at 23 % misreads, seed 0: ARI 0.108 -> 0.944, not yet the default
-    because it lengthens the first soft round on clean worlds).
+    first; docs/refinement.md has its effect on gridroom at 23 % misreads).
     """
 
     rounds: int = 3
@@ -78,6 +77,42 @@ class SoftSettings:
     twin: float = 0.5
     twin_merge: float = 0.5
     conf_warmup: int = 0
+
+
+#: the real-valued soft settings and what each must be
+_RANGES = {
+    "min_steps": (lambda v: v >= 0, ">= 0"), "tol": (lambda v: v >= 0, ">= 0"),
+    "row_prior": (lambda v: v > 0, "> 0"), "conf_diag": (lambda v: v > 0, "> 0"),
+    "conf_off": (lambda v: v > 0, "> 0"), "init_error": (lambda v: 0 <= v < 1, "in [0, 1)"),
+    "floor": (lambda v: 0 < v < 1, "in (0, 1)"), "prune": (lambda v: 0 <= v < 1, "in [0, 1)"),
+    "detect": (lambda v: v == v, "a number"), "clone_prior": (lambda v: v > 0, "> 0"),
+    "twin": (lambda v: v >= 0, ">= 0"), "twin_merge": (lambda v: v >= 0, ">= 0"),
+}
+
+
+def soft_settings(value) -> SoftSettings:
+    """``value`` -- a :class:`SoftSettings` or a mapping of some of its fields (the config's
+    ``refine.soft``) -- as checked settings; a :class:`ParameterError` names ``soft.<field>``."""
+    names = [f.name for f in fields(SoftSettings)]
+    if isinstance(value, Mapping):
+        unknown = sorted(set(value) - set(names))
+        if unknown:
+            raise ParameterError(f"soft.{unknown[0]}", "is not a soft setting; the settings are "
+                                                      + ", ".join(names))
+        value = SoftSettings(**value)
+    if not isinstance(value, SoftSettings):
+        raise ParameterError("soft", f"must be SoftSettings or a mapping of its fields, "
+                                     f"got {value!r}")
+    for name in ("rounds", "spare", "conf_warmup"):
+        check_count(getattr(value, name), f"soft.{name}", minimum=0)
+    check_count(value.max_iter, "soft.max_iter")
+    for name, (ok, what) in _RANGES.items():
+        v = getattr(value, name)
+        if not (isinstance(v, numbers.Real) and not isinstance(v, bool) and ok(v)):
+            raise ParameterError(f"soft.{name}", f"must be {what}, got {v!r}")
+    if not isinstance(value.prune_every, (bool, np.bool_)):
+        raise ParameterError("soft.prune_every", f"must be true or false, got {value.prune_every!r}")
+    return value
 
 
 @dataclass
@@ -198,45 +233,40 @@ def soft_round(seq, labels, state_symbol, conf=None, *, spare: int = 0,
     init = np.full(S, 1.0 / S)
     conf = initial_confusion(n_ids, ns, s.init_error) if conf is None else np.asarray(conf, float)
     pseudo = s.row_prior / S
-    history = []
+    monitor = ConvergenceMonitor(s.tol * seq.T, s.max_iter, min_iter=2)
     trans = _normalise_trans(counts, pseudo)
     emit = _clone_emission(conf, clone_symbol, None, s.clone_prior)
-    for it in range(s.max_iter):
+    while not monitor.converged:
         model = _model(trans, emit, init, s.floor)
         pos = soft_offsets(data, model)
         alpha, log_c = soft_forward(data, model, pos, s.prune)
         stats = SoftStats(np.zeros((A, S, S)), np.zeros((S, n_ids)), np.zeros(S))
         soft_backward(data, model, pos, alpha, log_c, stats)
-        ll = float(log_c.sum())
-        history.append(ll)
+        monitor.report(float(log_c.sum()))
         trans = _normalise_trans(stats.trans, pseudo)
-        if learn_conf and it + 1 >= s.conf_warmup:
+        if learn_conf and monitor.iter >= s.conf_warmup:
             N = np.zeros((n_ids, n_ids))
             np.add.at(N, clone_symbol, stats.emit)
             conf = _confusion_mstep(N, ns, s)
         emit = _clone_emission(conf, clone_symbol, stats.emit, s.clone_prior)
         emit[clone_symbol >= ns] = conf[clone_symbol[clone_symbol >= ns]]  # GDS: never confused
-        report("EM", it + 1, s.max_iter)
-        if len(history) > 2 and history[-1] - history[-2] < s.tol * seq.T:
-            break
-    report("EM", len(history), len(history))
+        report("EM", monitor.iter, s.max_iter)
+    report("EM", monitor.iter, monitor.iter)
     model = _model(trans, emit, init, s.floor)
     pos = soft_offsets(data, model)
     path, log_p = soft_viterbi(data, _log(model), pos)
-    used, first = np.unique(path, return_index=True)
-    used = used[np.argsort(first, kind="stable")]
-    ren = np.full(S, -1, dtype=np.int64)
-    ren[used] = np.arange(used.size)
+    labels, state_symbol, _ = compact_labels(path, clone_symbol)
     new_sym = clone_symbol[path]
-    misread = float(np.mean(new_sym != seq.sym))
-    info = {"em_iterations": len(history), "em_loglik": history[-1], "viterbi_logp": float(log_p),
-            "clones": int(S), "corrected": misread,
-            "conf_offdiag": float(1.0 - np.mean(np.diag(conf)[:ns]))}
-    return SoftFit(ren[path], clone_symbol[used], conf, new_sym, info)
+    info = {"em_iterations": monitor.iter, "em_loglik": monitor.history[-1],
+            "viterbi_logp": float(log_p), "clones": int(S),
+            "corrected": float(np.mean(new_sym != seq.sym)),
+            "conf_offdiag": misread_rate(conf, ns)}  # the map file's name for the misread rate
+    return SoftFit(labels, state_symbol, conf, new_sym, info)
 
 
 def misread_rate(conf, n_symbols: int) -> float:
-    """Mean off-diagonal mass of the K-means rows of a confusion matrix."""
+    """The share of steps read as another symbol: the mean off-diagonal mass of the K-means rows
+    of the confusion matrix ``conf`` (``conf_offdiag`` in a soft round's record of map.json)."""
     return float(1.0 - np.mean(np.diag(conf)[:n_symbols]))
 
 
@@ -284,15 +314,18 @@ def merge_twins(seq, labels, state_symbol, twin: float):
             break
         target = nxt
     n_merged = int(np.sum(target != np.arange(state_symbol.size)))
-    merged = target[labels]
-    used, first = np.unique(merged, return_index=True)
-    used = used[np.argsort(first, kind="stable")]
-    rename = np.full(state_symbol.size, -1, dtype=np.int64)
-    rename[used] = np.arange(used.size)
-    return rename[merged], state_symbol[used], n_merged
+    labels, state_symbol, _ = compact_labels(target[labels], state_symbol)
+    return labels, state_symbol, n_merged
 
 
-def _keep(seq, labels, state_symbol, min_steps: int, twin: float) -> np.ndarray:
+def min_steps_of(settings: SoftSettings, n_steps: int, n_reference: int) -> float:
+    """The steps a state needs to be kept: ``settings.min_steps`` itself from 1 on, else that
+    fraction of the mean steps per state of ``n_reference`` states."""
+    m = settings.min_steps
+    return m if m >= 1 else int(np.ceil(m * n_steps / n_reference))
+
+
+def keep_states(seq, labels, state_symbol, min_steps: int, twin: float) -> np.ndarray:
     """States to keep: GDS states, those with at least ``min_steps`` steps, and small ones that
     look like a rarely visited place rather than the residue of misreads: no twin of another
     symbol (:func:`twin_overlap` below ``twin``), reached mostly from kept-size states, and
@@ -322,55 +355,11 @@ def _keep(seq, labels, state_symbol, min_steps: int, twin: float) -> np.ndarray:
     return keep
 
 
-def soft_refine(seq, hard_fit, hard, *, n_reference: int | None = None,
-                settings: SoftSettings = SoftSettings(), random_state: int = 0):
-    """The iteration described in the module docstring.
-
-    ``hard_fit`` is the hard refinement's result on ``seq`` (labels, state_symbol, info);
-    ``hard(seq2, state_symbol) -> fit`` runs the hard refinement on another symbol sequence (the
-    corrected one), sized by ``state_symbol`` (the states found so far).  ``n_reference`` is the
-    state count a fractional ``min_steps`` refers to (the split's; default: the hard fit's).  Returns ``(labels,
-    state_symbol, info)``; when the first soft round finds fewer misreads than
-    ``settings.detect`` the hard result is returned unchanged (``info["soft"] = "skipped"``).
-    """
-    s = settings
-    rng = np.random.default_rng(random_state)
-    labels, state_symbol = hard_fit.labels, hard_fit.state_symbol
-    n_ref = state_symbol.size if n_reference is None else int(n_reference)
-    min_steps = s.min_steps if s.min_steps >= 1 else int(np.ceil(s.min_steps * seq.T / n_ref))
-    conf, rounds = None, []
-    current = seq
-    for r in range(s.rounds):
-        labels, state_symbol, n_merged = merge_twins(seq, labels, state_symbol, s.twin_merge)
-        keep = _keep(seq, labels, state_symbol, min_steps if s.prune_every else 0, s.twin)
-        fit = soft_round(seq, labels, state_symbol, conf, spare=s.spare, settings=s, rng=rng,
-                         keep=keep)
-        conf = fit.conf
-        rounds.append({"states_in": int(state_symbol.size), "twins_merged": n_merged,
-                       **fit.info})
-        if r == 0 and fit.info["corrected"] < s.detect and misread_rate(conf, seq.n_symbols) < s.detect:
-            return hard_fit.labels, hard_fit.state_symbol, {"soft": "skipped",
-                                                            "soft_rounds": rounds}
-        current = replace(seq, sym=fit.sym)
-        split_symbol = np.where(fit.state_symbol < seq.n_symbols, fit.state_symbol, -1)
-        h = hard(current, split_symbol)
-        settled = h.state_symbol.size == state_symbol.size and same_partition(h.labels, labels)
-        labels, state_symbol = h.labels, h.state_symbol
-        rounds[-1]["hard_states"] = int(state_symbol.size)
-        if settled:
-            break
-    labels, state_symbol, n_merged = merge_twins(seq, labels, state_symbol, s.twin_merge)
-    keep = _keep(seq, labels, state_symbol, min_steps, s.twin)
-    fit = soft_round(seq, labels, state_symbol, conf, spare=0, settings=s, rng=rng, keep=keep)
-    rounds.append({"states_in": int(keep.sum()), **fit.info})
-    return fit.labels, fit.state_symbol, {"soft": "on", "soft_rounds": rounds}
-
-
 EVIDENCE = ("auto", "soft", "hard")
 """Values of the refinements' ``evidence`` parameter: ``"hard"`` the symbols as read are exact
-(the refinement of old); ``"soft"`` :func:`soft_refine` always; ``"auto"`` :func:`soft_refine`
-with its misread detection (the hard result is kept when the first soft round finds fewer
-misreads than :attr:`SoftSettings.detect`)."""
+(the refinement of old); ``"soft"`` hard and soft rounds alternate
+(:mod:`topomap.core.refine.methods`); ``"auto"`` the same with misread detection (the hard result
+is kept when the first soft round finds fewer misreads than :attr:`SoftSettings.detect`)."""
 
 
 def check_evidence(evidence: str) -> str:
@@ -378,18 +367,3 @@ def check_evidence(evidence: str) -> str:
     if evidence not in EVIDENCE:
         raise ParameterError("evidence", f"must be one of {', '.join(EVIDENCE)}, got {evidence!r}")
     return evidence
-
-
-def apply_evidence(evidence: str, seq, hard_fit, hard, n_reference=None, random_state: int = 0,
-                   settings: SoftSettings | None = None):
-    """The hook of the refinements: ``hard_fit`` (a ``CloneFit`` on ``seq``) unchanged for
-    ``evidence="hard"``, else :func:`soft_refine`'s result as a ``CloneFit`` of the same class
-    (``info`` gains ``"soft"`` and ``"soft_rounds"``)."""
-    if check_evidence(evidence) == "hard":
-        return hard_fit
-    s = settings or SoftSettings()
-    if evidence == "soft":
-        s = replace(s, detect=-1.0)
-    labels, state_symbol, info = soft_refine(seq, hard_fit, hard, n_reference=n_reference,
-                                             settings=s, random_state=random_state)
-    return type(hard_fit)(labels, state_symbol, {**hard_fit.info, **info})

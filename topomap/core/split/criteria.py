@@ -42,5 +42,5 @@ class EntropyCriterion:
         return "EntropyCriterion()"
 
 
-#: the criteria :class:`topomap.MapLearner` knows by name (``criterion="entropy"``)
+#: the criteria :class:`topomap.MapLearner` knows by name (``split="entropy"``)
 CRITERIA = {EntropyCriterion.name: EntropyCriterion}
