@@ -14,7 +14,7 @@ from topomap.core.data.rosbag import twist_action  # noqa: E402
 from topomap.worlds.arena import (ArenaWorld, BoundaryVectorCells, CompassActions,  # noqa: E402
                                   ObjectVectorCells, RangeFinder, TurnActions, floorplan_from_dict)
 from topomap.worlds.arena.motion import Motion  # noqa: E402
-from topomap.worlds.explorers import ActiveExplorer, RandomExplorer  # noqa: E402
+from topomap.worlds.explorers import active_explorer, RandomExplorer  # noqa: E402
 
 
 def test_same_seed_same_trajectory_bytes_and_the_global_state_is_left_alone():
@@ -79,7 +79,7 @@ def test_turn_actions_follow_the_twist_rule():
 def test_the_arena_refuses_an_explorer_that_would_steer():
     world = ArenaWorld(layout="open")
     with pytest.raises(ValueError, match="cannot steer the arena"):
-        world.simulate(10, ActiveExplorer(), np.random.default_rng(0))
+        world.simulate(10, active_explorer(), np.random.default_rng(0))
 
 
 @pytest.mark.parametrize("kwargs, match", [

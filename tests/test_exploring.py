@@ -10,7 +10,7 @@ from sklearn.metrics import adjusted_rand_score
 
 from topomap import MapLearner, TopologicalMap
 from topomap.app.run.experiment import run
-from topomap.worlds import (ActiveExplorer, GridRoom, HistoryExplorer, NoNoise, PlanExplorer,
+from topomap.worlds import (active_explorer, GridRoom, HistoryExplorer, NoNoise, PlanExplorer,
                             RandomExplorer, View)
 from topomap.worlds.explorers.history import symbol_means
 from topomap.worlds.explorers.plan import novelty_values
@@ -68,7 +68,7 @@ def test_the_active_explorer_does_not_depend_on_the_names_of_places():
     runs = []
     for world in (room, other):
         learner = MapLearner(3, 20, refit_every=200)
-        traj, _ = map_while_exploring(world, 600, ActiveExplorer(update_every=100), learner,
+        traj, _ = map_while_exploring(world, 600, active_explorer(update_every=100), learner,
                                       NoNoise(), np.random.default_rng(3),
                                       np.random.default_rng(4), update_every=100)
         runs.append(traj)
@@ -86,10 +86,10 @@ def test_a_map_explorer_walks_at_random_until_a_map_exists(make):
 
 
 def test_explorer_active_is_the_history_policy_unless_the_route_is_plan():
-    history = ActiveExplorer(update_every=7, context=2, epsilon=0.25)
+    history = active_explorer(update_every=7, context=2, epsilon=0.25)
     assert type(history) is HistoryExplorer
     assert (history.update_every, history.context, history.epsilon) == (7, 2, 0.25)
-    plan = ActiveExplorer(update_every=7, route="plan", gamma=0.5, horizon=4, epsilon=0.25)
+    plan = active_explorer(update_every=7, route="plan", gamma=0.5, horizon=4, epsilon=0.25)
     assert type(plan) is PlanExplorer
     assert (plan.update_every, plan.gamma, plan.horizon, plan.epsilon) == (7, 0.5, 4, 0.25)
 
@@ -321,9 +321,9 @@ def test_a_random_run_without_a_curve_writes_no_mapping(tmp_path, make_cfg):
                                      ({"route": "greedy"}, "route"), ({"context": -1}, "context")])
 def test_bad_explorer_settings_name_the_parameter(kw, key):
     with pytest.raises(ValueError, match=key):  # every setting, whichever the route
-        ActiveExplorer(**kw)
+        active_explorer(**kw)
     with pytest.raises(ValueError, match=key):
-        ActiveExplorer(**kw, route="plan") if key != "route" else ActiveExplorer(**kw)
+        active_explorer(**kw, route="plan") if key != "route" else active_explorer(**kw)
 
 
 @pytest.mark.parametrize("make, kw", [(HistoryExplorer, {"context": 1.5}),

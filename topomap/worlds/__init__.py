@@ -15,7 +15,7 @@ module              its one job
 ==================  ===========================================================================
 """
 
-from .explorers import ActiveExplorer, HistoryExplorer, PlanExplorer, RandomExplorer, View
+from .explorers import active_explorer, HistoryExplorer, PlanExplorer, RandomExplorer, View
 from .mapping import map_while_exploring
 from .minigrid import MiniGridWorld
 from .noise import DropoutNoise, GaussianNoise, MultiplicativeNoise, NoNoise
@@ -23,5 +23,5 @@ from .office import OfficeWorld
 from .table import GridRoom, RandomGraphWorld
 
 __all__ = ["DropoutNoise", "GaussianNoise", "GridRoom", "MiniGridWorld", "MultiplicativeNoise",
-           "NoNoise", "OfficeWorld", "RandomExplorer", "ActiveExplorer", "HistoryExplorer",
+           "NoNoise", "OfficeWorld", "RandomExplorer", "active_explorer", "HistoryExplorer",
            "PlanExplorer", "View", "RandomGraphWorld", "map_while_exploring"]

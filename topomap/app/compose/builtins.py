@@ -46,7 +46,7 @@ def topomap_register_components():
         _c("noise", "multiplicative", noise.MultiplicativeNoise, "log-normal gain per entry (sigma)"),
         _c("explorer", "random", explorers.RandomExplorer,
            "uniform choice among executable actions (the paper's)"),
-        _c("explorer", "active", explorers.ActiveExplorer,
+        _c("explorer", "active", explorers.active_explorer,
            "the action least taken from the state (recent symbols and actions) under the map learned while exploring"),
         _c("metric", "euclidean", clustering.Euclidean, "Euclidean distance (the paper's)"),
         _c("metric", "standardized", clustering.Standardized,

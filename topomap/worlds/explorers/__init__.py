@@ -18,14 +18,14 @@ module         its one job
 ``base``       the view, the mask check, :class:`RandomExplorer` (the paper's), :class:`MapExplorer`
 ``history``    :class:`HistoryExplorer`: the action least taken from the recent past's symbols
 ``plan``       :class:`PlanExplorer`: the action of highest planned novelty under a belief
-``active``     :func:`ActiveExplorer` (``explorer=active``): one of the two, by ``route``
+``active``     :func:`active_explorer` (``explorer=active``): one of the two, by ``route``
 =============  ====================================================================================
 """
 
-from .active import ActiveExplorer
+from .active import active_explorer
 from .base import MapExplorer, RandomExplorer, View, show
 from .history import HistoryExplorer
 from .plan import PlanExplorer
 
 __all__ = ["View", "show", "RandomExplorer", "MapExplorer", "HistoryExplorer", "PlanExplorer",
-           "ActiveExplorer"]
+           "active_explorer"]

@@ -6,14 +6,14 @@ from ...core.checks import ParameterError
 from .history import HistoryExplorer
 from .plan import PlanExplorer
 
-__all__ = ["ActiveExplorer", "ROUTES"]
+__all__ = ["active_explorer", "ROUTES"]
 
 #: what a state can be: the routes, one explorer each
 ROUTES = ("history", "plan")
 
 
-def ActiveExplorer(update_every: int = 250, route: str = "history", context: int = 3,  # noqa: N802
-                   gamma: float = 0.9, horizon: int = 30, epsilon: float = 0.0):
+def active_explorer(update_every: int = 250, route: str = "history", context: int = 3,
+                    gamma: float = 0.9, horizon: int = 30, epsilon: float = 0.0):
     """Go where the map is least known: count-based novelty on (state, action) pairs.
 
     ``route`` says what a state is, and so which explorer is made:
