@@ -23,7 +23,7 @@ Options: ``--seeds 0 1 2`` (explore: ``31 32 33``), ``--max-steps 1e6`` (latency
   simulated walk: ``fit`` on the whole walk against ``partial_fit`` in chunks of 1,000 steps
   (``learner.window`` and ``learner.refit_every`` at their defaults), ARI of the final labels of
   every step against the true places; medians over the seeds.
-* **explore**: ``topomap <world> explorer=random|active data.curve_every=250
+* **explore**: ``topomap <world> explorer=random|active data.update_every=250
   learner.refit_every=500`` as the command line runs it: the map is updated every 250 steps and
   judged on a random walk of the whole world it never learned from (``heldout_ari``, see
   :func:`topomap.worlds.mapping.heldout_judge`); the first step count at which the judged ARI
@@ -207,7 +207,7 @@ def child_explore(overrides, explorer: str, seed: int, steps: int) -> dict:
     from topomap.app.components.data import seed_streams
 
     cfg, parts, learner = build([*overrides, *EXPLORERS[explorer], f"seed={seed}",
-                                 f"data.n_steps={steps}", "data.curve_every=250",
+                                 f"data.n_steps={steps}", "data.update_every=250",
                                  "learner.refit_every=500"])
     if explorer == "place-aware":
         if not hasattr(parts.env, "successors"):

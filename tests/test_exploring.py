@@ -333,3 +333,18 @@ def test_bad_explorer_settings_name_the_parameter(kw, key):
 def test_bad_settings_of_either_policy_name_the_parameter(make, kw):
     with pytest.raises(ValueError, match=next(iter(kw))):
         make(**kw)
+
+
+def test_data_curve_every_is_the_old_name_of_update_every(make_cfg):
+    """``data.update_every`` is the explorer's name for the steps between map updates; the old
+    key ``data.curve_every`` still composes and sets it, with a warning, and both at once are
+    refused naming the old key."""
+    from topomap.app.components.data import Simulate
+
+    with pytest.warns(FutureWarning, match="data.curve_every was renamed data.update_every"):
+        assert Simulate(n_steps=10, curve_every=5).update_every == 5
+    with pytest.raises(ValueError, match="curve_every"):
+        Simulate(n_steps=10, update_every=3, curve_every=5)
+    assert Simulate(n_steps=10, update_every=7).update_every == 7
+    cfg = make_cfg(["data.curve_every=250"])
+    assert cfg.data.curve_every == 250 and cfg.data.update_every == 0

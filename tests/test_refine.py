@@ -168,8 +168,22 @@ def test_unknown_refinements_are_refused():
     from topomap import MapLearner
 
     sym, u, _ = ring_walk(300, RING, 0)
-    with pytest.raises(ValueError, match="refine 'magic' is unknown; choose one of none, cscg, em"):
+    with pytest.raises(ValueError, match="refine 'magic' is unknown; choose None or one of cscg, em"):
         MapLearner(n_clusters=6, n_states=6, refine="magic").fit(noisy(sym, 6), u)
+
+
+def test_the_string_none_is_none_with_a_warning():
+    """``refine=None`` is "no refinement" in Python; the config's option name ``"none"`` still
+    works for one release, warning, and gives the map ``refine=None`` gives."""
+    from topomap import MapLearner
+
+    sym, u, _ = ring_walk(300, RING, 0)
+    X = noisy(sym, 6)
+    plain = MapLearner(n_clusters=6, n_states=8, refine=None).fit(X, u)
+    with pytest.warns(FutureWarning, match='refine="none" is refine=None'):
+        old = MapLearner(n_clusters=6, n_states=8, refine="none").fit(X, u)
+    assert np.array_equal(old.labels_, plain.labels_)
+    assert not hasattr(old, "refine_info_")
 
 
 class _Fragments:

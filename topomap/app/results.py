@@ -67,7 +67,7 @@ HTML_FILES = {
     "map.html": "the learned map to zoom, pan and hover (states, visits, places, transitions); "
                 "one self-contained file, plotly's JavaScript inlined",
 }
-#: the figure a run that maps while exploring (``data.curve_every`` > 0) adds
+#: the figure a run that maps while exploring (``data.update_every`` > 0) adds
 MAPPING_FIGURES = {
     "fig_mapping.png": "mapping while exploring: the map's ARI against the steps taken",
 }

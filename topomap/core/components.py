@@ -117,10 +117,12 @@ def make_refinement(refine):
     new built-in for a name, else a clone of the object (``sklearn.base.clone``; a deep copy of
     an object that is not a scikit-learn estimator), so fitting it never changes ``refine``."""
     if isinstance(refine, str):
-        if refine == "none":
+        if refine == "none":  # the config's option name; in Python "no refinement" is None
+            warnings.warn('refine="none" is refine=None in Python; the string goes in 0.4',
+                          FutureWarning, stacklevel=3)
             return None
         if refine not in REFINEMENTS:
-            raise ParameterError("refine", f"{refine!r} is unknown; choose one of none, "
+            raise ParameterError("refine", f"{refine!r} is unknown; choose None or one of "
                                            f"{', '.join(sorted(REFINEMENTS))}")
         return REFINEMENTS[refine]()
     if refine is not None and not callable(getattr(refine, "fit", None)):

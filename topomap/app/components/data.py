@@ -10,6 +10,7 @@ from __future__ import annotations
 import dataclasses
 import inspect
 import typing
+import warnings
 from typing import Any, Optional
 
 import numpy as np
@@ -41,28 +42,38 @@ class Simulate:
         Length of a second, held-out walk through the same world that the map is scored on
         (None: ``n_steps``; 0: none).  It uses the seed's third random stream, so it never
         overlaps the training walk.
-    curve_every : int
-        Map while exploring: every ``curve_every`` steps the steps so far go to the run's
+    update_every : int
+        Map while exploring: every ``update_every`` steps the steps so far go to the run's
         learner (:meth:`topomap.MapLearner.partial_fit`) and the map's ARI against the steps
         taken is recorded (``metrics.json``: ``mapping``; ``fig_mapping.png``).  0 (default):
         only with an explorer that uses the map (``explorer=active``, every
         ``explorer.update_every`` steps).  While mapping, the noise is applied step by step, as
         the explorer sees it.
+    curve_every : int, optional
+        Deprecated name of ``update_every`` (it warns; removed in 0.4).
     """
 
     simulates = True
 
     def __init__(self, n_steps: int = 2000, heldout_steps: int | None = None,
-                 curve_every: int = 0):
+                 update_every: int = 0, curve_every: int | None = None):
         self.n_steps = check_count(n_steps, "n_steps")
         hold = check_count(heldout_steps, "heldout_steps", minimum=0, allow_none=True)
         self.heldout_steps = self.n_steps if hold is None else hold
-        self.curve_every = check_count(curve_every, "curve_every", minimum=0)
+        if curve_every is not None:
+            if update_every:
+                raise ParameterError("curve_every", "is the old name of update_every: give "
+                                                    "update_every alone")
+            warnings.warn("data.curve_every was renamed data.update_every (the explorer's name "
+                          "for the same steps); the old name goes in 0.4", FutureWarning,
+                          stacklevel=2)
+            update_every = curve_every
+        self.update_every = check_count(update_every, "update_every", minimum=0)
 
     def maps_while_exploring(self, parts) -> int:
         """Steps between two map updates while walking (0: the map is learned after the walk)."""
-        if self.curve_every:
-            return self.curve_every
+        if self.update_every:
+            return self.update_every
         return int(getattr(parts.explorer, "update_every", 0)) if hasattr(parts.explorer, "update") else 0
 
     def train(self, parts, seed: int, progress=None, learner=None) -> Trajectory:
@@ -74,7 +85,7 @@ class Simulate:
             traj, walk = map_while_exploring(parts.env, self.n_steps, explorer, learner,
                                              parts.noise, rng_sim, rng_noise, update_every, judge)
             walk.flush()
-            traj.meta["mapping"] = {"every": update_every, "explorer": repr(parts.explorer),
+            traj.meta["mapping"] = {"update_every": update_every, "explorer": repr(parts.explorer),
                                     "curve": quality_curve(walk, traj.places)}
             return traj
         traj = parts.env.simulate(self.n_steps, explorer, rng_sim)

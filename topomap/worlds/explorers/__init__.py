@@ -8,7 +8,7 @@ nothing more:
 * ``see(view)`` -- called by the world before every ``choose`` with a :class:`View`: the step's
   observation, the executable actions and the GDS recognised there.  A view has no place: the
   true place never reaches an explorer.
-* ``update(learner)`` -- called while mapping as the robot explores (``data.curve_every``, or
+* ``update(learner)`` -- called while mapping as the robot explores (``data.update_every``, or
   an explorer with this method) after every ``partial_fit`` of the run's
   :class:`~topomap.MapLearner`: the map learned so far is ``learner.map_``.
 
