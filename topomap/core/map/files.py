@@ -363,7 +363,7 @@ def to_networkx(m, min_prob: float = 0.0):
                    count=int(m.state_counts[s]))
     xs, us, ys = np.nonzero((C > 0) & (P > min_prob))
     for x, a, y in zip(xs.tolist(), us.tolist(), ys.tolist()):
-        name = m.action_names[a] if m.action_names else str(a)
+        name = m.action_label(a)
         if G.has_edge(x, y):
             d = G.edges[x, y]
             d["actions"].append(a)
