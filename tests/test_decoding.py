@@ -3,7 +3,9 @@ brute-force enumeration of every state path on maps small enough to enumerate, w
 itself where a map is a plain HMM, and stay exact and bounded in memory on long sequences."""
 
 import itertools
+import re
 import tracemalloc
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -13,6 +15,7 @@ from worlds import ring
 
 from topomap import MapLearner, TopologicalMap
 from topomap.core.map import observations as stats
+from topomap.core.map.sampling import executable_actions
 
 EPS = 0.01  # smoothing large enough to matter
 
@@ -229,3 +232,19 @@ def test_the_learner_answers_with_its_maps_methods():
         assert got[0] == want[0] and np.array_equal(got[1], want[1])
     # a clean ring: every step's posterior is sure of the state the learner gave it
     assert np.array_equal(post.argmax(axis=1), learner.labels_) and post.max(axis=1).min() > 0.99
+
+
+def test_the_example_of_the_navigating_page_runs_as_written():
+    page = Path(__file__).resolve().parents[1] / "docs" / "navigating.md"
+    (code,) = [b for b in re.findall(r"^```python\n(.*?)^```", page.read_text(), re.S | re.M)
+               if "predict_proba" in b]
+    ns = {}
+    exec(compile(code, str(page), "exec"), ns)
+    m, X, u, post = ns["m"], ns["X"], ns["u"], ns["post"]
+    assert post.shape == (300, m.n_states) and np.allclose(post.sum(axis=1), 1.0)
+    assert ns["log_prob"] == pytest.approx(m.score(X, u) * 300, rel=1e-12)
+    assert np.array_equal(ns["path"], m.predict(X, u))
+    assert np.array_equal(ns["states"], post.argmax(axis=1))
+    first = [acts[0] for acts in executable_actions(m)]  # what the page's policy takes
+    assert ns["xs"].shape == (500,) and np.array_equal(ns["us"], np.take(first, ns["xs"]))
+    assert set(ns["route"]) <= set(m.action_names)
