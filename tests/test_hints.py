@@ -16,8 +16,8 @@ from topomap.app.compose.command_line import compose
     (["+data.path=my.npz"], "data.path belongs to data=file (and data=rosbag)"),
     (["stop=auto", "stop.n_states=40"], "stop.n_states is not a key of stop=auto: it belongs to "
                                         "stop=n_states; leave it out, or choose stop=n_states"),
-    (["env=gridrom"], "unknown env=gridrom; did you mean env=gridroom? (the options: gridroom, "
-                      "minigrid, office, random_graph)"),
+    (["env=gridrom"], "unknown env=gridrom; did you mean env=gridroom? (the options: arena, "
+                      "gridroom, minigrid, office, random_graph)"),
     (["env=office,gridrom"], "unknown env=gridrom; did you mean env=gridroom?"),
     (["experiment=gridrom"], "unknown experiment=gridrom; did you mean experiment=gridroom?"),
 ])
