@@ -139,7 +139,7 @@ def test_map_nodes_are_numbered_and_never_overlap(small_run):
     ax.figure.canvas.draw()
     assert {t.get_text() for t in ax.texts} == {str(s) for s in range(learner.map_.n_states)}
     nodes = np.vstack([c.get_offsets() for c in ax.collections if c.get_label() in
-                       {label for *_, label in plots.run._NODE_KINDS}])
+                       {label for *_, label in plots.graph.NODE_KINDS}])
     assert len(nodes) == learner.map_.n_states
     pixels = ax.transData.transform(nodes)
     diameter = 11.0 * ax.figure.dpi / 72  # the numbered nodes' diameter, in pixels
@@ -295,5 +295,28 @@ def test_entropy_figure_labels_the_refinement_and_keeps_its_legend_off_the_curve
     assert f"after the refinement ({learner.map_.n_states} states)" in names
     assert not ax.get_legend().get_window_extent(renderer).overlaps(ax.get_window_extent(renderer))
     split = [r for r in learner.entropies_ if r.get("stage") != "refined"]
-    lowest = min(min(r["H_u"], r["H_x"]) for r in split)
-    assert ax.get_ylim()[0] > lowest - 0.1 * (max(r["H_u"] + r["H_x"] for r in split) - lowest)
+    (last,) = [r for r in learner.entropies_ if r.get("stage") == "refined"][-1:]
+    refined = [last["H_u"], last["H_x"], last["H_u"] + last["H_x"]]
+    lo, hi = ax.get_ylim()
+    assert all(lo <= v <= hi for v in refined)  # every refined value on the axis, none off it
+    drawn = [v for r in split for v in (r["H_u"], r["H_x"], r["H_u"] + r["H_x"])] + refined
+    span = max(drawn) - min(drawn)  # the range is the data's, padded a little
+    assert min(drawn) - 0.1 * span <= lo and hi <= max(drawn) + 0.1 * span
+
+
+class _Entropies:
+    """A learner's entropy trace made by hand: ten splits, then a refinement whose H(x'|x,u) is
+    0 (every transition certain), below every value of the split."""
+
+    entropies_ = [{"n_states": 10 + k, "H_u": 2.0 - 0.01 * k, "H_x": 0.5 - 0.02 * k}
+                  for k in range(10)] + [{"stage": "refined", "n_states": 19, "H_u": 1.7,
+                                          "H_x": 0.0}]
+
+
+def test_entropy_figure_draws_a_refined_zero_on_its_axis():
+    ax = plots.plot_entropy(_axes((6.5, 3.5)), _Entropies())
+    lo, hi = ax.get_ylim()
+    assert lo <= 0.0 <= hi
+    refined = [float(line.get_ydata()[0]) for line in ax.lines if len(line.get_xdata()) == 1]
+    assert sorted(refined) == [0.0, 1.7, 1.7]  # H(x'|x,u), H(u|x) and their sum, as points
+    assert all(line.get_clip_on() for line in ax.lines)  # nothing drawn off the axis
