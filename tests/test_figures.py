@@ -320,3 +320,49 @@ def test_entropy_figure_draws_a_refined_zero_on_its_axis():
     refined = [float(line.get_ydata()[0]) for line in ax.lines if len(line.get_xdata()) == 1]
     assert sorted(refined) == [0.0, 1.7, 1.7]  # H(x'|x,u), H(u|x) and their sum, as points
     assert all(line.get_clip_on() for line in ax.lines)  # nothing drawn off the axis
+
+
+# ---------------------------------------------------------------------------- readable numbers
+def test_numbers_of_states_at_one_spot_do_not_overlap():
+    """Twelve states of two and three digits whose steps sit at one spot (and a few nearby): every
+    number is written, and no two numbers' boxes overlap."""
+    rng = np.random.default_rng(0)
+    states = np.array([7, 25, 27, 98, 99, 100, 101, 102, 120, 131, 86, 49])
+    labels = np.repeat(states, 5)
+    spot = np.where(np.isin(labels, [86, 131, 49]), 0.3, 0.0)  # three a little apart
+    positions = np.column_stack([2.0 + spot, 1.0 + 0.02 * spot]) + rng.normal(0, 1e-3, (60, 2))
+    traj = Trajectory(observations=rng.normal(size=(60, 2)), actions=np.zeros(60, dtype=int),
+                      positions=positions)
+    ax = plots.plot_states(_axes((6, 4.5)), traj, labels)
+    ax.figure.canvas.draw()
+    renderer = ax.figure.canvas.get_renderer()
+    numbers = [t for t in ax.texts if t.get_text().isdigit()]
+    assert sorted(int(t.get_text()) for t in numbers) == sorted(states)
+    assert _overlapping([t.get_window_extent(renderer) for t in numbers]) == []
+
+
+def test_the_corner_places_show_around_the_map_nodes_on_them():
+    from topomap.worlds import OfficeWorld, RandomExplorer
+
+    world = OfficeWorld()
+    traj = world.simulate(300, RandomExplorer(), np.random.default_rng(0))
+    learner = MapLearner(n_clusters=8, n_states=12, n_init=1).fit_trajectory(traj)
+    ax = plots.plot_map(_axes((8, 6)), traj, learner, world)
+    (corners,) = [line for line in ax.lines if line.get_marker() == "+"]
+    assert corners.get_markersize() > 11.0  # wider than a numbered node: its arms show
+    nodes = max(c.get_zorder() for c in ax.collections if c.get_label() == "learned state")
+    assert corners.get_zorder() < nodes  # beneath the nodes, so the numbers stay readable
+
+
+def test_the_mapping_figure_shows_heldout_ari_with_its_legend_clear_of_the_axes():
+    curve = [{"steps": 250 * k, "ari": 0.9 - 0.05 * k, "heldout_ari": 0.1 * k} for k in (1, 2, 3)]
+    ax = plots.plot_mapping(_axes((5.5, 3.8)), curve,
+                            "HistoryExplorer(update_every=250, context=3, epsilon=0.0)")
+    ax.figure.canvas.draw()
+    renderer = ax.figure.canvas.get_renderer()
+    lines = {line.get_label(): list(line.get_ydata()) for line in ax.lines}
+    (held,) = [y for name, y in lines.items() if "heldout_ari" in name]
+    assert held == pytest.approx([0.1, 0.2, 0.3])
+    assert ax.get_title() == "mapping while exploring: HistoryExplorer"
+    legend = ax.get_legend().get_window_extent(renderer)
+    assert legend.y1 <= ax.xaxis.get_tightbbox(renderer).y0  # below the ticks and their label

@@ -29,16 +29,9 @@ def nothing():
     return None
 
 
-@hookimpl
-def topomap_register_components():
+def _arena():
+    """The arena and its parts: its sensors and its action rules."""
     return [
-        _c("env", "office", OfficeWorld,
-           "the paper's office: 25 objects of 15 types, panoramic size sensor, 17 actions"),
-        _c("env", "gridroom", GridRoom, "a room of cells showing a few symbols (heavy aliasing), 4 moves"),
-        _c("env", "random_graph", RandomGraphWorld,
-           "random strongly connected digraph, places emit fewer symbols than places"),
-        _c("env", "minigrid", MiniGridWorld,
-           "a MiniGrid environment (optional minigrid package), left/right/forward"),
         _c("env", "arena", arena.ArenaWorld,
            "continuous motion in a floor plan (optional ratinabox package): random motion or a "
            "recorded rat path, scored in metres"),
@@ -52,6 +45,20 @@ def topomap_register_components():
            "the arena's moves as compass octants of the velocity, or stop"),
         _c("actions", "turns", arena.TurnActions,
            "the arena's moves as a differential drive's: forward, turn_left, turn_right, stop"),
+    ]
+
+
+@hookimpl
+def topomap_register_components():
+    return [
+        _c("env", "office", OfficeWorld,
+           "the paper's office: 25 objects of 15 types, panoramic size sensor, 17 actions"),
+        _c("env", "gridroom", GridRoom, "a room of cells showing a few symbols (heavy aliasing), 4 moves"),
+        _c("env", "random_graph", RandomGraphWorld,
+           "random strongly connected digraph, places emit fewer symbols than places"),
+        _c("env", "minigrid", MiniGridWorld,
+           "a MiniGrid environment (optional minigrid package), left/right/forward"),
+        *_arena(),
         _c("noise", "none", noise.NoNoise, "noise-free observations"),
         _c("noise", "gaussian", noise.GaussianNoise, "additive Gaussian noise (sigma), clipped at 0"),
         _c("noise", "dropout", noise.DropoutNoise,
