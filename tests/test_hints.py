@@ -41,7 +41,7 @@ def test_a_key_of_the_selected_component_passes(overrides):
     (["data.path=my.npz"], "topomap: error: data.path belongs to data=file (and data=rosbag), "
                            "not to data=simulate (the default); add data=file"),
     (["env=gridrom"], "topomap: error: unknown env=gridrom; did you mean env=gridroom? (the "
-                      "options: gridroom, minigrid, office, random_graph)"),
+                      "options: arena, gridroom, minigrid, office, random_graph)"),
 ])
 def test_the_command_prints_one_line_instead_of_hydras_message(args, line, tmp_path):
     r = subprocess.run([sys.executable, "-m", "topomap", *args], cwd=tmp_path,

@@ -50,8 +50,8 @@ def list_plugins(registry: Registry, file=None) -> None:
         params = fields_of(schema_of(registry.get("env", name)))
         for provider, added in registry.world_action_providers(params):
             actions += [(a.name, provider, f"an action of the {name} world") for a in added]
-    if actions:
-        print("actions:", file=file)
+    if actions:  # (not "actions:", the header of the action rules, a kind of component)
+        print("actions added to worlds:", file=file)
         for action, provider, what in actions:
             print(f"  {action:<16} {provider:<24} {what}", file=file)
     for err in registry.errors:

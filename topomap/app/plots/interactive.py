@@ -33,7 +33,7 @@ __all__ = ["map_figure", "write_map_html", "node_positions", "SVG_MAX_STATES", "
 #: most states drawn as SVG markers; larger maps are drawn with WebGL (``scattergl``)
 SVG_MAX_STATES = 1000
 #: most states whose nodes carry their numbers (larger nodes, the number inside)
-NUMBERED_STATES = 60
+NUMBERED_STATES = 100
 #: a node's colour by kind: a learned state, a compound state, a state at a GDS (as fig_map.png)
 NODE_COLOURS = {"state": "#ffffff", "compound": "#b2abd2", "gds": "gold"}
 #: the legend's name of each kind of node
