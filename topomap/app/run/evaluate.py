@@ -72,7 +72,9 @@ def evaluate(learner: MapLearner, traj: Trajectory, heldout: Trajectory | None,
                                                      gds=heldout.gds, lengths=heldout.lengths),
                    heldout_steps=len(heldout))
         report("held-out scoring", 1, 1)
-    located = position_entry(learner, traj, heldout, None if parts is None else parts.env)
+    simulated = parts is not None and getattr(parts.data, "simulates", False)
+    located = position_entry(learner, traj, heldout, None if parts is None else parts.env,
+                             "the held-out walk" if simulated else "the held-out recording")
     if located is not None:
         out["position"] = located
     if parts is not None and parts.evaluate is not None:
@@ -105,12 +107,12 @@ def _regions(env):
 
 
 def position_entry(learner: MapLearner, traj: Trajectory, heldout: Trajectory | None,
-                   env=None) -> dict | None:
+                   env=None, held: str = "the held-out recording") -> dict | None:
     """Scores in metres of the held-out walk (:mod:`topomap.core.position_scores`: the map's,
     the ceiling's and K-means on the views', each with the median and 90th-percentile error and,
-    where the world has regions, the wrong-region share), with which walk was held out and the
-    regions; None unless both walks have positions and the steps have no discrete places (whose
-    scores are ARI and purity).  The ceiling is None (with ``ceiling_note``) when the map has
+    where the world has regions, the wrong-region share), with which walk was held out (as the
+    world says in ``heldout.meta``, else ``held``) and the regions; None unless both walks have
+    positions and the steps have no discrete places (whose scores are ARI and purity).  The ceiling is None (with ``ceiling_note``) when the map has
     fewer states than the walk has regions."""
     if (heldout is None or traj.positions is None or heldout.positions is None
             or traj.places is not None):
@@ -122,7 +124,7 @@ def position_entry(learner: MapLearner, traj: Trajectory, heldout: Trajectory | 
     names, region_of = _regions(env)
     m, labels, seed = learner.map_, learner.labels_, learner.random_state
     report("scores in metres", 0, 3)
-    out = {"heldout": (heldout.meta or {}).get("heldout", "the held-out recording"),
+    out = {"heldout": (heldout.meta or {}).get("heldout", held),
            "heldout_steps": len(heldout), "regions": names, "ceiling_note": None,
            "map": positions.map_scores(m, labels, traj, heldout, region_of)}
     report("scores in metres", 1, 3)
