@@ -51,7 +51,8 @@ def test_env_arena_runs_end_to_end_and_scores_in_metres(tmp_path, make_cfg):
     position = metrics_of(tmp_path)["position"]
     assert position == results["position"]
     assert position["regions"] == ["west", "corridor", "east"]
-    assert position["heldout"].startswith("another random walk") and position["heldout_steps"] == 150
+    assert position["heldout"].startswith("another random walk")
+    assert position["heldout_steps"] == 150
     for scores in (position["map"], position["ceiling"], position["kmeans_views"]):
         assert scores["steps"] == 150 and scores["unplaced"] == 0
         assert 0 <= scores["median_error"] <= scores["p90_error"] <= np.hypot(2.5, 1.0)
@@ -70,7 +71,8 @@ def test_the_map_entry_is_the_map_scored_on_the_held_out_walk(tmp_path, make_cfg
     world = ArenaWorld(layout="two_rooms")
     rng_sim, rng_noise = seed_streams(0)[2].spawn(2)
     held = world.heldout_walk(150, None, np.random.default_rng(rng_sim), after=300)
-    held.observations = GaussianNoise(0.01).apply(held.observations, np.random.default_rng(rng_noise))
+    held.observations = GaussianNoise(0.01).apply(held.observations,
+                                                  np.random.default_rng(rng_noise))
     train = load_trajectory(tmp_path / "trajectory.npz")
     expected = map_scores(m, labels, train, held, world.region_of)
     assert metrics_of(tmp_path)["position"]["map"] == pytest.approx(expected)

@@ -6,8 +6,9 @@ back, and an optimising sweeper is given one of the numbers: each reads the name
 none of them imports another to learn a file's name.
 
 * the files: :data:`OUTPUT_FILES` (every run), :data:`FIGURE_FILES`, :data:`HTML_FILES`,
-  :data:`PATH_FIGURES` and :data:`MAPPING_FIGURES` (with ``output.figures``), :data:`LOCALIZE_FILES` (``task=localize``),
-  :data:`STATUS_FILE` and, in a sweep's folder, :data:`CACHE_DIR`;
+  :data:`PATH_FIGURES` and :data:`MAPPING_FIGURES` (with ``output.figures``),
+  :data:`LOCALIZE_FILES` (``task=localize``), :data:`STATUS_FILE` and, in a sweep's folder,
+  :data:`CACHE_DIR`;
 * the numbers of ``metrics.json`` (and ``status.json``) by name, :data:`COLUMNS`: where each is,
   its label and which way is better -- the columns of a sweep's ``summary.csv`` and a logger's
   metrics;

@@ -54,8 +54,9 @@ KINDS = MappingProxyType({kind.name: kind for kind in (
     Kind("actions", "``action_names``; ``actions(motion) -> (T,)`` action ids read off a path "
                     "(:mod:`topomap.worlds.arena.actions`)", simulated=True, part_of="env"),
     Kind("env", "a world: ``simulate(n_steps, explorer, rng) -> Trajectory`` (optional: "
-                "``plot_room(ax)``, ``heldout_walk(n_steps, explorer, rng, after)``, an ``extra_actions=`` "
-                "argument, the parts it takes: ``sensor=``, ``actions=``)", simulated=True),
+                "``plot_room(ax)``, ``heldout_walk(n_steps, explorer, rng, after)``, an "
+                "``extra_actions=`` argument, the parts it takes: ``sensor=``, ``actions=``)",
+         simulated=True),
     Kind("noise", "``apply(observations, rng) -> observations`` (a new array)", simulated=True),
     Kind("explorer", "``choose(executable_mask, rng) -> action id``", simulated=True),
     Kind("metric", "``fit_transform(X) -> Z``; K-means runs on ``Z``", learner_arg="metric"),

@@ -180,7 +180,8 @@ class RunConf:
 #: (:data:`~topomap.app.compose.kinds.KINDS`; each holds a ``<kind>/<name>`` config, or None for
 #: a part of another component left to that component's default), ``learner`` and ``output``.
 Config = make_dataclass("Config", [
-    *((name, Any, field(default=None if kind.part_of else MISSING)) for name, kind in KINDS.items()),
+    *((name, Any, field(default=None if kind.part_of else MISSING))
+      for name, kind in KINDS.items()),
     ("learner", LearnerConf, field(default_factory=LearnerConf)),
     ("output", OutputConf, field(default_factory=OutputConf)),
 ], bases=(RunConf,))

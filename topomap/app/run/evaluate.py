@@ -112,8 +112,9 @@ def position_entry(learner: MapLearner, traj: Trajectory, heldout: Trajectory | 
     the ceiling's and K-means on the views', each with the median and 90th-percentile error and,
     where the world has regions, the wrong-region share), with which walk was held out (as the
     world says in ``heldout.meta``, else ``held``) and the regions; None unless both walks have
-    positions and the steps have no discrete places (whose scores are ARI and purity).  The ceiling is None (with ``ceiling_note``) when the map has
-    fewer states than the walk has regions."""
+    positions and the steps have no discrete places (whose scores are ARI and purity).  The
+    ceiling is None (with ``ceiling_note``) when the map has fewer states than the walk has
+    regions."""
     if (heldout is None or traj.positions is None or heldout.positions is None
             or traj.places is not None):
         return None
