@@ -87,7 +87,7 @@ def test_every_config_field_matches_its_factory_signature():
     for kind, name, comp, _ in registry.items():
         fields = fields_of(schema_of(comp))
         assert fields.pop("component") == name
-        expected = _signature_defaults(comp.factory)
+        expected = _signature_defaults(comp.load_factory())
         if "seed" in expected:  # a component's seed follows the run's seed
             assert fields.pop("seed") == "${seed}" and expected.pop("seed") is not MISSING
         # settings given as a dataclass (refine's soft) are a nested config of the same fields

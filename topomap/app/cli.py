@@ -20,13 +20,10 @@ from __future__ import annotations
 import logging
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from .compose.command_line import CONFIG_MODULE, overrides_of, prepare
-from .compose.registry import Registry
-from .run.experiment import run
-from .run.interrupts import interrupt_on_sigterm
-from .run.job import run_job, write_status
-from .run.outputs import OutputDirInUse
+if TYPE_CHECKING:
+    from .compose.registry import Registry
 
 log = logging.getLogger("topomap")
 
@@ -109,6 +106,8 @@ def _task(cfg, registry: Registry):
     a failed job."""
     from hydra.core.hydra_config import HydraConfig
 
+    from .run.job import run_job
+
     hc = HydraConfig.get()
     out = hc.runtime.output_dir
     if hc.mode.name == "MULTIRUN":
@@ -128,6 +127,10 @@ def _task(cfg, registry: Registry):
 def _single_run(cfg, out, registry: Registry) -> dict:
     """``topomap <overrides>`` without ``-m``: the run's results; a failed or interrupted run
     leaves ``status.json`` in its folder saying so, and ends the command with one line."""
+    from .run.experiment import run
+    from .run.job import write_status
+    from .run.outputs import OutputDirInUse
+
     try:
         return run(cfg, out, registry=registry, on_replaced=_restart_log)
     except OutputDirInUse as exc:  # another run's folder: leave it as it is
@@ -179,13 +182,17 @@ def _interrupted(exc: KeyboardInterrupt) -> None:
 
 
 def version_line() -> str:
-    """What ``topomap --version`` prints: topomap's version, with Hydra's and Python's."""
+    """What ``topomap --version`` prints: topomap's version, with Hydra's and Python's (read from
+    the installed packages' metadata: nothing is imported)."""
     import platform
-
-    from hydra import __version__ as hydra_version
+    from importlib.metadata import PackageNotFoundError, version
 
     from .. import __version__
 
+    try:
+        hydra_version = version("hydra-core")
+    except PackageNotFoundError:
+        hydra_version = "not installed"
     return f"topomap {__version__} (Hydra {hydra_version}, Python {platform.python_version()})"
 
 
@@ -197,13 +204,17 @@ def _user_configs(argv) -> bool:
 
 def main() -> None:
     """Console entry point."""
-    import hydra
-
-    interrupt_on_sigterm()
     argv = sys.argv[1:]
     if "--version" in argv:
         print(version_line())
         return
+    import hydra
+
+    from .compose.command_line import CONFIG_MODULE, overrides_of, prepare
+    from .compose.registry import Registry
+    from .run.interrupts import interrupt_on_sigterm
+
+    interrupt_on_sigterm()
     if argv and argv[0] in ("--list-plugins", "plugins"):
         list_plugins(Registry.load(argv[1:]))
         return

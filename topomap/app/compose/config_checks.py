@@ -18,7 +18,7 @@ from importlib import resources
 from omegaconf import OmegaConf
 
 from .kinds import KINDS
-from .schemas import Config, LearnerConf, OutputConf, fields_of, schema_of
+from .schemas import OutputConf, config_schema, fields_of, learner_schema, schema_of
 from .store import read_yaml_options
 
 __all__ = ["check_overrides", "check_config", "group_options", "default_choices",
@@ -39,7 +39,7 @@ def _keys_of(schema, prefix: str) -> set[str]:
 def valid_keys(registry) -> set[str]:
     """Every key a config may hold: the top level, every field of every registered component
     (of any component of its group), ``learner.*`` and ``output.*``."""
-    keys = set(fields_of(Config)) | _keys_of(LearnerConf, "learner") | _keys_of(OutputConf, "output")
+    keys = set(fields_of(config_schema())) | _keys_of(learner_schema(), "learner") | _keys_of(OutputConf, "output")
     for kind, _, comp, _ in registry.items():
         keys |= _keys_of(schema_of(comp), kind)
     return keys
@@ -222,9 +222,9 @@ def check_config(cfg, registry) -> None:
             if value == "???":
                 raise ValueError(f"{section}.{key} is required: give it on the command line, "
                                  f"e.g. topomap ... {section}.{key}=<value>")
-    top = set(fields_of(Config))
+    top = set(fields_of(config_schema()))
     extra = [k for k in cfg if k not in top and k != "hydra"]
-    sections = {"learner": LearnerConf, "output": OutputConf}
+    sections = {"learner": learner_schema(), "output": OutputConf}
     for kind in KINDS:
         if isinstance(cfg.get(kind), dict) and "component" in cfg[kind]:
             sections[kind] = schema_of(registry.get(kind, cfg[kind]["component"]))

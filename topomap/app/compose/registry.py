@@ -213,7 +213,7 @@ class Registry:
         comp = self.get(kind, name)
         params.update(extra)
         try:
-            return comp.factory(**params)
+            return comp.load_factory()(**params)
         except ParameterError as err:  # named by the factory's parameter: say the config key
             raise ValueError(f"{kind}={name}: {err.renamed(f'{kind}.{err.param}')}") from None
         except (TypeError, ValueError) as exc:
