@@ -100,10 +100,10 @@ def optimising(sweeper) -> bool:
     return sweeper is not None and "direction" in sweeper
 
 
-def _task(cfg, registry: Registry):
+def _task(cfg, registry: Registry, new_folder: bool = False):
     """One run (or one job of a sweep) of the composed config ``cfg``; returns the run's
     ``objective`` (:data:`~topomap.app.results.OBJECTIVES`) for a sweeper to optimise, None for
-    a failed job."""
+    a failed job.  ``new_folder``: the command made the run's folder (:func:`_checked_run`)."""
     from hydra.core.hydra_config import HydraConfig
 
     from .run.job import run_job
@@ -119,17 +119,19 @@ def _task(cfg, registry: Registry):
         if results is None:
             return None
     else:
-        results = _single_run(cfg, out, registry)
+        results = _single_run(cfg, out, registry, new_folder)
     print(f"topomap: {_summary(results, out)}\ntopomap: outputs in {out}")
     return (results.get("objective") or {}).get("value")
 
 
-def _single_run(cfg, out, registry: Registry) -> dict:
-    """``topomap <overrides>`` without ``-m``: the run's results; a failed or interrupted run
-    leaves ``status.json`` in its folder saying so, and ends the command with one line."""
+def _single_run(cfg, out, registry: Registry, new_folder: bool = False) -> dict:
+    """``topomap <overrides>`` without ``-m``: the run's results; an interrupted run, or one
+    failed by something else than its settings or data, leaves ``status.json`` in its folder
+    saying so; a run failed by its settings or data removes the folder it made (``new_folder``)
+    and ends the command with one line on stderr."""
     from .run.experiment import run
     from .run.job import write_status
-    from .run.outputs import OutputDirInUse
+    from .run.outputs import OutputDirInUse, remove_new_folder
 
     try:
         return run(cfg, out, registry=registry, on_replaced=_restart_log)
@@ -141,8 +143,10 @@ def _single_run(cfg, out, registry: Registry) -> dict:
         print(f"topomap: interrupted; {out}/status.json says so", file=sys.stderr)
         sys.exit(INTERRUPTED)
     except ValueError as exc:
-        write_status(out, "failed", exc)
-        log.error("%s", exc)
+        if new_folder:
+            remove_new_folder(out)
+        else:
+            write_status(out, "failed", exc)
         sys.exit(f"topomap: error: {exc}")
     except Exception as exc:
         write_status(out, "failed", exc)
@@ -202,6 +206,40 @@ def _user_configs(argv) -> bool:
     return any(a in flags or a.startswith(tuple(f + "=" for f in flags)) for a in argv)
 
 
+#: Hydra's flags that print or inspect rather than run
+_NOT_A_RUN = ("multirun", "cfg", "help", "hydra_help", "info", "shell_completion",
+              "experimental_rerun")
+
+
+def _checked_run(argv, registry: Registry):
+    """For ``topomap <overrides>`` (one run): everything checked before Hydra makes the run's
+    folder (:func:`~topomap.app.run.experiment.prepare`), and that folder chosen now and given
+    to Hydra (``hydra.run.dir``), so that it can be held (:func:`~topomap.app.run.outputs.
+    locked_output_dir`) before Hydra writes ``.hydra/`` into it.  Returns ``(folder,
+    overwrite)``, or None for a command that does not run (``-m``, ``--cfg``, ...) or brings
+    config folders of its own."""
+    from hydra._internal.utils import get_args_parser
+
+    from .compose.command_line import compose
+    from .run.experiment import prepare
+
+    args, _ = get_args_parser().parse_known_args(list(argv))
+    if any(getattr(args, flag, None) for flag in _NOT_A_RUN) or _user_configs(argv):
+        return None
+    overrides = list(args.overrides or [])
+    cfg = compose(overrides, registry, return_hydra_config=True)
+    folder = str(cfg.hydra.run.dir)
+    from omegaconf import OmegaConf
+
+    plain = OmegaConf.to_container(cfg, resolve=False)
+    plain.pop("hydra")
+    prepare(OmegaConf.create(plain), registry)
+    quoted = "'" + folder.replace("\\", "\\\\").replace("'", "\\'") + "'"
+    sys.argv[1:] = [a for a in argv if not a.startswith("hydra.run.dir=")]
+    sys.argv.append(f"hydra.run.dir={quoted}")
+    return Path(folder), bool(cfg.output.overwrite)
+
+
 def main() -> None:
     """Console entry point."""
     argv = sys.argv[1:]
@@ -213,6 +251,7 @@ def main() -> None:
     from .compose.command_line import CONFIG_MODULE, overrides_of, prepare
     from .compose.registry import Registry
     from .run.interrupts import interrupt_on_sigterm
+    from .run.outputs import locked_output_dir
 
     interrupt_on_sigterm()
     if argv and argv[0] in ("--list-plugins", "plugins"):
@@ -220,17 +259,25 @@ def main() -> None:
         return
     try:
         registry = prepare(overrides_of(argv), user_configs=_user_configs(argv))
+        single = _checked_run(argv, registry)
     except ValueError as exc:
         sys.exit(f"topomap: error: {exc}")
     except KeyboardInterrupt as exc:
         _interrupted(exc)
+    new_folder = False
 
     @hydra.main(version_base="1.3", config_path=f"pkg://{CONFIG_MODULE}", config_name="config")
     def topomap(cfg):
-        return _task(cfg, registry)
+        return _task(cfg, registry, new_folder)
 
     try:
-        topomap()
+        if single is None:
+            topomap()
+            return
+        with locked_output_dir(*single) as new_folder:
+            topomap()
+    except ValueError as exc:  # the folder is another run's
+        sys.exit(f"topomap: error: {exc}")
     except KeyboardInterrupt as exc:
         _interrupted(exc)
 
