@@ -156,6 +156,9 @@ class OutputConf:
     progress: bool = True
     #: a run into a folder that holds another run's outputs replaces them (false: refuses)
     overwrite: bool = False
+    #: a sweep into a ``hydra.sweep.dir`` that holds jobs runs only those it has not completed
+    #: with the same config (false: refuses the folder); an Optuna search goes on with its study
+    resume: bool = False
 
 
 class Task(Enum):

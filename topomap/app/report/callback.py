@@ -21,6 +21,7 @@ from hydra.experimental.callback import Callback
 from omegaconf import OmegaConf
 
 from ..results import OBJECTIVES, check_metric, objective_direction
+from .jobs import check_sweep_folder
 from .summary import Report, print_report, write_report
 
 log = logging.getLogger("topomap")
@@ -77,6 +78,13 @@ class SweepReport(Callback):
                      f"objective={objective} is better when "
                      f"{'larger' if wanted == 'maximize' else 'smaller'}; give "
                      f"hydra.sweeper.direction={wanted}")
+        sweep_dir = OmegaConf.select(config, "hydra.sweep.dir", default=None)
+        try:
+            if sweep_dir is not None:
+                check_sweep_folder(Path(str(sweep_dir)), config,
+                                   bool(OmegaConf.select(config, "output.resume", default=False)))
+        except ValueError as exc:
+            sys.exit(f"topomap: error: {exc}")
         if threading.current_thread() is threading.main_thread():  # where Python takes signals
 
             def interrupted(signum, frame):

@@ -71,7 +71,7 @@ def prepare(cfg, registry: Registry | None = None) -> tuple[dict, Registry, Part
 
 
 def run(cfg, output_dir, *, registry: Registry | None = None, cache_dir=None,
-        needs_objective: bool = False, on_replaced=None) -> dict:
+        needs_objective: bool = False, on_replaced=None, folder_key: str = "hydra.run.dir") -> dict:
     """Run one experiment described by ``cfg`` and write its outputs into ``output_dir``.
 
     Everything is checked first (:func:`prepare`), before any data is read; then
@@ -83,10 +83,11 @@ def run(cfg, output_dir, *, registry: Registry | None = None, cache_dir=None,
     which removes them first (:func:`~topomap.app.run.outputs.claim_output_dir`) and then calls
     ``on_replaced(output_dir)`` (the command starts the run's log afresh).
     ``needs_objective``: the run's ``objective`` is optimised (an Optuna sweep), so data that
-    cannot give it is an error before learning.
+    cannot give it is an error before learning.  ``folder_key``: the config key that chose the
+    folder, for the error.
     """
     overwrite = bool((_as_dict(cfg).get("output") or {}).get("overwrite", False))
-    claim_output_dir(output_dir, overwrite, check_only=True)
+    claim_output_dir(output_dir, overwrite, check_only=True, key=folder_key)
     cfg, registry, parts = prepare(cfg, registry)
     for err in registry.errors:
         log.warning("%s", err)
