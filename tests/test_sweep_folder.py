@@ -92,3 +92,46 @@ def test_a_second_sweep_into_one_folder_is_refused_then_resumed(tmp_path):
     assert [(r["clusters.ns"], r["status"]) for r in rows] == [
         ("5", "completed"), ("6", "completed"), ("7", "completed")]
     assert [r["n_states_phase1"] for r in rows] == ["7", "8", "9"]  # ns + 2 GDS, each its own
+
+
+# ---------------------------------------------------------------- a search's study
+def test_a_study_is_written_as_it_goes_and_a_later_one_goes_on_with_it(tmp_path):
+    """Two trials of a study (one completed, one failed) written to study.json; a study that
+    resumes from that folder starts with both, the same parameters, values and states."""
+    optuna = pytest.importorskip("optuna")
+    from topomap.app.compose.study import STUDY_FILE, SweepStudy
+
+    first = optuna.create_study(storage=SweepStudy(str(tmp_path / "a")), study_name="topomap",
+                                direction="maximize", load_if_exists=True)
+    t = first.ask({"ns": optuna.distributions.IntUniformDistribution(4, 10)})
+    first.tell(t, 1.5)
+    t = first.ask({"ns": optuna.distributions.IntUniformDistribution(4, 10)})
+    first.tell(t, state=optuna.trial.TrialState.FAIL)
+    saved = json.loads((tmp_path / "a" / STUDY_FILE).read_text())["trials"]
+    assert [(s["state"], s["values"]) for s in saved] == [("COMPLETE", [1.5]), ("FAIL", None)]
+    later = optuna.create_study(storage=SweepStudy(str(tmp_path / "b"), resume_from=str(tmp_path / "a")),
+                                study_name="topomap", direction="maximize", load_if_exists=True)
+    assert [(x.state.name, x.values, x.params) for x in later.trials] == \
+        [(x.state.name, x.values, x.params) for x in first.trials]
+    assert later.best_value == 1.5
+    with pytest.raises(ValueError, match="resume_from=.*no study to go on with"):
+        SweepStudy(str(tmp_path / "c"), resume_from=str(tmp_path / "nowhere"))
+
+
+@pytest.mark.slow
+def test_a_search_whose_every_trial_failed_says_why_in_one_line(tmp_path):
+    """No held-out walk (data.heldout_steps=0) while the objective is the held-out score: every
+    trial fails, the report lists them, and the command says why, once."""
+    pytest.importorskip("hydra_plugins.hydra_optuna_sweeper")
+    sweep = tmp_path / "search"
+    r = topomap(["-m", *SMALL, "hydra/sweeper=optuna", "hydra.sweeper.n_trials=2",
+                 f"hydra.sweep.dir={sweep}", "clusters.ns=int(interval(4,6))"], tmp_path)
+    assert r.returncode == 1
+    assert r.stderr.splitlines() == [
+        "topomap: error: all 2 trials of the search failed, the first with: ValueError: "
+        "objective=heldout_loglik needs held-out data: data.heldout_steps > 0 (data=simulate; "
+        "default: data.n_steps) or data.heldout_path (data=file, data=rosbag); or choose "
+        "objective=ari"]
+    with open(sweep / "summary.csv", newline="") as fh:
+        assert [row["status"] for row in csv.DictReader(fh)] == ["failed", "failed"]
+    assert len(json.loads((sweep / "study.json").read_text())["trials"]) == 2

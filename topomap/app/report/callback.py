@@ -12,6 +12,7 @@ that did not start.
 from __future__ import annotations
 
 import logging
+import os
 import signal
 import sys
 import threading
@@ -85,6 +86,7 @@ class SweepReport(Callback):
                                    bool(OmegaConf.select(config, "output.resume", default=False)))
         except ValueError as exc:
             sys.exit(f"topomap: error: {exc}")
+        self._watch_search(config)
         if threading.current_thread() is threading.main_thread():  # where Python takes signals
 
             def interrupted(signum, frame):
@@ -92,10 +94,43 @@ class SweepReport(Callback):
 
             self._replaced = {sig: signal.signal(sig, interrupted) for sig in INTERRUPTS}
 
-    def on_multirun_end(self, config, **kwargs) -> None:
+    def _watch_search(self, config) -> None:
+        """Before a search (an optimising sweeper with ``n_trials``): its folder made (its study
+        is kept there) and its trials counted (:meth:`on_job_end`)."""
+        sweeper = OmegaConf.select(config, "hydra.sweeper", default=None)
+        trials = OmegaConf.select(config, "hydra.sweeper.n_trials", default=None)
+        self._search = None
+        if sweeper is None or "direction" not in sweeper or not isinstance(trials, int):
+            return
+        self._search = {"config": config, "trials": trials, "returns": [], "pid": os.getpid()}
+        Path(str(config.hydra.sweep.dir)).mkdir(parents=True, exist_ok=True)
+        logging.getLogger("alembic").setLevel(logging.WARNING)  # the study's database
+
+    def on_job_end(self, config, job_return, **kwargs) -> None:
+        """After the last trial of a search of which no trial completed: the report (every
+        trial a row), then one line saying why the first trial failed -- not Optuna's error
+        of a study without a completed trial."""
+        search = getattr(self, "_search", None)
+        if search is None or os.getpid() != search["pid"]:  # a launcher's worker process
+            return
+        ok = getattr(job_return.status, "name", "") == "COMPLETED"
+        search["returns"].append(job_return.return_value if ok else None)
+        if len(search["returns"]) < search["trials"] or any(
+                v is not None for v in search["returns"]):
+            return
+        self.on_multirun_end(search["config"], quiet=True)
+        report = self.write(Path(str(search["config"].hydra.sweep.dir)), search["config"])
+        why = next((r["error"] for r in report.failed if r["error"]), "no trial returned its "
+                   "objective")
+        sys.exit(f"topomap: error: all {len(report.rows)} trials of the search failed, the "
+                 f"first with: {why}")
+
+    def on_multirun_end(self, config, quiet: bool = False, **kwargs) -> None:
         for sig, handler in self._replaced.items():
             signal.signal(sig, handler)
         self._replaced = {}
+        if quiet:  # the caller writes the report
+            return
         report = self.write(Path(str(config.hydra.sweep.dir)), config)
         if report.failed:
             log.warning("%d of %d jobs did not complete; their errors are in %s",

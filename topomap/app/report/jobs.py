@@ -63,7 +63,12 @@ def check_sweep_folder(sweep_dir, multirun_cfg, resume: bool) -> list[Job]:
                          "folders); choose another hydra.sweep.dir, or give output.resume=true "
                          "to run only the jobs it has not completed")
     plan = planned_jobs(multirun_cfg)
-    for job in jobs if plan is not None else ():
+    if plan is None:
+        raise ValueError(f"hydra.sweep.dir={sweep_dir} holds a search; output.resume=true goes "
+                         "on with a grid: a search goes on with its study in a new sweep "
+                         "folder, given hydra.sweeper.storage.resume_from="
+                         f"{sweep_dir.resolve()}")
+    for job in jobs:
         wanted = _settings(plan[job.num]) if job.num < len(plan) else {}
         held = _settings(job.overrides)
         if wanted != held:
