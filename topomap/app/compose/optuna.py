@@ -35,7 +35,7 @@ def store_optuna_sweeper(cs) -> None:
         direction: Any = "maximize"
         storage: Optional[Any] = field(default_factory=lambda: {
             "_target_": "topomap.app.compose.study.SweepStudy", "folder": II("hydra.sweep.dir"),
-            "resume_from": None})
+            "resume_from": None, "n_trials": II("hydra.sweeper.n_trials")})
         study_name: Optional[str] = "topomap"
         n_jobs: int = 1
         max_failure_rate: float = 1.0

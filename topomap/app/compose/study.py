@@ -35,10 +35,15 @@ class SweepStudy(InMemoryStorage):
     resume_from : str, optional
         The sweep folder of an earlier search of the same parameters: its trials are the
         study's first (its ``study.json`` must exist).
+    n_trials : int, optional
+        The trials of this search (``${hydra.sweeper.n_trials}``): when every one of them has
+        failed, the search ends once the last is written, with one line saying why the first
+        failed (rather than Optuna's error of a study without a completed trial).
     """
 
-    def __init__(self, folder: str, resume_from: str | None = None):
+    def __init__(self, folder: str, resume_from: str | None = None, n_trials: int | None = None):
         super().__init__()
+        self.n_trials = n_trials
         optuna.logging.set_verbosity(optuna.logging.WARNING)  # the sweep logs the study itself
         self.path = Path(folder) / STUDY_FILE
         self.earlier: list[dict] = []
@@ -62,8 +67,23 @@ class SweepStudy(InMemoryStorage):
     def set_trial_state(self, trial_id: int, state: TrialState) -> bool:
         changed = super().set_trial_state(trial_id, state)
         if state.is_finished():
-            self._write(self.get_study_id_from_trial_id(trial_id))
+            study_id = self.get_study_id_from_trial_id(trial_id)
+            self._write(study_id)
+            self._stop_if_all_failed(study_id)
         return changed
+
+    def _stop_if_all_failed(self, study_id: int) -> None:
+        """End the search with one line when all its ``n_trials`` trials failed."""
+        mine = self.get_all_trials(study_id, deepcopy=False)[len(self.earlier):]
+        if self.n_trials is None or len(mine) < self.n_trials or any(
+                t.state != TrialState.FAIL for t in mine):
+            return
+        from ..report.jobs import read_jobs
+
+        why = next((j.error for j in read_jobs(self.path.parent) if j.error),
+                   "no trial returned its objective")
+        raise SystemExit(f"topomap: error: all {len(mine)} trials of the search failed, the "
+                         f"first with: {why}")
 
     def _write(self, study_id: int) -> None:
         trials = [{"number": t.number, "state": t.state.name, "values": t.values,

@@ -108,29 +108,21 @@ class SweepReport(Callback):
 
     def on_job_end(self, config, job_return, **kwargs) -> None:
         """After the last trial of a search of which no trial completed: the report (every
-        trial a row), then one line saying why the first trial failed -- not Optuna's error
-        of a study without a completed trial."""
+        trial a row), written now -- the sweep ends without :meth:`on_multirun_end`, the study
+        saying why (:class:`~topomap.app.compose.study.SweepStudy`)."""
         search = getattr(self, "_search", None)
         if search is None or os.getpid() != search["pid"]:  # a launcher's worker process
             return
         ok = getattr(job_return.status, "name", "") == "COMPLETED"
         search["returns"].append(job_return.return_value if ok else None)
-        if len(search["returns"]) < search["trials"] or any(
-                v is not None for v in search["returns"]):
-            return
-        self.on_multirun_end(search["config"], quiet=True)
-        report = self.write(Path(str(search["config"].hydra.sweep.dir)), search["config"])
-        why = next((r["error"] for r in report.failed if r["error"]), "no trial returned its "
-                   "objective")
-        sys.exit(f"topomap: error: all {len(report.rows)} trials of the search failed, the "
-                 f"first with: {why}")
+        if len(search["returns"]) == search["trials"] and all(
+                v is None for v in search["returns"]):
+            self.on_multirun_end(search["config"])
 
-    def on_multirun_end(self, config, quiet: bool = False, **kwargs) -> None:
+    def on_multirun_end(self, config, **kwargs) -> None:
         for sig, handler in self._replaced.items():
             signal.signal(sig, handler)
         self._replaced = {}
-        if quiet:  # the caller writes the report
-            return
         report = self.write(Path(str(config.hydra.sweep.dir)), config)
         if report.failed:
             log.warning("%d of %d jobs did not complete; their errors are in %s",
