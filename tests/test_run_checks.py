@@ -109,3 +109,63 @@ def test_a_setting_error_leaves_no_folder_and_prints_one_line_on_stderr(override
     r = topomap([override, f"hydra.run.dir={tmp_path / 'run'}"], tmp_path)
     assert r.returncode == 1 and r.stdout == "" and len(r.stderr.splitlines()) == 1, r.stderr
     assert r.stderr.startswith("topomap: error: ") and not (tmp_path / "run").exists()
+
+
+# ---------------------------------------------------------------- values of the command line
+@pytest.mark.parametrize("override, message", [
+    ("clusters.ns=abc", "clusters.ns=abc is not an integer"),
+    ("clusters.ns=1.5", "clusters.ns=1.5 is not an integer"),
+    ("-m clusters.ns=3,abc", "clusters.ns=abc is not an integer"),
+    ("seed=x", "seed=x is not an integer"),
+    ("output.min_prob=x", "output.min_prob=x is not a number"),
+    ("output.compound_state=a", "output.compound_state=a is not an integer or null"),
+    ("task=localise", "task=localise is not one of learn, localize; did you mean task=localize?"),
+    ("objective=aric", "objective=aric is not one of heldout_loglik, ari; did you mean "
+                       "objective=ari?"),
+    ("refine=EM", "unknown refine=EM; did you mean refine=em? (the options: cscg, em, none)"),
+])
+def test_a_value_of_the_wrong_type_is_one_line_naming_the_key(override, message):
+    from topomap.app.compose.command_line import compose
+
+    with pytest.raises(ValueError) as err:
+        compose([override.removeprefix("-m ")])
+    assert str(err.value) == message
+
+
+@pytest.mark.parametrize("override, package, extra", [
+    ("hydra/sweeper=optuna_pricai2002", "hydra_optuna_sweeper", "optuna"),
+    ("hydra/sweeper=optuna", "hydra_optuna_sweeper", "optuna"),
+    ("hydra/launcher=ray", "hydra_ray_launcher", "ray"),
+    ("hydra/launcher=ray_cluster", "hydra_ray_launcher", "ray"),
+    ("hydra/launcher=slurm", "hydra_submitit_launcher", "cluster"),
+    ("hydra/launcher=joblib", "hydra_joblib_launcher", "cluster"),
+])
+def test_a_sweeper_or_launcher_without_its_plugin_names_the_extra(override, package, extra,
+                                                                  monkeypatch):
+    """The plugin hidden: the command line is refused with the pip command of its extra."""
+    import importlib.util
+
+    from topomap.app.compose.command_line import compose
+
+    real = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec",
+                        lambda name, *a: None if name == f"hydra_plugins.{package}"
+                        else real(name, *a))
+    with pytest.raises(ValueError) as err:
+        compose([override])
+    option = override.split("=")[1]
+    assert str(err.value) == (f"{override.split('=')[0]}={option} needs the "
+                              f"{package.replace('_', '-')} plugin: pip install "
+                              f'"topomap[{extra}]"')
+
+
+def test_a_slurm_sweep_without_slurm_stops_before_its_first_job(monkeypatch, make_cfg):
+    import shutil
+
+    from topomap.app.report.callback import SweepReport
+
+    cfg = make_cfg(["hydra/launcher=slurm"], hydra=True)
+    monkeypatch.setattr(shutil, "which", lambda name: None)
+    with pytest.raises(SystemExit, match="hydra/launcher=slurm submits the jobs with SLURM's "
+                                         "sbatch, which is not on this machine's PATH"):
+        SweepReport().on_multirun_start(config=cfg)

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import logging
 import os
+import shutil
 import signal
 import sys
 import threading
@@ -79,6 +80,11 @@ class SweepReport(Callback):
                      f"objective={objective} is better when "
                      f"{'larger' if wanted == 'maximize' else 'smaller'}; give "
                      f"hydra.sweeper.direction={wanted}")
+        launcher = str(OmegaConf.select(config, "hydra.launcher._target_", default="") or "")
+        if launcher.endswith("SlurmLauncher") and shutil.which("sbatch") is None:
+            sys.exit("topomap: error: hydra/launcher=slurm submits the jobs with SLURM's sbatch, "
+                     "which is not on this machine's PATH: start the sweep on a machine of the "
+                     "cluster, or run it here with hydra/launcher=submitit_local")
         sweep_dir = OmegaConf.select(config, "hydra.sweep.dir", default=None)
         try:
             if sweep_dir is not None:
