@@ -143,9 +143,7 @@ def _single_run(cfg, out, registry: Registry, new_folder: bool = False) -> dict:
         print(f"topomap: interrupted; {out}/status.json says so", file=sys.stderr)
         sys.exit(INTERRUPTED)
     except ValueError as exc:
-        if new_folder:
-            remove_new_folder(out)
-        else:
+        if not (new_folder and remove_new_folder(out)):
             write_status(out, "failed", exc)
         sys.exit(f"topomap: error: {exc}")
     except Exception as exc:
@@ -207,37 +205,58 @@ def _user_configs(argv) -> bool:
 
 
 #: Hydra's flags that print or inspect rather than run
-_NOT_A_RUN = ("multirun", "cfg", "help", "hydra_help", "info", "shell_completion",
-              "experimental_rerun")
+_NOT_A_RUN = ("cfg", "help", "hydra_help", "info", "shell_completion", "experimental_rerun")
+
+
+def _pin(argv, key: str, value: str) -> None:
+    """Give Hydra ``key=value`` (quoted) in place of any ``key=`` of the command line."""
+    quoted = "'" + value.replace("\\", "\\\\").replace("'", "\\'") + "'"
+    sys.argv[1:] = [a for a in argv if not a.startswith(f"{key}=")] + [f"{key}={quoted}"]
 
 
 def _checked_run(argv, registry: Registry):
     """For ``topomap <overrides>`` (one run): everything checked before Hydra makes the run's
     folder (:func:`~topomap.app.run.experiment.prepare`), and that folder chosen now and given
     to Hydra (``hydra.run.dir``), so that it can be held (:func:`~topomap.app.run.outputs.
-    locked_output_dir`) before Hydra writes ``.hydra/`` into it.  Returns ``(folder,
-    overwrite)``, or None for a command that does not run (``-m``, ``--cfg``, ...) or brings
+    locked_output_dir`) before Hydra writes ``.hydra/`` into it.  For a sweep, its folder is
+    chosen now too (``hydra.sweep.dir``).  Returns ``(mode, folder, config)``: ``mode`` is
+    ``"run"`` or ``"sweep"``, None for a command that does not run (``--cfg``, ...) or brings
     config folders of its own."""
     from hydra._internal.utils import get_args_parser
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+    from omegaconf import OmegaConf
 
     from .compose.command_line import compose
     from .run.experiment import prepare
 
     args, _ = get_args_parser().parse_known_args(list(argv))
     if any(getattr(args, flag, None) for flag in _NOT_A_RUN) or _user_configs(argv):
-        return None
+        return None, None, None
     overrides = list(args.overrides or [])
+    if args.multirun:  # the values every job shares: the sweep's folder and logger
+        overrides = [o.input_line for o in OverridesParser.create().parse_overrides(overrides)
+                     if not o.is_sweep_override()]
     cfg = compose(overrides, registry, return_hydra_config=True)
+    if args.multirun:
+        folder = str(cfg.hydra.sweep.dir)
+        _pin(argv, "hydra.sweep.dir", folder)
+        return "sweep", Path(folder), OmegaConf.to_container(cfg.logger, resolve=True)
     folder = str(cfg.hydra.run.dir)
-    from omegaconf import OmegaConf
-
     plain = OmegaConf.to_container(cfg, resolve=False)
     plain.pop("hydra")
     prepare(OmegaConf.create(plain), registry)
-    quoted = "'" + folder.replace("\\", "\\\\").replace("'", "\\'") + "'"
-    sys.argv[1:] = [a for a in argv if not a.startswith("hydra.run.dir=")]
-    sys.argv.append(f"hydra.run.dir={quoted}")
-    return Path(folder), bool(cfg.output.overwrite)
+    _pin(argv, "hydra.run.dir", folder)
+    return "run", Path(folder), bool(cfg.output.overwrite)
+
+
+def _log_sweep(registry: Registry, sweep_dir: Path, logger_cfg) -> None:
+    """After a sweep: its report's files to the sweep's record in the logger, when the logger
+    keeps sweeps (``log_sweep``; MLflow: the parent run of the jobs' runs)."""
+    if not sweep_dir.is_dir() or not isinstance(logger_cfg, dict):
+        return
+    logger = registry.make("logger", logger_cfg)
+    if logger is not None and hasattr(logger, "log_sweep"):
+        logger.log_sweep(sweep_dir, Path.cwd())
 
 
 def main() -> None:
@@ -259,7 +278,7 @@ def main() -> None:
         return
     try:
         registry = prepare(overrides_of(argv), user_configs=_user_configs(argv))
-        single = _checked_run(argv, registry)
+        mode, folder, extra = _checked_run(argv, registry)
     except ValueError as exc:
         sys.exit(f"topomap: error: {exc}")
     except KeyboardInterrupt as exc:
@@ -271,12 +290,14 @@ def main() -> None:
         return _task(cfg, registry, new_folder)
 
     try:
-        if single is None:
-            topomap()
+        if mode == "run":
+            with locked_output_dir(folder, extra) as new_folder:
+                topomap()
             return
-        with locked_output_dir(*single) as new_folder:
-            topomap()
-    except ValueError as exc:  # the folder is another run's
+        topomap()
+        if mode == "sweep":
+            _log_sweep(registry, folder, extra)
+    except ValueError as exc:  # the folder is another run's; the logger's store
         sys.exit(f"topomap: error: {exc}")
     except KeyboardInterrupt as exc:
         _interrupted(exc)

@@ -67,6 +67,8 @@ def prepare(cfg, registry: Registry | None = None) -> tuple[dict, Registry, Part
         with config_keys():
             learner.check_params(n_gds=getattr(parts.env, "n_gds", 0))
         check_before_data(cfg, parts)
+    if hasattr(parts.logger, "check"):  # a store that cannot be reached: before any data
+        parts.logger.check()
     return cfg, registry, parts
 
 

@@ -101,10 +101,15 @@ def locked_output_dir(out, overwrite: bool = False):
         lock.release()
 
 
-def remove_new_folder(out) -> None:
+def remove_new_folder(out) -> bool:
     """Remove the folder of a run that made it and failed before writing its outputs: what
-    Hydra wrote (``.hydra/``, the log), the run's ``status.json`` and the lock file."""
+    Hydra wrote (``.hydra/``, the log), the run's ``status.json`` and the lock file.  A folder
+    holding the run's outputs (it failed after writing them: its logger, say) is kept.
+    Returns whether it was removed."""
+    if any(p.name != STATUS_FILE and not p.name.startswith(STAGE_PREFIX) for p in own_files(out)):
+        return False
     shutil.rmtree(out, ignore_errors=True)
+    return True
 
 
 #: files moved into a run's folder last, in this order: a reader that finds them finds the rest
