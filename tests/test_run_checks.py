@@ -169,3 +169,30 @@ def test_a_slurm_sweep_without_slurm_stops_before_its_first_job(monkeypatch, mak
     with pytest.raises(SystemExit, match="hydra/launcher=slurm submits the jobs with SLURM's "
                                          "sbatch, which is not on this machine's PATH"):
         SweepReport().on_multirun_start(config=cfg)
+
+
+# ---------------------------------------------------------------- what a run says in its log
+def test_without_a_terminal_a_long_loop_logs_when_it_starts_and_ends(make_cfg, tmp_path, caplog):
+    """clusters=bic with no terminal: a line when BIC starts, one when it ends."""
+    from topomap.app.run.experiment import run
+
+    with caplog.at_level("INFO", logger="topomap"):
+        run(make_cfg(["clusters=bic", "clusters.min_ns=4", "clusters.max_ns=6",
+                      "data.n_steps=200", "data.heldout_steps=0", "output.figures=false",
+                      "stop.n_states=10"]), tmp_path / "run")
+    lines = [r.getMessage() for r in caplog.records if r.getMessage().startswith("BIC")]
+    assert lines[0] == "BIC: started" and lines[1].startswith("BIC: done (3 steps, ")
+    assert len(lines) == 2
+
+
+def test_a_localising_run_says_what_it_did_in_its_log(make_cfg, tmp_path, caplog):
+    from topomap.app.run.experiment import run
+
+    run(make_cfg(SMALL), tmp_path / "learn")
+    with caplog.at_level("INFO", logger="topomap"):
+        results = run(make_cfg(["task=localize", f"map={tmp_path / 'learn' / 'map.json'}",
+                                "data.n_steps=100", "output.progress=false"]), tmp_path / "loc")
+    said = [r.getMessage() for r in caplog.records]
+    assert said[0] == f"map {tmp_path / 'learn' / 'map.json'}: 20 states, 17 actions"
+    assert said[1] == "trajectory: 100 steps, 15 features, 17 actions"
+    assert said[-1].startswith(f"localised 100 steps: log-likelihood {results['loglik']:.3f}")

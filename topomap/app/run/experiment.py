@@ -109,7 +109,8 @@ def learn(experiment: Experiment, needs_objective: bool = False) -> dict:
     cfg, parts, registry = experiment.cfg, experiment.parts, experiment.registry
     plugin_metrics: dict = {}
     shown = cfg["output"].get("progress", True) and sys.stderr.isatty()
-    with Progress(shown) as progress, reporting(progress.on_progress if shown else None):
+    with Progress(shown) as progress, \
+            reporting(progress.on_progress if shown else progress.log_stages):
         learner = make_learner(cfg, parts, [progress.on_event, registry.learner_events(plugin_metrics)])
         check_room_for_clusters(cfg, parts)
         (traj, heldout), timings = load_data(cfg, parts, registry, experiment.cache_dir,
@@ -157,14 +158,19 @@ def localize(experiment: Experiment) -> dict:
     (forward filtering), the Viterbi states and, with ground truth, their scores."""
     cfg, parts = experiment.cfg, experiment.parts
     m = TopologicalMap.load(cfg["map"])
+    log.info("map %s: %d states, %d actions", cfg["map"], m.n_states, m.n_actions)
     with config_keys("data"):
         traj = parts.data.train(parts, int(cfg["seed"]))
+    log.info("trajectory: %d steps, %d features, %d actions", len(traj),
+             traj.observations.shape[1], traj.n_actions)
     args = (traj.observations, traj.actions)
     kw = {"gds": traj.gds, "lengths": traj.lengths}
     beliefs, viterbi = m.filter(*args, **kw), m.predict(*args, **kw)
     results = {**localization_scores(m, traj, beliefs, viterbi), "config": cfg,
                "versions": versions(), "units": UNITS}
     write_localization(experiment.output_dir, traj, beliefs, viterbi, results)
+    log.info("localised %d steps: log-likelihood %.3f per step, mean belief in the most likely "
+             "state %.3f", len(traj), results["loglik"], results["mean_max_belief"])
     return results
 
 
