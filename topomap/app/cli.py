@@ -224,6 +224,7 @@ def _checked_run(argv, registry: Registry):
     config folders of its own."""
     from hydra._internal.utils import get_args_parser
     from hydra.core.override_parser.overrides_parser import OverridesParser
+    from hydra.errors import HydraException
     from omegaconf import OmegaConf
 
     from .compose.command_line import compose
@@ -236,7 +237,10 @@ def _checked_run(argv, registry: Registry):
     if args.multirun:  # the values every job shares: the sweep's folder and logger
         overrides = [o.input_line for o in OverridesParser.create().parse_overrides(overrides)
                      if not o.is_sweep_override()]
-    cfg = compose(overrides, registry, return_hydra_config=True)
+    try:
+        cfg = compose(overrides, registry, return_hydra_config=True)
+    except HydraException:  # Hydra says what is wrong, in its own words, when it composes
+        return None, None, None
     if args.multirun:
         folder = str(cfg.hydra.sweep.dir)
         _pin(argv, "hydra.sweep.dir", folder)
