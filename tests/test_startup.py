@@ -84,20 +84,18 @@ def test_a_kept_config_equals_the_derived_one(tmp_path, monkeypatch):
         assert repr(fields_of(a)) == repr(fields_of(b)), key
 
 
-def test_a_changed_source_file_is_a_new_cache_file(tmp_path, monkeypatch):
-    from pathlib import Path
-
+def test_a_changed_source_file_is_a_new_cache_key(tmp_path, monkeypatch):
     from topomap.app.compose import schema_cache
 
-    monkeypatch.setenv(schema_cache.CACHE_ENV, str(tmp_path))
-    before = schema_cache.cache_file()
-    source = Path(schema_cache.__file__)
-    st = source.stat()
-    os.utime(source, ns=(st.st_atime_ns, st.st_mtime_ns + 1))
-    try:
-        assert schema_cache.cache_file() != before
-    finally:
-        os.utime(source, ns=(st.st_atime_ns, st.st_mtime_ns))
-    assert schema_cache.cache_file() == before
+    package = tmp_path / "package"
+    (package / "sub").mkdir(parents=True)
+    source = package / "sub" / "a.py"
+    source.write_text("x = 1\n")
+    (package / "notes.txt").write_text("not a source file")
+    before = schema_cache.source_stamp(package)
+    (package / "notes.txt").write_text("still not one")
+    assert schema_cache.source_stamp(package) == before
+    source.write_text("x = 22\n")
+    assert schema_cache.source_stamp(package) != before
     monkeypatch.setenv(schema_cache.CACHE_ENV, "")
     assert schema_cache.cache_file() is None

@@ -228,7 +228,6 @@ def _checked_run(argv, registry: Registry):
     from omegaconf import OmegaConf
 
     from .compose.command_line import compose
-    from .run.experiment import prepare
 
     args, _ = get_args_parser().parse_known_args(list(argv))
     if any(getattr(args, flag, None) for flag in _NOT_A_RUN) or _user_configs(argv):
@@ -245,6 +244,8 @@ def _checked_run(argv, registry: Registry):
         folder = str(cfg.hydra.sweep.dir)
         _pin(argv, "hydra.sweep.dir", folder)
         return "sweep", Path(folder), OmegaConf.to_container(cfg.logger, resolve=True)
+    from .run.experiment import prepare
+
     folder = str(cfg.hydra.run.dir)
     plain = OmegaConf.to_container(cfg, resolve=False)
     plain.pop("hydra")
@@ -274,7 +275,6 @@ def main() -> None:
     from .compose.command_line import CONFIG_MODULE, overrides_of, prepare
     from .compose.registry import Registry
     from .run.interrupts import interrupt_on_sigterm
-    from .run.outputs import locked_output_dir
 
     interrupt_on_sigterm()
     if argv and argv[0] in ("--list-plugins", "plugins"):
@@ -295,6 +295,8 @@ def main() -> None:
 
     try:
         if mode == "run":
+            from .run.outputs import locked_output_dir
+
             with locked_output_dir(folder, extra) as new_folder:
                 topomap()
             return

@@ -25,7 +25,7 @@ from dataclasses import field, make_dataclass
 from pathlib import Path
 from typing import Any, Optional
 
-__all__ = ["cached_schema", "cache_file", "CACHE_ENV"]
+__all__ = ["cached_schema", "cache_file", "source_stamp", "CACHE_ENV"]
 
 #: the folder of the cache file; "" keeps none (default: ``$XDG_CACHE_HOME/topomap`` or
 #: ``~/.cache/topomap``)
@@ -35,12 +35,12 @@ _memo: dict[str, type] = {}
 _stored: dict | None = None
 
 
-def _stamp() -> str:
+def source_stamp(root=None) -> str:
     """The key of the cache: topomap's and Python's versions and every source file of the
-    package (path, size, modification time)."""
+    package below ``root`` (default: topomap's folder; path, size, modification time)."""
     from ... import __version__
 
-    root = Path(__file__).resolve().parents[2]
+    root = Path(__file__).resolve().parents[2] if root is None else Path(root)
     h = hashlib.sha256(f"{__version__} {sys.version}".encode())
     for folder, dirs, files in os.walk(root):
         dirs[:] = sorted(d for d in dirs if not d.startswith((".", "__pycache__")))
@@ -58,7 +58,7 @@ def cache_file() -> Path | None:
     if folder is None:
         base = os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
         folder = Path(base) / "topomap"
-    return Path(folder) / f"schemas-{_stamp()}.json"
+    return Path(folder) / f"schemas-{source_stamp()}.json"
 
 
 def _read() -> dict:
