@@ -16,6 +16,15 @@ with scikit-learn and numba, the plugin marker with pluggy), so the ``topomap`` 
 """
 
 import importlib
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # what the names below are, for readers and documentation tools
+    from . import metrics
+    from .app.compose.hookspecs import Component, hookimpl
+    from .core.data.rosbag import read_rosbag, write_rosbag
+    from .core.data.trajectory import Trajectory, load_trajectory, save_trajectory
+    from .core.learner import MapLearner
+    from .core.map.model import TopologicalMap
 
 #: where each public name lives, imported on first use (:func:`__getattr__`)
 _PUBLIC = {

@@ -30,6 +30,13 @@ module              its one job
 """
 
 import importlib
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # what the names below are, for readers and documentation tools
+    from .data.trajectory import (Trajectory, check_sequences, load_trajectory,
+                                  save_trajectory)
+    from .learner import MapLearner
+    from .map.model import TopologicalMap
 
 __all__ = ["MapLearner", "TopologicalMap", "Trajectory", "check_sequences", "load_trajectory",
            "save_trajectory"]

@@ -16,6 +16,15 @@ module              its one job
 """
 
 import importlib
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # what the names below are, for readers and documentation tools
+    from .explorers import HistoryExplorer, PlanExplorer, RandomExplorer, View, active_explorer
+    from .mapping import map_while_exploring
+    from .minigrid import MiniGridWorld
+    from .noise import DropoutNoise, GaussianNoise, MultiplicativeNoise, NoNoise
+    from .office import OfficeWorld
+    from .table import GridRoom, RandomGraphWorld
 
 #: the module of each public name: imported on first use
 _PUBLIC = {
