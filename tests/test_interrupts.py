@@ -95,19 +95,21 @@ def test_sigterm_ends_a_run_with_one_line_and_its_status(tmp_path):
     assert err.strip().splitlines() == [
         f"topomap: interrupted; {run_dir}/status.json says so"]
     assert json.loads((run_dir / "status.json").read_text())["status"] == "interrupted"
-    assert sorted(p.name for p in run_dir.iterdir()) == [".hydra", "status.json", "topomap.log"]
+    assert sorted(p.name for p in run_dir.iterdir()) == [".hydra", ".topomap.lock", "status.json",
+                                                         "topomap.log"]
 
 
 @pytest.mark.slow
-def test_a_failed_run_leaves_a_status_saying_so(tmp_path):
+def test_a_run_failed_by_its_data_leaves_no_folder_and_one_line(tmp_path):
+    """The data file is missing: one line on stderr, nothing on stdout, and no run folder (the
+    command made it, so it removes it)."""
     run_dir = tmp_path / "run"
     r = subprocess.run([sys.executable, "-m", "topomap", "output.progress=false", "data=file",
                         "data.path=nope.npz", f"hydra.run.dir={run_dir}"], cwd=tmp_path,
                        capture_output=True, text=True, timeout=120)
     assert r.returncode == 1 and r.stderr.count("\n") == 1, r.stderr
-    status = json.loads((run_dir / "status.json").read_text())
-    assert status["status"] == "failed" and "nope.npz" in status["error"]
-    assert status["error"].split(": ", 1)[1] in r.stderr
+    assert r.stderr.startswith("topomap: error: trajectory file nope.npz does not exist")
+    assert "ERROR" not in r.stdout and not run_dir.exists()
 
 
 def interrupted(*args, **kwargs):

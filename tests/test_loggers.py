@@ -123,3 +123,40 @@ def test_a_plugin_adds_a_logger_through_the_components_hook(tmp_path):
     assert record.metrics()["ari"] == results["ground_truth"]["final"]["ari"]
     assert record.params()["logger.project"] == "office"
     assert [p.name for p in record.artifacts()] == ["map.json", "map.graphml", "metrics.json"]
+
+
+def test_a_tracking_server_that_does_not_answer_is_refused_before_learning(tmp_path):
+    """Nothing listens on the port: one line, within seconds, and no run folder."""
+    import socket
+    import time
+
+    pytest.importorskip("mlflow")
+    with socket.socket() as s:  # a port nothing listens on once closed
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    t0 = time.perf_counter()
+    with pytest.raises(ValueError, match=rf"^logger=mlflow: logger.tracking_uri=http://127.0.0.1:"
+                                         rf"{port}: no MLflow tracking server answers"):
+        run(compose([*SMALL, "logger=mlflow", f"logger.tracking_uri=http://127.0.0.1:{port}"]),
+            tmp_path / "run")
+    assert time.perf_counter() - t0 < 30 and not (tmp_path / "run").exists()
+
+
+def test_the_jobs_of_a_sweep_are_children_of_the_sweeps_run(tmp_path, client_of):
+    """Two jobs of one sweep: one parent run (the sweep), both jobs its children; the sweep's
+    report files go to the parent, which then ends."""
+    uri = f"sqlite:///{tmp_path / 'store.db'}"
+    logger = MLflowLogger(tracking_uri=uri)
+    sweep = tmp_path / "sweep"
+    ids = []
+    for job in ("0", "1"):
+        (sweep / job).mkdir(parents=True)
+        ids.append(logger.log_run(RunRecord(sweep / job, {"seed": 0}, {"versions": {}},
+                                            start_dir=tmp_path, sweep_dir=sweep)))
+    (sweep / "summary.csv").write_text("job,ari\n0,1.0\n")
+    parent = logger.log_sweep(sweep, tmp_path)
+    client = client_of(uri)
+    assert {client.get_run(i).data.tags["mlflow.parentRunId"] for i in ids} == {parent}
+    assert client.get_run(parent).info.status == "FINISHED"
+    assert [a.path for a in client.list_artifacts(parent)] == ["summary.csv"]
+    assert logger.log_sweep(tmp_path / "no sweep", tmp_path) is None

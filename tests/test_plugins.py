@@ -101,7 +101,7 @@ def test_gtest_criterion_plugin_changes_which_state_splits(tmp_path, recording):
     assert metrics["providers"]["split"] == "topomap_gtest"
     r = cli([*base, "plugins=[topomap_gtest]", "split=gtest", "split.alpha=abc"], tmp_path / "b",
             pythonpath=[PLUGINS / "topomap-gtest"])
-    assert r.returncode == 1 and "could not be converted to Float" in r.stderr
+    assert r.returncode == 1 and "split.alpha=abc is not a number" in r.stderr
 
 
 @pytest.mark.slow

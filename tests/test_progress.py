@@ -30,7 +30,7 @@ def test_the_cores_loops_report_their_progress():
         MapLearner(n_clusters=3, n_states="auto", n_init=1).fit(X, traj.actions)
     stages = {s for s, _, _ in seen}
     assert {"BIC", "EM", "held-out scoring"} <= stages
-    assert [(d, t) for s, d, t in seen if s == "BIC"] == [(1, 4), (2, 4), (3, 4), (4, 4)]
+    assert [(d, t) for s, d, t in seen if s == "BIC"] == [(0, 4), (1, 4), (2, 4), (3, 4), (4, 4)]
     for stage in stages:  # every loop ends with a last report, done == total
         assert any(d == t for s, d, t in seen if s == stage)
     MapLearner(n_clusters=3, n_states=20).fit(X, traj.actions)  # no listener: nothing reported

@@ -36,6 +36,25 @@ def test_a_bag_learns_the_same_states_and_map_as_the_file(walk, tmp_path, make_c
         assert (tmp_path / "bag" / name).read_bytes() == (tmp_path / "file" / name).read_bytes()
 
 
+def test_the_export_scripts_bag_and_file_learn_the_same_map(tmp_path, make_cfg):
+    """``docs/examples/export_bag.py walk.bag --npz walk.npz``, then the two documented
+    commands: the same states and the same map, byte for byte."""
+    import runpy
+    from pathlib import Path
+
+    script = Path(__file__).resolve().parents[1] / "docs" / "examples" / "export_bag.py"
+    runpy.run_path(str(script))["main"]([str(tmp_path / "walk.bag"), "--npz",
+                                         str(tmp_path / "walk.npz")])
+    run(make_cfg(["data=rosbag", f"data.path={tmp_path / 'walk.bag'}", *LEARN,
+                  "data.observation_topic=/scan", "data.action_topic=/action"]), tmp_path / "bag")
+    run(make_cfg(["data=file", f"data.path={tmp_path / 'walk.npz'}", *LEARN]), tmp_path / "file")
+    assert (tmp_path / "bag" / "map.json").read_bytes() == \
+        (tmp_path / "file" / "map.json").read_bytes()
+    states = [np.loadtxt(tmp_path / where / "states.csv", delimiter=",", skiprows=1,
+                         usecols=(0, 1, 2), dtype=int) for where in ("bag", "file")]
+    assert np.array_equal(*states)  # the file's walk has its places too; the bag has none
+
+
 def test_a_list_of_bags_is_one_episode_each(walk, tmp_path, make_cfg):
     traj, _ = walk
     first = write_rosbag(traj, tmp_path / "a.bag")

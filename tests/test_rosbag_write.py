@@ -22,12 +22,16 @@ def test_messages_topics_and_stamps(tmp_path):
     path = write_rosbag(small(), tmp_path / "t.bag", rate=4.0, start_time=100.0)
     with AnyReader([path]) as reader:
         topics = {name: (info.msgtype, info.msgcount) for name, info in reader.topics.items()}
-        stamps = [t for _, t, _ in reader.messages()]
+        stamps = [t for c, t, _ in reader.messages() if c.topic != "/action/names"]
+        names = [(t, reader.deserialize(raw, c.msgtype).data) for c, t, raw in reader.messages()
+                 if c.topic == "/action/names"]
         scans = [reader.deserialize(raw, c.msgtype) for c, _, raw in reader.messages()
                  if c.topic == "/scan"]
     assert topics == {"/scan": ("sensor_msgs/msg/LaserScan", 6),
-                      "/action": ("std_msgs/msg/String", 6)}
+                      "/action": ("std_msgs/msg/String", 6),
+                      "/action/names": ("std_msgs/msg/String", 2)}
     assert sorted(set(stamps)) == [100 * 10**9 + k * 250_000_000 for k in range(6)]
+    assert names == [(100 * 10**9 - 2, "go"), (100 * 10**9 - 1, "turn")]  # in id order, first
     assert scans[0].range_max == 17.0 and scans[0].ranges.dtype == np.float32
     assert np.isclose(scans[0].angle_increment * 3, 2 * np.pi)
 

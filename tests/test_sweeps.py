@@ -203,9 +203,13 @@ def test_ray_runs_two_jobs_on_a_local_cluster_logged_to_one_mlflow_experiment(ba
         assert (job / "map.json").read_bytes() == (job0 / "map.json").read_bytes()
         assert status(job)["pid"] != pid  # a Ray worker ran it
     client = MlflowClient(tracking_uri=f"sqlite:///{tmp_path / 'outputs' / 'mlflow.db'}")
-    runs = client.search_runs([client.get_experiment_by_name("ray_sweep").experiment_id])
+    every = client.search_runs([client.get_experiment_by_name("ray_sweep").experiment_id])
+    (parent,) = [r for r in every if "mlflow.parentRunId" not in r.data.tags]  # the sweep's
+    runs = [r for r in every if r is not parent]
+    assert {r.data.tags["mlflow.parentRunId"] for r in runs} == {parent.info.run_id}
+    assert "summary.csv" in {a.path for a in client.list_artifacts(parent.info.run_id)}
     assert sorted(r.data.params["clusters.ns"] for r in runs) == ["6", "8"]
-    assert {r.data.tags["topomap.sweep_dir"] for r in runs} == {str(sweep.resolve())}
+    assert {r.data.tags["topomap.sweep_dir"] for r in every} == {str(sweep.resolve())}
     assert sorted(r.info.run_name for r in runs) == [f"{sweep.name}/0", f"{sweep.name}/1"]
 
 
@@ -293,12 +297,8 @@ def test_the_objective_needs_its_data_and_names_the_keys(tmp_path, make_cfg):
     results = run(make_cfg([*SMALL, "objective=ari"]), tmp_path / "c", needs_objective=True)
     assert results["objective"]["value"] == results["ground_truth"]["final"]["ari"]
     assert objective_value(results, "heldout_loglik") == results["heldout_loglik"]
-    from hydra.errors import ConfigCompositionException
-
-    with pytest.raises(ConfigCompositionException) as bad:
+    with pytest.raises(ValueError, match=r"^objective=nll is not one of heldout_loglik, ari$"):
         make_cfg(["objective=nll"])
-    assert "Invalid value 'nll', expected one of [heldout_loglik, ari]" in str(bad.value.__cause__)
-    assert "full_key: objective" in str(bad.value.__cause__)
 
 
 # ---------------------------------------------------------------- the report on its own

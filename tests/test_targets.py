@@ -9,7 +9,8 @@ import pytest
 from topomap.app.run.checks import STEPS_PER_SYMBOL
 from topomap.app.run.experiment import run
 
-SMALL = ["data.n_steps=300", "data.heldout_steps=0", "output.progress=false",
+SMALL_STEPS = 300
+SMALL = [f"data.n_steps={SMALL_STEPS}", "data.heldout_steps=0", "output.progress=false",
          "output.figures=false"]
 
 
@@ -21,11 +22,20 @@ def warnings_of(caplog) -> list[str]:
 def test_a_state_count_the_split_cannot_reach_is_a_warning_with_the_reason(make_cfg, tmp_path,
                                                                            caplog):
     caplog.set_level(logging.INFO, logger="topomap")
-    results = run(make_cfg([*SMALL, "clusters.ns=8", "stop.n_states=100000"]), tmp_path)
-    made = results["n_states"]["final"]
-    assert made < 100000 and results["stop_reason"] == "no state can be split"
-    assert warnings_of(caplog) == [f"stop.n_states=100000 not reached: the split stopped at "
-                                   f"{made} states (no state can be split)"]
+    """A walk around a cycle of three views with one action: no state is aliased, so the split
+    cannot go past the three symbols, whatever the told count."""
+    import numpy as np
+
+    from topomap import Trajectory, save_trajectory
+
+    cycle = save_trajectory(Trajectory(observations=np.tile(np.eye(3), (100, 1)),
+                                       actions=np.zeros(300, dtype=int)), tmp_path / "cycle.npz")
+    results = run(make_cfg(["data=file", f"data.path={cycle}", "output.progress=false",
+                            "output.figures=false", "clusters.ns=3", "stop.n_states=10"]),
+                  tmp_path / "out")
+    assert results["n_states"]["final"] == 3 and results["stop_reason"] == "no state can be split"
+    assert warnings_of(caplog) == ["stop.n_states=10 not reached: the split stopped at 3 states "
+                                   "(no state can be split)"]
 
 
 def test_a_reached_state_count_is_not_warned_about(make_cfg, tmp_path, caplog):
@@ -35,7 +45,7 @@ def test_a_reached_state_count_is_not_warned_about(make_cfg, tmp_path, caplog):
 
 
 def test_more_clusters_than_half_the_steps_are_refused(make_cfg, tmp_path):
-    cfg = make_cfg([*SMALL, "clusters.ns=200", "stop.n_states=250"])
+    cfg = make_cfg([*SMALL, "clusters.ns=200", "stop=min_gain"])
     with pytest.raises(ValueError, match=r"^clusters.ns=200 is more than half of the \d+ steps "
                                          r"to cluster.*give at most clusters.ns=\d+"):
         run(cfg, tmp_path / "out")

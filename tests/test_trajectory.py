@@ -34,6 +34,27 @@ def test_minimal_csv_by_hand(tmp_path):
     assert t.actions.tolist() == [0, 1, 1] and t.gds is None and t.lengths is None
 
 
+def test_a_spreadsheet_export_with_a_byte_order_mark_reads_as_without(tmp_path):
+    p = tmp_path / "excel.csv"
+    p.write_bytes(b"\xef\xbb\xbfo0,o1,action\r\n0.5,1,0\r\n0.25,2,1\r\n")
+    t = load_trajectory(p)
+    assert t.observations.tolist() == [[0.5, 1], [0.25, 2]] and t.actions.tolist() == [0, 1]
+
+
+def test_actions_by_name_get_ids_in_order_of_first_appearance(tmp_path):
+    p = tmp_path / "named.csv"
+    p.write_text("o0,action\n1,north\n2,east\n3,north\n4,west\n")
+    t = load_trajectory(p)
+    assert t.actions.tolist() == [0, 1, 0, 2] and t.action_names == ["north", "east", "west"]
+
+
+def test_a_misspelt_column_names_the_nearest(tmp_path):
+    p = tmp_path / "typo.csv"
+    p.write_text("o0,acton\n1,0\n")
+    with pytest.raises(ValueError, match=r"unknown column\(s\) 'acton'; did you mean 'action'\?"):
+        load_trajectory(p)
+
+
 @pytest.mark.parametrize("text, match", [
     ("o0,action\n1,0\nx,1\n", "line 3, column 'o0': 'x' is not a number"),
     ("o0,action\n1,0\n2\n", "line 3: 1 fields"),

@@ -10,12 +10,34 @@ The package has three floors, each importing only the ones below it:
 * :mod:`topomap.worlds` -- simulated worlds, sensor noise and explorers, producing trajectories;
 * :mod:`topomap.app` -- the ``topomap`` command: Hydra configs, plugins, experiments, sweeps.
 
-``import topomap`` loads the core only.
+``import topomap`` loads nothing heavy: each public name is imported on first use (the learner
+with scikit-learn and numba, the plugin marker with pluggy), so the ``topomap`` command answers
+``--version`` and ``--help`` without them.
 """
 
-from . import metrics
-from .core import MapLearner, TopologicalMap, Trajectory, load_trajectory, save_trajectory
-from .core.data.rosbag import read_rosbag, write_rosbag
+import importlib
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # what the names below are, for readers and documentation tools
+    from . import metrics
+    from .app.compose.hookspecs import Component, hookimpl
+    from .core.data.rosbag import read_rosbag, write_rosbag
+    from .core.data.trajectory import Trajectory, load_trajectory, save_trajectory
+    from .core.learner import MapLearner
+    from .core.map.model import TopologicalMap
+
+#: where each public name lives, imported on first use (:func:`__getattr__`)
+_PUBLIC = {
+    "MapLearner": "topomap.core.learner",
+    "TopologicalMap": "topomap.core.map.model",
+    "Trajectory": "topomap.core.data.trajectory",
+    "load_trajectory": "topomap.core.data.trajectory",
+    "save_trajectory": "topomap.core.data.trajectory",
+    "read_rosbag": "topomap.core.data.rosbag",
+    "write_rosbag": "topomap.core.data.rosbag",
+    "hookimpl": "topomap.app.compose.hookspecs",
+    "Component": "topomap.app.compose.hookspecs",
+}
 
 __all__ = ["MapLearner", "TopologicalMap", "Trajectory", "load_trajectory", "save_trajectory",
            "read_rosbag", "write_rosbag", "metrics", "hookimpl", "Component"]
@@ -23,10 +45,17 @@ __version__ = "0.2.0"
 
 
 def __getattr__(name):
-    """What a plugin imports, ``topomap.hookimpl`` (the plugin marker) and ``topomap.Component``
-    (what it registers), is loaded on first use, with pluggy."""
-    if name in ("hookimpl", "Component"):
-        from .app.compose import hookspecs
-
-        return getattr(hookspecs, name)
+    """The public names, imported on first use: ``topomap.metrics`` and the names of
+    :data:`_PUBLIC` (``topomap.hookimpl`` and ``topomap.Component``, what a plugin imports, come
+    with pluggy)."""
+    if name == "metrics":
+        return importlib.import_module("topomap.metrics")
+    if name in _PUBLIC:
+        value = getattr(importlib.import_module(_PUBLIC[name]), name)
+        globals()[name] = value
+        return value
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted(set(globals()) | set(__all__))

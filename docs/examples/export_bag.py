@@ -6,7 +6,8 @@ Usage (needs ``pip install "topomap[ros]"``)::
     python docs/examples/export_bag.py walk --version 2 --storage mcap --steps 5000 --npz walk.npz
 
 The bag holds ``/scan`` (``sensor_msgs/LaserScan``: the observation vector as ranges) and
-``/action`` (``std_msgs/String``: north, east, south or west), one of each per step at 10 Hz.
+``/action`` (``std_msgs/String``: north, east, south or west), one of each per step at 10 Hz,
+and the action names in id order on ``/action/names``.
 ``--npz`` also saves the world's own trajectory, so that learning from the bag can be compared
 with learning from the file.  The script prints how to read the bag back.
 """
@@ -50,8 +51,8 @@ def main(argv=None) -> Path:
     print(f"wrote {out}: {len(traj)} steps on /scan (LaserScan) and /action (String)")
     if args.npz is not None:
         print(f"wrote {save_trajectory(traj, args.npz)}: the same walk as a trajectory file")
-    print(f"read it back: topomap.read_rosbag({str(out)!r}, '/scan', '/action', "
-          f"action_names={traj.action_names!r})")
+    print(f"read it back: topomap.read_rosbag({str(out)!r}, '/scan', '/action') (the bag "
+          "records the action names in id order on /action/names)")
     return out
 
 

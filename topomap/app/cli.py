@@ -20,13 +20,10 @@ from __future__ import annotations
 import logging
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from .compose.command_line import CONFIG_MODULE, overrides_of, prepare
-from .compose.registry import Registry
-from .run.experiment import run
-from .run.interrupts import interrupt_on_sigterm
-from .run.job import run_job, write_status
-from .run.outputs import OutputDirInUse
+if TYPE_CHECKING:
+    from .compose.registry import Registry
 
 log = logging.getLogger("topomap")
 
@@ -118,11 +115,13 @@ def optimising(sweeper) -> bool:
     return sweeper is not None and "direction" in sweeper
 
 
-def _task(cfg, registry: Registry):
+def _task(cfg, registry: Registry, new_folder: bool = False):
     """One run (or one job of a sweep) of the composed config ``cfg``; returns the run's
     ``objective`` (:data:`~topomap.app.results.OBJECTIVES`) for a sweeper to optimise, None for
-    a failed job."""
+    a failed job.  ``new_folder``: the command made the run's folder (:func:`_checked_run`)."""
     from hydra.core.hydra_config import HydraConfig
+
+    from .run.job import run_job
 
     hc = HydraConfig.get()
     out = hc.runtime.output_dir
@@ -135,14 +134,20 @@ def _task(cfg, registry: Registry):
         if results is None:
             return None
     else:
-        results = _single_run(cfg, out, registry)
+        results = _single_run(cfg, out, registry, new_folder)
     print(f"topomap: {_summary(results, out)}\ntopomap: outputs in {out}")
     return (results.get("objective") or {}).get("value")
 
 
-def _single_run(cfg, out, registry: Registry) -> dict:
-    """``topomap <overrides>`` without ``-m``: the run's results; a failed or interrupted run
-    leaves ``status.json`` in its folder saying so, and ends the command with one line."""
+def _single_run(cfg, out, registry: Registry, new_folder: bool = False) -> dict:
+    """``topomap <overrides>`` without ``-m``: the run's results; an interrupted run, or one
+    failed by something else than its settings or data, leaves ``status.json`` in its folder
+    saying so; a run failed by its settings or data removes the folder it made (``new_folder``)
+    and ends the command with one line on stderr."""
+    from .run.experiment import run
+    from .run.job import write_status
+    from .run.outputs import OutputDirInUse, remove_new_folder
+
     try:
         return run(cfg, out, registry=registry, on_replaced=_restart_log)
     except OutputDirInUse as exc:  # another run's folder: leave it as it is
@@ -153,8 +158,8 @@ def _single_run(cfg, out, registry: Registry) -> dict:
         print(f"topomap: interrupted; {out}/status.json says so", file=sys.stderr)
         sys.exit(INTERRUPTED)
     except ValueError as exc:
-        write_status(out, "failed", exc)
-        log.error("%s", exc)
+        if not (new_folder and remove_new_folder(out)):
+            write_status(out, "failed", exc)
         sys.exit(f"topomap: error: {exc}")
     except Exception as exc:
         write_status(out, "failed", exc)
@@ -194,13 +199,17 @@ def _interrupted(exc: KeyboardInterrupt) -> None:
 
 
 def version_line() -> str:
-    """What ``topomap --version`` prints: topomap's version, with Hydra's and Python's."""
+    """What ``topomap --version`` prints: topomap's version, with Hydra's and Python's (read from
+    the installed packages' metadata: nothing is imported)."""
     import platform
-
-    from hydra import __version__ as hydra_version
+    from importlib.metadata import PackageNotFoundError, version
 
     from .. import __version__
 
+    try:
+        hydra_version = version("hydra-core")
+    except PackageNotFoundError:
+        hydra_version = "not installed"
     return f"topomap {__version__} (Hydra {hydra_version}, Python {platform.python_version()})"
 
 
@@ -210,31 +219,107 @@ def _user_configs(argv) -> bool:
     return any(a in flags or a.startswith(tuple(f + "=" for f in flags)) for a in argv)
 
 
+#: Hydra's flags that print or inspect rather than run
+_NOT_A_RUN = ("cfg", "help", "hydra_help", "info", "shell_completion", "experimental_rerun")
+
+
+def _pin(argv, key: str, value: str) -> None:
+    """Give Hydra ``key=value`` (quoted) in place of any ``key=`` of the command line."""
+    quoted = "'" + value.replace("\\", "\\\\").replace("'", "\\'") + "'"
+    sys.argv[1:] = [a for a in argv if not a.startswith(f"{key}=")] + [f"{key}={quoted}"]
+
+
+def _checked_run(argv, registry: Registry):
+    """For ``topomap <overrides>`` (one run): everything checked before Hydra makes the run's
+    folder (:func:`~topomap.app.run.experiment.prepare`), and that folder chosen now and given
+    to Hydra (``hydra.run.dir``), so that it can be held (:func:`~topomap.app.run.outputs.
+    locked_output_dir`) before Hydra writes ``.hydra/`` into it.  For a sweep, its folder is
+    chosen now too (``hydra.sweep.dir``).  Returns ``(mode, folder, config)``: ``mode`` is
+    ``"run"`` or ``"sweep"``, None for a command that does not run (``--cfg``, ...) or brings
+    config folders of its own."""
+    from hydra._internal.utils import get_args_parser
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+    from hydra.errors import HydraException
+    from omegaconf import OmegaConf
+
+    from .compose.command_line import compose
+
+    args, _ = get_args_parser().parse_known_args(list(argv))
+    if any(getattr(args, flag, None) for flag in _NOT_A_RUN) or _user_configs(argv):
+        return None, None, None
+    overrides = list(args.overrides or [])
+    if args.multirun:  # the values every job shares: the sweep's folder and logger
+        overrides = [o.input_line for o in OverridesParser.create().parse_overrides(overrides)
+                     if not o.is_sweep_override()]
+    try:
+        cfg = compose(overrides, registry, return_hydra_config=True)
+    except HydraException:  # Hydra says what is wrong, in its own words, when it composes
+        return None, None, None
+    if args.multirun:
+        folder = str(cfg.hydra.sweep.dir)
+        _pin(argv, "hydra.sweep.dir", folder)
+        return "sweep", Path(folder), OmegaConf.to_container(cfg.logger, resolve=True)
+    from .run.experiment import prepare
+
+    folder = str(cfg.hydra.run.dir)
+    plain = OmegaConf.to_container(cfg, resolve=False)
+    plain.pop("hydra")
+    prepare(OmegaConf.create(plain), registry)
+    _pin(argv, "hydra.run.dir", folder)
+    return "run", Path(folder), bool(cfg.output.overwrite)
+
+
+def _log_sweep(registry: Registry, sweep_dir: Path, logger_cfg) -> None:
+    """After a sweep: its report's files to the sweep's record in the logger, when the logger
+    keeps sweeps (``log_sweep``; MLflow: the parent run of the jobs' runs)."""
+    if not sweep_dir.is_dir() or not isinstance(logger_cfg, dict):
+        return
+    logger = registry.make("logger", logger_cfg)
+    if logger is not None and hasattr(logger, "log_sweep"):
+        logger.log_sweep(sweep_dir, Path.cwd())
+
+
 def main() -> None:
     """Console entry point."""
-    import hydra
-
-    interrupt_on_sigterm()
     argv = sys.argv[1:]
     if "--version" in argv:
         print(version_line())
         return
+    import hydra
+
+    from .compose.command_line import CONFIG_MODULE, overrides_of, prepare
+    from .compose.registry import Registry
+    from .run.interrupts import interrupt_on_sigterm
+
+    interrupt_on_sigterm()
     if argv and argv[0] in ("--list-plugins", "plugins"):
         list_plugins(Registry.load(argv[1:]))
         return
     try:
         registry = prepare(overrides_of(argv), user_configs=_user_configs(argv))
+        mode, folder, extra = _checked_run(argv, registry)
     except ValueError as exc:
         sys.exit(f"topomap: error: {exc}")
     except KeyboardInterrupt as exc:
         _interrupted(exc)
+    new_folder = False
 
     @hydra.main(version_base="1.3", config_path=f"pkg://{CONFIG_MODULE}", config_name="config")
     def topomap(cfg):
-        return _task(cfg, registry)
+        return _task(cfg, registry, new_folder)
 
     try:
+        if mode == "run":
+            from .run.outputs import locked_output_dir
+
+            with locked_output_dir(folder, extra) as new_folder:
+                topomap()
+            return
         topomap()
+        if mode == "sweep":
+            _log_sweep(registry, folder, extra)
+    except ValueError as exc:  # the folder is another run's; the logger's store
+        sys.exit(f"topomap: error: {exc}")
     except KeyboardInterrupt as exc:
         _interrupted(exc)
 

@@ -29,9 +29,28 @@ module              its one job
 ==================  ===========================================================================
 """
 
-from .learner import MapLearner
-from .map.model import TopologicalMap
-from .data.trajectory import Trajectory, check_sequences, load_trajectory, save_trajectory
+import importlib
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # what the names below are, for readers and documentation tools
+    from .data.trajectory import (Trajectory, check_sequences, load_trajectory,
+                                  save_trajectory)
+    from .learner import MapLearner
+    from .map.model import TopologicalMap
 
 __all__ = ["MapLearner", "TopologicalMap", "Trajectory", "check_sequences", "load_trajectory",
            "save_trajectory"]
+
+#: the module of each public name: imported on first use (``import topomap.core.checks`` loads
+#: neither scikit-learn nor numba)
+_PUBLIC = {"MapLearner": ".learner", "TopologicalMap": ".map.model",
+           **dict.fromkeys(("Trajectory", "check_sequences", "load_trajectory",
+                            "save_trajectory"), ".data.trajectory")}
+
+
+def __getattr__(name):
+    if name in _PUBLIC:
+        value = getattr(importlib.import_module(_PUBLIC[name], __name__), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -15,13 +15,34 @@ module              its one job
 ==================  ===========================================================================
 """
 
-from .explorers import active_explorer, HistoryExplorer, PlanExplorer, RandomExplorer, View
-from .mapping import map_while_exploring
-from .minigrid import MiniGridWorld
-from .noise import DropoutNoise, GaussianNoise, MultiplicativeNoise, NoNoise
-from .office import OfficeWorld
-from .table import GridRoom, RandomGraphWorld
+import importlib
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # what the names below are, for readers and documentation tools
+    from .explorers import HistoryExplorer, PlanExplorer, RandomExplorer, View, active_explorer
+    from .mapping import map_while_exploring
+    from .minigrid import MiniGridWorld
+    from .noise import DropoutNoise, GaussianNoise, MultiplicativeNoise, NoNoise
+    from .office import OfficeWorld
+    from .table import GridRoom, RandomGraphWorld
+
+#: the module of each public name: imported on first use
+_PUBLIC = {
+    **dict.fromkeys(("active_explorer", "HistoryExplorer", "PlanExplorer", "RandomExplorer",
+                     "View"), ".explorers"),
+    "map_while_exploring": ".mapping", "MiniGridWorld": ".minigrid",
+    **dict.fromkeys(("DropoutNoise", "GaussianNoise", "MultiplicativeNoise", "NoNoise"), ".noise"),
+    "OfficeWorld": ".office", "GridRoom": ".table", "RandomGraphWorld": ".table",
+}
 
 __all__ = ["DropoutNoise", "GaussianNoise", "GridRoom", "MiniGridWorld", "MultiplicativeNoise",
            "NoNoise", "OfficeWorld", "RandomExplorer", "active_explorer", "HistoryExplorer",
            "PlanExplorer", "View", "RandomGraphWorld", "map_while_exploring"]
+
+
+def __getattr__(name):
+    if name in _PUBLIC:
+        value = getattr(importlib.import_module(_PUBLIC[name], __name__), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -147,7 +147,7 @@ class Navigation:
 
     def __init__(self, episodes: int = 100, localise_steps: int = 10, step_factor: float = 3.0,
                  seed: int = 0):
-        self.episodes = check_count(episodes, "episodes", minimum=0)
+        self.episodes = check_count(episodes, "episodes")
         self.localise_steps = check_count(localise_steps, "localise_steps", minimum=0)
         if not step_factor >= 1:
             raise ParameterError("step_factor", f"must be >= 1, got {step_factor!r}")

@@ -6,6 +6,9 @@ the same ``topomap_register_components`` hook as every other component, so a plu
 signature is its config (``logger.<param>``); the object it returns has one method,
 ``log_run(record)``, called once a run has written its outputs, with a :class:`RunRecord`: the
 run's config flattened into parameters, its scalar metrics, its per-split series and its files.
+It may also have ``check()``, called before the run reads its data (a store that cannot be
+reached fails the run at once), and ``log_sweep(sweep_dir, start_dir)``, called once a sweep's
+report is written.
 
 topomap ships ``none`` (the default) and ``mlflow`` (:class:`MLflowLogger`, the optional
 ``mlflow`` package: ``pip install "topomap[mlflow]"``).
@@ -144,6 +147,14 @@ class MLflowLogger:
         self.tracking_uri = tracking_uri
         self.experiment = experiment
 
+    def check(self) -> None:
+        """Before the run reads its data: refuse a tracking server that does not answer
+        (:func:`check_server`)."""
+        try:
+            check_server(self.tracking_uri)
+        except ValueError as exc:
+            raise ValueError(f"logger=mlflow: {exc}") from None
+
     def store(self, start_dir) -> tuple[str, str | None]:
         """``(tracking URI, artifact location of a new experiment)``: a local SQLite store keeps
         its artifacts in ``mlartifacts/`` beside it; for any other URI the location is None (the
@@ -156,15 +167,42 @@ class MLflowLogger:
         return uri, (folder / "mlartifacts").as_uri()
 
     def log_run(self, record: RunRecord) -> str:
-        """Log ``record`` as one MLflow run; returns its run id."""
+        """Log ``record`` as one MLflow run (a child of its sweep's run, for a job of a
+        sweep); returns its run id.  A store that cannot take it is a one-line ValueError."""
+        uri, artifacts = self.store(record.start_dir)
+        with self._lock(uri):
+            try:
+                return self._log(uri, artifacts, record)
+            except Exception as exc:  # MLflow's and its HTTP client's errors alike
+                raise ValueError(f"logger=mlflow could not log the run to {uri} "
+                                 f"({type(exc).__name__}: {' '.join(str(exc).split())[:200]}); "
+                                 f"its files are in {record.output_dir}") from None
+
+    @staticmethod
+    def _lock(uri: str):
         from filelock import FileLock
 
-        uri, artifacts = self.store(record.start_dir)
-        lock = None
         if uri.startswith("sqlite:///"):  # jobs of a sweep writing at once: one at a time
-            lock = FileLock(uri[len("sqlite:///"):] + ".lock", timeout=600)
-        with lock or nullcontext():
-            return self._log(uri, artifacts, record)
+            return FileLock(uri[len("sqlite:///"):] + ".lock", timeout=600)
+        return nullcontext()
+
+    def log_sweep(self, sweep_dir, start_dir=None) -> str | None:
+        """Put the sweep report's files (``summary.csv``, ``summary_<metric>.png``) into the
+        sweep's MLflow run, the parent of its jobs' runs, and end it; returns its run id (None
+        when no job of the sweep was logged)."""
+        from mlflow.tracking import MlflowClient
+
+        uri, _ = self.store(start_dir or Path.cwd())
+        parent = _parent_file(sweep_dir)
+        if not parent.is_file():
+            return None
+        run_id = parent.read_text().strip()
+        with self._lock(uri):
+            client = MlflowClient(tracking_uri=uri)
+            for path in sorted(Path(sweep_dir).glob("summary*")):
+                client.log_artifact(run_id, str(path))
+            client.set_terminated(run_id)
+        return run_id
 
     def _log(self, uri, artifacts, record: RunRecord) -> str:
         import time
@@ -179,6 +217,7 @@ class MLflowLogger:
         tags = {"topomap.output_dir": str(Path(record.output_dir).resolve())}
         if record.sweep_dir is not None:
             tags["topomap.sweep_dir"] = str(Path(record.sweep_dir).resolve())
+            tags["mlflow.parentRunId"] = _sweep_run(client, experiment_id, record.sweep_dir)
         run = client.create_run(experiment_id, run_name=record.name, tags=tags)
         run_id = run.info.run_id
         now = int(time.time() * 1000)
@@ -194,6 +233,48 @@ class MLflowLogger:
             client.log_artifact(run_id, str(path))
         client.set_terminated(run_id)
         return run_id
+
+
+def _parent_file(sweep_dir) -> Path:
+    """Where a sweep keeps the id of its MLflow run."""
+    return Path(sweep_dir) / ".mlflow_run"
+
+
+def _sweep_run(client, experiment_id: str, sweep_dir) -> str:
+    """The id of the sweep's MLflow run, the parent of its jobs' runs: made by the first job
+    that logs (its id kept in the sweep folder, under a lock every job of the sweep sees)."""
+    from filelock import SoftFileLock
+
+    path = _parent_file(sweep_dir)
+    with SoftFileLock(str(path) + ".lock", timeout=600):
+        if path.is_file():
+            return path.read_text().strip()
+        folder = Path(sweep_dir).resolve()
+        run = client.create_run(experiment_id, run_name=f"{folder.parent.name}/{folder.name}",
+                                tags={"topomap.sweep_dir": str(folder)})
+        path.write_text(run.info.run_id + "\n")
+        return run.info.run_id
+
+
+def check_server(tracking_uri: str | None, timeout: float = 5.0) -> None:
+    """Refuse, in one line, an ``http(s)://`` tracking URI where no server answers (MLflow's
+    client would retry for minutes after the map is learned, then end in a traceback)."""
+    if not tracking_uri or not tracking_uri.startswith(("http://", "https://")):
+        return
+    import urllib.error
+    import urllib.request
+
+    try:
+        with urllib.request.urlopen(tracking_uri.rstrip("/") + "/health", timeout=timeout):
+            pass
+    except urllib.error.HTTPError:
+        pass  # a server answers (perhaps behind a proxy or with authentication)
+    except (urllib.error.URLError, OSError) as exc:
+        reason = getattr(exc, "reason", exc)
+        raise ValueError(f"logger.tracking_uri={tracking_uri}: no MLflow tracking server "
+                         f"answers ({reason}); start it (mlflow server --host ... --port ...) "
+                         "or leave logger.tracking_uri out to keep the runs in "
+                         "outputs/mlflow.db") from None
 
 
 def start_dir() -> Path:

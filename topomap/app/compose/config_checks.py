@@ -18,7 +18,7 @@ from importlib import resources
 from omegaconf import OmegaConf
 
 from .kinds import KINDS
-from .schemas import Config, LearnerConf, OutputConf, fields_of, schema_of
+from .schemas import OutputConf, config_schema, fields_of, learner_schema, schema_of
 from .store import read_yaml_options
 
 __all__ = ["check_overrides", "check_config", "group_options", "default_choices",
@@ -39,7 +39,7 @@ def _keys_of(schema, prefix: str) -> set[str]:
 def valid_keys(registry) -> set[str]:
     """Every key a config may hold: the top level, every field of every registered component
     (of any component of its group), ``learner.*`` and ``output.*``."""
-    keys = set(fields_of(Config)) | _keys_of(LearnerConf, "learner") | _keys_of(OutputConf, "output")
+    keys = set(fields_of(config_schema())) | _keys_of(learner_schema(), "learner") | _keys_of(OutputConf, "output")
     for kind, _, comp, _ in registry.items():
         keys |= _keys_of(schema_of(comp), kind)
     return keys
@@ -74,6 +74,8 @@ def check_overrides(overrides, registry, *, user_configs: bool = False) -> None:
     valid = valid_keys(registry)
     groups = set(KINDS) | {"experiment"}
     for override in parsed:
+        _check_hydra_plugin(override)
+    for override in parsed:
         key = override.key_or_group
         if (override.is_delete() or "/" in key or key.split(".")[0] == "hydra"
                 or key in groups or key in valid):
@@ -92,9 +94,37 @@ def check_overrides(overrides, registry, *, user_configs: bool = False) -> None:
             for option in options:
                 _check_option(group, option, registry)
     _check_component_keys(parsed, chosen, registry)
+    _check_values(parsed, chosen, registry)
     choices = {g: v[0] for g, v in chosen.items() if len(v) == 1}
     if "experiment" in choices:
         _check_preset(choices.pop("experiment"), choices, registry)
+
+
+#: Hydra's sweepers and launchers that come with an extra of topomap: (option, Hydra plugin
+#: package, extra); the options are those of ``conf/hydra`` and of the plugins
+HYDRA_PLUGIN_EXTRAS = {
+    "hydra/sweeper": [(("optuna", "optuna_pricai2002"), "hydra_optuna_sweeper", "optuna")],
+    "hydra/launcher": [(("joblib",), "hydra_joblib_launcher", "cluster"),
+                       (("submitit_local", "submitit_slurm", "slurm"),
+                        "hydra_submitit_launcher", "cluster"),
+                       (("ray", "ray_aws", "ray_cluster"), "hydra_ray_launcher", "ray")],
+}
+
+
+def _check_hydra_plugin(override) -> None:
+    """Refuse a sweeper or launcher whose Hydra plugin is not installed, naming the extra that
+    brings it (Hydra would say only that it cannot find the option)."""
+    import importlib.util
+
+    group = override.key_or_group.lstrip("+~")
+    if group not in HYDRA_PLUGIN_EXTRAS or override.is_delete():
+        return
+    options = _options_of(override) or []
+    for options_of_plugin, package, extra in HYDRA_PLUGIN_EXTRAS[group]:
+        for option in set(options) & set(options_of_plugin):
+            if importlib.util.find_spec(f"hydra_plugins.{package}") is None:
+                raise ValueError(f'{group}={option} needs the {package.replace("_", "-")} '
+                                 f'plugin: pip install "topomap[{extra}]"')
 
 
 def _options_of(override) -> list[str] | None:
@@ -130,7 +160,8 @@ def _check_option(group: str, option: str, registry) -> None:
     options = group_options(group, registry)
     if option in options or not options:
         return
-    close = difflib.get_close_matches(option, options, n=1, cutoff=0.6)
+    close = ([o for o in options if o.lower() == option.lower()]
+             or difflib.get_close_matches(option, options, n=1, cutoff=0.6))
     hint = f"; did you mean {group}={close[0]}?" if close else ""
     raise ValueError(f"unknown {group}={option}{hint} (the options: {', '.join(options)})")
 
@@ -175,6 +206,82 @@ def _check_component_keys(parsed, chosen: dict, registry) -> None:
                                  f"to {where}; leave it out, or choose {group}={owners[0]}")
             raise ValueError(f"{group}.{key} belongs to {where}, not to {group}={option} (the "
                              f"default); add {group}={owners[0]}")
+
+
+def _schema_of_key(key: str, chosen: dict, registry) -> list:
+    """The config dataclasses that hold ``key`` for the components the command line selects
+    (several in a sweep of a group), and the key's field name in them."""
+    from .schemas import OutputConf
+
+    section, dot, name = key.partition(".")
+    if not dot:
+        return [(config_schema(), section)]
+    if "." in name:
+        return []  # a nested settings config: OmegaConf checks it
+    if section == "learner":
+        return [(learner_schema(), name)]
+    if section == "output":
+        return [(OutputConf, name)]
+    if section not in KINDS:
+        return []
+    defaults = default_choices()
+    options = chosen.get(section) or [defaults.get(section)]
+    return [(schema_of(registry.get(section, o)), name) for o in options
+            if o in registry.names(section)]
+
+
+def _describe(typ) -> str:
+    """What a config field of type ``typ`` holds, in words."""
+    import enum
+    import typing
+
+    args = [a for a in typing.get_args(typ) if a is not type(None)]
+    optional = type(None) in typing.get_args(typ)
+    base = args[0] if optional and len(args) == 1 else typ
+    words = {int: "an integer", float: "a number", bool: "true or false", str: "text"}
+    if isinstance(base, type) and issubclass(base, enum.Enum):
+        what = "one of " + ", ".join(m.value for m in base)
+    else:
+        what = words.get(base, f"a {getattr(base, '__name__', base)}")
+    return what + (" or null" if optional else "")
+
+
+def _check_values(parsed, chosen: dict, registry) -> None:
+    """Refuse ``key=value`` when the value does not fit the key's type, in one line naming the
+    key (``clusters.ns=abc is not an integer``), with the nearest valid choice of a key that
+    takes a few (``task=localise``: did you mean task=localize?)."""
+    import difflib
+    import enum
+    import typing
+
+    from omegaconf.errors import ValidationError
+
+    for o in parsed:
+        key = o.key_or_group.lstrip("+~")
+        if o.is_delete() or key.split(".")[0] == "hydra" or key in KINDS or "/" in key:
+            continue
+        if o.is_sweep_override():
+            if not o.is_discrete_sweep():
+                continue
+            values = list(o.sweep_iterator())
+        else:
+            values = [o.value()]
+        for schema, name in _schema_of_key(key, chosen, registry):
+            fields = typing.get_type_hints(schema)
+            if name not in fields:
+                continue
+            node = OmegaConf.structured(schema)
+            for value in values:
+                try:
+                    node[name] = value
+                except ValidationError:
+                    text = "null" if value is None else str(value)
+                    msg = f"{key}={text} is not {_describe(fields[name])}"
+                    typ = fields[name]
+                    if isinstance(typ, type) and issubclass(typ, enum.Enum):
+                        close = difflib.get_close_matches(text, [m.value for m in typ], n=1)
+                        msg += f"; did you mean {key}={close[0]}?" if close else ""
+                    raise ValueError(msg) from None
 
 
 def _load_preset(name: str) -> dict | None:
@@ -224,9 +331,9 @@ def check_config(cfg, registry) -> None:
             if value == "???":
                 raise ValueError(f"{section}.{key} is required: give it on the command line, "
                                  f"e.g. topomap ... {section}.{key}=<value>")
-    top = set(fields_of(Config))
+    top = set(fields_of(config_schema()))
     extra = [k for k in cfg if k not in top and k != "hydra"]
-    sections = {"learner": LearnerConf, "output": OutputConf}
+    sections = {"learner": learner_schema(), "output": OutputConf}
     for kind in KINDS:
         if isinstance(cfg.get(kind), dict) and "component" in cfg[kind]:
             sections[kind] = schema_of(registry.get(kind, cfg[kind]["component"]))

@@ -39,11 +39,13 @@ class Component:
         One of :data:`KINDS`; also the Hydra config group that selects it.
     name : str
         The name users write: ``topomap split=<name>``.
-    factory : callable
+    factory : callable or str
         Called with the config's fields (all but ``component``) as keyword arguments; returns the
         object.  Its signature *is* the typed config: every parameter becomes a field of
         ``<kind>.<param>`` with the parameter's annotation and default (no default: required);
-        a parameter named ``seed`` follows the run's ``seed`` unless set.
+        a parameter named ``seed`` follows the run's ``seed`` unless set.  Or its import path,
+        ``"package.module:attribute"``: imported when a run builds the component
+        (:meth:`load_factory`), so that listing or checking configs does not import it.
     config : dataclass type, optional
         Typed parameters written by hand instead: a dataclass with a ``component: str = "<name>"``
         field and one field per factory argument.  Usually left out (derived from the factory).
@@ -62,6 +64,24 @@ class Component:
             raise ValueError(f"component {self.name!r}: kind {self.kind!r} is not one of {', '.join(KINDS)}")
         if not isinstance(self.name, str) or not self.name.isidentifier():
             raise ValueError(f"component name {self.name!r} must be a Python-identifier-like string")
+        if isinstance(self.factory, str) and not _import_path(self.factory):
+            raise ValueError(f"component {self.name!r}: factory {self.factory!r} is not an "
+                             "import path 'package.module:attribute'")
+
+    def load_factory(self) -> Callable[..., Any]:
+        """The factory, imported first when it is given by its import path."""
+        if not isinstance(self.factory, str):
+            return self.factory
+        import importlib
+
+        module, _, attr = self.factory.partition(":")
+        return getattr(importlib.import_module(module), attr)
+
+
+def _import_path(text: str) -> bool:
+    """Whether ``text`` reads ``package.module:attribute``."""
+    module, colon, attr = text.partition(":")
+    return bool(colon) and attr.isidentifier() and all(p.isidentifier() for p in module.split("."))
 
 
 class TopomapSpecs:

@@ -4,7 +4,7 @@ seeded by the run's ``seed`` (:func:`store_optuna_sweeper`, called by
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Optional
 
 from omegaconf import II
@@ -17,7 +17,9 @@ def store_optuna_sweeper(cs) -> None:
     (``pip install "topomap[optuna]"``): the plugin's own config (``OptunaSweeperConf``), but
     maximising (both of topomap's objectives are better when larger; the plugin minimises by
     default), one trial at a time, and going on past jobs that cannot run (``max_failure_rate``:
-    such a job is a failed trial and a row of ``summary.csv``, as in a grid); and its default
+    such a job is a failed trial and a row of ``summary.csv``, as in a grid), its study kept in
+    the sweep folder (:class:`~topomap.app.compose.study.SweepStudy`: a later search given
+    ``hydra.sweeper.storage.resume_from=<that folder>`` goes on with its trials); and its default
     sampler, ``hydra/sweeper/sampler=tpe``, seeded by the run's ``seed`` (the same command
     proposes the same trials).  Every field can still be set: ``hydra.sweeper.n_trials=30``."""
     try:
@@ -31,6 +33,10 @@ def store_optuna_sweeper(cs) -> None:
     @dataclass
     class TopomapOptunaSweeperConf(OptunaSweeperConf):
         direction: Any = "maximize"
+        storage: Optional[Any] = field(default_factory=lambda: {
+            "_target_": "topomap.app.compose.study.SweepStudy", "folder": II("hydra.sweep.dir"),
+            "resume_from": None, "n_trials": II("hydra.sweeper.n_trials")})
+        study_name: Optional[str] = "topomap"
         n_jobs: int = 1
         max_failure_rate: float = 1.0
 

@@ -214,7 +214,7 @@ class Registry:
         comp = self.get(kind, name)
         params.update(extra)
         try:
-            return comp.factory(**params)
+            return comp.load_factory()(**params)
         except ParameterError as err:  # named by the factory's parameter: say the config key
             raise ValueError(f"{kind}={name}: {err.renamed(f'{kind}.{err.param}')}") from None
         except (TypeError, ValueError) as exc:
@@ -275,7 +275,7 @@ class Registry:
 
     def takes(self, kind: str, name: str, argument: str) -> bool:
         """Whether the factory of the component ``<kind>=<name>`` takes ``argument``."""
-        return argument in inspect.signature(self.get(kind, name).factory).parameters
+        return argument in inspect.signature(self.get(kind, name).load_factory()).parameters
 
     def _parts(self, kind: str, cfg, built: dict) -> dict:
         """The chosen parts of the run's ``kind`` component (a world's sensor and actions), by the

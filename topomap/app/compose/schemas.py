@@ -28,22 +28,18 @@ from typing import Any, Optional
 from omegaconf import II, MISSING
 
 from ...core.checks import ParameterError
-from ...core.components import RENAMED
-from ...core.learner import MapLearner
 from ..results import OBJECTIVES
 from .kinds import KINDS, parts_of
+from .schema_cache import cached_schema
 
 __all__ = ["Config", "RunConf", "Objective", "LearnerConf", "OutputConf", "RUNTIME_ARGS", "schema_of",
-           "settings_schema", "learner_schema", "learner_key", "config_keys", "fields_of"]
+           "settings_schema", "learner_schema", "config_schema", "learner_key", "config_keys",
+           "fields_of"]
 
 #: factory arguments the app passes itself; never config fields
 RUNTIME_ARGS = frozenset({"extra_actions"})
-#: MapLearner arguments that are not ``learner.*`` fields: the components, the run's seed and
-#: callbacks, the settings the components stand for (``n_clusters``: ``clusters.ns``, ...) and
-#: the deprecated names of components (``criterion``, ``stopping``)
-_LEARNER_COMPONENT_ARGS = frozenset({kind.learner_arg for kind in KINDS.values() if kind.learner_arg}
-                                    | {"n_clusters", "n_states", "random_state", "callbacks"}
-                                    | set(RENAMED))
+#: the import path of the learner, whose arguments but the components are ``learner.*``
+LEARNER = "topomap.core.learner:MapLearner"
 _PRIMITIVES = (int, float, bool, str)
 
 
@@ -110,29 +106,44 @@ def _parameters(factory, exclude=()):
 
 
 def schema_of(component) -> type:
-    """The typed config dataclass of a registered component (derived unless it brings one)."""
+    """The typed config dataclass of a registered component (derived unless it brings one).
+    A factory named by its import path (topomap's own) is not imported: its config is kept
+    between commands (:func:`~topomap.app.compose.schema_cache.cached_schema`)."""
     if component.config is not None:
         if not (dataclasses.is_dataclass(component.config)
                 and "component" in {f.name for f in dataclasses.fields(component.config)}):
             raise ValueError(f"{component.kind} component {component.name!r}: config must be a "
                              "dataclass with a 'component' field (or left out, to be derived)")
         return component.config
-    fields = [("component", str, field(default=component.name))]
-    fields += [_field(n, _config_type(a, d), d)
-               for n, a, d in _parameters(component.factory, parts_of(component.kind))]
-    cls_name = "".join(w.title() for w in f"{component.kind}_{component.name}".split("_"))
-    return make_dataclass(f"{cls_name}Conf", fields)
+
+    def derive():
+        fields = [("component", str, field(default=component.name))]
+        fields += [_field(n, _config_type(a, d), d)
+                   for n, a, d in _parameters(component.load_factory(), parts_of(component.kind))]
+        cls_name = "".join(w.title() for w in f"{component.kind}_{component.name}".split("_"))
+        return make_dataclass(f"{cls_name}Conf", fields)
+
+    if isinstance(component.factory, str):
+        return cached_schema(f"{component.kind}/{component.name}={component.factory}", derive)
+    return derive()
 
 
 def learner_schema() -> type:
-    """``learner.*``: the :class:`MapLearner` arguments that are not components."""
-    fields = [_field(n, _config_type(a, d), d) for n, a, d in _parameters(MapLearner)
-              if n not in _LEARNER_COMPONENT_ARGS]
-    return make_dataclass("LearnerConf", fields)
+    """``learner.*``: the :class:`~topomap.MapLearner` arguments that are not components (nor
+    the run's seed and callbacks, the settings the components stand for -- ``n_clusters`` is
+    ``clusters.ns`` -- or the deprecated names of components)."""
 
+    def derive():
+        from ...core.components import RENAMED
+        from ...core.learner import MapLearner
 
-#: ``learner.*``, derived from :class:`MapLearner`
-LearnerConf = learner_schema()
+        left_out = ({kind.learner_arg for kind in KINDS.values() if kind.learner_arg}
+                    | {"n_clusters", "n_states", "random_state", "callbacks"} | set(RENAMED))
+        return make_dataclass("LearnerConf", [_field(n, _config_type(a, d), d)
+                                              for n, a, d in _parameters(MapLearner)
+                                              if n not in left_out])
+
+    return cached_schema(f"learner={LEARNER}", derive)
 
 
 @dataclass
@@ -147,6 +158,9 @@ class OutputConf:
     progress: bool = True
     #: a run into a folder that holds another run's outputs replaces them (false: refuses)
     overwrite: bool = False
+    #: a sweep into a ``hydra.sweep.dir`` that holds jobs runs only those it has not completed
+    #: with the same config (false: refuses the folder); an Optuna search goes on with its study
+    resume: bool = False
 
 
 class Task(Enum):
@@ -176,15 +190,33 @@ class RunConf:
     objective: Objective = Objective.heldout_loglik
 
 
-#: The top level of a run's config: the run settings, one group per kind of component
-#: (:data:`~topomap.app.compose.kinds.KINDS`; each holds a ``<kind>/<name>`` config, or None for
-#: a part of another component left to that component's default), ``learner`` and ``output``.
-Config = make_dataclass("Config", [
-    *((name, Any, field(default=None if kind.part_of else MISSING))
-      for name, kind in KINDS.items()),
-    ("learner", LearnerConf, field(default_factory=LearnerConf)),
-    ("output", OutputConf, field(default_factory=OutputConf)),
-], bases=(RunConf,))
+_made: dict[str, type] = {}
+
+
+def config_schema() -> type:
+    """The top level of a run's config: the run settings, one group per kind of component
+    (:data:`~topomap.app.compose.kinds.KINDS`; each holds a ``<kind>/<name>`` config, or None
+    for a part of another component left to that component's default),
+    ``learner`` (:func:`learner_schema`) and ``output``."""
+    if "Config" not in _made:
+        learner = learner_schema()
+        _made["Config"] = make_dataclass("Config", [
+            *((name, Any, field(default=None if kind.part_of else MISSING))
+              for name, kind in KINDS.items()),
+            ("learner", learner, field(default_factory=learner)),
+            ("output", OutputConf, field(default_factory=OutputConf)),
+        ], bases=(RunConf,))
+    return _made["Config"]
+
+
+def __getattr__(name):
+    """``Config`` and ``LearnerConf``, made on first use (:func:`config_schema`,
+    :func:`learner_schema`)."""
+    if name == "Config":
+        return config_schema()
+    if name == "LearnerConf":
+        return learner_schema()
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def fields_of(schema) -> dict:
@@ -208,7 +240,7 @@ def learner_key(param: str) -> str:
     groups = {kind.learner_arg: name for name, kind in KINDS.items() if kind.learner_arg}
     if head in groups:
         return groups[head] + dot + rest
-    return f"learner.{param}" if param in fields_of(LearnerConf) else param
+    return f"learner.{param}" if param in fields_of(learner_schema()) else param
 
 
 @contextmanager

@@ -16,7 +16,7 @@ from pathlib import Path
 from omegaconf import OmegaConf
 
 from .optuna import store_optuna_sweeper
-from .schemas import Config, schema_of
+from .schemas import config_schema, schema_of
 
 __all__ = ["store_configs", "read_yaml_options"]
 
@@ -65,12 +65,23 @@ def _merge_yaml(schema, text: str, name: str):
     return OmegaConf.merge(OmegaConf.structured(schema), values)
 
 
+def _share_config_store(store_class) -> None:
+    """Let Hydra's ConfigStore be shared rather than copied.  Hydra deep-copies the whole store
+    every time it reads a config group's options (about 120 times for ``topomap --help``, several
+    times per job of a sweep: seconds once every component's typed config is in it), though the
+    store is one per process and hands out configs only through ``ConfigStore.load``, which
+    copies the config it returns: a copy of the store itself protects nothing."""
+    if "__deepcopy__" not in vars(store_class):
+        store_class.__deepcopy__ = lambda self, memo: self
+
+
 def store_configs(registry) -> None:
     """Put the top-level schema and every component's config into Hydra's ConfigStore."""
     from hydra.core.config_store import ConfigStore
 
+    _share_config_store(ConfigStore)
     cs = ConfigStore.instance()
-    cs.store(name="topomap_schema", node=Config)
+    cs.store(name="topomap_schema", node=config_schema())
     files = {}
     for path, provider in registry.config_paths():
         try:

@@ -12,6 +12,8 @@ that did not start.
 from __future__ import annotations
 
 import logging
+import os
+import shutil
 import signal
 import sys
 import threading
@@ -21,6 +23,7 @@ from hydra.experimental.callback import Callback
 from omegaconf import OmegaConf
 
 from ..results import OBJECTIVES, check_metric, objective_direction
+from .jobs import check_sweep_folder
 from .summary import Report, print_report, write_report
 
 log = logging.getLogger("topomap")
@@ -81,12 +84,50 @@ class SweepReport(Callback):
                      f"objective={objective} is better when "
                      f"{'larger' if wanted == 'maximize' else 'smaller'}; give "
                      f"hydra.sweeper.direction={wanted}")
+        launcher = str(OmegaConf.select(config, "hydra.launcher._target_", default="") or "")
+        if launcher.endswith("SlurmLauncher") and shutil.which("sbatch") is None:
+            sys.exit("topomap: error: hydra/launcher=slurm submits the jobs with SLURM's sbatch, "
+                     "which is not on this machine's PATH: start the sweep on a machine of the "
+                     "cluster, or run it here with hydra/launcher=submitit_local")
+        sweep_dir = OmegaConf.select(config, "hydra.sweep.dir", default=None)
+        try:
+            if sweep_dir is not None:
+                check_sweep_folder(Path(str(sweep_dir)), config,
+                                   bool(OmegaConf.select(config, "output.resume", default=False)))
+        except ValueError as exc:
+            sys.exit(f"topomap: error: {exc}")
+        self._watch_search(config)
         if threading.current_thread() is threading.main_thread():  # where Python takes signals
 
             def interrupted(signum, frame):
                 raise SweepInterrupted(f"signal {signal.Signals(signum).name}", self, config)
 
             self._replaced = {sig: signal.signal(sig, interrupted) for sig in INTERRUPTS}
+
+    def _watch_search(self, config) -> None:
+        """Before a search (an optimising sweeper with ``n_trials``): its folder made (its study
+        is kept there) and its trials counted (:meth:`on_job_end`)."""
+        sweeper = OmegaConf.select(config, "hydra.sweeper", default=None)
+        trials = OmegaConf.select(config, "hydra.sweeper.n_trials", default=None)
+        self._search = None
+        if sweeper is None or "direction" not in sweeper or not isinstance(trials, int):
+            return
+        self._search = {"config": config, "trials": trials, "returns": [], "pid": os.getpid()}
+        Path(str(config.hydra.sweep.dir)).mkdir(parents=True, exist_ok=True)
+        logging.getLogger("alembic").setLevel(logging.WARNING)  # the study's database
+
+    def on_job_end(self, config, job_return, **kwargs) -> None:
+        """After the last trial of a search of which no trial completed: the report (every
+        trial a row), written now -- the sweep ends without :meth:`on_multirun_end`, the study
+        saying why (:class:`~topomap.app.compose.study.SweepStudy`)."""
+        search = getattr(self, "_search", None)
+        if search is None or os.getpid() != search["pid"]:  # a launcher's worker process
+            return
+        ok = getattr(job_return.status, "name", "") == "COMPLETED"
+        search["returns"].append(job_return.return_value if ok else None)
+        if len(search["returns"]) == search["trials"] and all(
+                v is None for v in search["returns"]):
+            self.on_multirun_end(search["config"])
 
     def on_multirun_end(self, config, **kwargs) -> None:
         for sig, handler in self._replaced.items():

@@ -15,7 +15,8 @@ from pathlib import Path
 
 from ..results import CACHE_DIR, METRICS_FILE, STATUS_FILE
 
-__all__ = ["Job", "read_jobs", "swept_keys", "planned_jobs", "not_started", "STATUSES"]
+__all__ = ["Job", "read_jobs", "swept_keys", "planned_jobs", "not_started", "STATUSES",
+           "check_sweep_folder"]
 
 #: the ``_target_`` of Hydra's basic sweeper in a multirun config (a name read in the config: the
 #: sweeper itself, a private class of Hydra's, is not imported)
@@ -45,6 +46,52 @@ class Job:
     def job_time(self) -> float | None:
         """The job's wall time in seconds (from ``status.json``), None if not recorded."""
         return self.status_file.get("job_time")
+
+
+def check_sweep_folder(sweep_dir, multirun_cfg, resume: bool) -> list[Job]:
+    """Refuse (a ValueError naming ``hydra.sweep.dir``) a sweep into a folder that holds jobs,
+    before its first job: their folders would be taken by the new sweep's jobs of the same
+    number.  With ``resume`` (``output.resume=true``) the folder must hold the jobs of the same
+    sweep (for a grid, each job's settings are those the sweep plans for its number); the
+    completed ones are then not run again.  Returns the jobs found."""
+    sweep_dir = Path(sweep_dir)
+    jobs = read_jobs(sweep_dir) if sweep_dir.is_dir() else []
+    if not jobs:
+        return jobs
+    if not resume:
+        raise ValueError(f"hydra.sweep.dir={sweep_dir} already holds a sweep ({len(jobs)} job "
+                         "folders); choose another hydra.sweep.dir, or give output.resume=true "
+                         "to run only the jobs it has not completed")
+    plan = planned_jobs(multirun_cfg)
+    if plan is None:
+        raise ValueError(f"hydra.sweep.dir={sweep_dir} holds a search; output.resume=true goes "
+                         "on with a grid: a search goes on with its study in a new sweep "
+                         "folder, given hydra.sweeper.storage.resume_from="
+                         f"{sweep_dir.resolve()}")
+    for job in jobs:
+        wanted = _settings(plan[job.num]) if job.num < len(plan) else {}
+        held = _settings(job.overrides)
+        if wanted != held:
+            other = " ".join(f"{k}={job.overrides[k]}" for k in held
+                             if wanted.get(k, _ABSENT) != held[k]) or "other settings"
+            raise ValueError(f"hydra.sweep.dir={sweep_dir} holds job {job.num} of another "
+                             f"sweep ({other}); output.resume=true goes on with the same sweep "
+                             "only: choose another hydra.sweep.dir")
+    return jobs
+
+
+def _settings(overrides: dict[str, str]) -> dict:
+    """A job's overrides as values (YAML's reading of the text), without ``output.resume``."""
+    import yaml
+
+    out = {}
+    for key, text in overrides.items():
+        if key != "output.resume":
+            try:
+                out[key] = yaml.safe_load(text)
+            except yaml.YAMLError:
+                out[key] = text
+    return out
 
 
 def _key_value(override: str) -> tuple[str, str]:
@@ -101,10 +148,45 @@ def _read_job(path: Path, index: int) -> Job:
         state = "incomplete"
         if not (path / METRICS_FILE).is_file():
             problems.append(f"{METRICS_FILE} is missing")
+    if state == "completed" and not _same_settings(overrides, metrics.get("config")):
+        state = "incomplete"
+        problems.append(f"its {METRICS_FILE} holds the results of a run of other settings")
     errors = [str(status["error"])] if status.get("error") else []
     return Job(num=_job_num(path, index), path=path, overrides=overrides, status=state,
                error="; ".join(errors + problems) or None,
                metrics=metrics if state == "completed" else {}, status_file=status)
+
+
+def _same_settings(overrides: dict[str, str], config) -> bool:
+    """Whether the run's resolved ``config`` (``metrics.json``) has the values its job's
+    ``overrides`` give (a group's value is its component's name); True without a config."""
+    import yaml
+
+    if not isinstance(config, dict):
+        return True
+    for key, text in overrides.items():
+        if key == "output.resume":  # a resumed sweep keeps its jobs of the same settings
+            continue
+        node = config
+        for part in key.split("."):
+            if not isinstance(node, dict) or part not in node:
+                node = _ABSENT
+                break
+            node = node[part]
+        if node is _ABSENT:
+            continue  # a key the run's config does not keep (hydra.*, a deleted one)
+        if isinstance(node, dict):
+            node = node.get("component", node)
+        try:
+            value = yaml.safe_load(text)
+        except yaml.YAMLError:
+            value = text
+        if node != value and str(node) != text:
+            return False
+    return True
+
+
+_ABSENT = object()
 
 
 def _read_overrides(path: Path, problems: list[str]) -> dict[str, str]:

@@ -5,14 +5,83 @@ number of states the split did not reach."""
 from __future__ import annotations
 
 import logging
+import os
 
 from ...core.split.stopping import TargetStates
 from ..compose.registry import Parts
 
 log = logging.getLogger("topomap")
 
-__all__ = ["check_room_for_clusters", "check_cluster_count", "report_missed_target",
-           "STEPS_PER_SYMBOL"]
+__all__ = ["check_before_data", "check_room_for_clusters", "check_cluster_count",
+           "check_state_count", "report_missed_target", "available_memory", "STEPS_PER_SYMBOL"]
+
+
+def check_before_data(cfg: dict, parts: Parts) -> None:
+    """What a run can check before it has data: the run's ``seed``, ``output.min_prob``, and
+    for a simulated walk the memory its steps need and the number of states they can hold
+    (:func:`check_walk_memory`, :func:`check_state_count`)."""
+    seed = cfg.get("seed", 0)
+    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+        raise ValueError(f"seed={seed} must be a non-negative integer")
+    min_prob = (cfg.get("output") or {}).get("min_prob", 0.8)
+    if not 0 <= min_prob < 1:
+        raise ValueError(f"output.min_prob={min_prob} must be a probability in [0, 1): arcs "
+                         "are drawn where P(x'|x,u) > output.min_prob")
+    data = parts.data
+    if getattr(data, "simulates", False) and parts.env is not None:
+        steps = int(data.n_steps) + int(getattr(data, "heldout_steps", 0) or 0)
+        check_walk_memory(cfg, parts, steps)
+        check_state_count(parts.stop, int(data.n_steps))
+
+
+def available_memory() -> int | None:
+    """Bytes of memory available to a new allocation (Linux's ``MemAvailable``), None if not
+    known."""
+    try:
+        with open("/proc/meminfo") as fh:
+            for line in fh:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    try:
+        return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    except (ValueError, OSError, AttributeError):
+        return None
+
+
+def check_walk_memory(cfg: dict, parts: Parts, steps: int) -> None:
+    """Refuse a simulated walk whose observations alone would not fit in the memory available,
+    saying how much it needs (a step of the world, walked once, gives the observation size)."""
+    import numpy as np
+
+    from ...worlds.explorers import RandomExplorer
+
+    free = available_memory()
+    if free is None:
+        return
+    probe = parts.env.simulate(2, RandomExplorer(), np.random.default_rng(0))
+    per_step = 8 * (probe.observations.shape[1] + 5)  # observations, position, ids
+    need = steps * per_step
+    if need > free:
+        gib = 2 ** 30
+        raise ValueError(
+            f"data.n_steps={cfg['data']['n_steps']} needs at least {need / gib:.0f} GiB for the "
+            f"walk alone ({steps} steps, held-out walk included, of "
+            f"{probe.observations.shape[1]} features) and {free / gib:.0f} GiB of memory is "
+            f"available; give at most data.n_steps={max(1, free // per_step // 2)} (with "
+            f"data.heldout_steps=0 no held-out walk is simulated)")
+
+
+def check_state_count(stop, n_steps: int) -> None:
+    """Refuse a told number of states above half the steps (``stop.n_states``): most states
+    would hold a single step, whose transitions cannot be estimated, and the split would run
+    for long to no use."""
+    if isinstance(stop, TargetStates) and 2 * stop.n_states > n_steps:
+        raise ValueError(f"stop.n_states={stop.n_states} is more than half of the {n_steps} "
+                         "steps: most states would hold a single step, whose transitions "
+                         f"cannot be estimated; give at most stop.n_states={n_steps // 2}, or "
+                         "more steps")
 
 
 def check_room_for_clusters(cfg: dict, parts: Parts) -> None:

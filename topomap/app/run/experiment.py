@@ -22,7 +22,8 @@ from ..compose.kinds import KINDS
 from ..compose.registry import Parts, Registry
 from ..compose.schemas import config_keys
 from ..results import UNITS
-from .checks import check_cluster_count, check_room_for_clusters, report_missed_target
+from .checks import (check_before_data, check_cluster_count, check_room_for_clusters,
+                     check_state_count, report_missed_target)
 from .data import load_data
 from .evaluate import check_objective, evaluate, localization_scores, objective_value
 from .outputs import claim_output_dir, versions, write_localization, write_outputs
@@ -30,7 +31,7 @@ from .progress import Progress
 
 log = logging.getLogger("topomap")
 
-__all__ = ["run", "Experiment", "learn", "localize", "make_learner"]
+__all__ = ["run", "prepare", "Experiment", "learn", "localize", "make_learner"]
 
 
 @dataclass(frozen=True)
@@ -46,13 +47,36 @@ class Experiment:
     cache_dir: Path | None = None
 
 
+def prepare(cfg, registry: Registry | None = None) -> tuple[dict, Registry, Parts]:
+    """Every check a run makes before it touches its folder: the config
+    (:func:`~topomap.app.compose.config_checks.check_config`), every component built from it
+    (:meth:`Registry.build <topomap.app.compose.registry.Registry.build>`: each checks its
+    parameters), the learner's settings and what the data will need
+    (:func:`~topomap.app.run.checks.check_before_data`).  Returns the config as a plain dict,
+    the registry and the built components.  The ``topomap`` command calls it before Hydra makes
+    the run's folder, so a bad setting leaves nothing behind."""
+    cfg = _as_dict(cfg)
+    registry = registry or Registry.load(cfg.get("plugins") or ())
+    check_config(cfg, registry)
+    localizing = cfg.get("task", "learn") == "localize"
+    if localizing and not cfg.get("map"):
+        raise ValueError("task=localize needs the map to apply: map=path/to/map.json")
+    parts = registry.build(cfg)
+    if not localizing:
+        learner = make_learner(cfg, parts)
+        with config_keys():
+            learner.check_params(n_gds=getattr(parts.env, "n_gds", 0))
+        check_before_data(cfg, parts)
+    if hasattr(parts.logger, "check"):  # a store that cannot be reached: before any data
+        parts.logger.check()
+    return cfg, registry, parts
+
+
 def run(cfg, output_dir, *, registry: Registry | None = None, cache_dir=None,
-        needs_objective: bool = False, on_replaced=None) -> dict:
+        needs_objective: bool = False, on_replaced=None, folder_key: str = "hydra.run.dir") -> dict:
     """Run one experiment described by ``cfg`` and write its outputs into ``output_dir``.
 
-    The config is checked (:func:`~topomap.app.compose.config_checks.check_config`), every
-    component is built from it (:meth:`Registry.build
-    <topomap.app.compose.registry.Registry.build>`), before any data is read; then
+    Everything is checked first (:func:`prepare`), before any data is read; then
     ``task=learn`` (the default) learns a map (:func:`learn`) and ``task=localize`` applies the
     saved ``map`` to the data (:func:`localize`).  Returns the metrics dict.
 
@@ -61,41 +85,38 @@ def run(cfg, output_dir, *, registry: Registry | None = None, cache_dir=None,
     which removes them first (:func:`~topomap.app.run.outputs.claim_output_dir`) and then calls
     ``on_replaced(output_dir)`` (the command starts the run's log afresh).
     ``needs_objective``: the run's ``objective`` is optimised (an Optuna sweep), so data that
-    cannot give it is an error before learning.
+    cannot give it is an error before learning.  ``folder_key``: the config key that chose the
+    folder, for the error.
     """
-    cfg = _as_dict(cfg)
-    replaced = claim_output_dir(output_dir, bool((cfg.get("output") or {}).get("overwrite", False)))
-    if replaced and on_replaced is not None:
-        on_replaced(output_dir)
-    registry = registry or Registry.load(cfg.get("plugins") or ())
+    overwrite = bool((_as_dict(cfg).get("output") or {}).get("overwrite", False))
+    claim_output_dir(output_dir, overwrite, check_only=True, key=folder_key)
+    cfg, registry, parts = prepare(cfg, registry)
     for err in registry.errors:
         log.warning("%s", err)
-    check_config(cfg, registry)
-    localizing = cfg.get("task", "learn") == "localize"
-    if localizing and not cfg.get("map"):
-        raise ValueError("task=localize needs the map to apply: map=path/to/map.json")
-    experiment = Experiment(cfg, registry.build(cfg), registry, Path(output_dir),
+    replaced = claim_output_dir(output_dir, overwrite)
+    if replaced and on_replaced is not None:
+        on_replaced(output_dir)
+    experiment = Experiment(cfg, parts, registry, Path(output_dir),
                             None if cache_dir is None else Path(cache_dir))
-    return localize(experiment) if localizing else learn(experiment, needs_objective)
+    if cfg.get("task", "learn") == "localize":
+        return localize(experiment)
+    return learn(experiment, needs_objective)
 
 
 def learn(experiment: Experiment, needs_objective: bool = False) -> dict:
-    """Learn a map: data -> learner -> evaluation -> outputs.
-
-    The learner's settings are checked before any data is simulated, so a bad setting fails
-    first; every file is written atomically.
-    """
+    """Learn a map: data -> learner -> evaluation -> outputs (the settings were checked by
+    :func:`prepare`, before any data is simulated); every file is written atomically."""
     cfg, parts, registry = experiment.cfg, experiment.parts, experiment.registry
     plugin_metrics: dict = {}
     shown = cfg["output"].get("progress", True) and sys.stderr.isatty()
-    with Progress(shown) as progress, reporting(progress.on_progress if shown else None):
+    with Progress(shown) as progress, \
+            reporting(progress.on_progress if shown else progress.log_stages):
         learner = make_learner(cfg, parts, [progress.on_event, registry.learner_events(plugin_metrics)])
-        with config_keys():
-            learner.check_params(n_gds=getattr(parts.env, "n_gds", 0))  # before any simulation
         check_room_for_clusters(cfg, parts)
         (traj, heldout), timings = load_data(cfg, parts, registry, experiment.cache_dir,
                                              progress, learner=learner)
         check_cluster_count(getattr(parts.clusters, "ns", None), traj)
+        check_state_count(parts.stop, len(traj))
         objective = cfg.get("objective", "heldout_loglik")
         if needs_objective:
             check_objective(objective, traj, heldout)
@@ -137,14 +158,19 @@ def localize(experiment: Experiment) -> dict:
     (forward filtering), the Viterbi states and, with ground truth, their scores."""
     cfg, parts = experiment.cfg, experiment.parts
     m = TopologicalMap.load(cfg["map"])
+    log.info("map %s: %d states, %d actions", cfg["map"], m.n_states, m.n_actions)
     with config_keys("data"):
         traj = parts.data.train(parts, int(cfg["seed"]))
+    log.info("trajectory: %d steps, %d features, %d actions", len(traj),
+             traj.observations.shape[1], traj.n_actions)
     args = (traj.observations, traj.actions)
     kw = {"gds": traj.gds, "lengths": traj.lengths}
     beliefs, viterbi = m.filter(*args, **kw), m.predict(*args, **kw)
     results = {**localization_scores(m, traj, beliefs, viterbi), "config": cfg,
                "versions": versions(), "units": UNITS}
     write_localization(experiment.output_dir, traj, beliefs, viterbi, results)
+    log.info("localised %d steps: log-likelihood %.3f per step, mean belief in the most likely "
+             "state %.3f", len(traj), results["loglik"], results["mean_max_belief"])
     return results
 
 

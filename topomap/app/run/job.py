@@ -8,6 +8,7 @@ lost (:func:`run_job`).  :func:`write_status` writes the file (``completed``, ``
 
 from __future__ import annotations
 
+import json
 import logging
 import os
 import socket
@@ -15,13 +16,13 @@ import time
 import traceback
 from pathlib import Path
 
-from ..results import CACHE_DIR, STATUS_FILE
+from ..results import CACHE_DIR, METRICS_FILE, STATUS_FILE
 from .experiment import run
 from .outputs import OutputDirInUse, write_json
 
 log = logging.getLogger("topomap")
 
-__all__ = ["run_job", "write_status"]
+__all__ = ["run_job", "write_status", "completed_before"]
 
 
 def run_job(cfg, output_dir, *, sweep_dir, registry=None, needs_objective=False) -> dict | None:
@@ -36,9 +37,14 @@ def run_job(cfg, output_dir, *, sweep_dir, registry=None, needs_objective=False)
     """
     out = Path(output_dir)
     t0 = time.perf_counter()
+    done = completed_before(out, cfg)
+    if done is not None:
+        log.info("job in %s completed before with the same config (output.resume=true): not "
+                 "run again", out)
+        return done
     try:
         results = run(cfg, out, registry=registry, cache_dir=Path(sweep_dir) / CACHE_DIR,
-                      needs_objective=needs_objective)
+                      needs_objective=needs_objective, folder_key="hydra.sweep.dir")
     except OutputDirInUse as exc:
         log.error("job not run: %s", exc)
         return None
@@ -54,6 +60,33 @@ def run_job(cfg, output_dir, *, sweep_dir, registry=None, needs_objective=False)
         return None
     write_status(out, "completed", job_time=time.perf_counter() - t0)
     return results
+
+
+def _comparable(cfg: dict) -> dict:
+    """A run's config as ``metrics.json`` keeps it, without ``output.resume``."""
+    plain = json.loads(json.dumps(cfg, default=str))
+    (plain.get("output") or {}).pop("resume", None)
+    return plain
+
+
+def completed_before(out: Path, cfg) -> dict | None:
+    """With ``output.resume``: the results of the job that completed in ``out`` with the same
+    config (its ``status.json`` says completed, its ``metrics.json`` holds the config), else
+    None (it runs)."""
+    from omegaconf import OmegaConf
+
+    plain = OmegaConf.to_container(cfg, resolve=True, enum_to_str=True) \
+        if OmegaConf.is_config(cfg) else dict(cfg)
+    if not (plain.get("output") or {}).get("resume"):
+        return None
+    try:
+        status = json.loads((out / STATUS_FILE).read_text())
+        metrics = json.loads((out / METRICS_FILE).read_text())
+    except (OSError, ValueError):
+        return None
+    if status.get("status") != "completed" or not isinstance(metrics, dict):
+        return None
+    return metrics if _comparable(metrics.get("config") or {}) == _comparable(plain) else None
 
 
 def write_status(out, status: str, error: BaseException | None = None, **extra) -> None:

@@ -21,7 +21,8 @@ from ..results import (FIGURE_FILES, LOCALIZE_FILES, MAPPING_FIGURES, METRICS_FI
 from .interrupts import held_signals
 
 __all__ = ["write_outputs", "write_localization", "versions", "write_json", "staged",
-           "own_files", "claim_output_dir", "OutputDirInUse"]
+           "own_files", "claim_output_dir", "locked_output_dir", "remove_new_folder",
+           "OutputDirInUse", "LOCK_FILE"]
 
 #: where a run stages its files before they move into its folder (hidden, removed afterwards)
 STAGE_PREFIX = ".topomap-partial-"
@@ -43,27 +44,74 @@ def own_files(out) -> list[Path]:
 
 
 class OutputDirInUse(ValueError):
-    """The output folder holds another run's outputs (and ``output.overwrite`` is false)."""
+    """The output folder holds another run's outputs (and ``output.overwrite`` is false), or
+    another run is writing into it."""
 
 
-def claim_output_dir(out, overwrite: bool = False) -> list[str]:
-    """Make ``out`` ready for a run: refuse (:class:`OutputDirInUse`) when it holds another run's
-    outputs (:func:`own_files`), or with ``overwrite`` remove them.  Returns the names removed.
-    A folder whose run failed or was interrupted (it holds ``status.json`` and nothing else of
-    topomap's) is free: its ``status.json`` is removed."""
+def claim_output_dir(out, overwrite: bool = False, *, check_only: bool = False,
+                     key: str = "hydra.run.dir") -> list[str]:
+    """Make ``out`` ready for a run: refuse (:class:`OutputDirInUse`, naming the config ``key``
+    that chose the folder) when it holds another run's outputs (:func:`own_files`), or with
+    ``overwrite`` remove them.  Returns the names removed.  A folder whose run failed or was
+    interrupted (it holds ``status.json`` and nothing else of topomap's) is free: its
+    ``status.json`` is removed.  ``check_only``: refuse as said, and change nothing."""
     found = own_files(out)
     if [p.name for p in found if not p.name.startswith(STAGE_PREFIX)] == [STATUS_FILE]:
-        for p in found:
-            shutil.rmtree(p) if p.is_dir() else p.unlink()
+        if not check_only:
+            for p in found:
+                shutil.rmtree(p) if p.is_dir() else p.unlink()
         return []
     if found and not overwrite:
         names = ", ".join(p.name for p in found[:3]) + (", ..." if len(found) > 3 else "")
         raise OutputDirInUse(f"the output folder {out} holds another run's outputs ({names}); "
-                             "choose another hydra.run.dir, or give output.overwrite=true to "
+                             f"choose another {key}, or give output.overwrite=true to "
                              "replace them")
+    if check_only:
+        return []
     for p in found:
         shutil.rmtree(p) if p.is_dir() else p.unlink()
     return [p.name for p in found]
+
+
+#: the lock file a run holds in its folder while it runs
+LOCK_FILE = ".topomap.lock"
+
+
+@contextmanager
+def locked_output_dir(out, overwrite: bool = False):
+    """Hold ``out`` for one run of the ``topomap`` command, from before Hydra writes its
+    ``.hydra/`` to the end: a second run into the same folder is refused
+    (:class:`OutputDirInUse`) while this one holds it (a lock file, ``filelock``) or once it has
+    left its outputs (:func:`claim_output_dir`).  Yields whether the folder is new: a run that
+    fails on its settings or its data removes a folder it made (:func:`remove_new_folder`)."""
+    from filelock import FileLock, Timeout
+
+    out = Path(out)
+    claim_output_dir(out, overwrite, check_only=True)  # before making anything
+    new = not out.exists()
+    out.mkdir(parents=True, exist_ok=True)
+    lock = FileLock(str(out / LOCK_FILE), timeout=0)
+    try:
+        lock.acquire()
+    except Timeout:
+        raise OutputDirInUse(f"another topomap run is writing into the output folder {out}; "
+                             "choose another hydra.run.dir") from None
+    try:
+        claim_output_dir(out, overwrite, check_only=True)  # a run that ended meanwhile
+        yield new
+    finally:
+        lock.release()
+
+
+def remove_new_folder(out) -> bool:
+    """Remove the folder of a run that made it and failed before writing its outputs: what
+    Hydra wrote (``.hydra/``, the log), the run's ``status.json`` and the lock file.  A folder
+    holding the run's outputs (it failed after writing them: its logger, say) is kept.
+    Returns whether it was removed."""
+    if any(p.name != STATUS_FILE and not p.name.startswith(STAGE_PREFIX) for p in own_files(out)):
+        return False
+    shutil.rmtree(out, ignore_errors=True)
+    return True
 
 
 #: files moved into a run's folder last, in this order: a reader that finds them finds the rest

@@ -55,6 +55,19 @@ class Progress:
             bar.close()
             del bars[stage]
 
+    def log_stages(self, stage: str, done: int, total: int | None) -> None:
+        """A listener of the core's loops without a terminal: a log line when a loop starts
+        and when it ends, with its time (BIC over the cluster counts, an EM fit, ...)."""
+        import time
+
+        started = self.__dict__.setdefault("_started", {})
+        if stage not in started:
+            started[stage] = time.perf_counter()
+            log.info("%s: started", stage)
+        if total is not None and done >= total:
+            log.info("%s: done (%d steps, %.1f s)", stage, done,
+                     time.perf_counter() - started.pop(stage))
+
     def on_event(self, event, info) -> None:
         """A learner callback: log phase 1, tick a "splitting" bar per split."""
         if event == "phase1":

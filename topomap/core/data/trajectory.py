@@ -12,7 +12,8 @@ Two file formats are read and written (``docs/file-formats.md`` describes them i
     ``places`` (T,) int, ``positions`` (T, 2 or 3) float, ``lengths`` (E,) int, ``action_names``
     and ``gds_names`` (string arrays).  Loaded with ``allow_pickle=False``.
 ``.csv``
-    a header row ``o0,...,o{D-1},action[,gds][,place][,x,y[,z]][,episode]`` and one row per step.
+    a header row ``o0,...,o{D-1},action[,gds][,place][,x,y[,z]][,episode]`` and one row per step;
+    actions given by name (``north``) get ids in order of first appearance, the names kept.
 """
 
 from __future__ import annotations
@@ -25,7 +26,7 @@ import numpy as np
 
 from ..stats import episode_masks
 from .atomic import atomic_write
-from .positions import POSITION_COLUMNS, check_positions, csv_positions
+from .positions import POSITION_COLUMNS, check_positions
 
 __all__ = ["Trajectory", "load_trajectory", "save_trajectory", "check_sequences",
            "as_float_observations"]
@@ -352,72 +353,6 @@ def _load_npz(path: Path) -> Trajectory:
         raise ValueError(f"trajectory file {path}: {exc}") from None
 
 
-def _episode_lengths(episode) -> np.ndarray:
-    """Episode lengths from a CSV's ``episode`` column (ids that never decrease)."""
-    ep = _as_int_array(episode, "episode")
-    if np.any(np.diff(ep) < 0):
-        raise ValueError("episode ids must not decrease")
-    change = np.flatnonzero(np.diff(ep) != 0)
-    return np.diff(np.concatenate([[0], change + 1, [ep.size]]))
-
-
-def _load_csv(path: Path) -> Trajectory:
-    try:
-        with open(path, newline="") as fh:
-            rows = list(csv.reader(fh))
-    except (OSError, UnicodeDecodeError, csv.Error) as exc:
-        raise ValueError(f"trajectory file {path} could not be read as CSV: {exc}") from None
-    if not rows:
-        raise ValueError(f"trajectory file {path} is empty")
-    header = [h.strip() for h in rows[0]]
-    obs_cols = [i for i, h in enumerate(header) if h.startswith("o") and h[1:].isdigit()]
-    known = {"action", "gds", "place", "episode", *POSITION_COLUMNS}
-    unknown = [h for i, h in enumerate(header) if i not in obs_cols and h not in known]
-    if unknown:
-        raise ValueError(
-            f"trajectory file {path}: unknown column(s) {', '.join(unknown)}; expected "
-            "o0..o{D-1}, action and optionally gds, place, x, y, z, episode"
-        )
-    if not obs_cols:
-        raise ValueError(f"trajectory file {path} has no observation columns o0, o1, ...")
-    expected = [f"o{i}" for i in range(len(obs_cols))]
-    if [header[i] for i in obs_cols] != expected:
-        raise ValueError(f"trajectory file {path}: observation columns must be {expected[0]}..{expected[-1]} in order")
-    if "action" not in header:
-        raise ValueError(f"trajectory file {path} has no 'action' column")
-    body = rows[1:]
-    if not body:
-        raise ValueError(f"trajectory file {path} has a header but no data rows")
-    table = np.empty((len(body), len(header)), dtype=np.float64)
-    for r, row in enumerate(body, start=2):
-        if len(row) != len(header):
-            raise ValueError(
-                f"trajectory file {path}, line {r}: {len(row)} fields but the header has {len(header)}"
-            )
-        for c, value in enumerate(row):
-            try:
-                table[r - 2, c] = float(value)
-            except ValueError:
-                raise ValueError(
-                    f"trajectory file {path}, line {r}, column {header[c]!r}: {value!r} is not a number"
-                ) from None
-    col = {h: table[:, i] for i, h in enumerate(header)}
-    kwargs = {"observations": table[:, obs_cols], "actions": col["action"]}
-    if "gds" in col:
-        kwargs["gds"] = col["gds"]
-    if "place" in col:
-        kwargs["places"] = col["place"]
-    positions = csv_positions(header, col, path)
-    if positions is not None:
-        kwargs["positions"] = positions
-    try:
-        if "episode" in col:
-            kwargs["lengths"] = _episode_lengths(col["episode"])
-        return Trajectory(**kwargs)
-    except ValueError as exc:
-        raise ValueError(f"trajectory file {path}: {exc}") from None
-
-
 def load_trajectory(path) -> Trajectory:
     """Read a trajectory from a ``.npz`` or ``.csv`` file, validating every field."""
     path = Path(path)
@@ -428,5 +363,7 @@ def load_trajectory(path) -> Trajectory:
     if suffix == ".npz":
         return _load_npz(path)
     if suffix == ".csv":
-        return _load_csv(path)
+        from .csv_file import load_csv
+
+        return load_csv(path)
     raise ValueError(f"trajectory file {path} must end in .npz or .csv, not {suffix!r}")

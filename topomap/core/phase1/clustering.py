@@ -165,6 +165,7 @@ class BICClusters:
             raise ParameterError(
                 "min_ns", f"={self.min_ns} exceeds the {n_distinct} distinct observations")
         bic = {}
+        report("BIC", 0, len(candidates))
         for i, k in enumerate(candidates):
             gm = GaussianMixture(k, covariance_type=self.covariance_type, n_init=self.n_init,
                                  random_state=random_state, reg_covar=1e-6)

@@ -12,6 +12,13 @@ from ...checks import ParameterError
 
 LASER_SCAN = "sensor_msgs/msg/LaserScan"
 STRING = "std_msgs/msg/String"
+
+
+def names_topic(action_topic: str) -> str:
+    """The topic on which :func:`~topomap.core.data.rosbag.write_rosbag` records the action
+    names in id order (``/action/names`` for ``/action``), so that reading the bag gives the
+    actions the ids they had."""
+    return action_topic.rstrip("/") + "/names"
 INT32 = "std_msgs/msg/Int32"
 TWIST = "geometry_msgs/msg/Twist"
 TWIST_STAMPED = "geometry_msgs/msg/TwistStamped"

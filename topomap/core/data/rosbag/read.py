@@ -9,7 +9,8 @@ import numpy as np
 
 from ..trajectory import Trajectory
 from ...checks import ParameterError
-from .common import _check_bag_path, _describe_failure, _one_line, _read_errors, _rosbags
+from .common import (STRING, _check_bag_path, _describe_failure, _one_line, _read_errors,
+                     _rosbags, names_topic)
 from .decode import action_decoder, gds_decoder, observation_decoder, position_decoder
 from .options import Options, make_options
 
@@ -31,6 +32,7 @@ class _Episode:
     dropped: int
     types: dict
     positions: np.ndarray | None = None
+    declared: list | None = None  # the action names in id order, as the bag records them
 
 
 def _topic_listing(topics: dict) -> str:
@@ -126,6 +128,10 @@ def _read_streams(path: Path, opts: Options):
                 decoders[opts.gds_topic] = gds_decoder(types[opts.gds_topic], opts)
             if opts.position_topic is not None:
                 decoders[opts.position_topic] = position_decoder(types[opts.position_topic], opts)
+            names = names_topic(act)
+            info = reader.topics.get(names)
+            if opts.action_names is None and info is not None and info.msgtype == STRING:
+                types[names], decoders[names] = STRING, (lambda msg: str(msg.data))
             return types, _collect(reader, types, decoders, obs)
     except _read_errors() as exc:  # first: UnicodeDecodeError is a ValueError too
         raise ValueError(_describe_failure(path, exc)) from None
@@ -197,8 +203,9 @@ def _read_episode(path: Path, opts: Options) -> _Episode:
         gds_t, gds_values = streams[opts.gds_topic]
         match = _match_gds(act_t[keep], gds_t, opts.gds_window * 1e9)
         gds = [None if m < 0 else gds_values[m] for m in match.tolist()]
+    declared = streams.get(names_topic(opts.action_topic), (None, None))[1]
     return _Episode(path, X, [act_values[i] for i in keep.tolist()], gds,
-                    int(act_t.size - keep.size), types, positions)
+                    int(act_t.size - keep.size), types, positions, declared)
 
 
 # ---------------------------------------------------------------------------------- assembly
@@ -241,7 +248,8 @@ def _assemble(episodes: list, opts: Options, many: bool) -> Trajectory:
         e.observations = None  # let each episode's rows go once concatenated
     if opts.scan_bins is not None:
         X = _reduce_bins(X, opts.scan_bins, source, opts.observation_topic)
-    actions, action_names = _encode([a for e in episodes for a in e.actions], opts.action_names,
+    declared = opts.action_names or next((e.declared for e in episodes if e.declared), None)
+    actions, action_names = _encode([a for e in episodes for a in e.actions], declared,
                                      "action", source)
     gds, gds_names = (None, None) if opts.gds_topic is None else _encode(
         [g for e in episodes for g in e.gds], opts.gds_names, "gds", source)

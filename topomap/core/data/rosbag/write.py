@@ -12,7 +12,8 @@ from pathlib import Path
 import numpy as np
 
 from ..trajectory import Trajectory
-from .common import FLOAT64_ARRAY, INT32, LASER_SCAN, POSE_STAMPED, STRING, _positive, _rosbags
+from .common import (FLOAT64_ARRAY, INT32, LASER_SCAN, POSE_STAMPED, STRING, _positive, _rosbags,
+                     names_topic)
 
 __all__ = ["write_rosbag"]
 
@@ -112,6 +113,12 @@ def _write_episode(out: Path, traj: Trajectory, start: int, stop: int, spec: _Wr
             conn["gds"] = writer.add_connection(spec.gds_topic, gds_type, typestore=store)
         if traj.positions is not None:
             conn["pos"] = writer.add_connection(spec.position_topic, POSE_STAMPED, typestore=store)
+        if traj.action_names is not None:  # the names in id order, before the first step
+            names = writer.add_connection(names_topic(spec.action_topic), STRING, typestore=store)
+            for i, name in enumerate(traj.action_names):
+                msg = store.types[STRING](data=str(name))
+                stamp = spec.start_ns - len(traj.action_names) + i
+                writer.write(names, stamp, serialize(msg, STRING))
         for k, t in enumerate(range(start, stop)):
             stamp = spec.start_ns + k * spec.period_ns
             msg = _observation_message(store, traj.observations[t], stamp, k, spec)
@@ -197,7 +204,8 @@ def write_rosbag(traj: Trajectory, path, *, version: int = 1, storage: str = "sq
         Bag time of the first step, in seconds since the epoch.
     observation_topic, action_topic, gds_topic, position_topic : str
         Topic names; the observation topic defaults to ``/scan`` (scan) or ``/observation``.
-        Actions are ``std_msgs/String`` names (``Int32`` ids without ``action_names``); GDS
+        Actions are ``std_msgs/String`` names (``Int32`` ids without ``action_names``), the
+        names also on ``<action_topic>/names`` in id order (read back, they keep their ids); GDS
         likewise, written only at steps with a GDS; positions (if the trajectory has them) as
         ``geometry_msgs/PoseStamped`` (``z`` = 0 for positions in the plane), read back with
         ``read_rosbag(..., position_topic=...)``.
