@@ -1,0 +1,61 @@
+"""Places of a continuous log: view clusters kept apart where odometry says they are far apart.
+
+A log recorded at 10-50 Hz repeats one view for many samples and its alike rooms are told apart
+only by the way in: the split's test on ``P(x'|x,u)`` is dominated by self-transitions there, and
+EM loses room identity because it predicts almost nothing (which corridor end follows a room
+visit).  :func:`cut_places` cuts places instead with K-means on each step's view *and* its
+odometric positions (:mod:`topomap.core.motion.odometry`), all in units of one view cluster's
+extent: where views differ they decide, where one view is seen in two rooms the positions do.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..phase1.clustering import FixedClusters, cluster_observations, make_metric
+from .odometry import action_vectors, cell_extent, dead_reckoning, odometric_positions
+from .settings import MotionSettings, mean_run
+
+__all__ = ["cut_places"]
+
+
+def _kmeans(F, k, n_init, random_state, method):
+    return cluster_observations(F, FixedClusters(k), make_metric("euclidean"), n_init=n_init,
+                                random_state=random_state, method=method)[0]
+
+
+def _view_spread(Z, fsym, k) -> float:
+    """The rms distance of a view to its cluster's centre: one view cluster's extent in views."""
+    centres = np.zeros((k, Z.shape[1]))
+    np.add.at(centres, fsym, Z)
+    centres /= np.maximum(np.bincount(fsym, minlength=k), 1)[:, None]
+    return max(float(np.sqrt(np.mean(((Z - centres[fsym]) ** 2).sum(axis=1)))), 1e-12)
+
+
+def cut_places(settings: MotionSettings, Z, u, lengths, n_states: int, n_actions: int, *,
+               n_init: int = 3, random_state: int = 0, method: str = "auto"):
+    """``(labels, info)``: ``n_states`` places for the steps of ``Z`` (observations in the
+    metric's space) and what was measured on the way: the view clusters (as many as places),
+    the actions' displacements learned from them, the cell extent, and for each gate of
+    ``settings.gates`` the copies of view clusters its positions kept."""
+    lengths = np.asarray(lengths, dtype=np.int64)
+    k = min(int(n_states), int(np.unique(Z, axis=0).shape[0]))
+    fsym = _kmeans(Z, k, n_init, random_state, method)
+    V, ratios = action_vectors(Z, fsym, u, lengths, n_actions, seed=random_state,
+                               max_return=settings.max_return)
+    info = {"mean_run": round(mean_run(fsym, lengths), 3), "view_clusters": k,
+            "return_ratios": np.round(ratios, 4).tolist(),
+            "action_vectors": np.round(V, 4).tolist()}
+    if not V.any():  # no odometry: the places are the view clusters
+        info["odometry"] = False
+        return _kmeans(Z, int(n_states), n_init, random_state, method), info
+    r = cell_extent(fsym, dead_reckoning(u, lengths, V), lengths)
+    positions, copies = [], []
+    for gate in settings.gates:
+        P, n_copies = odometric_positions(fsym, u, lengths, V, gate * r, pull=settings.pull)
+        positions.append(P / r)
+        copies.append(n_copies)
+    w = settings.weight / np.sqrt(len(positions))  # the gates share the positions' weight
+    F = np.hstack([Z / _view_spread(Z, fsym, k)] + [w * P for P in positions])
+    info.update(odometry=True, cell_extent=round(r, 4), copies=copies)
+    return _kmeans(F, int(n_states), n_init, random_state, method), info
