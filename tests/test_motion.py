@@ -6,7 +6,8 @@ import pytest
 
 from topomap import MapLearner
 from topomap.core.checks import ParameterError
-from topomap.core.motion.odometry import action_vectors, dead_reckoning, odometric_positions
+from topomap.core.motion.odometry import (action_vectors, dead_reckoning, odometric_positions,
+                                          reckoned_steps)
 from topomap.core.motion import MotionSettings, is_continuous, mean_run
 from topomap.worlds import GridRoom, RandomExplorer
 
@@ -37,10 +38,12 @@ def _line_walk(cycles=3):
 def test_copies_keep_alike_cells_apart_when_the_gate_is_tighter_than_their_distance():
     x, sym, u = _line_walk()
     V = np.array([[1.0, 0.0], [-1.0, 0.0]])  # exact odometry
-    P, n_copies = odometric_positions(sym, u, [x.size], V, gate=2.0)
+    steps = reckoned_steps(u, [x.size], V)
+    P, copy, n_copies = odometric_positions(sym, steps, [x.size], gate=2.0)
     assert n_copies == 10           # one copy per cell: alike cells are 5 apart
     np.testing.assert_allclose(P[:, 0], x)  # every copy sits where the walk is: no pull
-    _, n_copies = odometric_positions(sym, u, [x.size], V, gate=7.0)
+    np.testing.assert_array_equal(copy, x)  # the copies are numbered as the walk meets them
+    _, _, n_copies = odometric_positions(sym, steps, [x.size], gate=7.0)
     assert n_copies == 5            # a gate wider than 5 joins alike cells
 
 

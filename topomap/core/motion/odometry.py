@@ -28,8 +28,8 @@ import numpy as np
 from numba import njit
 from scipy.linalg import eigh
 
-__all__ = ["view_change_basis", "action_vectors", "dead_reckoning", "cell_extent",
-           "odometric_positions"]
+__all__ = ["view_change_basis", "action_vectors", "reckoned_steps", "dead_reckoning",
+           "cell_extent", "odometric_positions"]
 
 
 def _inner(lengths) -> np.ndarray:
@@ -124,10 +124,7 @@ def _isotropic(V, u) -> np.ndarray:
 
 def dead_reckoning(u, lengths, V) -> np.ndarray:
     """(T, 2) summed displacements, restarting at 0 with every episode."""
-    step = np.zeros((u.size, 2))
-    step[1:] = V[u[:-1]]
-    step[np.cumsum(lengths)[:-1]] = 0.0
-    P = np.cumsum(step, axis=0)
+    P = np.cumsum(reckoned_steps(u, lengths, V), axis=0)
     starts = np.repeat(np.cumsum(lengths) - lengths, lengths)
     return P - P[starts]
 
@@ -154,7 +151,7 @@ def cell_extent(fsym, P, lengths) -> float:
 
 
 @njit(cache=True)
-def _copies_filter(fsym, u, starts, V, gate, pull, cap, n_sym):  # pragma: no cover - compiled
+def _copies_filter(fsym, steps, starts, gate, pull, cap, n_sym):  # pragma: no cover - compiled
     T = fsym.size
     M = np.zeros((T, 2))
     n = np.zeros(T)
@@ -163,14 +160,15 @@ def _copies_filter(fsym, u, starts, V, gate, pull, cap, n_sym):  # pragma: no co
     n_copies = 0
     P = np.zeros(2)
     out = np.empty((T, 2))
+    joined = np.empty(T, dtype=np.int64)
     for t in range(T):
         if starts[t]:
             c = head[fsym[t]]  # a new episode starts at a copy of its first view, if any
             if c >= 0:
                 P[0], P[1] = M[c, 0], M[c, 1]
         else:
-            P[0] += V[u[t - 1], 0]
-            P[1] += V[u[t - 1], 1]
+            P[0] += steps[t, 0]
+            P[1] += steps[t, 1]
         best, bd = -1, gate * gate
         c = head[fsym[t]]
         while c >= 0:
@@ -193,19 +191,30 @@ def _copies_filter(fsym, u, starts, V, gate, pull, cap, n_sym):  # pragma: no co
             nxt[best] = head[fsym[t]]
             head[fsym[t]] = best
         out[t, 0], out[t, 1] = P[0], P[1]
-    return out, n_copies
+        joined[t] = best
+    return out, joined, n_copies
 
 
-def odometric_positions(fsym, u, lengths, V, gate: float, *, pull: float = 0.2,
+def reckoned_steps(u, lengths, V) -> np.ndarray:
+    """(T, 2) the move into every step: ``V[u[t - 1]]``, 0 at the first step of an episode."""
+    steps = np.zeros((u.size, 2))
+    steps[1:] = V[u[:-1]]
+    steps[np.cumsum(lengths)[:-1]] = 0.0
+    return steps
+
+
+def odometric_positions(fsym, steps, lengths, gate: float, *, pull: float = 0.2,
                         cap: int = 50):
-    """(T, 2) positions from dead reckoning corrected by copies of the view clusters, and the
-    number of copies.  A step joins the nearest copy of its cluster within ``gate`` (the reckoned
-    position moves ``pull`` of the way to it; the copy's position is the running mean of the
-    positions that joined it, over at most the last ``cap``), else starts a new copy."""
+    """``(P, copy, n_copies)``: (T, 2) positions from dead reckoning of the moves ``steps``
+    (:func:`reckoned_steps`) corrected by copies of the view clusters, the copy every step
+    joined, and the number of copies.  A step joins the nearest copy of its cluster within
+    ``gate`` (the reckoned position moves ``pull`` of the way to it; the copy's position is the
+    running mean of the positions that joined it, over at most the last ``cap``), else starts a
+    new copy."""
     starts = np.zeros(fsym.size, dtype=np.bool_)
     starts[np.cumsum(lengths) - lengths] = True
-    P, n_copies = _copies_filter(np.ascontiguousarray(fsym, dtype=np.int64),
-                                 np.ascontiguousarray(u, dtype=np.int64), starts,
-                                 np.ascontiguousarray(V, dtype=np.float64), float(gate),
-                                 float(pull), float(cap), int(fsym.max()) + 1)
-    return P, int(n_copies)
+    P, copy, n_copies = _copies_filter(np.ascontiguousarray(fsym, dtype=np.int64),
+                                       np.ascontiguousarray(steps, dtype=np.float64), starts,
+                                       float(gate), float(pull), float(cap),
+                                       int(fsym.max()) + 1)
+    return P, copy, int(n_copies)

@@ -13,7 +13,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..phase1.clustering import FixedClusters, cluster_observations, make_metric
-from .odometry import action_vectors, cell_extent, dead_reckoning, odometric_positions
+from .odometry import (action_vectors, cell_extent, dead_reckoning, odometric_positions,
+                       reckoned_steps)
 from .settings import MotionSettings, mean_run
 
 __all__ = ["cut_places"]
@@ -50,9 +51,10 @@ def cut_places(settings: MotionSettings, Z, u, lengths, n_states: int, n_actions
         info["odometry"] = False
         return _kmeans(Z, int(n_states), n_init, random_state, method), info
     r = cell_extent(fsym, dead_reckoning(u, lengths, V), lengths)
+    steps = reckoned_steps(u, lengths, V)
     positions, copies = [], []
     for gate in settings.gates:
-        P, n_copies = odometric_positions(fsym, u, lengths, V, gate * r, pull=settings.pull)
+        P, _, n_copies = odometric_positions(fsym, steps, lengths, gate * r, pull=settings.pull)
         positions.append(P / r)
         copies.append(n_copies)
     w = settings.weight / np.sqrt(len(positions))  # the gates share the positions' weight
