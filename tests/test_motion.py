@@ -9,6 +9,7 @@ from topomap.core.checks import ParameterError
 from topomap.core.motion.odometry import (action_vectors, dead_reckoning, odometric_positions,
                                           reckoned_steps)
 from topomap.core.motion import MotionSettings, is_continuous, mean_run
+from topomap.core.motion.check import split_lengths
 from topomap.worlds import GridRoom, RandomExplorer
 
 
@@ -124,6 +125,7 @@ def test_continuous_log_gets_places_that_tell_alike_halves_apart():
     assert learner.motion_info_["mean_run"] > 3
     assert learner.labels_.shape == (Z.shape[0],) and learner.map_.n_states == 8
     assert _mixed_share(learner.labels_, x) < 0.02
+    assert learner.motion_info_["chosen"] == "places"  # the held-out check keeps them
     # the views alone (the paper's split) cannot: they fold the halves onto each other
     views = MapLearner(n_clusters=4, n_states=8, motion="discrete", random_state=0).fit(Z, u)
     assert not hasattr(views, "motion_info_")
@@ -131,6 +133,41 @@ def test_continuous_log_gets_places_that_tell_alike_halves_apart():
     # the map decodes a new stream of the same kind, one state per row
     Zt, ut, _ = _alike_halves(2000, seed=1)
     assert learner.predict(Zt, ut).shape == (2000,)
+
+
+def test_split_lengths_cuts_the_episode_the_cut_falls_in():
+    assert split_lengths([3, 4], 5) == ([3, 2], [2])
+    assert split_lengths([3, 4], 3) == ([3], [4])
+    assert split_lengths([7], 6) == ([6], [1])
+
+
+def _distinct_line(T=8000, seed=0):
+    """The walk of :func:`_alike_halves` seen through views that differ all along [0, 2]."""
+    _, u, x = _alike_halves(T, seed)
+    phase = np.pi * x
+    Z = np.stack([np.cos(phase), np.sin(phase)], 1)
+    return Z + np.random.default_rng(seed).normal(0, 0.01, Z.shape), u, x
+
+
+def test_the_check_falls_back_to_the_views_where_they_place_steps_alone():
+    # every view is seen at one place: positions add nothing the views do not say, so the
+    # places cannot place the held-out steps 20 % closer than the view clusters do
+    Z, u, _ = _distinct_line()
+    learner = MapLearner(n_clusters=4, n_states=8, random_state=0).fit(Z, u)
+    info = learner.motion_info_
+    assert info["odometry"] and info["chosen"] == "views"
+    assert info["check"]["places"] >= 0.8 * info["check"]["views"]
+    # the states are then the view clusters: K-means on the views with as many clusters
+    unchecked = MapLearner(n_clusters=4, n_states=8, random_state=0,
+                           motion=MotionSettings(holdout=0)).fit(Z, u)
+    assert unchecked.motion_info_["chosen"] == "places"
+    kmeans = MapLearner(n_clusters=8, n_states=8, motion="discrete", random_state=0).fit(Z, u)
+    assert _same_partition(learner.labels_, kmeans.labels_phase1_)
+
+
+def _same_partition(a, b) -> bool:
+    pairs = np.unique(np.stack([a, b]), axis=1)
+    return pairs.shape[1] == np.unique(a).size == np.unique(b).size
 
 
 def test_a_log_too_short_to_tell_is_not_continuous():
@@ -167,6 +204,8 @@ def test_discrete_worlds_keep_the_map_of_the_split():
     ({"gates": []}, r"^motion\.gates must be a non-empty list"),
     (MotionSettings(weight=0), r"^motion\.weight must be a positive number"),
     (MotionSettings(pull=1.5), r"^motion\.pull must be at most 1"),
+    ({"holdout": 1.0}, r"^motion\.holdout must be a number in \[0, 1\)"),
+    ({"margin": 0}, r"^motion\.margin must be a number in \(0, 1\]"),
 ])
 def test_bad_motion_is_named(motion, message):
     Z, u, _ = _alike_halves(500)

@@ -17,7 +17,7 @@ from dataclasses import asdict, replace
 import numpy as np
 
 from ..map.model import TopologicalMap
-from .places import cut_places
+from .check import choose_places
 from .settings import MotionSettings, is_continuous
 
 __all__ = ["fit_places"]
@@ -33,16 +33,21 @@ def fit_places(learner, data, settings: MotionSettings, metric) -> bool:
         raise ValueError("motion mode 'continuous' cuts places of plain steps: gds must be all -1")
     start = time.perf_counter()
     Z = np.ascontiguousarray(metric.fit_transform(data.X), dtype=np.float64)
-    labels, info = cut_places(settings, Z, data.u, data.lengths, learner.map_split_.n_states,
-                              data.n_actions, n_init=learner.n_init,
-                              random_state=learner.random_state, method=learner.phase1)
+
+    def build(X, u, labels, lengths, **fields):
+        S = int(labels.max()) + 1
+        return TopologicalMap.from_labels(
+            X, u, labels, lengths=lengths, state_symbol=np.arange(S), state_gds=np.full(S, -1),
+            state_parent=np.full(S, -1), n_actions=data.n_actions,
+            covariance_type=learner.covariance_type, reg_covar=learner.reg_covar, **fields)
+
+    labels, info = choose_places(settings, data.X, Z, data.u, data.lengths,
+                                 learner.map_split_.n_states, data.n_actions, build,
+                                 n_init=learner.n_init, random_state=learner.random_state,
+                                 method=learner.phase1)
     S = int(labels.max()) + 1
-    m = TopologicalMap.from_labels(
-        data.X, data.u, labels, lengths=data.lengths, state_symbol=np.arange(S),
-        state_gds=np.full(S, -1), state_parent=np.full(S, -1), n_actions=data.n_actions,
-        covariance_type=learner.covariance_type, reg_covar=learner.reg_covar,
-        action_names=data.action_names, gds_names=data.gds_names,
-        split_history=learner.split_history_)
+    m = build(data.X, data.u, labels, data.lengths, action_names=data.action_names,
+              gds_names=data.gds_names, split_history=learner.split_history_)
     learner.motion_info_ = info
     learner.entropies_.append(dict(m.entropies(), n_states=S, stage="places",
                                    iteration=len(learner.split_history_) + 1))

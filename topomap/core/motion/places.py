@@ -6,9 +6,13 @@ EM loses room identity because it predicts almost nothing (which corridor end fo
 visit).  :func:`cut_places` cuts places instead with K-means on each step's view *and* its
 odometric positions (:mod:`topomap.core.motion.odometry`), all in units of one view cluster's
 extent: where views differ they decide, where one view is seen in two rooms the positions do.
+Beside them it keeps the plain view clusters (K-means on the views, as many as places), the map
+:mod:`topomap.core.motion.check` falls back to.
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -17,7 +21,22 @@ from .odometry import (action_vectors, cell_extent, dead_reckoning, odometric_po
                        reckoned_steps)
 from .settings import MotionSettings, mean_run
 
-__all__ = ["cut_places"]
+__all__ = ["Places", "cut_places"]
+
+
+@dataclass
+class Places:
+    """What :func:`cut_places` finds: ``views`` -- K-means on the views, as many clusters as
+    places; ``places`` -- the places (None without odometry); ``V`` -- the actions' learned
+    displacements; ``extent`` -- the cell extent; ``frame`` -- (T, 2) odometric positions of the
+    middle gate in cell extents (None without odometry); ``info`` -- what was measured."""
+
+    views: np.ndarray
+    places: np.ndarray | None
+    V: np.ndarray
+    extent: float
+    frame: np.ndarray | None
+    info: dict
 
 
 def _kmeans(F, k, n_init, random_state, method):
@@ -34,9 +53,9 @@ def _view_spread(Z, fsym, k) -> float:
 
 
 def cut_places(settings: MotionSettings, Z, u, lengths, n_states: int, n_actions: int, *,
-               n_init: int = 3, random_state: int = 0, method: str = "auto"):
-    """``(labels, info)``: ``n_states`` places for the steps of ``Z`` (observations in the
-    metric's space) and what was measured on the way: the view clusters (as many as places),
+               n_init: int = 3, random_state: int = 0, method: str = "auto") -> Places:
+    """``n_states`` places for the steps of ``Z`` (observations in the metric's space), the view
+    clusters beside them, and what was measured on the way (:class:`Places`): the view clusters,
     the actions' displacements learned from them, the cell extent, and for each gate of
     ``settings.gates`` the copies of view clusters its positions kept."""
     lengths = np.asarray(lengths, dtype=np.int64)
@@ -49,7 +68,7 @@ def cut_places(settings: MotionSettings, Z, u, lengths, n_states: int, n_actions
             "action_vectors": np.round(V, 4).tolist()}
     if not V.any():  # no odometry: the places are the view clusters
         info["odometry"] = False
-        return _kmeans(Z, int(n_states), n_init, random_state, method), info
+        return Places(fsym, None, V, 1.0, None, info)
     r = cell_extent(fsym, dead_reckoning(u, lengths, V), lengths)
     steps = reckoned_steps(u, lengths, V)
     positions, copies = [], []
@@ -60,4 +79,5 @@ def cut_places(settings: MotionSettings, Z, u, lengths, n_states: int, n_actions
     w = settings.weight / np.sqrt(len(positions))  # the gates share the positions' weight
     F = np.hstack([Z / _view_spread(Z, fsym, k)] + [w * P for P in positions])
     info.update(odometry=True, cell_extent=round(r, 4), copies=copies)
-    return _kmeans(F, int(n_states), n_init, random_state, method), info
+    places = _kmeans(F, int(n_states), n_init, random_state, method)
+    return Places(fsym, places, V, r, positions[len(positions) // 2], info)

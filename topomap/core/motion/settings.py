@@ -37,7 +37,13 @@ class MotionSettings:
     joins.  ``max_return``: odometry is used only where walks that come back to a view cluster
     keep at most this share of a random walk's displacement
     (:func:`topomap.core.motion.odometry.action_vectors`); turn / forward commands fail it and
-    the places are then the view clusters alone.
+    the places are then the view clusters alone.  ``holdout``: the share of the log, at its end,
+    that the held-out check decodes (:mod:`topomap.core.motion.check`): the places and the view
+    clusters (K-means on the views, as many clusters as places) are learned on the rest, and the
+    places are kept only when the moves between the states they decode agree better with the
+    learned odometry than the view clusters' do; else the map's states are the view clusters.
+    0 keeps the places unchecked.  ``margin``: the places must place the held-out steps within
+    this share of the view clusters' error to be kept (1 keeps them whenever they are better).
     """
 
     mode: str = "auto"
@@ -47,6 +53,8 @@ class MotionSettings:
     weight: float = 1.0
     pull: float = 0.2
     max_return: float = 0.35
+    holdout: float = 0.25
+    margin: float = 0.8
 
 
 def motion_settings(value) -> MotionSettings:
@@ -79,6 +87,12 @@ def motion_settings(value) -> MotionSettings:
         if not _positive(getattr(value, name)):
             raise ParameterError(f"motion.{name}", f"must be a positive number, "
                                                    f"got {getattr(value, name)!r}")
+    if not (isinstance(value.holdout, numbers.Real) and not isinstance(value.holdout, bool)
+            and 0 <= value.holdout < 1):
+        raise ParameterError("motion.holdout", f"must be a number in [0, 1), "
+                                               f"got {value.holdout!r}")
+    if not _positive(value.margin) or value.margin > 1:
+        raise ParameterError("motion.margin", f"must be a number in (0, 1], got {value.margin!r}")
     if value.pull > 1:
         raise ParameterError("motion.pull", f"must be at most 1, got {value.pull!r}")
     return value
