@@ -64,14 +64,18 @@ def test_every_experiment_preset_composes(preset, make_cfg):
     assert registry.get("env", cfg.env.component)
 
 
-def _signature_defaults(factory):
+def _signature_defaults(factory, kind=None):
+    """The factory's parameters and defaults, but those the app passes (its runtime arguments,
+    the parts of a component of ``kind``: a world's sensor and actions)."""
     import inspect
 
+    from topomap.app.compose.kinds import parts_of
     from topomap.app.compose.schemas import RUNTIME_ARGS
 
+    skip = set(RUNTIME_ARGS) | set(parts_of(kind) if kind else ())
     return {p.name: (MISSING if p.default is p.empty else p.default)
             for p in inspect.signature(factory).parameters.values()
-            if p.name not in RUNTIME_ARGS and p.kind not in (p.VAR_POSITIONAL, p.VAR_KEYWORD)}
+            if p.name not in skip and p.kind not in (p.VAR_POSITIONAL, p.VAR_KEYWORD)}
 
 
 def test_every_config_field_matches_its_factory_signature():
@@ -87,7 +91,7 @@ def test_every_config_field_matches_its_factory_signature():
     for kind, name, comp, _ in registry.items():
         fields = fields_of(schema_of(comp))
         assert fields.pop("component") == name
-        expected = _signature_defaults(comp.factory)
+        expected = _signature_defaults(comp.factory, kind)
         if "seed" in expected:  # a component's seed follows the run's seed
             assert fields.pop("seed") == "${seed}" and expected.pop("seed") is not MISSING
         # settings given as a dataclass (refine's soft) are a nested config of the same fields

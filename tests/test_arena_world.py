@@ -85,7 +85,7 @@ def test_the_arena_refuses_an_explorer_that_would_steer():
 @pytest.mark.parametrize("kwargs, match", [
     ({"dt": 0}, "dt must be a positive number"),
     ({"thigmotaxis": 2.0}, r"thigmotaxis must be in \[0, 1\]"),
-    ({"layout": "maze"}, "layout 'maze' is neither a built-in layout"),
+    ({"layout": "maze"}, "layout='maze' is neither a built-in layout"),
     ({"sensor": "sonar"}, "sensor must be one of range, bvc, ovc"),
     ({"actions": "keys"}, "actions must be one of compass, turns"),
     ({"path": "rat.txt"}, "neither a recorded path of ratinabox"),
@@ -157,14 +157,22 @@ def test_regions_of_the_built_in_layouts():
         "south-west", "south-east", "corridor", "north-west", "north-east"]
 
 
-def test_without_ratinabox_the_import_says_how_to_install(monkeypatch):
+def test_without_ratinabox_the_world_says_how_to_install(monkeypatch):
+    """The package imports without ratinabox (the app knows its components and configs); building
+    a world says, in one line, how to install ratinabox."""
+    import topomap.worlds
+
     saved = {k: v for k, v in sys.modules.items() if k.startswith("topomap.worlds.arena")}
     for name in saved:
         monkeypatch.delitem(sys.modules, name)
+    monkeypatch.delattr(topomap.worlds, "arena", raising=False)  # put back afterwards
     monkeypatch.setitem(sys.modules, "ratinabox", None)
-    with pytest.raises(ImportError, match=r'pip install "topomap\[arena\]"') as err:
-        importlib.import_module("topomap.worlds.arena")
-    assert isinstance(err.value, ValueError) and "\n" not in str(err.value)
+    arena = importlib.import_module("topomap.worlds.arena")
+    assert arena.RangeFinder(n_beams=4).n_beams == 4  # a sensor needs no ratinabox
+    for build in (arena.ArenaWorld, lambda: arena.RecordedPath("tanni")):
+        with pytest.raises(ImportError, match=r'pip install "topomap\[arena\]"') as err:
+            build()
+        assert isinstance(err.value, ValueError) and "\n" not in str(err.value)
 
 
 def test_every_component_has_a_typed_config_of_plain_values():

@@ -139,7 +139,7 @@ def test_map_nodes_are_numbered_and_never_overlap(small_run):
     ax.figure.canvas.draw()
     assert {t.get_text() for t in ax.texts} == {str(s) for s in range(learner.map_.n_states)}
     nodes = np.vstack([c.get_offsets() for c in ax.collections if c.get_label() in
-                       {label for *_, label in plots.run._NODE_KINDS}])
+                       {label for *_, label in plots.graph.NODE_KINDS}])
     assert len(nodes) == learner.map_.n_states
     pixels = ax.transData.transform(nodes)
     diameter = 11.0 * ax.figure.dpi / 72  # the numbered nodes' diameter, in pixels
@@ -295,5 +295,74 @@ def test_entropy_figure_labels_the_refinement_and_keeps_its_legend_off_the_curve
     assert f"after the refinement ({learner.map_.n_states} states)" in names
     assert not ax.get_legend().get_window_extent(renderer).overlaps(ax.get_window_extent(renderer))
     split = [r for r in learner.entropies_ if r.get("stage") != "refined"]
-    lowest = min(min(r["H_u"], r["H_x"]) for r in split)
-    assert ax.get_ylim()[0] > lowest - 0.1 * (max(r["H_u"] + r["H_x"] for r in split) - lowest)
+    (last,) = [r for r in learner.entropies_ if r.get("stage") == "refined"][-1:]
+    refined = [last["H_u"], last["H_x"], last["H_u"] + last["H_x"]]
+    lo, hi = ax.get_ylim()
+    assert all(lo <= v <= hi for v in refined)  # every refined value on the axis, none off it
+    drawn = [v for r in split for v in (r["H_u"], r["H_x"], r["H_u"] + r["H_x"])] + refined
+    span = max(drawn) - min(drawn)  # the range is the data's, padded a little
+    assert min(drawn) - 0.1 * span <= lo and hi <= max(drawn) + 0.1 * span
+
+
+class _Entropies:
+    """A learner's entropy trace made by hand: ten splits, then a refinement whose H(x'|x,u) is
+    0 (every transition certain), below every value of the split."""
+
+    entropies_ = [{"n_states": 10 + k, "H_u": 2.0 - 0.01 * k, "H_x": 0.5 - 0.02 * k}
+                  for k in range(10)] + [{"stage": "refined", "n_states": 19, "H_u": 1.7,
+                                          "H_x": 0.0}]
+
+
+def test_entropy_figure_draws_a_refined_zero_on_its_axis():
+    ax = plots.plot_entropy(_axes((6.5, 3.5)), _Entropies())
+    lo, hi = ax.get_ylim()
+    assert lo <= 0.0 <= hi
+    refined = [float(line.get_ydata()[0]) for line in ax.lines if len(line.get_xdata()) == 1]
+    assert sorted(refined) == [0.0, 1.7, 1.7]  # H(x'|x,u), H(u|x) and their sum, as points
+    assert all(line.get_clip_on() for line in ax.lines)  # nothing drawn off the axis
+
+
+# ---------------------------------------------------------------------------- readable numbers
+def test_numbers_of_states_at_one_spot_do_not_overlap():
+    """Twelve states of two and three digits whose steps sit at one spot (and a few nearby): every
+    number is written, and no two numbers' boxes overlap."""
+    rng = np.random.default_rng(0)
+    states = np.array([7, 25, 27, 98, 99, 100, 101, 102, 120, 131, 86, 49])
+    labels = np.repeat(states, 5)
+    spot = np.where(np.isin(labels, [86, 131, 49]), 0.3, 0.0)  # three a little apart
+    positions = np.column_stack([2.0 + spot, 1.0 + 0.02 * spot]) + rng.normal(0, 1e-3, (60, 2))
+    traj = Trajectory(observations=rng.normal(size=(60, 2)), actions=np.zeros(60, dtype=int),
+                      positions=positions)
+    ax = plots.plot_states(_axes((6, 4.5)), traj, labels)
+    ax.figure.canvas.draw()
+    renderer = ax.figure.canvas.get_renderer()
+    numbers = [t for t in ax.texts if t.get_text().isdigit()]
+    assert sorted(int(t.get_text()) for t in numbers) == sorted(states)
+    assert _overlapping([t.get_window_extent(renderer) for t in numbers]) == []
+
+
+def test_the_corner_places_show_around_the_map_nodes_on_them():
+    from topomap.worlds import OfficeWorld, RandomExplorer
+
+    world = OfficeWorld()
+    traj = world.simulate(300, RandomExplorer(), np.random.default_rng(0))
+    learner = MapLearner(n_clusters=8, n_states=12, n_init=1).fit_trajectory(traj)
+    ax = plots.plot_map(_axes((8, 6)), traj, learner, world)
+    (corners,) = [line for line in ax.lines if line.get_marker() == "+"]
+    assert corners.get_markersize() > 11.0  # wider than a numbered node: its arms show
+    nodes = max(c.get_zorder() for c in ax.collections if c.get_label() == "learned state")
+    assert corners.get_zorder() < nodes  # beneath the nodes, so the numbers stay readable
+
+
+def test_the_mapping_figure_shows_heldout_ari_with_its_legend_clear_of_the_axes():
+    curve = [{"steps": 250 * k, "ari": 0.9 - 0.05 * k, "heldout_ari": 0.1 * k} for k in (1, 2, 3)]
+    ax = plots.plot_mapping(_axes((5.5, 3.8)), curve,
+                            "HistoryExplorer(update_every=250, context=3, epsilon=0.0)")
+    ax.figure.canvas.draw()
+    renderer = ax.figure.canvas.get_renderer()
+    lines = {line.get_label(): list(line.get_ydata()) for line in ax.lines}
+    (held,) = [y for name, y in lines.items() if "heldout_ari" in name]
+    assert held == pytest.approx([0.1, 0.2, 0.3])
+    assert ax.get_title() == "mapping while exploring: HistoryExplorer"
+    legend = ax.get_legend().get_window_extent(renderer)
+    assert legend.y1 <= ax.xaxis.get_tightbbox(renderer).y0  # below the ticks and their label

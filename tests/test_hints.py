@@ -16,8 +16,8 @@ from topomap.app.compose.command_line import compose
     (["+data.path=my.npz"], "data.path belongs to data=file (and data=rosbag)"),
     (["stop=auto", "stop.n_states=40"], "stop.n_states is not a key of stop=auto: it belongs to "
                                         "stop=n_states; leave it out, or choose stop=n_states"),
-    (["env=gridrom"], "unknown env=gridrom; did you mean env=gridroom? (the options: gridroom, "
-                      "minigrid, office, random_graph)"),
+    (["env=gridrom"], "unknown env=gridrom; did you mean env=gridroom? (the options: arena, "
+                      "gridroom, minigrid, office, random_graph)"),
     (["env=office,gridrom"], "unknown env=gridrom; did you mean env=gridroom?"),
     (["experiment=gridrom"], "unknown experiment=gridrom; did you mean experiment=gridroom?"),
 ])
@@ -41,7 +41,7 @@ def test_a_key_of_the_selected_component_passes(overrides):
     (["data.path=my.npz"], "topomap: error: data.path belongs to data=file (and data=rosbag), "
                            "not to data=simulate (the default); add data=file"),
     (["env=gridrom"], "topomap: error: unknown env=gridrom; did you mean env=gridroom? (the "
-                      "options: gridroom, minigrid, office, random_graph)"),
+                      "options: arena, gridroom, minigrid, office, random_graph)"),
 ])
 def test_the_command_prints_one_line_instead_of_hydras_message(args, line, tmp_path):
     r = subprocess.run([sys.executable, "-m", "topomap", *args], cwd=tmp_path,

@@ -1,6 +1,7 @@
 """Using a map: forward filtering, planning and navigation, on models small enough to check by hand."""
 
 import itertools
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -79,6 +80,20 @@ def test_plan_follows_the_most_probable_path():
     # 1 -> 0 directly: best by action 1 (4/8); via 2: 7/8 * 5/6 = 0.73 is more probable
     assert m.plan(1, [0]) == [0, 0]
     assert m.plan(1, [0], min_prob=0.8) == [0, 0]
+
+
+def test_plan_gives_action_names_when_asked():
+    m = tiny_map()
+    named = replace(m, action_names=["fwd", "turn"])
+    assert named.plan(0, 2) == [0, 0]  # ids unless asked
+    assert named.plan(0, 2, names=True) == ["fwd", "fwd"]
+    assert m.plan(0, 2, names=True) == ["0", "0"]  # no names: the ids as to_networkx labels
+    assert named.plan(2, 2, names=True) == []
+    trans = np.zeros((3, 2, 3), dtype=int)
+    trans[0, 1, 1] = trans[1, 0, 2] = 2  # 0 -> 1 by action 1, 1 -> 2 by action 0
+    line = TopologicalMap([0, 1, 2], [-1] * 3, [-1] * 3, np.zeros((3, 1)), np.ones((3, 1)),
+                          [2, 2, 1], [[0, 2], [2, 0], [1, 0]], trans, action_names=["a", "b"])
+    assert line.plan(0, 2) == [1, 0] and line.plan(0, 2, names=True) == ["b", "a"]
 
 
 def test_plan_refuses_unreachable_goals_and_unknown_states():

@@ -34,7 +34,8 @@ DOCUMENTED_FAILURES = {"topomap experiment=sweep_pricai2002": 15}
 #: plugin's module listed instead, which registers the same components the entry point does
 INSTALLED_PLUGINS = {"topomap stop=max_splits stop.k=3": "my_stop.py"}
 #: what a command needs beyond the test extras: it is checked only where the package is installed
-OPTIONAL = {"env=minigrid": "minigrid", "minigrid_empty": "minigrid",
+OPTIONAL = {"env=minigrid": "minigrid", "minigrid_empty": "minigrid", "env=arena": "ratinabox",
+            "arena_two_rooms": "ratinabox", "rat_tanni": "ratinabox",
             "hydra/sweeper=optuna": "hydra_plugins.hydra_optuna_sweeper",
             "hydra/launcher=ray": "hydra_plugins.hydra_ray_launcher"}
 #: a run shortened for the test (appended, so it wins over the page's own values)
@@ -79,12 +80,13 @@ def documented_commands():
 
 
 def code_files():
-    """The files the pages' code blocks define: a block whose first line is ``# name.py``."""
+    """The files the pages' code blocks define: a block whose first line is ``# name.py`` (or, for
+    a floor plan, ``# name.yaml``)."""
     files = {}
     for page in PAGES:
-        for block in re.findall(r"^```python\n(.*?)^```", page.read_text(), re.S | re.M):
+        for block in re.findall(r"^```(?:python|yaml)\n(.*?)^```", page.read_text(), re.S | re.M):
             first = block.splitlines()[0]
-            if re.fullmatch(r"# [\w/]+\.py", first):
+            if re.fullmatch(r"# [\w/]+\.(py|yaml)", first):
                 files[first[2:]] = block
     return files
 

@@ -73,7 +73,9 @@ def test_help_is_topomaps_own_and_lists_components_not_schemas(tmp_path):
     assert r.returncode == 0
     assert "powered by Hydra" not in r.stdout and "_schema" not in r.stdout
     assert "Usage:" in r.stdout and "topomap --list-plugins" in r.stdout
-    assert "clusters: bic, fixed" in r.stdout and "env: gridroom, minigrid, office" in r.stdout
+    assert "clusters: bic, fixed" in r.stdout
+    assert "env: arena, gridroom, minigrid, office" in r.stdout
+    assert "sensor: bvc, ovc, range" in r.stdout and "actions: compass, turns" in r.stdout
     r = cli(["--help", "plugins=[topomap_gtest]"], tmp_path, pythonpath=[PLUGINS / "topomap-gtest"])
     assert "split: entropy, gtest" in r.stdout and "_schema" not in r.stdout
 
@@ -143,7 +145,7 @@ def test_list_plugins_shows_actions_added_by_plugins_with_their_provider(tmp_pat
     r = cli(["--list-plugins", str(TURNBACK)], tmp_path)
     assert r.returncode == 0
     lines = r.stdout.splitlines()
-    i = lines.index("actions:")
+    i = lines.index("actions added to worlds:")
     assert lines[i + 1].split()[:2] == ["turn", "back"] and str(TURNBACK) in lines[i + 1]
     assert "office" in lines[i + 1]
 

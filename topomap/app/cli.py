@@ -50,8 +50,8 @@ def list_plugins(registry: Registry, file=None) -> None:
         params = fields_of(schema_of(registry.get("env", name)))
         for provider, added in registry.world_action_providers(params):
             actions += [(a.name, provider, f"an action of the {name} world") for a in added]
-    if actions:
-        print("actions:", file=file)
+    if actions:  # (not "actions:", the header of the action rules, a kind of component)
+        print("actions added to worlds:", file=file)
         for action, provider, what in actions:
             print(f"  {action:<16} {provider:<24} {what}", file=file)
     for err in registry.errors:
@@ -89,12 +89,27 @@ def _summary(results: dict, out) -> str:
 
         line += (f" | ARI {trace('ari', '.3f')}, purity {trace('purity', '.3f')}, compound "
                  f"states {trace('compound_states', 'd')}{label}")
+    if results.get("position"):
+        line += " | " + _metres(results["position"])
     nav = results.get("navigation")
     if nav:
         ratio = "-" if nav["path_ratio"] is None else f"{nav['path_ratio']:.2f}"
         line += (f" | navigation: {nav['success_rate']:.0%} of {nav['episodes']} episodes, "
                  f"path {ratio} x the shortest")
     return line
+
+
+def _metres(position: dict) -> str:
+    """The held-out localisation error (median / 90th percentile, wrong-region share) of the map,
+    the ceiling and K-means on the views, as the summary line says it."""
+    def said(s):
+        if s is None or s["median_error"] is None:
+            return "-"
+        wrong = "" if s["wrong_region"] is None else f", {s['wrong_region']:.0%} wrong region"
+        return f"{s['median_error']:.2f} / {s['p90_error']:.2f} m{wrong}"
+
+    return (f"localisation error (median / p90) {said(position['map'])} (ceiling "
+            f"{said(position.get('ceiling'))}; K-means on views {said(position['kmeans_views'])})")
 
 
 def optimising(sweeper) -> bool:

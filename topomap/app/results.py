@@ -5,9 +5,10 @@ The runner (:mod:`topomap.app.run`) writes these files, the sweep report
 back, and an optimising sweeper is given one of the numbers: each reads the names from here, so
 none of them imports another to learn a file's name.
 
-* the files: :data:`OUTPUT_FILES` (every run), :data:`FIGURE_FILES`, :data:`HTML_FILES` and
-  :data:`MAPPING_FIGURES` (with ``output.figures``), :data:`LOCALIZE_FILES` (``task=localize``),
-  :data:`STATUS_FILE` and, in a sweep's folder, :data:`CACHE_DIR`;
+* the files: :data:`OUTPUT_FILES` (every run), :data:`FIGURE_FILES`, :data:`HTML_FILES`,
+  :data:`PATH_FIGURES` and :data:`MAPPING_FIGURES` (with ``output.figures``),
+  :data:`LOCALIZE_FILES` (``task=localize``), :data:`STATUS_FILE` and, in a sweep's folder,
+  :data:`CACHE_DIR`;
 * the numbers of ``metrics.json`` (and ``status.json``) by name, :data:`COLUMNS`: where each is,
   its label and which way is better -- the columns of a sweep's ``summary.csv`` and a logger's
   metrics;
@@ -28,8 +29,8 @@ from omegaconf.errors import OmegaConfBaseException
 from ..core.checks import ParameterError
 
 __all__ = ["METRICS_FILE", "STATUS_FILE", "CACHE_DIR", "OUTPUT_FILES", "LOCALIZE_FILES",
-           "FIGURE_FILES", "HTML_FILES", "MAPPING_FIGURES", "Column", "COLUMNS", "METRICS",
-           "check_metric", "select", "OBJECTIVES", "objective_direction", "UNITS"]
+           "FIGURE_FILES", "HTML_FILES", "PATH_FIGURES", "MAPPING_FIGURES", "Column", "COLUMNS",
+           "METRICS", "check_metric", "select", "OBJECTIVES", "objective_direction", "UNITS"]
 
 # ---------------------------------------------------------------------------------- the files
 #: a run's results (:data:`COLUMNS` reads them): written last, so a folder holding it holds the
@@ -59,8 +60,13 @@ FIGURE_FILES = {
     "fig_states.png": "observation points coloured by state after clustering, after splitting and "
                       "(with refine) after the refinement (the paper's Fig. 4, right)",
     "fig_split.png": "a compound state before and after its split, with transition tables (Figs. 5-6)",
-    "fig_map.png": "the learned map at the states' mean positions, arcs where P > min_prob (Fig. 7)",
+    "fig_map.png": "the learned map at the states' mean positions (without positions: at a graph "
+                   "layout), arcs where P > min_prob (Fig. 7)",
     "fig_entropy.png": "H(u|x), H(x'|x,u) and their sum after each split (and after the refinement)",
+}
+#: the figure a run whose steps have positions but no discrete places adds (the arena, a log)
+PATH_FIGURES = {
+    "fig_path.png": "the path learned from, coloured by time, over the floor plan",
 }
 #: the interactive map every run writes with its figures (``output.figures``)
 HTML_FILES = {
@@ -139,6 +145,20 @@ COLUMNS = (
     Column("H_x", "entropies.final.H_x", "H(x'|x,u) [bits]", "min"),
     Column("heldout_loglik", "heldout_loglik",
            "held-out log-likelihood per step [nats, a log-density]", "max"),
+    Column("pos_error", "position.map.median_error", "median localisation error, held-out [m]",
+           "min"),
+    Column("pos_error_p90", "position.map.p90_error",
+           "90th-percentile localisation error, held-out [m]", "min"),
+    Column("wrong_region", "position.map.wrong_region", "held-out steps placed in the wrong "
+           "region (share)", "min"),
+    Column("ceiling_error", "position.ceiling.median_error",
+           "median error of the true places (the ceiling) [m]"),
+    Column("ceiling_wrong_region", "position.ceiling.wrong_region",
+           "wrong-region share of the true places (the ceiling)"),
+    Column("views_error", "position.kmeans_views.median_error",
+           "median error of K-means on the views [m]"),
+    Column("views_wrong_region", "position.kmeans_views.wrong_region",
+           "wrong-region share of K-means on the views"),
     Column("nav_success", "navigation.success_rate", "navigation success rate", "max"),
     Column("nav_path_ratio", "navigation.path_ratio", "navigation path length / shortest", "min"),
     Column("fit_time", ("timings.phase1", "timings.phase2"), "fit time [s]", "min"),
@@ -181,4 +201,7 @@ UNITS = {
     "heldout_loglik": "nats per step; a log-density of continuous observations, so it can be "
                       "positive",
     "loglik": "nats per step (task=localize); a log-density, like heldout_loglik",
+    "position": "median_error, p90_error: metres between where a held-out step is placed (its "
+                "state's mean training position) and where it was; wrong_region: a share of the "
+                "held-out steps",
 }

@@ -10,7 +10,6 @@ from typing import Self
 import numpy as np
 from numpy.typing import ArrayLike
 from sklearn.base import BaseEstimator
-from sklearn.utils.validation import check_is_fitted
 
 from .checks import check_count
 from .components import (DEPRECATED, fit_refinement, make_components, make_refinement, naming,
@@ -20,6 +19,7 @@ from .online import OnlineState, Window, lengths_of
 from .phase1.clustering import cluster_observations
 from .size import AutoStates, probe_sizes, split_holdout
 from .map.model import TopologicalMap
+from .map_methods import MapMethods
 from .motion.learn import fit_places
 from .motion.settings import MotionSettings, motion_settings
 from .refine.sequence import SymbolSequence
@@ -30,7 +30,7 @@ from .data.trajectory import FitData, check_fit_data, check_sequences
 __all__ = ["MapLearner"]
 
 
-class MapLearner(BaseEstimator):
+class MapLearner(MapMethods, BaseEstimator):
     """Learn a topological map from observations and actions (Yairi, Togami & Hori, 2002).
 
     Phase 1 clusters the non-GDS observations with K-means into ``ns`` symbols, one state each, and
@@ -436,20 +436,3 @@ class MapLearner(BaseEstimator):
 
     def fit_predict(self, observations, actions, gds=None, lengths=None, **kwargs) -> np.ndarray:
         return self.fit(observations, actions, gds, lengths, **kwargs).labels_
-
-    def predict(self, observations: ArrayLike, actions: ArrayLike, gds: ArrayLike | None = None,
-                lengths: ArrayLike | None = None) -> np.ndarray:
-        """The most likely state of every step of a new sequence (Viterbi on the learned map:
-        :meth:`TopologicalMap.predict <topomap.core.map.model.TopologicalMap.predict>`).
-        Raises scikit-learn's ``NotFittedError`` before :meth:`fit` (or :meth:`partial_fit`)."""
-        check_is_fitted(self, "map_")
-        return self.map_.predict(observations, actions, gds=gds, lengths=lengths)
-
-    def score(self, observations: ArrayLike, actions: ArrayLike, gds: ArrayLike | None = None,
-              lengths: ArrayLike | None = None) -> float:
-        """Mean log-likelihood per step (nats; a log-density) of a new sequence under the learned
-        map (:meth:`TopologicalMap.score <topomap.core.map.model.TopologicalMap.score>`).
-        Raises scikit-learn's ``NotFittedError`` before :meth:`fit` (or :meth:`partial_fit`)."""
-        check_is_fitted(self, "map_")
-        return self.map_.score(observations, actions, gds=gds, lengths=lengths)
-

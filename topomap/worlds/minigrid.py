@@ -44,6 +44,7 @@ VIEW_CHANNELS = ("open", "wall", "object")
 #: MiniGrid object index -> channel (None: unseen, all zero)
 _UNSEEN, _EMPTY, _WALL, _FLOOR = 0, 1, 2, 3
 _DIR_VEC = np.array([[1, 0], [0, 1], [-1, 0], [0, -1]], dtype=np.int64)
+_HEADINGS = ("east", "south", "west", "north")
 #: cell types the agent never steps onto, although MiniGrid lets it (they end the episode)
 _ENDS_EPISODE = ("goal", "lava")
 #: fill colours of the cell kinds drawn in a fixed colour (other objects: a tint of their own)
@@ -172,6 +173,13 @@ class MiniGridWorld:
         cell, d = np.divmod(place, 4)
         y, x = np.divmod(cell, self.width)
         return x, y, d
+
+    @property
+    def place_names(self) -> list[str]:
+        """Each place's name, for the interactive map: MiniGrid's cell and the heading,
+        ``(x, y) facing east``."""
+        x, y, d = self.pose_of(np.arange(self.width * self.height * 4))
+        return [f"({a}, {b}) facing {_HEADINGS[c]}" for a, b, c in zip(x, y, d)]
 
     def position_of(self, place) -> np.ndarray:
         """Figure coordinates of places: cell centre (north up) nudged towards the heading."""

@@ -71,14 +71,21 @@ class Simulate:
         self.update_every = check_count(update_every, "update_every", minimum=0)
 
     def maps_while_exploring(self, parts) -> int:
-        """Steps between two map updates while walking (0: the map is learned after the walk)."""
-        if self.update_every:
-            return self.update_every
-        return int(getattr(parts.explorer, "update_every", 0)) if hasattr(parts.explorer, "update") else 0
+        """Steps between two map updates while walking (0: the map is learned after the walk);
+        refused for a world that moves by itself (``moves_itself``: the arena)."""
+        every = self.update_every or (int(getattr(parts.explorer, "update_every", 0))
+                                      if hasattr(parts.explorer, "update") else 0)
+        if every and getattr(parts.env, "moves_itself", False):
+            raise ValueError(f"mapping while exploring (data.update_every, explorer=active) "
+                             f"needs a world an explorer walks step by step, and {parts.env!r} "
+                             "moves by itself: leave them out")
+        return every
 
     def train(self, parts, seed: int, progress=None, learner=None) -> Trajectory:
         rng_sim, rng_noise, _ = seed_streams(seed)
-        explorer = parts.explorer if progress is None else progress.ticking(parts.explorer, self.n_steps)
+        explorer = parts.explorer
+        if progress is not None and not getattr(parts.env, "moves_itself", False):
+            explorer = progress.ticking(parts.explorer, self.n_steps)
         update_every = self.maps_while_exploring(parts)
         if update_every and learner is not None:
             judge = heldout_judge(self.judging_walk(parts, seed))
@@ -103,10 +110,18 @@ class Simulate:
         return traj
 
     def heldout(self, parts, seed: int) -> Trajectory | None:
+        """The held-out walk: the world's ``heldout_walk`` where it has one (the arena: another
+        random walk, or the end of a recorded path after the ``n_steps`` learned from), else
+        another walk of the world; from the seed's third random stream."""
         if self.heldout_steps == 0:
             return None
         rng_sim, rng_noise = seed_streams(seed)[2].spawn(2)
-        traj = parts.env.simulate(self.heldout_steps, parts.explorer, rng_sim)
+        walk = getattr(parts.env, "heldout_walk", None)
+        try:
+            traj = (parts.env.simulate(self.heldout_steps, parts.explorer, rng_sim) if walk is None
+                    else walk(self.heldout_steps, parts.explorer, rng_sim, after=self.n_steps))
+        except ParameterError as err:  # the walk's n_steps is this heldout_steps
+            raise (err.renamed("heldout_steps") if err.param == "n_steps" else err) from None
         traj.observations = parts.noise.apply(traj.observations, rng_noise)
         return traj
 

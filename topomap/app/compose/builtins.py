@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from ...core.phase1 import clustering
 from ...core.split import criteria, stopping
-from ...worlds import explorers, noise
+from ...worlds import arena, explorers, noise
 from ...worlds.table import GridRoom
 from ...worlds.minigrid import MiniGridWorld
 from ...worlds.navigation import Navigation
@@ -29,6 +29,25 @@ def nothing():
     return None
 
 
+def _arena():
+    """The arena and its parts: its sensors and its action rules."""
+    return [
+        _c("env", "arena", arena.ArenaWorld,
+           "continuous motion in a floor plan (optional ratinabox package): random motion or a "
+           "recorded rat path, scored in metres"),
+        _c("sensor", "range", arena.RangeFinder,
+           "the arena's range finder: beams to the nearest wall, compass-aligned or egocentric"),
+        _c("sensor", "bvc", arena.BoundaryVectorCells,
+           "the arena's boundary-vector cells (ratinabox), firing rates"),
+        _c("sensor", "ovc", arena.ObjectVectorCells,
+           "the arena's object-vector cells (ratinabox), tuned to the floor plan's objects"),
+        _c("actions", "compass", arena.CompassActions,
+           "the arena's moves as compass octants of the velocity, or stop"),
+        _c("actions", "turns", arena.TurnActions,
+           "the arena's moves as a differential drive's: forward, turn_left, turn_right, stop"),
+    ]
+
+
 @hookimpl
 def topomap_register_components():
     return [
@@ -39,6 +58,7 @@ def topomap_register_components():
            "random strongly connected digraph, places emit fewer symbols than places"),
         _c("env", "minigrid", MiniGridWorld,
            "a MiniGrid environment (optional minigrid package), left/right/forward"),
+        *_arena(),
         _c("noise", "none", noise.NoNoise, "noise-free observations"),
         _c("noise", "gaussian", noise.GaussianNoise, "additive Gaussian noise (sigma), clipped at 0"),
         _c("noise", "dropout", noise.DropoutNoise,

@@ -158,9 +158,8 @@ def _check_component_keys(parsed, chosen: dict, registry) -> None:
         told = group in chosen
         selected = chosen.get(group) or [preset.get(group) or defaults.get(group)]
         for option in selected:
-            if option not in registry.names(group):
-                continue
-            if key in fields_of(schema_of(registry.get(group, option))):
+            if option is not None and (option not in registry.names(group) or key in fields_of(
+                    schema_of(registry.get(group, option)))):
                 continue
             owners = [n for n in registry.names(group)
                       if key in fields_of(schema_of(registry.get(group, n)))]
@@ -168,6 +167,9 @@ def _check_component_keys(parsed, chosen: dict, registry) -> None:
                 continue  # no component has it: the unknown-key check speaks
             more = f" (and {', '.join(f'{group}={n}' for n in owners[1:])})" if owners[1:] else ""
             where = f"{group}={owners[0]}{more}"
+            if option is None:  # a part left to its whole's own (sensor: null)
+                raise ValueError(f"{group}.{key} belongs to {where}, and no {group} is chosen; "
+                                 f"add {group}={owners[0]}")
             if told:
                 raise ValueError(f"{group}.{key} is not a key of {group}={option}: it belongs "
                                  f"to {where}; leave it out, or choose {group}={owners[0]}")

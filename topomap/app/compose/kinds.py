@@ -13,7 +13,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from types import MappingProxyType
 
-__all__ = ["Kind", "KINDS"]
+__all__ = ["Kind", "KINDS", "parts_of"]
 
 
 @dataclass(frozen=True)
@@ -32,19 +32,31 @@ class Kind:
         A part of the simulated world: built only when the data component simulates.
     learner_arg : str or None
         The :class:`~topomap.MapLearner` argument the built object is passed as.
+    part_of : str or None
+        A part of the component of that kind (a world's sensor): built before it and passed to
+        its factory as the argument named after this kind, which is then no field of that
+        component's config.  Its group selects nothing by default (``null``: the factory's own
+        default applies); a component whose factory takes no such argument refuses one.
     """
 
     name: str
     returns: str
     simulated: bool = False
     learner_arg: str | None = None
+    part_of: str | None = None
 
 
 #: every kind, by name, in the order the app builds them -- but for ``data``, built first of all
 #: (it tells whether the world is built)
 KINDS = MappingProxyType({kind.name: kind for kind in (
+    Kind("sensor", "``sense(arena, motion) -> (T, D)`` observations along a whole path "
+                   "(:mod:`topomap.worlds.arena.sensors`)", simulated=True, part_of="env"),
+    Kind("actions", "``action_names``; ``actions(motion) -> (T,)`` action ids read off a path "
+                    "(:mod:`topomap.worlds.arena.actions`)", simulated=True, part_of="env"),
     Kind("env", "a world: ``simulate(n_steps, explorer, rng) -> Trajectory`` (optional: "
-                "``plot_room(ax)``, an ``extra_actions=`` argument)", simulated=True),
+                "``plot_room(ax)``, ``heldout_walk(n_steps, explorer, rng, after)``, an "
+                "``extra_actions=`` argument, the parts it takes: ``sensor=``, ``actions=``)",
+         simulated=True),
     Kind("noise", "``apply(observations, rng) -> observations`` (a new array)", simulated=True),
     Kind("explorer", "``choose(executable_mask, rng) -> action id``", simulated=True),
     Kind("metric", "``fit_transform(X) -> Z``; K-means runs on ``Z``", learner_arg="metric"),
@@ -63,3 +75,9 @@ KINDS = MappingProxyType({kind.name: kind for kind in (
     Kind("logger", "``log_run(record)`` with a :class:`~topomap.app.components.loggers.RunRecord` once the "
                    "run has written its outputs, or None for no logging"),
 )})
+
+
+def parts_of(kind: str) -> tuple[str, ...]:
+    """The kinds that are parts of a component of ``kind`` (a world's ``sensor`` and ``actions``):
+    its factory is given them built, so they are no fields of its config."""
+    return tuple(name for name, k in KINDS.items() if k.part_of == kind)

@@ -14,6 +14,7 @@ from __future__ import annotations
 import hashlib
 import importlib
 import importlib.util
+import inspect
 import os
 import sys
 from dataclasses import dataclass
@@ -25,7 +26,7 @@ import pluggy
 from . import builtins, hookspecs
 from ...core.checks import ParameterError
 from .hookspecs import Component
-from .kinds import KINDS
+from .kinds import KINDS, parts_of
 
 __all__ = ["Registry", "Parts", "PluginError", "ENTRY_POINT_GROUP", "AUTOLOAD_ENV"]
 
@@ -262,10 +263,35 @@ class Registry:
         for kind in KINDS.values():
             if kind.name in built or (kind.simulated and not simulates):
                 continue
+            if kind.part_of is not None:  # None: not chosen, the whole's own default applies
+                chosen = cfg.get(kind.name)
+                built[kind.name] = None if chosen is None else self.make(kind.name, chosen)
+                continue
             extra = self.world_actions(cfg["env"]) if kind.name == "env" else None
+            extra = {"extra_actions": extra} if extra else {}
             built[kind.name] = self.make(kind.name, cfg[kind.name],
-                                         **({"extra_actions": extra} if extra else {}))
+                                         **extra, **self._parts(kind.name, cfg, built))
         return Parts(**built)
+
+    def takes(self, kind: str, name: str, argument: str) -> bool:
+        """Whether the factory of the component ``<kind>=<name>`` takes ``argument``."""
+        return argument in inspect.signature(self.get(kind, name).factory).parameters
+
+    def _parts(self, kind: str, cfg, built: dict) -> dict:
+        """The chosen parts of the run's ``kind`` component (a world's sensor and actions), by the
+        arguments its factory takes; a part it does not take is refused, naming those that do."""
+        name = cfg[kind]["component"]
+        out = {}
+        for part in parts_of(kind):
+            if built.get(part) is None:
+                continue
+            if not self.takes(kind, name, part):
+                others = [f"{kind}={n}" for n in self.names(kind) if self.takes(kind, n, part)]
+                hint = f"; {', '.join(others)} does" if others else ""
+                raise ValueError(f"{part}={cfg[part]['component']}: {kind}={name} takes no "
+                                 f"{part}{hint}")
+            out[part] = built[part]
+        return out
 
     def learner_events(self, metrics: dict):
         """A learner callback that passes every event to the plugins' ``topomap_learner_event``;

@@ -31,7 +31,7 @@ from ...core.checks import ParameterError
 from ...core.components import RENAMED
 from ...core.learner import MapLearner
 from ..results import OBJECTIVES
-from .kinds import KINDS
+from .kinds import KINDS, parts_of
 
 __all__ = ["Config", "RunConf", "Objective", "LearnerConf", "OutputConf", "RUNTIME_ARGS", "schema_of",
            "settings_schema", "learner_schema", "learner_key", "config_keys", "fields_of"]
@@ -91,8 +91,9 @@ def _field(name: str, typ, default):
     return (name, typ, field(default=default))
 
 
-def _parameters(factory):
-    """``(name, annotation, default)`` of the factory's configurable parameters."""
+def _parameters(factory, exclude=()):
+    """``(name, annotation, default)`` of the factory's configurable parameters (but those named
+    in ``exclude``)."""
     target = factory.__init__ if inspect.isclass(factory) else factory
     try:
         hints = typing.get_type_hints(target)
@@ -100,7 +101,8 @@ def _parameters(factory):
         hints = {}
     out = []
     for p in inspect.signature(factory).parameters.values():
-        if p.name in RUNTIME_ARGS or p.kind in (p.VAR_POSITIONAL, p.VAR_KEYWORD):
+        if (p.name in RUNTIME_ARGS or p.name in exclude
+                or p.kind in (p.VAR_POSITIONAL, p.VAR_KEYWORD)):
             continue
         annotation = hints.get(p.name, p.annotation)  # a signature made by hand: its own
         out.append((p.name, Any if annotation is p.empty else annotation, p.default))
@@ -116,7 +118,8 @@ def schema_of(component) -> type:
                              "dataclass with a 'component' field (or left out, to be derived)")
         return component.config
     fields = [("component", str, field(default=component.name))]
-    fields += [_field(n, _config_type(a, d), d) for n, a, d in _parameters(component.factory)]
+    fields += [_field(n, _config_type(a, d), d)
+               for n, a, d in _parameters(component.factory, parts_of(component.kind))]
     cls_name = "".join(w.title() for w in f"{component.kind}_{component.name}".split("_"))
     return make_dataclass(f"{cls_name}Conf", fields)
 
@@ -174,10 +177,11 @@ class RunConf:
 
 
 #: The top level of a run's config: the run settings, one group per kind of component
-#: (:data:`~topomap.app.compose.kinds.KINDS`; each holds a ``<kind>/<name>`` config), ``learner`` and
-#: ``output``.
+#: (:data:`~topomap.app.compose.kinds.KINDS`; each holds a ``<kind>/<name>`` config, or None for
+#: a part of another component left to that component's default), ``learner`` and ``output``.
 Config = make_dataclass("Config", [
-    *((kind, Any, field(default=MISSING)) for kind in KINDS),
+    *((name, Any, field(default=None if kind.part_of else MISSING))
+      for name, kind in KINDS.items()),
     ("learner", LearnerConf, field(default_factory=LearnerConf)),
     ("output", OutputConf, field(default_factory=OutputConf)),
 ], bases=(RunConf,))
@@ -211,9 +215,13 @@ def learner_key(param: str) -> str:
 def config_keys(group: str | None = None):
     """Name the parameter of a :class:`~topomap.core.checks.ParameterError` raised inside by its
     config key: ``<group>.<param>`` for a component of ``group``, else the key of a
-    :class:`MapLearner` parameter (:func:`~topomap.app.compose.schemas.learner_key`)."""
+    :class:`MapLearner` parameter (:func:`~topomap.app.compose.schemas.learner_key`); a parameter
+    already named as a part's key (``sensor.max_range``, raised by a world while it walks) is
+    kept."""
     try:
         yield
     except ParameterError as err:
+        if err.param.partition(".")[0] in KINDS:
+            raise
         key = f"{group}.{err.param}" if group else learner_key(err.param)
         raise err.renamed(key) from err.__cause__

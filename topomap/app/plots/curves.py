@@ -13,10 +13,9 @@ __all__ = ["plot_entropy", "plot_mapping"]
 def plot_entropy(ax, learner):
     """H(u|x), H(x'|x,u) and their sum after phase 1 and after each split; after a refinement
     its values too, as open markers right of a dashed line labelled "refined", at the refined
-    map's number of states.  The y-axis spans the split's curves (its range is the data's, not
-    0): a refined value beyond it is drawn on the axis' edge, an arrow pointing its way, with
-    its value written beside.  The legend sits outside the Axes, so it never covers a curve.
-    Returns ``ax``."""
+    map's number of states.  The y-axis spans every value drawn, the split's and the
+    refinement's (its range is the data's, not 0, unless an entropy is 0).  The legend sits
+    outside the Axes, so it never covers a curve.  Returns ``ax``."""
     from matplotlib.ticker import MaxNLocator
 
     entries = learner.entropies_
@@ -36,25 +35,18 @@ def plot_entropy(ax, learner):
     title = "entropies after each split"
     if refined:
         r = refined[-1]
-        lo = min(float(np.min(y)) for _, y, _, _ in curves)
-        hi = max(float(np.max(y)) for _, y, _, _ in curves)
+        values = {"sum": r["H_u"] + r["H_x"], "H(u|x)": r["H_u"], "H(x'|x,u)": r["H_x"]}
+        drawn = [*(v for _, y, _, _ in curves for v in y), *values.values()]
+        lo, hi = min(drawn), max(drawn)
         pad = 0.08 * max(hi - lo, 1e-6)
         ax.set_ylim(lo - pad, hi + pad)
         x = max(it) + max(1.0, 0.06 * (max(it) - min(it)))  # right of the split's last point
         ax.axvline((x + max(it)) / 2, color="0.4", ls="--", lw=0.8)
         ax.text((x + max(it)) / 2, hi + pad, " refined", rotation=90, va="top", ha="right",
                 fontsize=LEGEND_SIZE, color="0.3")
-        values = {"sum": r["H_u"] + r["H_x"], "H(u|x)": r["H_u"], "H(x'|x,u)": r["H_x"]}
-        for label, _, marker, colour in curves:
-            v = values[label]
-            if lo - pad <= v <= hi + pad:
-                ax.plot([x], [v], marker=marker, ms=6, mfc="white", mec=colour, ls="none")
-            else:
-                edge = lo - pad if v < lo else hi + pad
-                ax.plot([x], [edge], marker="v" if v < lo else "^", ms=6, color=colour,
-                        ls="none", clip_on=False)
-                ax.annotate(f"{v:.2f}", (x, edge), xytext=(4, 6 if v < lo else -10),
-                            textcoords="offset points", fontsize=LEGEND_SIZE, color=colour)
+        for label, _, marker, colour in curves:  # the sum larger: it shows round a value it meets
+            ax.plot([x], [values[label]], marker=marker, ms=9 if label == "sum" else 6,
+                    mfc="white", mec=colour, ls="none")
         ax.plot([], [], marker="o", ms=5, mfc="white", mec="0.3", ls="none",
                 label=f"after the refinement ({r['n_states']} states)")
         ax.set_xlim(right=x + 0.5 * (x - max(it)) + 0.5)
@@ -64,14 +56,32 @@ def plot_entropy(ax, learner):
     return ax
 
 
+def _explorer_name(label: str) -> str:
+    """The explorer's class name out of its ``repr`` (``HistoryExplorer(update_every=250)``)."""
+    return label.partition("(")[0].strip()
+
+
 def plot_mapping(ax, curve, label=""):
-    """The online map's ARI against the steps taken (``metrics.json``: ``mapping.curve``)."""
+    """The quality of the map learned while exploring, after every update: its ARI on the
+    held-out random walk (``heldout_ari``, the fair judge: :mod:`topomap.worlds.mapping`), and,
+    thinner, on the steps taken so far (``ari``, which flatters an explorer that stays in a
+    small part of the world); ``label`` (the explorer's ``repr``) names the explorer in the
+    title.  The legend sits below the Axes, clear of the curves and the ticks.  Returns ``ax``."""
     steps = [c["steps"] for c in curve]
-    ax.plot(steps, [c["ari"] for c in curve], marker=".", label=label or None)
+    lows = [c["ari"] for c in curve]
+    if all("heldout_ari" in c for c in curve):
+        held = [c["heldout_ari"] for c in curve]
+        lows += held
+        ax.plot(steps, held, marker="o", ms=3.5, lw=1.6, color="tab:blue",
+                label="on a held-out random walk (heldout_ari)")
+    ax.plot(steps, [c["ari"] for c in curve], marker=".", lw=0.9, ls="--", color="0.45",
+            label="on the steps taken so far (ari)")
     ax.set_xlabel("steps taken")
     ax.set_ylabel("ARI of the map learned so far")
-    ax.set_ylim(min(0.0, min(c["ari"] for c in curve)), 1.02)
-    ax.set_title("mapping while exploring", fontsize=TITLE_SIZE)
-    if label:
-        ax.legend(fontsize=LEGEND_SIZE, loc="lower right")
+    ax.set_ylim(min(0.0, min(lows)), 1.02)
+    ax.grid(alpha=0.3)
+    name = _explorer_name(label)
+    ax.set_title("mapping while exploring" + (f": {name}" if name else ""), fontsize=TITLE_SIZE)
+    ax.legend(fontsize=LEGEND_SIZE, loc="upper center", bbox_to_anchor=(0.5, -0.2), ncol=1,
+              frameon=False)
     return ax

@@ -23,7 +23,7 @@ MARKERS = ("o", "s", "^", "D", "v", "P", "X", "*")
 #: font sizes (points) of the titles and of the legends
 TITLE_SIZE, LEGEND_SIZE = 9, 7
 #: most numbers written on the states figure, and most states whose map nodes are numbered
-MAX_STATE_NUMBERS, MAX_MAP_NUMBERS = 300, 60
+MAX_STATE_NUMBERS, MAX_MAP_NUMBERS = 300, 100
 #: width (points) of the white outline that keeps a number readable on any background
 HALO = 2.0
 

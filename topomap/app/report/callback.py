@@ -29,6 +29,9 @@ __all__ = ["SweepReport", "SweepInterrupted"]
 
 #: the signals that end a sweep (Ctrl-C and a kill), raised as :class:`SweepInterrupted`
 INTERRUPTS = (signal.SIGINT, signal.SIGTERM)
+#: what a grid's report shows when no job has an ARI (no places: arena runs, robot logs), the
+#: first column some job has
+GRID_FALLBACK = ("pos_error", "heldout_loglik")
 
 
 class SweepReport(Callback):
@@ -39,7 +42,8 @@ class SweepReport(Callback):
     metric : str or None
         Summary column shown in the figure and the printed table, one of
         :data:`~topomap.app.results.METRICS`; None (the default): the run's ``objective`` when
-        the sweeper optimises it (Optuna), else ``ari`` (the final ARI).
+        the sweeper optimises it (Optuna), else ``ari`` (the final ARI), or where no job has one
+        the first of :data:`GRID_FALLBACK` some job has (the localisation error of arena runs).
     figure : bool
         Write ``summary_<metric>.png``.
     strict : bool
@@ -98,8 +102,10 @@ class SweepReport(Callback):
 
     def write(self, sweep_dir: Path, config) -> Report:
         """Write and print the report of the sweep in ``sweep_dir`` (the multirun ``config``)."""
-        report = write_report(sweep_dir, metric=self.metric_of(config), figure=self.figure,
-                              multirun_cfg=config)
+        metric = self.metric_of(config)
+        grid = self.metric is None and metric == "ari"  # not told, and no search's objective
+        report = write_report(sweep_dir, metric=metric, figure=self.figure, multirun_cfg=config,
+                              fallback=GRID_FALLBACK if grid else ())
         print_report(report)
         return report
 

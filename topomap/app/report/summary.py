@@ -65,14 +65,18 @@ class Report:
 
 
 def write_report(sweep_dir, *, metric: str = "ari", figure: bool = True,
-                 multirun_cfg=None) -> Report:
+                 multirun_cfg=None, fallback=()) -> Report:
     """Write ``summary.csv`` (and ``summary_<metric>.png``) for the sweep in ``sweep_dir``.
 
     ``multirun_cfg`` (the multirun config; by default ``sweep_dir/multirun.yaml``) names the swept
     keys and, for Hydra's basic sweeper, every job the sweep was to run: a job without a folder
-    is a row ``not started``.  Returns a :class:`Report`.
+    is a row ``not started``.  ``fallback``: the columns shown instead, the first that some job
+    has, when no job has ``metric`` (a grid of arena runs has no ARI, but a localisation error).
+    Returns a :class:`Report`.
     """
     check_metric(metric)
+    for other in fallback:
+        check_metric(other)
     sweep_dir = Path(sweep_dir)
     if multirun_cfg is None and (sweep_dir / "multirun.yaml").is_file():
         from omegaconf import OmegaConf
@@ -84,6 +88,7 @@ def write_report(sweep_dir, *, metric: str = "ari", figure: bool = True,
                       key=lambda j: j.num)
     keys = swept_keys(multirun_cfg, jobs)
     rows = [row(j, keys, sweep_dir) for j in jobs]
+    metric = _shown(rows, metric, fallback)
     summary = _write_summary(sweep_dir / SUMMARY_FILE, header(keys), rows)
     best = best_row(rows, metric)
     fig_path = None
@@ -99,6 +104,16 @@ def write_report(sweep_dir, *, metric: str = "ari", figure: bool = True,
         log.info("sweep report: %d swept keys, so no figure (one or two make a line or a heat map)",
                  len(keys))
     return Report(summary=summary, figure=fig_path, keys=keys, rows=rows, metric=metric, best=best)
+
+
+def _shown(rows, metric: str, fallback) -> str:
+    """``metric``, or the first of ``fallback`` some row has a value for when none has one."""
+    def held(name):
+        return any(not math.isnan(number(r[name])) for r in rows)
+
+    if held(metric):
+        return metric
+    return next((other for other in fallback if held(other)), metric)
 
 
 def _write_summary(path: Path, columns: list[str], rows) -> Path:

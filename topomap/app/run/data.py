@@ -16,6 +16,7 @@ import time
 from pathlib import Path
 
 from ...core.data.trajectory import Trajectory, load_trajectory, save_trajectory
+from ..compose.kinds import parts_of
 from ..compose.registry import Parts, Registry
 from ..compose.schemas import config_keys
 
@@ -79,7 +80,8 @@ def trajectory_key(cfg, kind: str = "train", plugins=()) -> str:
         raise ValueError(f"kind must be 'train' or 'heldout', not {kind!r}")
     payload = {"kind": kind, "data": data, "seed": cfg["seed"],
                "plugins": sorted({str(p) for p in cfg.get("plugins") or ()} | set(plugins)),
-               **{k: dict(cfg[k]) for k in ("env", "noise", "explorer")}}
+               **{k: dict(cfg[k]) for k in ("env", "noise", "explorer")},
+               **{k: dict(cfg[k]) for k in parts_of("env") if cfg.get(k) is not None}}
     text = json.dumps(payload, sort_keys=True, default=str)
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 

@@ -2,14 +2,18 @@
 
 from __future__ import annotations
 
+import numpy as np
+
 from ...core import metrics as M
+from ...core import position_scores as positions
 from ...core.learner import MapLearner
 from ...core.progress import report
 from ...core.data.trajectory import Trajectory
 
 from ..results import METRICS, OBJECTIVES
 
-__all__ = ["evaluate", "localization_scores", "objective_value", "check_objective"]
+__all__ = ["evaluate", "localization_scores", "objective_value", "check_objective",
+           "position_entry"]
 
 
 def _objective(name) -> str:
@@ -43,8 +47,9 @@ def evaluate(learner: MapLearner, traj: Trajectory, heldout: Trajectory | None,
              parts=None) -> dict:
     """State counts and entropies after phase 1 and at the end; ARI, NMI, purity and compound
     states against ``traj.places`` when the trajectory has ground truth; the mean log-likelihood
-    per step of ``heldout`` under the learned map (None without held-out data); and what the
-    run's ``evaluate`` component measures (``navigation``)."""
+    per step of ``heldout`` under the learned map (None without held-out data); scores in metres
+    where the steps have positions but no places (:func:`position_entry`); and what the run's
+    ``evaluate`` component measures (``navigation``)."""
     refined = learner.map_ is not learner.map_split_
     out = {
         "n_states": {"phase1": learner.map_phase1_.n_states, "final": learner.map_.n_states},
@@ -67,6 +72,11 @@ def evaluate(learner: MapLearner, traj: Trajectory, heldout: Trajectory | None,
                                                      gds=heldout.gds, lengths=heldout.lengths),
                    heldout_steps=len(heldout))
         report("held-out scoring", 1, 1)
+    simulated = parts is not None and getattr(parts.data, "simulates", False)
+    located = position_entry(learner, traj, heldout, None if parts is None else parts.env,
+                             "the held-out walk" if simulated else "the held-out recording")
+    if located is not None:
+        out["position"] = located
     if parts is not None and parts.evaluate is not None:
         if parts.env is None or traj.places is None:
             raise ValueError("evaluate=navigation needs a simulated world with ground truth "
@@ -86,4 +96,47 @@ def localization_scores(m, traj: Trajectory, beliefs, viterbi) -> dict:
     if traj.places is not None:
         out["ground_truth"] = {"filter": M.evaluate(traj.places, beliefs.argmax(axis=1)),
                                "viterbi": M.evaluate(traj.places, viterbi)}
+    return out
+
+
+def _regions(env):
+    """The world's regions: ``(names, region_of)``, or ``(None, None)`` for a world without
+    them (or no world: a recording)."""
+    names = list(getattr(env, "region_names", None) or [])
+    return (names, env.region_of) if names else (None, None)
+
+
+def position_entry(learner: MapLearner, traj: Trajectory, heldout: Trajectory | None,
+                   env=None, held: str = "the held-out recording") -> dict | None:
+    """Scores in metres of the held-out walk (:mod:`topomap.core.position_scores`: the map's,
+    the ceiling's and K-means on the views', each with the median and 90th-percentile error and,
+    where the world has regions, the wrong-region share), with which walk was held out (as the
+    world says in ``heldout.meta``, else ``held``) and the regions; None unless both walks have
+    positions and the steps have no discrete places (whose scores are ARI and purity).  The
+    ceiling is None (with ``ceiling_note``) when the map has fewer states than the walk has
+    regions."""
+    if (heldout is None or traj.positions is None or heldout.positions is None
+            or traj.places is not None):
+        return None
+    dims = (traj.positions.shape[1], heldout.positions.shape[1])
+    if dims[0] != dims[1]:
+        raise ValueError(f"positions: the held-out walk's have {dims[1]} coordinates, the walk "
+                         f"learned from {dims[0]}; scores in metres need the same")
+    names, region_of = _regions(env)
+    m, labels, seed = learner.map_, learner.labels_, learner.random_state
+    report("scores in metres", 0, 3)
+    out = {"heldout": (heldout.meta or {}).get("heldout", held),
+           "heldout_steps": len(heldout), "regions": names, "ceiling_note": None,
+           "map": positions.map_scores(m, labels, traj, heldout, region_of)}
+    report("scores in metres", 1, 3)
+    out["kmeans_views"] = positions.kmeans_view_scores(m.n_states, traj, heldout, region_of, seed)
+    report("scores in metres", 2, 3)
+    held_regions = 1 if region_of is None else np.unique(region_of(traj.positions)).size
+    if m.n_states >= held_regions:
+        out["ceiling"] = positions.ceiling_scores(m, labels, traj, heldout, region_of, seed)
+    else:
+        out["ceiling"] = None
+        out["ceiling_note"] = (f"the map's {m.n_states} states are fewer than the "
+                               f"{held_regions} regions the walk entered")
+    report("scores in metres", 3, 3)
     return out

@@ -17,7 +17,7 @@ import numpy as np
 from ...core.data.atomic import atomic_write
 from ...core.data.trajectory import save_trajectory
 from ..results import (FIGURE_FILES, LOCALIZE_FILES, MAPPING_FIGURES, METRICS_FILE, OUTPUT_FILES,
-                       STATUS_FILE)
+                       PATH_FIGURES, STATUS_FILE)
 from .interrupts import held_signals
 
 __all__ = ["write_outputs", "write_localization", "versions", "write_json", "staged",
@@ -29,11 +29,13 @@ STAGE_PREFIX = ".topomap-partial-"
 
 def own_files(out) -> list[Path]:
     """The files of ``out`` that a topomap run writes (every file of :data:`OUTPUT_FILES`,
-    :data:`FIGURE_FILES`, :data:`MAPPING_FIGURES`, :data:`LOCALIZE_FILES`, ``status.json``, and
+    :data:`FIGURE_FILES`, :data:`PATH_FIGURES`, :data:`MAPPING_FIGURES`, :data:`LOCALIZE_FILES`,
+    ``status.json``, and
     any staging folder a killed run left); never a file topomap does not know, nor Hydra's
     ``.hydra/`` and log."""
     out = Path(out)
-    names = {*OUTPUT_FILES, *FIGURE_FILES, *MAPPING_FIGURES, *LOCALIZE_FILES, STATUS_FILE}
+    names = {*OUTPUT_FILES, *FIGURE_FILES, *PATH_FIGURES, *MAPPING_FIGURES, *LOCALIZE_FILES,
+             STATUS_FILE}
     if not out.is_dir():
         return []
     return sorted(p for p in out.iterdir()
@@ -145,11 +147,15 @@ def _write_outputs(out: Path, traj, learner, results, cfg, env=None) -> None:
         from .. import plots
 
         plots.write_figures(out, traj, learner, env, min_prob=cfg["output"]["min_prob"],
-                            compound_state=cfg["output"].get("compound_state"))
+                            compound_state=cfg["output"].get("compound_state"),
+                            seed=int(cfg["seed"]))
         from ..plots.interactive import write_map_html
 
+        names = (traj.meta or {}).get("place_names") or getattr(env, "place_names", None)
+        walls = getattr(env, "wall_segments", None) if traj.positions is not None else None
         write_map_html(out / "map.html", m, learner.labels_, traj.positions, traj.places,
-                       min_prob=cfg["output"]["min_prob"], seed=int(cfg["seed"]))
+                       min_prob=cfg["output"]["min_prob"], seed=int(cfg["seed"]),
+                       place_names=names, walls=walls)
     results["timings"]["outputs"] = time.perf_counter() - t0
     write_json(out / METRICS_FILE, results)
 

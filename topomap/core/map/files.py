@@ -3,7 +3,9 @@
 * JSON (version :data:`FORMAT_VERSION`): :func:`to_dict` / :func:`from_dict` and :func:`save` /
   :func:`load`, which :class:`~topomap.core.map.model.TopologicalMap`'s methods of the same names
   call.  Every field read is checked: a problem is a one-line ValueError naming the field, e.g.
-  ``states[3].covariance``.
+  ``states[3].covariance``; a file's counts must also be those of one walk
+  (:func:`check_counts`), which :func:`save` checks too, so it never writes what :func:`load`
+  refuses.
 * A graph: :func:`to_networkx` and :func:`to_graphml`.
 * The checks every map passes when it is made (:func:`checked_fields`, :func:`check_tables`),
   whether it comes from a file or from the learner; their messages name the JSON fields.
@@ -18,8 +20,8 @@ import numpy as np
 
 from ..data.atomic import atomic_write
 
-__all__ = ["FORMAT_VERSION", "checked_fields", "check_tables", "to_dict", "from_dict", "save",
-           "load", "to_networkx", "to_graphml"]
+__all__ = ["FORMAT_VERSION", "checked_fields", "check_tables", "check_counts", "to_dict",
+           "from_dict", "save", "load", "to_networkx", "to_graphml"]
 
 FORMAT_VERSION = 1
 
@@ -149,6 +151,7 @@ def _json_transitions(rows, S: int, A: int) -> np.ndarray:
     if not isinstance(rows, list):
         raise ValueError(f"field transitions must be a list of rows, got {_short(rows)}")
     trans = np.zeros((S, A, S), dtype=np.int64)
+    first = {}
     for k, row in enumerate(rows):
         if not (isinstance(row, list) and len(row) == 4 and all(_is_int(v) for v in row)):
             raise ValueError(f"transitions[{k}] must be [state, action, next_state, count] "
@@ -157,6 +160,11 @@ def _json_transitions(rows, S: int, A: int) -> np.ndarray:
         if not (0 <= x < S and 0 <= a < A and 0 <= y < S and 0 <= n <= _INT_LIMIT):
             raise ValueError(f"transitions[{k}] = {row} is out of range (states 0..{S - 1}, "
                              f"actions 0..{A - 1}, a count >= 0)")
+        if (x, a, y) in first:
+            raise ValueError(f"transitions[{k}] repeats (state, action, next_state) = "
+                             f"({x}, {a}, {y}) of transitions[{first[x, a, y]}]; each is "
+                             "listed once, with its count")
+        first[x, a, y] = k
         trans[x, a, y] = n
     return trans
 
@@ -249,6 +257,39 @@ def _check_values(m) -> None:
                          f"{int(gds.max())}")
 
 
+def check_counts(m) -> None:
+    """The counts of the map ``m`` are those of one labelled walk, as in every map topomap
+    learns (``count_tables``; ``partial_fit`` adds each new step once and each transition
+    between its steps once): for every state ``s``
+
+    * ``states[s].action_counts`` sum to ``states[s].count``: every step takes one action;
+    * the transitions leaving ``s`` by action ``a`` number at most ``action_counts[a]``: each
+      leaves from one step of ``s`` that took ``a`` (an episode's last step leaves by none);
+    * the transitions arriving in ``s`` number at most ``states[s].count``: each arrives at one
+      step of ``s`` (an episode's first step is reached by none).
+
+    A map made in Python may hold any counts; a map file may not (:func:`load`, :func:`save`).
+    Sums are taken in floats, which no hostile count can wrap around."""
+    steps = m.action_counts.sum(axis=1, dtype=np.float64)
+    s = _first_bad(steps == m.state_counts)
+    if s is not None:
+        raise ValueError(f"states[{s}].action_counts sum to {steps[s]:.0f} but states[{s}].count "
+                         f"is {m.state_counts[s]}: every step takes one action")
+    leaving = m.transition_counts.sum(axis=2, dtype=np.float64)
+    s = _first_bad(leaving <= m.action_counts)
+    if s is not None:
+        a = int(np.flatnonzero(leaving[s] > m.action_counts[s])[0])
+        raise ValueError(f"transitions leave state {s} by action {a} {leaving[s, a]:.0f} times "
+                         f"but states[{s}].action_counts[{a}] is {m.action_counts[s, a]}: each "
+                         "leaves from a step counted there")
+    arriving = m.transition_counts.sum(axis=(0, 1), dtype=np.float64)
+    s = _first_bad(arriving <= m.state_counts)
+    if s is not None:
+        raise ValueError(f"transitions arrive in state {s} {arriving[s]:.0f} times but "
+                         f"states[{s}].count is {m.state_counts[s]}: each arrives at a step "
+                         "counted there")
+
+
 # ------------------------------------------------------------------ JSON
 def to_dict(m) -> dict:
     """The JSON object of the map ``m`` (what :func:`save` writes, keys sorted)."""
@@ -286,6 +327,10 @@ def to_dict(m) -> dict:
 def save(m, path) -> Path:
     """Write the map ``m`` as JSON (atomically: the file appears only when complete)."""
     path = Path(path)
+    try:
+        check_counts(m)
+    except ValueError as exc:
+        raise ValueError(f"map file {path} not written: {exc}") from None
     text = json.dumps(to_dict(m), indent=1, sort_keys=True)
 
     def write(tmp):
@@ -297,7 +342,7 @@ def save(m, path) -> Path:
 
 def from_dict(cls, d: dict):
     """The map (of class ``cls``) described by ``d``, what :func:`to_dict` returns; every field
-    is checked."""
+    is checked, and the counts with :func:`check_counts`."""
     if not isinstance(d, dict):
         raise ValueError(f"a map must be a JSON object, got {_short(d)}")
     if d.get("format") != "topomap.map":
@@ -320,13 +365,14 @@ def from_dict(cls, d: dict):
             raise ValueError(f"states[*].{key} must each have shape {shape} (n_actions={A}, "
                              f"n_features={D}, covariance_type={kind}), got "
                              f"{col[key].shape[1:]}")
-    return cls(col["symbol"], col["gds"], col["parent"], col["mean"], col["covariance"],
-               col["count"], col["action_counts"],
-               _json_transitions(_field(d, "transitions"), S, A),
-               action_names=_json_names(d, "action_names"),
-               gds_names=_json_names(d, "gds_names"),
-               split_history=d.get("split_history", ()),
-               entropy_history=d.get("entropies", ()), info=d.get("info"))
+    m = cls(col["symbol"], col["gds"], col["parent"], col["mean"], col["covariance"],
+            col["count"], col["action_counts"],
+            _json_transitions(_field(d, "transitions"), S, A),
+            action_names=_json_names(d, "action_names"), gds_names=_json_names(d, "gds_names"),
+            split_history=d.get("split_history", ()),
+            entropy_history=d.get("entropies", ()), info=d.get("info"))
+    check_counts(m)
+    return m
 
 
 def load(cls, path):
@@ -363,7 +409,7 @@ def to_networkx(m, min_prob: float = 0.0):
                    count=int(m.state_counts[s]))
     xs, us, ys = np.nonzero((C > 0) & (P > min_prob))
     for x, a, y in zip(xs.tolist(), us.tolist(), ys.tolist()):
-        name = m.action_names[a] if m.action_names else str(a)
+        name = m.action_label(a)
         if G.has_edge(x, y):
             d = G.edges[x, y]
             d["actions"].append(a)

@@ -1,6 +1,8 @@
-"""Inference on a learned map in bounded memory: log-densities, forward, filtering, Viterbi.
+"""Inference on a learned map in bounded memory: log-densities, forward, filtering,
+forward-backward, Viterbi and a path's log-probability.
 
-:class:`~topomap.core.map.model.TopologicalMap`'s ``score``, ``filter`` and ``predict`` call these.
+:class:`~topomap.core.map.model.TopologicalMap`'s ``score``, ``filter``, ``predict``,
+``predict_proba``, ``score_samples`` and ``decode`` call these.
 A sequence is processed in chunks of steps: the Gaussian log-densities of a chunk under every
 *observation model* (states split from one symbol share it: :func:`tied_gaussians`) in the matmul
 form, then compiled recursions over the sparse smoothed transitions
@@ -9,8 +11,11 @@ the kernels read into a :class:`Query`.  Memory: the
 chunk's (rows x models) log-densities (at most :data:`topomap.core.map.observations.CHUNK_BYTES`),
 O(S + seen transitions) tables, and for ``predict`` one chunk of back-pointers (rows x S int32)
 plus one ``delta`` per chunk (checkpointed Viterbi: the recursion runs twice, the second time
-chunk by chunk backwards).  Nothing grows with T but the outputs: the (T,) path of ``predict`` and
-the (T, S) beliefs of ``filter``.
+chunk by chunk backwards).  Forward-backward keeps the scaled forward variables in its output and
+turns them into posteriors chunk by chunk backwards (the log-densities are computed again), each
+step scaled to sum to 1, so nothing underflows however long the sequence.  Nothing grows with T
+but the outputs: the (T,) path of ``predict`` and the (T, S) beliefs of ``filter`` and
+posteriors of ``predict_proba``.
 
 Emission pruning (``prune=True``, the default): at every step the states whose emission lies more
 than :func:`topomap.core.map.kernels.prune_threshold` nats below the step's best are skipped.  Every
@@ -28,8 +33,8 @@ from . import kernels as K
 from .observations import log_density_chunks
 from ..data.trajectory import check_sequences
 
-__all__ = ["Query", "tied_gaussians", "log_densities", "setup", "forward", "filtered", "viterbi",
-           "emission_row", "predicted"]
+__all__ = ["Query", "tied_gaussians", "log_densities", "setup", "forward", "filtered",
+           "posteriors", "viterbi", "path_log_prob", "emission_row", "predicted"]
 
 
 class Query(NamedTuple):
@@ -126,25 +131,30 @@ def setup(m, observations, actions, gds, lengths, smoothing: float, prune: bool)
                  _transitions(m, smoothing))
 
 
-def _recursion(q: Query, kernel, out=None):
-    """Run a forward-type kernel over every chunk; returns the summed log-likelihood (forward)."""
+def _recursion(q: Query, kernel, out) -> tuple[float, list]:
+    """Run a forward-type kernel over every chunk (``out``: its per-step output, or an empty
+    array); returns the summed log-likelihood (forward) and the chunks' slices."""
     S = q.n_states
     alpha, live = np.zeros(S), np.zeros(S, dtype=np.int64)
-    n_live, prev, total = 0, 0, 0.0
+    n_live, prev, total, slices = 0, 0, 0.0, []
     for start, logp in log_density_chunks(q.X, q.means, q.cov):
         sl = slice(start, start + logp.shape[0])
-        args = (logp, q.chunk(sl), q.tables, q.trans, alpha, live, n_live, prev)
-        if out is None:
-            part, n_live, prev = kernel(*args)
-            total += part
-        else:
-            n_live, prev = kernel(*args, out[sl])
-    return total
+        *part, n_live, prev = kernel(logp, q.chunk(sl), q.tables, q.trans, alpha, live, n_live,
+                                     prev, out[sl])
+        total += part[0] if part else 0.0
+        slices.append(sl)
+    return total, slices
+
+
+def _chunk_densities(q: Query, sl: slice) -> np.ndarray:
+    """(rows, models) log-densities of the steps ``sl`` (one chunk of :func:`_recursion`)."""
+    return next(log_density_chunks(q.X[sl], q.means, q.cov, chunk_rows=sl.stop - sl.start))[1]
 
 
 def forward(q: Query) -> float:
     """Mean log-likelihood per step (natural log) of the sequence of :func:`setup`."""
-    return float(_recursion(q, K.forward_chunk) / q.X.shape[0])
+    total, _ = _recursion(q, K.forward_chunk, np.empty((0, q.n_states)))
+    return float(total / q.X.shape[0])
 
 
 def filtered(q: Query) -> np.ndarray:
@@ -154,11 +164,35 @@ def filtered(q: Query) -> np.ndarray:
     return out
 
 
+def posteriors(q: Query) -> tuple[float, np.ndarray]:
+    """``(log-likelihood, posteriors)`` of the sequence of :func:`setup` by forward-backward:
+    the summed log-likelihood (natural log, every episode) and the (T, S) ``P(x_t | o, u)`` of
+    every step given its whole episode, rows summing to 1."""
+    out = np.zeros((q.X.shape[0], q.n_states))
+    total, slices = _recursion(q, K.forward_chunk, out)
+    v = np.zeros(q.n_states)
+    for sl in reversed(slices):
+        K.backward_chunk(_chunk_densities(q, sl), q.chunk(sl), q.tables, q.trans, v, out[sl])
+    return float(total), out
+
+
+def path_log_prob(q: Query, path: np.ndarray) -> float:
+    """Joint log-probability ``log P(o, u, x)`` (natural log, summed over the episodes) of the
+    sequence of :func:`setup` with the states ``path``."""
+    total, state, action = 0.0, 0, 0
+    for start, logp in log_density_chunks(q.X, q.means, q.cov):
+        sl = slice(start, start + logp.shape[0])
+        part, state, action = K.path_chunk(logp, q.chunk(sl), q.tables, q.trans, path[sl],
+                                           state, action)
+        total += part
+    return float(total)
+
+
 def _viterbi_pass(q: Query, sl, carry, back, end_state, logp=None):
     """Run the Viterbi kernel on the steps ``sl`` from the carried state ``carry`` =
     ``(delta, live, n_live, prev_action)``; returns the state after them."""
     if logp is None:
-        logp = next(log_density_chunks(q.X[sl], q.means, q.cov, chunk_rows=sl.stop - sl.start))[1]
+        logp = _chunk_densities(q, sl)
     delta, live, n_live, prev = carry
     n_live, prev = K.viterbi_chunk(logp, q.chunk(sl), q.tables, q.trans, delta, live, n_live,
                                    prev, back, end_state)

@@ -1,5 +1,6 @@
-"""Compiled kernels of inference on a learned map: forward (score, filter) and Viterbi (predict)
-over sparse, smoothed transitions, one chunk of steps at a time (``*_chunk``).
+"""Compiled kernels of inference on a learned map: forward (score, filter), backward (the
+smoothed posteriors of forward-backward), Viterbi (predict) and a path's log-probability, over
+sparse, smoothed transitions, one chunk of steps at a time (``*_chunk``).
 
 The tables the kernels share come as named tuples: :class:`Steps` (one chunk's actions, GDS
 labels and episode marks), :class:`StateTables` (the per-state terms) and :class:`Transitions`
@@ -36,7 +37,8 @@ import numpy as np
 from numba import njit
 
 __all__ = ["Steps", "StateTables", "Transitions", "prune_threshold", "emissions",
-           "predict_forward", "forward_chunk", "filter_chunk", "viterbi_chunk", "backtrack_chunk"]
+           "predict_forward", "predict_backward", "forward_chunk", "backward_chunk",
+           "filter_chunk", "viterbi_chunk", "backtrack_chunk", "log_transition", "path_chunk"]
 
 
 class Steps(NamedTuple):
@@ -124,17 +126,20 @@ def predict_forward(alpha, live, n_live, a, trans, pred):
 
 
 @njit(cache=True)
-def forward_chunk(logp, steps, tables, trans, alpha, live, n_live, prev_action):
+def forward_chunk(logp, steps, tables, trans, alpha, live, n_live, prev_action, out):
     """Scaled forward pass over one chunk: ``logp`` its (rows, models) log-densities, ``steps``
     its :class:`Steps`, ``tables`` the :class:`StateTables`, ``trans`` the :class:`Transitions`.
-    ``alpha``/``live``/``n_live``/``prev_action`` carry the state between chunks.  Returns
-    ``(sum of log-likelihood increments, n_live, prev_action)``."""
+    ``alpha``/``live``/``n_live``/``prev_action`` carry the state between chunks.  With
+    ``out.shape[0] > 0`` row ``t`` of ``out`` gets the normalised forward variable of step ``t``,
+    ``P(x_t | o_1..o_t, u_1..u_t)`` (what :func:`backward_chunk` reads).  Returns ``(sum of
+    log-likelihood increments, n_live, prev_action)``."""
     u, g, is_start = steps.u, steps.g, steps.is_start
     log_act, model, state_gds, prune = tables.log_act, tables.model, tables.state_gds, tables.prune
     S = alpha.size
     e = np.empty(S)
     pred = np.empty(S)
     new_live = np.empty(S, dtype=np.int64)
+    store = out.shape[0] > 0
     total = 0.0
     for t in range(logp.shape[0]):
         best, n_new = emissions(logp[t], log_act, model, state_gds, u[t], g[t], prune, e, new_live)
@@ -150,11 +155,70 @@ def forward_chunk(logp, steps, tables, trans, alpha, live, n_live, prev_action):
             c += alpha[j]
         for k in range(n_new):
             alpha[new_live[k]] /= c
+        if store:
+            out[t, :] = alpha
         live[:n_new] = new_live[:n_new]
         n_live = n_new
         total += np.log(c) + best
         prev_action = u[t]
     return total, n_live, prev_action
+
+
+@njit(cache=True)
+def predict_backward(v, live, n_live, a, trans, beta):
+    """``beta[i] = (T_a @ v)[i]`` for the states ``i`` in ``live`` (``trans``:
+    :class:`Transitions`); ``v`` is any non-negative vector."""
+    indptr, indices, data, seen = trans.indptr, trans.indices, trans.data, trans.seen
+    total = 0.0
+    for j in range(v.size):
+        total += v[j]
+    for k in range(n_live):
+        i = live[k]
+        r = i * trans.n_actions + a
+        if not seen[r]:
+            beta[i] = (trans.uni + trans.eps_s) * total
+            continue
+        b = trans.eps_s * total
+        for p in range(indptr[r], indptr[r + 1]):
+            b += data[p] * v[indices[p]]
+        beta[i] = b
+
+
+@njit(cache=True)
+def backward_chunk(logp, steps, tables, trans, v, out):
+    """Backward pass over one chunk, last step first.  ``out`` holds the chunk's rows of
+    :func:`forward_chunk`'s ``out`` and becomes the posteriors ``P(x_t | the whole episode)``
+    (every row sums to 1).  ``v`` carries, between chunks, ``P(o_{t+1}, u_{t+1}|x) beta_{t+1}``
+    of the step after the chunk, scaled to sum to 1 (any scale gives the same rows); at the last
+    step of an episode ``beta`` is 1.  Arguments as :func:`forward_chunk`."""
+    u, g, is_end = steps.u, steps.g, steps.is_end
+    log_act, model, state_gds, prune = tables.log_act, tables.model, tables.state_gds, tables.prune
+    S = v.size
+    e = np.empty(S)
+    beta = np.zeros(S)
+    live = np.empty(S, dtype=np.int64)
+    for t in range(logp.shape[0] - 1, -1, -1):
+        best, n_live = emissions(logp[t], log_act, model, state_gds, u[t], g[t], prune, e, live)
+        if is_end[t]:
+            for k in range(n_live):
+                beta[live[k]] = 1.0
+        else:
+            predict_backward(v, live, n_live, u[t], trans, beta)
+        c = 0.0
+        for k in range(n_live):
+            j = live[k]
+            out[t, j] *= beta[j]
+            c += out[t, j]
+        for k in range(n_live):
+            out[t, live[k]] /= c
+        v[:] = 0.0
+        c = 0.0
+        for k in range(n_live):
+            j = live[k]
+            v[j] = np.exp(e[j] - best) * beta[j]
+            c += v[j]
+        for k in range(n_live):
+            v[live[k]] /= c
 
 
 @njit(cache=True)
@@ -294,3 +358,37 @@ def filter_chunk(logp, steps, tables, trans, alpha, live, n_live, prev_action, o
         n_live = n_new
         prev_action = u[t]
     return n_live, prev_action
+
+
+@njit(cache=True)
+def log_transition(trans, i, a, j):
+    """``log T_a[i, j]`` of the smoothed transitions (``trans``: :class:`Transitions`)."""
+    r = i * trans.n_actions + a
+    if not trans.seen[r]:
+        return trans.log_uni
+    for p in range(trans.indptr[r], trans.indptr[r + 1]):
+        if trans.indices[p] == j:
+            return trans.logdata[p]
+    return trans.log_eps_s
+
+
+@njit(cache=True)
+def path_chunk(logp, steps, tables, trans, path, prev_state, prev_action):
+    """Joint log-probability of the states ``path`` of one chunk with the chunk's observations
+    and actions: ``log P(x_1)`` at an episode's first step, else ``log T_{u_{t-1}}[x_{t-1}, x_t]``,
+    plus every step's emission (``-inf`` where the GDS clamp forbids the state).  Arguments as
+    :func:`forward_chunk`; ``prev_state``/``prev_action`` carry the last step between chunks.
+    Returns ``(log-probability, prev_state, prev_action)``."""
+    u, g, is_start = steps.u, steps.g, steps.is_start
+    total = 0.0
+    for t in range(path.size):
+        j = path[t]
+        gj = tables.state_gds[j]
+        ok = g[t] == -2 or (g[t] == -1 and gj < 0) or (g[t] >= 0 and gj == g[t])
+        if is_start[t]:
+            total += tables.log_init[j]
+        else:
+            total += log_transition(trans, prev_state, prev_action, j)
+        total += logp[t, tables.model[j]] + tables.log_act[j, u[t]] if ok else -np.inf
+        prev_state, prev_action = j, u[t]
+    return total, prev_state, prev_action

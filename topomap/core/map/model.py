@@ -4,9 +4,12 @@ A :class:`TopologicalMap` holds, for every state, where it came from (its K-mean
 GDS id, and the state it was split from), the Gaussian observation model ``P(o|x)``, the counts
 behind ``P(u|x)`` and ``P(x'|x,u)``, and the learning record (split history and the three entropies
 after phase 1 and after every split).  It is estimated from labelled steps (:meth:`from_labels`),
-decodes new sequences (:meth:`predict`, Viterbi), scores them (:meth:`score`, forward algorithm)
-and filters them (:meth:`filter`) through :mod:`topomap.core.map.inference`.  Its files (JSON,
-GraphML, networkx) are :mod:`topomap.core.map.files`, its planning :mod:`topomap.core.map.planning`.
+decodes new sequences (:meth:`predict`, Viterbi; :meth:`decode`), scores them (:meth:`score`,
+forward algorithm), filters them (:meth:`filter`) and gives every step's posterior
+(:meth:`predict_proba`, :meth:`score_samples`, forward-backward) through
+:mod:`topomap.core.map.inference`, with hmmlearn's names and return values.  It draws walks
+(:meth:`sample`, :mod:`topomap.core.map.sampling`).  Its files (JSON, GraphML, networkx) are
+:mod:`topomap.core.map.files`, its planning :mod:`topomap.core.map.planning`.
 
 Observation models are *tied*: states split from the same symbol share that symbol's Gaussian, as
 in the paper, where splitting refines the state set without touching ``P(o|x)``.  Hence
@@ -20,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import files, inference, planning
+from . import files, inference, planning, sampling
 from .files import FORMAT_VERSION
 from .observations import observation_models
 from ..data.trajectory import as_float_observations
@@ -189,6 +192,59 @@ class TopologicalMap:
         s = inference.setup(self, observations, actions, gds, lengths, smoothing, prune)
         return inference.filtered(s)
 
+    def predict_proba(self, observations, actions, gds=None, lengths=None, *, smoothing=1e-6,
+                      prune=True) -> np.ndarray:
+        """Posterior probability of every state at every step given the whole episode
+        (forward-backward, also called smoothing), as hmmlearn's ``predict_proba``.
+
+        Row ``t`` is ``P(x_t | o_1..o_n, u_1..u_n)`` over the ``n`` steps of ``t``'s episode:
+        unlike :meth:`filter`, later steps count too.  Returns a (T, S) float array whose rows
+        sum to 1; arguments as :meth:`predict`.  Memory beyond the output does not grow with T.
+        """
+        return self.score_samples(observations, actions, gds, lengths, smoothing=smoothing,
+                                  prune=prune)[1]
+
+    def score_samples(self, observations, actions, gds=None, lengths=None, *, smoothing=1e-6,
+                      prune=True) -> tuple[float, np.ndarray]:
+        """``(log_prob, posteriors)`` in one forward-backward pass, as hmmlearn's
+        ``score_samples``: ``log_prob`` is the log-likelihood ``log P(o, u)`` of the whole
+        sequence (natural log, summed over the episodes: T times :meth:`score`, which is per
+        step), ``posteriors`` what :meth:`predict_proba` returns."""
+        s = inference.setup(self, observations, actions, gds, lengths, smoothing, prune)
+        return inference.posteriors(s)
+
+    def decode(self, observations, actions, gds=None, lengths=None, *, algorithm="viterbi",
+               smoothing=1e-6, prune=True) -> tuple[float, np.ndarray]:
+        """``(log_prob, states)``: the states of every step and a log-probability, as
+        hmmlearn's ``decode``.
+
+        ``algorithm="viterbi"``: the most probable state path (:meth:`predict`) and its joint
+        log-probability with the data, ``log P(o, u, x)``, summed over the episodes.
+        ``algorithm="map"``: every step's most probable state on its own (the argmax of a row of
+        :meth:`predict_proba`; the sequence may hold a move the map makes improbable) and the
+        log-likelihood ``log P(o, u)`` of :meth:`score_samples`.  Arguments as :meth:`predict`.
+        """
+        if algorithm not in ("viterbi", "map"):
+            raise ValueError(f"algorithm must be 'viterbi' or 'map', got {algorithm!r}")
+        s = inference.setup(self, observations, actions, gds, lengths, smoothing, prune)
+        if algorithm == "map":
+            log_prob, post = inference.posteriors(s)
+            return log_prob, post.argmax(axis=1)
+        path = inference.viterbi(s)
+        return inference.path_log_prob(s, path), path
+
+    def sample(self, n_samples: int = 1, actions=None, random_state=None, *,
+               currstate: int | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """A walk drawn from the map: ``(X, actions, states)``, (n_samples, D) observations and
+        the (n_samples,) actions and states; see :func:`topomap.core.map.sampling.sample`.
+
+        ``actions``: None draws each step's action from ``P(u|x)``; an array of n_samples action
+        ids is followed; a callable ``policy(state, executable)`` is asked for every action.
+        ``random_state``: an int, None or a ``numpy.random.Generator``.  ``currstate``: the
+        first state (default: drawn from the map's state frequencies), as in hmmlearn.
+        """
+        return sampling.sample(self, n_samples, actions, random_state, currstate)
+
     def step_belief(self, belief, action: int, observation, gds: int | None = None, *,
                     smoothing: float = 1e-6) -> np.ndarray:
         """One step of :meth:`filter`: the belief after taking ``action`` from ``belief`` and then
@@ -208,12 +264,20 @@ class TopologicalMap:
             raise ValueError(f"action must be an action id in [0, {self.n_actions}), got {action!r}")
         return _normalised(np.log(inference.predicted(s, belief, int(action))) + emit)
 
-    def plan(self, start: int, goal, *, min_prob: float = 0.0) -> list[int]:
+    def plan(self, start: int, goal, *, min_prob: float = 0.0,
+             names: bool = False) -> list[int] | list[str]:
         """Actions of the most probable path from state ``start`` to ``goal`` (a state or an
-        iterable of states); see :func:`topomap.core.map.planning.plan`."""
-        return planning.plan(self, start, goal, min_prob)
+        iterable of states), as action ids; with ``names=True`` as the map's action names, or
+        the ids written as strings (``"0"``) where the map has none, the labels of
+        :meth:`to_networkx`.  See :func:`topomap.core.map.planning.plan`."""
+        actions = planning.plan(self, start, goal, min_prob)
+        return [self.action_label(a) for a in actions] if names else actions
 
     # ------------------------------------------------------------------ files and graphs
+    def action_label(self, a: int) -> str:
+        """The name of action ``a``: its entry of :attr:`action_names`, or ``str(a)``."""
+        return self.action_names[a] if self.action_names else str(a)
+
     def state_label(self, s: int) -> str:
         if self.state_gds[s] >= 0:
             g = int(self.state_gds[s])

@@ -3,7 +3,10 @@
 A robot's log, and a rat's path, are continuous motion sampled at the sensor's rate.  The arena
 simulates that with ratinabox (George et al. 2024, eLife, doi 10.7554/eLife.85274): its
 ``Environment`` holds the floor plan, its ``Agent`` moves at random the way rats do, and its two
-recorded rat paths (Sargolini et al. 2006; Tanni et al. 2022) can be replayed.
+recorded rat paths (Sargolini et al. 2006; Tanni et al. 2022) can be replayed.  The package
+imports without ratinabox (its components and their configs are known); building a world, or
+reading a rat's path, without it is a one-line
+:class:`~topomap.worlds.minigrid.MissingDependencyError` saying how to install it.
 
 ==================  ===========================================================================
 module              its one job
@@ -16,19 +19,12 @@ module              its one job
 ``sensors``         range finder, boundary-vector and object-vector cells
 ``actions``         discrete actions read off the motion: compass octants, differential-drive turns
 ``world``           :class:`ArenaWorld`: the world that ties them together
-``checks``          argument checks the components share
+``plot``            the floor plan drawn on a matplotlib Axes
+``checks``          argument checks the components share; ratinabox asked for
 ==================  ===========================================================================
 """
 
 from ..minigrid import MissingDependencyError
-
-try:
-    import ratinabox  # noqa: F401
-except ImportError as _exc:
-    raise MissingDependencyError(
-        f"the arena world needs the optional ratinabox package ({_exc}); "
-        'install it with: pip install "topomap[arena]"') from None
-
 from .actions import ACTION_RULES, CompassActions, TurnActions
 from .floorplan import floorplan_from_dict, load_floorplan
 from .layouts import LAYOUTS, Layout, builtin_layout

@@ -26,10 +26,11 @@ from pathlib import Path
 
 import numpy as np
 
+from ...core.checks import ParameterError
 from .layouts import Layout, open_box
 from .motion import isolated_global_rng
 
-__all__ = ["DATASETS", "RecordedPath", "load_path"]
+__all__ = ["DATASETS", "RecordedPath", "load_path", "bad_path"]
 
 #: the recorded paths that ship with ratinabox, and the box each was recorded in
 DATASETS = {"sargolini": (1.0, 1.0), "tanni": (3.5, 2.5)}
@@ -41,18 +42,22 @@ def _dataset_file(name: str) -> Path:
     return Path(ratinabox.__file__).resolve().parent / "data" / f"{name}.npz"
 
 
+def bad_path(source, problem: str) -> ParameterError:
+    """The error of a bad recorded path: ``path=<source>: <problem>``, naming the parameter."""
+    return ParameterError("path", f"={source}: {problem}")
+
+
 def _read_npz(path: Path) -> tuple:
     try:
         with np.load(path, allow_pickle=False) as data:
             arrays = {k: data[k] for k in data.files}
     except Exception as exc:  # not a zip, pickled objects, truncated
-        raise ValueError(f"path {path} is not a valid .npz file: "
-                         f"{' '.join(str(exc).split())}") from None
+        raise bad_path(path, f"not a valid .npz file: {' '.join(str(exc).split())}") from None
     for t_key, p_key in (("t", "pos"), ("times", "positions")):
         if t_key in arrays and p_key in arrays:
             return arrays[t_key], arrays[p_key]
-    raise ValueError(f"path {path} needs the arrays t and pos (or times and positions), "
-                     f"has {', '.join(sorted(arrays)) or 'none'}")
+    raise bad_path(path, f"needs the arrays t and pos (or times and positions), has "
+                         f"{', '.join(sorted(arrays)) or 'none'}")
 
 
 def _read_csv(path: Path) -> tuple:
@@ -61,28 +66,30 @@ def _read_csv(path: Path) -> tuple:
             header = [h.strip() for h in fh.readline().split(",")]
         table = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
     except (OSError, UnicodeDecodeError, ValueError) as exc:
-        raise ValueError(f"path {path} could not be read as CSV: "
-                         f"{' '.join(str(exc).split())}") from None
+        raise bad_path(path, f"could not be read as CSV: {' '.join(str(exc).split())}") from None
     if header != ["t", "x", "y"]:
-        raise ValueError(f"path {path} must have the header t,x,y, got {','.join(header)}")
+        raise bad_path(path, f"must have the header t,x,y, got {','.join(header)}")
     return table[:, 0], table[:, 1:3]
 
 
 def _checked(times, positions, source: str) -> tuple[np.ndarray, np.ndarray]:
     """Times strictly increasing and finite, positions (N, 2) finite, N >= 4."""
-    t = np.asarray(times, dtype=np.float64).ravel()
+    t = np.asarray(times, dtype=np.float64)
+    t = t.reshape(-1) if t.ndim > 1 and t.size == max(t.shape) else t  # a column: (N, 1)
     P = np.asarray(positions, dtype=np.float64)
+    if t.ndim != 1:
+        raise bad_path(source, f"the times must be one array of N seconds, got shape {t.shape}")
     if P.ndim != 2 or P.shape[1] != 2 or P.shape[0] != t.size:
-        raise ValueError(f"path {source}: positions must have shape ({t.size}, 2) to match the "
-                         f"{t.size} times, got {P.shape}")
+        raise bad_path(source, f"the positions must have shape ({t.size}, 2) to match the "
+                               f"{t.size} times, got {P.shape}")
     if t.size < 4:
-        raise ValueError(f"path {source} has {t.size} samples; at least 4 are needed")
+        raise bad_path(source, f"has {t.size} samples; at least 4 are needed")
     if not (np.isfinite(t).all() and np.isfinite(P).all()):
-        raise ValueError(f"path {source}: times and positions must be finite (no NaN or inf)")
+        raise bad_path(source, "times and positions must be finite (no NaN or inf)")
     if np.any(np.diff(t) <= 0):
         bad = int(np.flatnonzero(np.diff(t) <= 0)[0]) + 1
-        raise ValueError(f"path {source}: times must increase, but sample {bad} is not later "
-                         "than the one before")
+        raise bad_path(source, f"times must increase, but sample {bad} is not later than the "
+                               "one before")
     return t - t[0], P
 
 
@@ -96,16 +103,19 @@ class RecordedPath:
     """
 
     def __init__(self, source: str):
+        from .checks import require_ratinabox
+
+        require_ratinabox()
         self.source = str(source)
         if self.source in DATASETS:
             t, P = _read_npz(_dataset_file(self.source))
         else:
             path = Path(self.source)
             if path.suffix.lower() not in (".npz", ".csv"):
-                raise ValueError(f"path {self.source!r} is neither a recorded path of ratinabox "
-                                 f"({', '.join(DATASETS)}) nor a .npz or .csv file")
+                raise bad_path(self.source, f"is neither a recorded path of ratinabox "
+                                            f"({', '.join(DATASETS)}) nor a .npz or .csv file")
             if not path.is_file():
-                raise ValueError(f"path {path} does not exist")
+                raise bad_path(path, "does not exist")
             t, P = _read_npz(path) if path.suffix.lower() == ".npz" else _read_csv(path)
         self.times, self.positions = _checked(t, P, self.source)
         self._spline = None

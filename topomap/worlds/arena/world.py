@@ -8,7 +8,8 @@ seconds; a sensor (:mod:`.sensors`) that reads all positions at once; an action 
 :class:`~topomap.Trajectory` with noise-free observations, the actions and the true
 ``positions``; no ``places``: the arena has no discrete places, its scores are in metres
 (:mod:`topomap.core.position_scores`, with :meth:`ArenaWorld.region_of` for the wrong-region
-share).
+share).  ``heldout_walk`` gives the walk such scores are taken on: another random walk, or the
+end of a recorded path.
 """
 
 from __future__ import annotations
@@ -24,11 +25,12 @@ from ...core.data.trajectory import Trajectory
 from ..checks import check_no_extra_actions
 from ..explorers import RandomExplorer
 from .actions import make_action_rule
-from .checks import non_negative, positive
+from .checks import non_negative, positive, require_ratinabox
 from .floorplan import FLOORPLAN_SUFFIXES, load_floorplan
-from .layouts import Layout, builtin_layout
+from .layouts import LAYOUTS, Layout, builtin_layout
 from .motion import MOTION_PARAMETERS, Motion, random_motion
 from .paths import RecordedPath
+from .plot import plot_layout
 from .sensors import make_sensor
 
 __all__ = ["ArenaWorld", "Arena", "make_layout"]
@@ -53,9 +55,24 @@ class Arena:
         return cls(layout, env)
 
 
-def make_layout(layout, recording: RecordedPath | None) -> Layout:
+def _floorplan(path, param: str) -> Layout:
+    """The floor plan in the file ``path``; its problems are errors naming ``param``."""
+    try:
+        return load_floorplan(path)
+    except ValueError as exc:
+        detail = str(exc).removeprefix(f"floor plan {Path(path)}: ")
+        raise ParameterError(param, f"={path}: {detail}") from None
+
+
+def make_layout(layout, recording: RecordedPath | None, floorplan: str | None = None) -> Layout:
     """The :class:`Layout` meant by ``layout``: a Layout, a built-in name, a floor-plan file, or
-    ``"auto"`` (a shipped recording's box, else ``two_rooms``)."""
+    ``"auto"`` (a shipped recording's box, else ``two_rooms``); or the floor-plan file
+    ``floorplan`` (then ``layout`` must be ``"auto"``)."""
+    if floorplan not in (None, ""):
+        if layout != "auto":
+            raise ParameterError("floorplan", f"={floorplan} and layout={layout!r} both name the "
+                                              "floor plan: give one of them")
+        return _floorplan(floorplan, "floorplan")
     if isinstance(layout, Layout):
         return layout
     if not isinstance(layout, str):
@@ -69,7 +86,11 @@ def make_layout(layout, recording: RecordedPath | None) -> Layout:
                                            "give a built-in layout or a floor-plan file")
         return recording.layout()
     if Path(layout).suffix.lower() in FLOORPLAN_SUFFIXES:
-        return load_floorplan(layout)
+        return _floorplan(layout, "layout")
+    if layout not in LAYOUTS:
+        raise ParameterError("layout", f"={layout!r} is neither a built-in layout "
+                                       f"({', '.join(LAYOUTS)}) nor a floor-plan file (.yaml, "
+                                       ".yml or .json)")
     return builtin_layout(layout)
 
 
@@ -89,6 +110,9 @@ class ArenaWorld:
         A built-in layout (``open``, ``two_rooms``, ``four_rooms``, ``corridor``), a floor-plan
         file (``.yaml``, ``.yml``, ``.json``), a :class:`Layout`, or ``"auto"``: the box of a
         shipped recording, else ``two_rooms``.
+    floorplan : str or None
+        A floor-plan file (``.yaml``, ``.yml``, ``.json``; :func:`.floorplan.load_floorplan`),
+        the layout instead of ``layout`` (which must then be ``"auto"``).
     path : str or None
         None: ratinabox's random motion.  ``"sargolini"``, ``"tanni"`` or a ``.npz`` / ``.csv``
         file: that recorded path (:mod:`topomap.worlds.arena.paths`), the same for every rng.
@@ -113,13 +137,15 @@ rotational_velocity_coherence_time, thigmotaxis, wall_repel_distance, wall_repel
         Not supported: the action rule fixes the actions.
     """
 
-    def __init__(self, layout: str | Layout = "auto", path: str | None = None, dt: float = 0.1,
+    def __init__(self, layout: str | Layout = "auto", floorplan: str | None = None,
+                 path: str | None = None, dt: float = 0.1,
                  start: float = 0.0, sensor: str | object = "range",
                  actions: str | object = "compass", *, speed_mean: float = 0.08,
                  speed_coherence_time: float = 0.7, rotational_velocity_std: float = math.radians(120),
                  rotational_velocity_coherence_time: float = 0.08, thigmotaxis: float = 0.5,
                  wall_repel_distance: float = 0.1, wall_repel_strength: float = 1.0,
                  path_tolerance: float = 0.05, extra_actions=None):
+        require_ratinabox()
         check_no_extra_actions("arena", extra_actions)
         self.dt = positive("dt", dt)
         self.start = non_negative("start", start)
@@ -134,9 +160,12 @@ rotational_velocity_coherence_time, thigmotaxis, wall_repel_distance, wall_repel
                               for name, v in zip(MOTION_PARAMETERS, values)}
         if self.motion_params["thigmotaxis"] > 1:
             raise ParameterError("thigmotaxis", f"must be in [0, 1], got {thigmotaxis!r}")
-        self.arena = Arena.build(make_layout(layout, self.recording))
+        self.arena = Arena.build(make_layout(layout, self.recording, floorplan))
 
     # ------------------------------------------------------------------ what the world offers
+    #: the world moves by itself (ratinabox's motion or a recording): no explorer steers it
+    moves_itself = True
+
     @property
     def layout(self) -> Layout:
         return self.arena.layout
@@ -192,6 +221,31 @@ rotational_velocity_coherence_time, thigmotaxis, wall_repel_distance, wall_repel
         motion = Motion.from_samples(samples, self.dt, t0=first * self.dt)
         return self._trajectory(motion, {"first_step": first, "moved_onto_floor": moved})
 
+    def heldout_walk(self, n_steps: int, explorer, rng: np.random.Generator,
+                     after: int = 0) -> Trajectory:
+        """A walk to score a map learned from ``simulate(after, ...)`` on: for random motion
+        another walk, seeded from ``rng``; for a recorded path its LAST ``n_steps`` steps, which
+        may not overlap the ``after`` steps from ``start`` that ``simulate`` gives (a
+        :class:`ParameterError` naming ``n_steps`` says how many are left).  Its ``meta``
+        says which walk it is (``heldout``)."""
+        if self.recording is None:
+            traj = self.simulate(n_steps, explorer, rng)
+            traj.meta["heldout"] = f"another random walk (seed {traj.meta['seed']})"
+            return traj
+        n_steps = check_count(n_steps, "n_steps")
+        _check_explorer(explorer)
+        held = self.recording.n_steps(0.0, self.dt)
+        learned = round(self.start / self.dt) + check_count(after, "after", minimum=0)
+        if n_steps > held - learned:
+            raise ParameterError("n_steps", f"={n_steps} steps from the end of the path "
+                                 f"{self.recording.source} overlap the {learned} steps learned "
+                                 f"from: it holds {held} steps of {self.dt:g} s, so at most "
+                                 f"{max(held - learned, 0)} are left")
+        traj = self.walk_from(held - n_steps, n_steps)
+        traj.meta["heldout"] = (f"the last {n_steps} steps of the path {self.recording.source} "
+                                f"(steps {held - n_steps} to {held - 1} of {self.dt:g} s)")
+        return traj
+
     def _onto_floor(self, samples: np.ndarray, first: int) -> tuple[np.ndarray, int]:
         P, moved, worst = self.layout.move_inside(samples, self.path_tolerance)
         if worst is not None and worst[1] > self.path_tolerance:
@@ -202,18 +256,29 @@ rotational_velocity_coherence_time, thigmotaxis, wall_repel_distance, wall_repel
         return P, int(moved.sum())
 
     def _trajectory(self, motion: Motion, meta: dict) -> Trajectory:
-        X = self.sensor.sense(self.arena, motion)
-        u = np.asarray(self.action_rule.actions(motion), dtype=np.int64)
+        try:  # a problem of the sensor's or the rule's parameters, named as the world's parts
+            X = self.sensor.sense(self.arena, motion)
+        except ParameterError as err:
+            raise err.renamed(f"sensor.{err.param}") from None
+        try:
+            u = np.asarray(self.action_rule.actions(motion), dtype=np.int64)
+        except ParameterError as err:
+            raise err.renamed(f"actions.{err.param}") from None
         meta = {"world": "arena", "layout": self.layout.name, "dt": self.dt,
                 "path": None if self.recording is None else self.recording.source,
                 "sensor": repr(self.sensor), "actions": repr(self.action_rule), **meta}
         return Trajectory(observations=X, actions=u, positions=motion.positions,
                           action_names=self.action_names, meta=meta)
 
-    def plot_room(self, ax):
-        """Draw the floor plan (ratinabox's drawing) on ``ax``; returns ``ax``."""
-        self.arena.environment.plot_environment(fig=ax.figure, ax=ax, autosave=False)
-        return ax
+    @property
+    def wall_segments(self) -> np.ndarray:
+        """``(W, 2, 2)``: every wall of the floor plan as a segment (metres), for drawing."""
+        return self.layout.segments
+
+    def plot_room(self, ax, labels: bool = True):
+        """Draw the floor plan on ``ax`` (:func:`.plot.plot_layout`; ``labels``: the regions'
+        names); returns ``ax``."""
+        return plot_layout(self.layout, ax, labels=labels)
 
     def __repr__(self) -> str:
         source = "random motion" if self.recording is None else self.recording.source

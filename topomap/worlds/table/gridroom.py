@@ -97,6 +97,11 @@ class GridRoom(TableWorld):
                              "runs into the wall")
         return nxt
 
+    @property
+    def place_names(self) -> list[str]:
+        """Each place's name, for the interactive map: its cell, ``cell (x, y)``."""
+        return [f"cell ({int(x)}, {int(y)})" for x, y in self.cells]
+
     def meta(self) -> dict:
         """What a walk's trajectory records of the room: its size, symbols and seed."""
         return {

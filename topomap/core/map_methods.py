@@ -1,0 +1,70 @@
+"""The learner's methods that apply its learned map (``map_``) to new sequences: scikit-learn's
+``predict`` and ``score`` and hmmlearn's ``predict_proba``, ``score_samples``, ``decode`` and
+``sample``, each the :class:`~topomap.core.map.model.TopologicalMap` method of the same name."""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike
+from sklearn.utils.validation import check_is_fitted
+
+__all__ = ["MapMethods"]
+
+
+class MapMethods:
+    """What :class:`topomap.MapLearner` does with its ``map_``; each method raises
+    scikit-learn's ``NotFittedError`` before :meth:`fit` (or :meth:`partial_fit`)."""
+
+    def predict(self, observations: ArrayLike, actions: ArrayLike, gds: ArrayLike | None = None,
+                lengths: ArrayLike | None = None) -> np.ndarray:
+        """The most likely state of every step of a new sequence (Viterbi on the learned map:
+        :meth:`TopologicalMap.predict <topomap.core.map.model.TopologicalMap.predict>`).
+        Raises scikit-learn's ``NotFittedError`` before :meth:`fit` (or :meth:`partial_fit`)."""
+        check_is_fitted(self, "map_")
+        return self.map_.predict(observations, actions, gds=gds, lengths=lengths)
+
+    def score(self, observations: ArrayLike, actions: ArrayLike, gds: ArrayLike | None = None,
+              lengths: ArrayLike | None = None) -> float:
+        """Mean log-likelihood per step (nats; a log-density) of a new sequence under the learned
+        map (:meth:`TopologicalMap.score <topomap.core.map.model.TopologicalMap.score>`).
+        Raises scikit-learn's ``NotFittedError`` before :meth:`fit` (or :meth:`partial_fit`)."""
+        check_is_fitted(self, "map_")
+        return self.map_.score(observations, actions, gds=gds, lengths=lengths)
+
+    def predict_proba(self, observations: ArrayLike, actions: ArrayLike,
+                      gds: ArrayLike | None = None,
+                      lengths: ArrayLike | None = None) -> np.ndarray:
+        """(T, S) posterior of every state at every step given its whole episode
+        (forward-backward: :meth:`TopologicalMap.predict_proba
+        <topomap.core.map.model.TopologicalMap.predict_proba>`), as hmmlearn's."""
+        check_is_fitted(self, "map_")
+        return self.map_.predict_proba(observations, actions, gds=gds, lengths=lengths)
+
+    def score_samples(self, observations: ArrayLike, actions: ArrayLike,
+                      gds: ArrayLike | None = None,
+                      lengths: ArrayLike | None = None) -> tuple[float, np.ndarray]:
+        """``(log_prob, posteriors)``: the summed log-likelihood and :meth:`predict_proba` in
+        one pass (:meth:`TopologicalMap.score_samples
+        <topomap.core.map.model.TopologicalMap.score_samples>`), as hmmlearn's."""
+        check_is_fitted(self, "map_")
+        return self.map_.score_samples(observations, actions, gds=gds, lengths=lengths)
+
+    def decode(self, observations: ArrayLike, actions: ArrayLike, gds: ArrayLike | None = None,
+               lengths: ArrayLike | None = None, *,
+               algorithm: str = "viterbi") -> tuple[float, np.ndarray]:
+        """``(log_prob, states)`` by ``algorithm`` ``"viterbi"`` or ``"map"``
+        (:meth:`TopologicalMap.decode <topomap.core.map.model.TopologicalMap.decode>`), as
+        hmmlearn's."""
+        check_is_fitted(self, "map_")
+        return self.map_.decode(observations, actions, gds=gds, lengths=lengths,
+                                algorithm=algorithm)
+
+    def sample(self, n_samples: int = 1, actions=None, random_state=None, *,
+               currstate: int | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(X, actions, states)``: a walk drawn from the learned map
+        (:meth:`TopologicalMap.sample <topomap.core.map.model.TopologicalMap.sample>`);
+        ``random_state=None`` uses the learner's ``random_state``, as hmmlearn's."""
+        check_is_fitted(self, "map_")
+        seed = self.random_state if random_state is None else random_state
+        return self.map_.sample(n_samples, actions, seed, currstate=currstate)
+
