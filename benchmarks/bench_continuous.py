@@ -18,15 +18,18 @@ Cases (compass-aligned range beams plus Gaussian noise, compass actions; 10 Hz u
 Routes: ``split`` (the paper's map, ``motion="discrete"``), ``em`` (``refine="em"``,
 ``motion="discrete"``), ``views`` (K-means on the views, :func:`kmeans_view_scores`), ``ceiling``
 (the true places in topomap's model class, :func:`ceiling_scores`), ``positions`` (K-means on the
-true positions: the held-out steps placed by their true position), ``shipped`` (the call the
-check makes: ``MapLearner(n_clusters, n_states, refine="em", random_state=0)``, motion="auto"),
-``one_gate`` (the shipped route with one gate of 3 cell extents), ``no_odometry`` (places are
-the view clusters: K-means with as many clusters as states, each its own Gaussian, decoded by
-the map), ``merged_runs`` (runs of one symbol merged into one step, split + EM on the runs, each
-row labelled with its run's state).  Scores (:mod:`topomap.core.position_scores`): median and
-90th-percentile error, wrong-region share; states; fit seconds.  Every row is appended to
-``--log`` (JSON lines) and a run skips the rows already there; the table printed is the median
-over the seeds of each case and route.  Simulated walks are cached in ``--cache``.
+true positions: the held-out steps placed by their true position), ``shipped`` (the default
+call: ``MapLearner(n_clusters, n_states, refine="em", random_state=0)``, motion="auto"),
+``unchecked`` (the shipped route without its held-out check: the places always,
+``MotionSettings(holdout=0)``), ``one_gate`` (the shipped route with one gate of 3 cell extents),
+``no_odometry`` (places are the view clusters: K-means with as many clusters as states, each its
+own Gaussian, decoded by the map), ``merged_runs`` (runs of one symbol merged into one step, split
++ EM on the runs, each row labelled with its run's state). Scores
+(:mod:`topomap.core.position_scores`): median and 90th-percentile error, wrong-region share;
+states; fit seconds; the peak RSS of the benchmark process so far (``rss_mib``: a bound on the
+route's own, see ``--timing`` for a fresh process). Every row is appended to ``--log`` (JSON lines)
+and a run skips the rows already there; the table printed is the median over the seeds of each case
+and route. Simulated walks are cached in ``--cache``.
 """
 
 from __future__ import annotations
@@ -50,8 +53,8 @@ from topomap.core.position_scores import (ceiling_scores, kmeans_view_scores, ma
 HERE = Path(__file__).resolve().parent
 LAYOUTS = {"alcoves": str(HERE / "floorplans" / "alcoves.yaml")}
 ROOMS = ("two_rooms", "four_rooms", "corridor", "open", "alcoves")
-ROUTES = ("split", "em", "views", "ceiling", "positions", "shipped", "one_gate", "no_odometry",
-          "merged_runs")
+ROUTES = ("split", "em", "views", "ceiling", "positions", "shipped", "unchecked", "one_gate",
+          "no_odometry", "merged_runs")
 #: the main sensor: 12 compass beams, max range 3 m, noise 0.02; random motion 0.16 m/s, 10 Hz
 BASE = {"beams": 12, "max_range": 3.0, "sigma": 0.02, "speed": 0.16, "dt": 0.1,
         "actions": "compass", "frame": "compass"}
@@ -155,8 +158,9 @@ def route(name, train, held, ns, S, regions, seed):
     if name in ("split", "em"):
         return _learner_row(*_fit(train, motion="discrete", refine="em" if name == "em" else None,
                                   **kw), train, held, regions)
-    if name in ("shipped", "one_gate"):
-        motion = MotionSettings() if name == "shipped" else MotionSettings(gates=(3.0,))
+    if name in ("shipped", "unchecked", "one_gate"):
+        motion = {"shipped": MotionSettings(), "unchecked": MotionSettings(holdout=0),
+                  "one_gate": MotionSettings(gates=(3.0,))}[name]
         return _learner_row(*_fit(train, refine="em", motion=motion, **kw), train, held, regions)
     start = time.perf_counter()
     if name == "views":
@@ -187,6 +191,10 @@ def route(name, train, held, ns, S, regions, seed):
     return {"states": S, "fit_s": round(time.perf_counter() - start, 2), **scores}
 
 
+def _peak_rss_mib() -> int:
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss // 1024
+
+
 def _done(log: Path) -> set:
     if not log.exists():
         return set()
@@ -208,7 +216,8 @@ def run(cases, routes, seeds, settings, steps, log: Path, cache: Path) -> None:
                     for r in todo:
                         row = {"case": case, "setting": setting_name(s), "seed": seed,
                                "train": len(train) if case == "tanni" else n, "route": r,
-                               **route(r, train, held, ns, S, world.region_of, seed)}
+                               **route(r, train, held, ns, S, world.region_of, seed),
+                               "rss_mib": _peak_rss_mib()}
                         with open(log, "a") as fh:
                             fh.write(json.dumps(row) + "\n")
                         print(f"{case:10s} {row['setting']:24s} seed {seed} {row['train']:6d} "
@@ -226,20 +235,22 @@ def table(log: Path, train: int | None = None) -> list[dict]:
             groups.setdefault((r["case"], r["setting"], r["train"], r["route"]), []).append(r)
     out = []
     for (case, setting, n, rname), rs in sorted(groups.items()):
-        med = {k: float(np.median([r[k] for r in rs]))
-               for k in ("median_error", "p90_error", "wrong_region", "states", "fit_s")}
+        med = {k: float(np.median([r.get(k, np.nan) for r in rs]))
+               for k in ("median_error", "p90_error", "wrong_region", "states", "fit_s",
+                         "rss_mib")}
         out.append({"case": case, "setting": setting, "train": n, "route": rname,
                     "seeds": len(rs), **med})
     return out
 
 
 def print_table(rows) -> None:
-    print("| case | setting | train | route | seeds | median m | p90 m | wrong | states | fit s |")
-    print("|---|---|---|---|---|---|---|---|---|---|")
+    print("| case | setting | train | route | seeds | median m | p90 m | wrong | states | fit s "
+          "| peak RSS MiB |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
     for r in rows:
         print(f"| {r['case']} | {r['setting']} | {r['train']} | {r['route']} | {r['seeds']} | "
               f"{r['median_error']:.3f} | {r['p90_error']:.2f} | {r['wrong_region']:.3f} | "
-              f"{r['states']:.0f} | {r['fit_s']:.1f} |")
+              f"{r['states']:.0f} | {r['fit_s']:.1f} | {r['rss_mib']:.0f} |")
 
 
 def plot_curve(log: Path, png: Path) -> None:

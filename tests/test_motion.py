@@ -9,7 +9,6 @@ from topomap.core.checks import ParameterError
 from topomap.core.motion.odometry import (action_vectors, dead_reckoning, odometric_positions,
                                           reckoned_steps)
 from topomap.core.motion import MotionSettings, is_continuous, mean_run
-from topomap.core.motion.check import split_lengths
 from topomap.worlds import GridRoom, RandomExplorer
 
 
@@ -133,12 +132,6 @@ def test_continuous_log_gets_places_that_tell_alike_halves_apart():
     # the map decodes a new stream of the same kind, one state per row
     Zt, ut, _ = _alike_halves(2000, seed=1)
     assert learner.predict(Zt, ut).shape == (2000,)
-
-
-def test_split_lengths_cuts_the_episode_the_cut_falls_in():
-    assert split_lengths([3, 4], 5) == ([3, 2], [2])
-    assert split_lengths([3, 4], 3) == ([3], [4])
-    assert split_lengths([7], 6) == ([6], [1])
 
 
 def _distinct_line(T=8000, seed=0):

@@ -84,8 +84,10 @@ class MapLearner(MapMethods, BaseEstimator):
         refined map to that number (:mod:`topomap.core.refine.resize`: the least costly merges of
         same-symbol states, or further splits); ``"free"`` keeps the number the refinement chose.
     motion : MotionSettings, "auto", "discrete" or "continuous"
-        How a log recorded at 10-50 Hz is mapped (:class:`~topomap.core.motion.MotionSettings`):
-        ``"auto"`` recognises one and cuts its places from views and learned odometry, no refine.
+        How a log recorded at 10-50 Hz is mapped (:class:`~topomap.core.motion.MotionSettings`,
+        docs/continuous.md): ``"auto"`` recognises one and gives it, instead of any refinement,
+        places cut from views and learned odometry -- or the view clusters, where a held-out
+        check on the log places its last quarter better with them; ``"discrete"`` never does.
     window : int
         :meth:`partial_fit` only: the latest steps a wider pass re-learns the map's structure
         from (:mod:`topomap.core.online`).
@@ -114,7 +116,8 @@ class MapLearner(MapMethods, BaseEstimator):
     map_phase1_ : TopologicalMap -- the map before any split
     map_split_ : TopologicalMap -- the map after splitting (``map_`` without ``refine``)
     refine_info_ : dict -- the refinement's stages (with ``refine``)
-    motion_info_ : dict -- what the places of a continuous log measured (only when cut)
+    motion_info_ : dict -- what the places of a continuous log measured, the check's errors and
+        which map was ``chosen`` (``"places"`` or ``"views"``; only on a continuous log)
     size_choice_ : dict -- with ``stop=auto``: the criterion, the chosen count and every score
     n_clusters_ : int -- the ``ns`` actually used
     cluster_choice_ : dict -- what the cluster-count policy measured (e.g. ``{"bic": {...}}``)

@@ -21,20 +21,12 @@ from __future__ import annotations
 import numpy as np
 from sklearn.metrics import pairwise_distances_argmin
 
+from ..size import split_holdout
 from .odometry import odometric_positions, reckoned_steps
 from .places import Places, cut_places
 from .settings import MotionSettings
 
-__all__ = ["split_lengths", "frame_error", "choose_places"]
-
-
-def split_lengths(lengths, cut: int) -> tuple[list, list]:
-    """Episode lengths of the steps before ``cut`` and of the steps from ``cut`` on."""
-    ends = np.cumsum(lengths)
-    starts = ends - np.asarray(lengths)
-    head = [int(min(e, cut) - s) for s, e in zip(starts, ends) if s < cut]
-    tail = [int(e - max(s, cut)) for s, e in zip(starts, ends) if e > cut]
-    return head, tail
+__all__ = ["held_out_frame", "frame_error", "choose_places"]
 
 
 def held_out_frame(settings: MotionSettings, part: Places, Z, u, lengths, cut: int):
@@ -74,10 +66,9 @@ def choose_places(settings: MotionSettings, X, Z, u, lengths, n_states: int, n_a
     info = dict(whole.info)
     if whole.places is None:
         return whole.views, dict(info, chosen="views")
-    cut = int(round(len(u) * (1.0 - settings.holdout)))
-    if settings.holdout == 0 or min(cut, len(u) - cut) < settings.min_steps // 4:
+    if settings.holdout == 0 or len(u) * min(settings.holdout, 1 - settings.holdout) < 100:
         return whole.places, dict(info, chosen="places")
-    head, tail = split_lengths(lengths, cut)
+    head, tail, cut = split_holdout(len(u), lengths, settings.holdout)
     part: Places = cut_places(settings, Z[:cut], u[:cut], head, n_states, n_actions, **kmeans)
     if part.places is None:
         return whole.views, dict(info, chosen="views", check="no odometry on the first part")

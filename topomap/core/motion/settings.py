@@ -37,13 +37,17 @@ class MotionSettings:
     joins.  ``max_return``: odometry is used only where walks that come back to a view cluster
     keep at most this share of a random walk's displacement
     (:func:`topomap.core.motion.odometry.action_vectors`); turn / forward commands fail it and
-    the places are then the view clusters alone.  ``holdout``: the share of the log, at its end,
-    that the held-out check decodes (:mod:`topomap.core.motion.check`): the places and the view
-    clusters (K-means on the views, as many clusters as places) are learned on the rest, and the
-    places are kept only when the moves between the states they decode agree better with the
-    learned odometry than the view clusters' do; else the map's states are the view clusters.
-    0 keeps the places unchecked.  ``margin``: the places must place the held-out steps within
-    this share of the view clusters' error to be kept (1 keeps them whenever they are better).
+    the places are then the view clusters alone.
+
+    ``holdout``: the share of the log, at its end, that the held-out check decodes
+    (:mod:`topomap.core.motion.check`): the places and the view clusters (K-means on the views,
+    as many clusters as places) are learned on the rest and decode it, and the places are kept
+    only when they place its steps nearer the odometric positions the filter carries on than
+    the view clusters do, by ``margin`` (the places' median distance at most ``margin`` times
+    the view clusters'; 1 keeps them whenever they are nearer), or when even the view clusters
+    miss by more than the widest gate (the filter is lost: no reference).  Else the map's states
+    are the view clusters.  ``holdout=0`` (or a held-out part under 100 steps) keeps the places
+    unchecked.
     """
 
     mode: str = "auto"
