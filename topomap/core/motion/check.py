@@ -76,9 +76,9 @@ def choose_places(settings: MotionSettings, X, Z, u, lengths, n_states: int, n_a
     errors = {}
     for name, labels in (("places", part.places), ("views", part.views)):
         decoded = build(X[:cut], u[:cut], labels, head).predict(X[cut:], u[cut:], lengths=tail)
-        errors[name] = round(frame_error(_state_means(labels, part.frame)[decoded], frame), 4)
+        errors[name] = frame_error(_state_means(labels, part.frame)[decoded], frame)
     lost = errors["views"] > max(settings.gates)  # no reference: the places stay
     chosen = "places" if lost or errors["places"] < settings.margin * errors["views"] else "views"
     info.update(chosen=chosen, check={"held_out": len(u) - cut, "anchored": round(anchored, 4),
-                                      "lost": lost, **errors})
+                                      "lost": lost, **{k: round(e, 4) for k, e in errors.items()}})
     return (whole.places if chosen == "places" else whole.views), info
