@@ -10,10 +10,9 @@ decoded state stands at the mean odometric position of its training steps; the o
 positions of the held-out steps are the same filter run on
 (:func:`~topomap.core.motion.odometry.odometric_positions`, its copies learned on the first part
 and carried on).  The places are kept only when they place the held-out steps closer to those
-positions than the view clusters do by ``settings.margin`` (:func:`frame_error`).  Where even
-the view clusters -- every held-out step placed where its own view was seen -- miss those
-positions by more than the widest gate, the carried-on filter has lost its copies and is no
-reference: the check abstains and the places stay.
+positions than the view clusters do by ``settings.margin`` (:func:`frame_error`); in doubt
+-- the two alike, or the carried-on filter lost and no reference for either -- the view
+clusters stay, never worse than themselves.
 """
 
 from __future__ import annotations
@@ -77,8 +76,7 @@ def choose_places(settings: MotionSettings, X, Z, u, lengths, n_states: int, n_a
     for name, labels in (("places", part.places), ("views", part.views)):
         decoded = build(X[:cut], u[:cut], labels, head).predict(X[cut:], u[cut:], lengths=tail)
         errors[name] = frame_error(_state_means(labels, part.frame)[decoded], frame)
-    lost = errors["views"] > max(settings.gates)  # no reference: the places stay
-    chosen = "places" if lost or errors["places"] < settings.margin * errors["views"] else "views"
+    chosen = "places" if errors["places"] <= settings.margin * errors["views"] else "views"
     info.update(chosen=chosen, check={"held_out": len(u) - cut, "anchored": round(anchored, 4),
-                                      "lost": lost, **{k: round(e, 4) for k, e in errors.items()}})
+                                      **{k: round(e, 4) for k, e in errors.items()}})
     return (whole.places if chosen == "places" else whole.views), info

@@ -44,9 +44,8 @@ class MotionSettings:
     as many clusters as places) are learned on the rest and decode it, and the places are kept
     only when they place its steps nearer the odometric positions the filter carries on than
     the view clusters do, by ``margin`` (the places' median distance at most ``margin`` times
-    the view clusters'; 1 keeps them whenever they are nearer), or when even the view clusters
-    miss by more than the widest gate (the filter is lost: no reference).  Else the map's states
-    are the view clusters.  ``holdout=0`` (or a held-out part under 100 steps) keeps the places
+    the view clusters'; 1 keeps them whenever they are no farther).  Else the map's states are
+    the view clusters.  ``holdout=0`` (or a held-out part under 100 steps) keeps the places
     unchecked.
     """
 
