@@ -134,6 +134,24 @@ def test_continuous_log_gets_places_that_tell_alike_halves_apart():
     assert learner.predict(Zt, ut).shape == (2000,)
 
 
+def test_the_held_out_frame_carries_the_filter_on_from_the_copies_learned_before_the_cut():
+    from topomap.core.motion.check import held_out_frame
+    from topomap.core.motion.places import Places
+
+    x, sym, u = _line_walk(cycles=4)  # cells 0..9 and back, symbol x mod 5, exact odometry
+    Z = np.eye(5)[sym]
+    cut = 40                          # the first two sweeps learn a copy of every cell
+    V = np.array([[1.0, 0.0], [-1.0, 0.0]])
+    P, _, _ = odometric_positions(sym[:cut], reckoned_steps(u[:cut], [cut], V), [cut], gate=2.0)
+    part = Places(sym[:cut], None, V, 1.0, P, {})
+    frame, anchored = held_out_frame(MotionSettings(gates=(2.0,)), part, Z, u, [x.size], cut)
+    np.testing.assert_allclose(frame[:, 0], x[cut:])  # every later step where it is
+    assert anchored == 1.0                            # joining a copy made before the cut
+    # with a wider gate alike cells share copies, pulled between their positions
+    wide, _ = held_out_frame(MotionSettings(gates=(7.0,)), part, Z, u, [x.size], cut)
+    assert np.abs(wide[:, 0] - x[cut:]).max() > 0.5
+
+
 def _distinct_line(T=8000, seed=0):
     """The walk of :func:`_alike_halves` seen through views that differ all along [0, 2]."""
     _, u, x = _alike_halves(T, seed)
