@@ -20,6 +20,8 @@ from .phase1.clustering import cluster_observations
 from .size import AutoStates, probe_sizes, split_holdout
 from .map.model import TopologicalMap
 from .map_methods import MapMethods
+from .motion.learn import fit_places
+from .motion.settings import MotionSettings, motion_settings
 from .refine.sequence import SymbolSequence
 from .split.engine import Splitter
 from .split.stopping import TargetStates
@@ -81,6 +83,11 @@ class MapLearner(MapMethods, BaseEstimator):
         :class:`~topomap.core.split.stopping.TargetStates` rule): ``"told"`` (default) brings the
         refined map to that number (:mod:`topomap.core.refine.resize`: the least costly merges of
         same-symbol states, or further splits); ``"free"`` keeps the number the refinement chose.
+    motion : MotionSettings, "auto", "discrete" or "continuous"
+        How a log recorded at 10-50 Hz is mapped (:class:`~topomap.core.motion.MotionSettings`,
+        docs/continuous.md): ``"auto"`` recognises one and gives it, instead of any refinement,
+        places cut from views and learned odometry -- or the view clusters, where a held-out
+        check on the log places its last quarter better with them; ``"discrete"`` never does.
     window : int
         :meth:`partial_fit` only: the latest steps a wider pass re-learns the map's structure
         from (:mod:`topomap.core.online`).
@@ -109,6 +116,8 @@ class MapLearner(MapMethods, BaseEstimator):
     map_phase1_ : TopologicalMap -- the map before any split
     map_split_ : TopologicalMap -- the map after splitting (``map_`` without ``refine``)
     refine_info_ : dict -- the refinement's stages (with ``refine``)
+    motion_info_ : dict -- what the places of a continuous log measured, the check's errors and
+        which map was ``chosen`` (``"places"`` or ``"views"``; only on a continuous log)
     size_choice_ : dict -- with ``stop=auto``: the criterion, the chosen count and every score
     n_clusters_ : int -- the ``ns`` actually used
     cluster_choice_ : dict -- what the cluster-count policy measured (e.g. ``{"bic": {...}}``)
@@ -117,7 +126,7 @@ class MapLearner(MapMethods, BaseEstimator):
     split_history_ : list of dict -- ``iteration``, ``state``, ``new_state``, ``gain`` and sizes
     entropies_ : list of dict -- ``H_o``, ``H_u``, ``H_x`` after phase 1 and after every split
     stop_reason_ : str
-    timings_ : dict -- seconds spent in ``phase1``, ``phase2`` (and ``refine``)
+    timings_ : dict -- seconds spent in ``phase1``, ``phase2`` (and ``refine`` or ``places``)
     online_ : dict -- after :meth:`partial_fit`: steps seen, calls, wider passes, the steps the
         last call touched, the first step the last pass learned from, the bytes kept
     """
@@ -130,9 +139,9 @@ class MapLearner(MapMethods, BaseEstimator):
                  metric="euclidean", split="entropy", stop=None,
                  covariance_type: str = "diag", reg_covar: float = 1e-3, n_init: int = 3,
                  phase1: str = "auto", sample_size: int | None = None, refine=None,
-                 refined_size: str = "told", window: int = 20000, refit_every: int = 2000,
-                 random_state: int = 0, callbacks=(), criterion=DEPRECATED,
-                 stopping=DEPRECATED):
+                 refined_size: str = "told", motion: MotionSettings | str = MotionSettings(),
+                 window: int = 20000, refit_every: int = 2000, random_state: int = 0,
+                 callbacks=(), criterion=DEPRECATED, stopping=DEPRECATED):
         self.n_clusters = n_clusters
         self.n_states = n_states
         self.clusters = clusters
@@ -146,6 +155,7 @@ class MapLearner(MapMethods, BaseEstimator):
         self.sample_size = sample_size
         self.refine = refine
         self.refined_size = refined_size
+        self.motion = motion
         self.window = window
         self.refit_every = refit_every
         self.random_state = random_state
@@ -170,13 +180,14 @@ class MapLearner(MapMethods, BaseEstimator):
         self._online = None
         return self._fit(data)
 
-    def _fit(self, data: FitData, symbols: np.ndarray | None = None) -> Self:
+    def _fit(self, data: FitData, symbols: np.ndarray | None = None, motion: bool = True) -> Self:
         """Phase 1, the split, the map and the refinement on checked ``data``, forgetting what an
         earlier fit (or pass) learned.  ``symbols``: the K-means symbol of every non-GDS step,
         given instead of running K-means (a wider pass of :meth:`partial_fit` gives the
-        codebook's)."""
+        codebook's); ``motion=False``: no places of a continuous log (wider passes)."""
         clusters, metric, criterion, stopping = make_components(self)
         refinement = make_refinement(self.refine)
+        places = motion_settings(self.motion) if motion else None
         self._forget_fit()
         self.n_features_in_ = data.X.shape[1]
         t0 = time.perf_counter()
@@ -203,7 +214,8 @@ class MapLearner(MapMethods, BaseEstimator):
             info["size_choice"] = {k: self.size_choice_[k] for k in ("criterion", "chosen")}
         self.map_ = self.map_split_ = self._make_map(data, splitter, info)
         self.timings_ = {"phase1": t1 - t0, "phase2": t2 - t1}
-        if refinement is not None:
+        continuous = places is not None and fit_places(self, data, places, metric)
+        if refinement is not None and not continuous:
             if auto is not None and auto.criterion == "heldout" and self.refined_size == "told":
                 told = self._choose_refined_size(data, splitter, refinement, auto)
             self._refine(data, splitter, refinement, told)
@@ -258,7 +270,7 @@ class MapLearner(MapMethods, BaseEstimator):
         plain = gw < 0
         symbols, present = state.window_symbols(first, plain)
         self._fit(check_fit_data(Xw, uw, gw, lengths_of(sw), state.n_actions, state.action_names,
-                                 state.gds_names), symbols)
+                                 state.gds_names), symbols, motion=False)
         if symbols is None:  # phase 1's K-means symbols of every step seen become the codebook
             state.learn_codebook(X_call, Xw, plain, self.labels_phase1_[plain], self.n_clusters_,
                                  first)
@@ -387,6 +399,7 @@ class MapLearner(MapMethods, BaseEstimator):
             with naming(self, "stop"):
                 stopping.check(int(least) + int(n_gds))
         refinement = make_refinement(self.refine)
+        motion_settings(self.motion)
         if callable(getattr(refinement, "check_params", None)):
             with naming(self, "refine"):
                 refinement.check_params()

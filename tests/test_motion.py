@@ -1,0 +1,228 @@
+"""Maps from continuous motion: run lengths, learned odometry, copies of views, the learner's
+continuous branch -- on small logs whose answer follows from their construction."""
+
+import numpy as np
+import pytest
+
+from topomap import MapLearner
+from topomap.core.checks import ParameterError
+from topomap.core.motion.odometry import (action_vectors, dead_reckoning, odometric_positions,
+                                          reckoned_steps)
+from topomap.core.motion import MotionSettings, is_continuous, mean_run
+from topomap.worlds import GridRoom, RandomExplorer
+
+
+def test_mean_run_counts_runs_within_episodes():
+    # one episode: runs 00 | 111 | 2 -> 6 steps / 3 runs
+    assert mean_run([0, 0, 1, 1, 1, 2], [6]) == 2.0
+    # episodes [0 0] and [0 1 1 1]: the boundary starts a run -> runs 00 | 0 | 111
+    assert mean_run([0, 0, 0, 1, 1, 1], [2, 4]) == 2.0
+
+
+def test_dead_reckoning_sums_moves_and_restarts_per_episode():
+    V = np.array([[1.0, 0.0], [0.0, 2.0]])
+    u = np.array([0, 1, 0, 1, 0])
+    P = dead_reckoning(u, [3, 2], V)
+    # episode 1: 0, +(1,0), +(0,2); episode 2 restarts: 0, +(1,0) (the action of its step 3)
+    np.testing.assert_array_equal(P, [[0, 0], [1, 0], [1, 2], [0, 0], [0, 2]])
+
+
+def _line_walk(cycles=3):
+    """x = 0..9..0 repeatedly, one cell a step; symbol of cell x is x mod 5 (cells k and k + 5
+    look alike, 5 apart)."""
+    x = np.concatenate([np.arange(10), np.arange(8, 0, -1)] * cycles + [[0]])
+    u = np.where(np.diff(x, append=x[-1] - 1) > 0, 0, 1)
+    return x, x % 5, u
+
+
+def test_copies_keep_alike_cells_apart_when_the_gate_is_tighter_than_their_distance():
+    x, sym, u = _line_walk()
+    V = np.array([[1.0, 0.0], [-1.0, 0.0]])  # exact odometry
+    steps = reckoned_steps(u, [x.size], V)
+    P, copy, n_copies = odometric_positions(sym, steps, [x.size], gate=2.0)
+    assert n_copies == 10           # one copy per cell: alike cells are 5 apart
+    np.testing.assert_allclose(P[:, 0], x)  # every copy sits where the walk is: no pull
+    np.testing.assert_array_equal(copy, x)  # the copies are numbered as the walk meets them
+    _, _, n_copies = odometric_positions(sym, steps, [x.size], gate=7.0)
+    assert n_copies == 5            # a gate wider than 5 joins alike cells
+
+
+def _plane_walk(T, seed=0):
+    """A random walk in the open plane with 8 compass moves of random length (the heading turns
+    by one eighth at a time); views are a fixed linear image of the position (12 features) plus
+    a little noise."""
+    rng = np.random.default_rng(seed)
+    moves = np.stack([np.cos(np.arange(8) * np.pi / 4), np.sin(np.arange(8) * np.pi / 4)], 1)
+    u = np.empty(T, dtype=np.int64)
+    a = 0
+    for t in range(T):
+        a = (a + rng.choice([-1, 0, 1], p=[0.25, 0.5, 0.25])) % 8
+        u[t] = a
+    step = moves[u] * rng.uniform(0.5, 1.5, (T, 1)) * 0.01
+    p = np.vstack([[0.0, 0.0], np.cumsum(step[:-1], axis=0)])
+    Z = p @ rng.normal(size=(2, 12)) + rng.normal(0, 1e-3, (T, 12))
+    return Z, u, moves
+
+
+def test_action_vectors_are_the_moves_up_to_a_linear_map_of_the_plane():
+    Z, u, moves = _plane_walk(20000)
+    from sklearn.cluster import KMeans
+    fsym = KMeans(40, n_init=1, random_state=0).fit_predict(Z)
+    V, ratios = action_vectors(Z, fsym, u, [u.size], 8)
+    A, *_ = np.linalg.lstsq(V, moves, rcond=None)
+    assert np.abs(V @ A - moves).max() < 0.1
+    assert ratios.max() <= 0.35
+    # isotropic: the mean step's covariance is the identity / 2 (moves are used alike)
+    np.testing.assert_allclose(V[u].T @ V[u] / u.size, np.eye(2) / 2, atol=1e-9)
+
+
+def test_actions_that_do_not_move_the_robot_give_no_odometry():
+    Z, u, _ = _plane_walk(20000)
+    from sklearn.cluster import KMeans
+    fsym = KMeans(40, n_init=1, random_state=0).fit_predict(Z)
+    unrelated = np.random.default_rng(1).integers(0, 8, u.size)  # ids drawn apart from the moves
+    V, ratios = action_vectors(Z, fsym, unrelated, [u.size], 8)
+    assert not V.any() and ratios.min() > 0.35 / 2
+
+
+def _alike_halves(T=8000, seed=0):
+    """A walk on the line [0, 2] (turning at the ends and at random) whose two halves look
+    alike: the view of x is that of x + 1 (period 1).  Action 0 moves right, 1 left."""
+    rng = np.random.default_rng(seed)
+    x = np.empty(T)
+    x[0], d = 0.1, 1
+    u = np.empty(T, dtype=np.int64)
+    for t in range(T):
+        if rng.random() < 0.01:
+            d = -d
+        nxt = x[t] + d * 0.01 * rng.uniform(0.7, 1.3)
+        if not 0.0 <= nxt <= 2.0:
+            d = -d
+            nxt = x[t] + d * 0.01
+        u[t] = 0 if d > 0 else 1
+        if t + 1 < T:
+            x[t + 1] = nxt
+    phase = 2 * np.pi * x
+    Z = np.stack([np.cos(phase), np.sin(phase), np.cos(2 * phase)], 1)
+    return Z + rng.normal(0, 0.01, Z.shape), u, x
+
+
+def _mixed_share(labels, x):
+    """Share of the steps in the alike middles of the halves ([0.2, 0.8] and [1.2, 1.8]) held by
+    states that hold steps of both."""
+    left, right = (x > 0.2) & (x < 0.8), (x > 1.2) & (x < 1.8)
+    mixed = 0
+    for s in np.unique(labels):
+        a, b = np.sum(left & (labels == s)), np.sum(right & (labels == s))
+        mixed += min(a, b)
+    return mixed / np.sum(left | right)
+
+
+def test_continuous_log_gets_places_that_tell_alike_halves_apart():
+    Z, u, x = _alike_halves()
+    learner = MapLearner(n_clusters=4, n_states=8, random_state=0).fit(Z, u)
+    assert learner.motion_info_["mean_run"] > 3
+    assert learner.labels_.shape == (Z.shape[0],) and learner.map_.n_states == 8
+    assert _mixed_share(learner.labels_, x) < 0.02
+    assert learner.motion_info_["chosen"] == "places"  # the held-out check keeps them
+    # the views alone (the paper's split) cannot: they fold the halves onto each other
+    views = MapLearner(n_clusters=4, n_states=8, motion="discrete", random_state=0).fit(Z, u)
+    assert not hasattr(views, "motion_info_")
+    assert _mixed_share(views.labels_, x) > 0.2
+    # the map decodes a new stream of the same kind, one state per row
+    Zt, ut, _ = _alike_halves(2000, seed=1)
+    assert learner.predict(Zt, ut).shape == (2000,)
+
+
+def test_the_held_out_frame_carries_the_filter_on_from_the_copies_learned_before_the_cut():
+    from topomap.core.motion.check import held_out_frame
+    from topomap.core.motion.places import Places
+
+    x, sym, u = _line_walk(cycles=4)  # cells 0..9 and back, symbol x mod 5, exact odometry
+    Z = np.eye(5)[sym]
+    cut = 40                          # the first two sweeps learn a copy of every cell
+    V = np.array([[1.0, 0.0], [-1.0, 0.0]])
+    P, _, _ = odometric_positions(sym[:cut], reckoned_steps(u[:cut], [cut], V), [cut], gate=2.0)
+    part = Places(sym[:cut], None, V, 1.0, P, {})
+    frame, anchored = held_out_frame(MotionSettings(gates=(2.0,)), part, Z, u, [x.size], cut)
+    np.testing.assert_allclose(frame[:, 0], x[cut:])  # every later step where it is
+    assert anchored == 1.0                            # joining a copy made before the cut
+    # with a wider gate alike cells share copies, pulled between their positions
+    wide, _ = held_out_frame(MotionSettings(gates=(7.0,)), part, Z, u, [x.size], cut)
+    assert np.abs(wide[:, 0] - x[cut:]).max() > 0.5
+
+
+def _distinct_line(T=8000, seed=0):
+    """The walk of :func:`_alike_halves` seen through views that differ all along [0, 2]."""
+    _, u, x = _alike_halves(T, seed)
+    phase = np.pi * x
+    Z = np.stack([np.cos(phase), np.sin(phase)], 1)
+    return Z + np.random.default_rng(seed).normal(0, 0.01, Z.shape), u, x
+
+
+def test_the_check_falls_back_to_the_views_where_they_place_steps_alone():
+    # every view is seen at one place: positions add nothing the views do not say, so the
+    # places cannot place the held-out steps 20 % closer than the view clusters do
+    Z, u, _ = _distinct_line()
+    learner = MapLearner(n_clusters=4, n_states=8, random_state=0).fit(Z, u)
+    info = learner.motion_info_
+    assert info["odometry"] and info["chosen"] == "views"
+    assert info["check"]["places"] >= 0.8 * info["check"]["views"]
+    # the states are then the view clusters: K-means on the views with as many clusters
+    unchecked = MapLearner(n_clusters=4, n_states=8, random_state=0,
+                           motion=MotionSettings(holdout=0)).fit(Z, u)
+    assert unchecked.motion_info_["chosen"] == "places"
+    kmeans = MapLearner(n_clusters=8, n_states=8, motion="discrete", random_state=0).fit(Z, u)
+    assert _same_partition(learner.labels_, kmeans.labels_phase1_)
+
+
+def _same_partition(a, b) -> bool:
+    pairs = np.unique(np.stack([a, b]), axis=1)
+    return pairs.shape[1] == np.unique(a).size == np.unique(b).size
+
+
+def test_a_log_too_short_to_tell_is_not_continuous():
+    auto, gds = MotionSettings(), np.full(1200, -1)
+
+    def continuous(symbols, settings=auto, g=gds):
+        return is_continuous(settings, symbols, [1200], g)
+
+    assert not continuous(np.zeros(1200, int))                  # one symbol: one run
+    assert not continuous(np.repeat([0, 1, 2], 400))            # 3 runs < 2 x 3 symbols
+    assert continuous(np.tile(np.repeat([0, 1, 2], 4), 100))    # 300 runs of 4 steps
+    assert not continuous(np.tile(np.repeat([0, 1, 2], 2), 200))  # runs of 2 steps
+    assert not continuous(np.tile(np.repeat([0, 1, 2], 4), 100),
+                          MotionSettings(min_steps=1201))        # too short a log
+    assert not continuous(np.tile(np.repeat([0, 1, 2], 4), 100),
+                          g=np.r_[0, gds[1:]])                   # a GDS step
+    assert continuous(np.zeros(1200, int), MotionSettings(mode="continuous"))
+    assert not continuous(np.tile(np.repeat([0, 1, 2], 4), 100), MotionSettings(mode="discrete"))
+
+
+def test_discrete_worlds_keep_the_map_of_the_split():
+    traj = GridRoom(6, 5, 4).simulate(3000, RandomExplorer(), np.random.default_rng(0))
+    kw = dict(n_clusters=4, n_states=30, random_state=0)
+    auto = MapLearner(**kw).fit_trajectory(traj)
+    discrete = MapLearner(motion="discrete", **kw).fit_trajectory(traj)
+    assert not hasattr(auto, "motion_info_")
+    assert auto.map_.to_dict() == discrete.map_.to_dict()
+
+
+@pytest.mark.parametrize("motion, message", [
+    ("bogus", r"^motion\.mode must be one of auto, discrete, continuous"),
+    (3, r"^motion must be one of"),
+    ({"gate": 3}, r"^motion\.gate is not a motion setting"),
+    ({"gates": []}, r"^motion\.gates must be a non-empty list"),
+    (MotionSettings(weight=0), r"^motion\.weight must be a positive number"),
+    (MotionSettings(pull=1.5), r"^motion\.pull must be at most 1"),
+    ({"holdout": 1.0}, r"^motion\.holdout must be a number in \[0, 1\)"),
+    ({"margin": 0}, r"^motion\.margin must be a number in \(0, 1\]"),
+])
+def test_bad_motion_is_named(motion, message):
+    Z, u, _ = _alike_halves(500)
+    learner = MapLearner(n_clusters=4, n_states=8, motion=motion)
+    with pytest.raises(ParameterError, match=message):
+        learner.check_params()
+    with pytest.raises(ParameterError, match=message):
+        learner.fit(Z, u)
+    assert not hasattr(learner, "map_")  # nothing half-written

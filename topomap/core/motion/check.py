@@ -1,0 +1,82 @@
+"""The held-out check that decides between places and view clusters, on the log alone.
+
+Places cut from views and odometry (:func:`~topomap.core.motion.places.cut_places`) beat the view
+clusters where alike rooms are told apart by the way in, but can lose to them where alike views
+carry no history worth the cost: in an open room, where the view alone places a step as well, a
+place that straddles the noise of the odometry only adds it.  No positions are known, so the
+check asks the geometry the log has: both maps are learned on the first part of the log and
+decode the rest (:meth:`~topomap.core.map.model.TopologicalMap.predict`, as any new walk); each
+decoded state stands at the mean odometric position of its training steps; the odometric
+positions of the held-out steps are the same filter run on
+(:func:`~topomap.core.motion.odometry.odometric_positions`, its copies learned on the first part
+and carried on).  The places are kept only when they place the held-out steps closer to those
+positions than the view clusters do by ``settings.margin`` (:func:`frame_error`); in doubt
+-- the two alike, or the carried-on filter lost and no reference for either -- the view
+clusters stay, never worse than themselves.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from sklearn.metrics import pairwise_distances_argmin
+
+from ..size import split_holdout
+from .odometry import odometric_positions, reckoned_steps
+from .places import Places, cut_places
+from .settings import MotionSettings
+
+__all__ = ["held_out_frame", "frame_error", "choose_places"]
+
+
+def held_out_frame(settings: MotionSettings, part: Places, Z, u, lengths, cut: int):
+    """``(P, anchored)``: (T - cut, 2) odometric positions (cell extents) of the steps from
+    ``cut`` on -- the filter of ``part`` (learned on the steps before ``cut``) carried on, each
+    later step taking the view cluster of the nearest centre -- and the share of those steps
+    that joined a copy made before ``cut``."""
+    k = int(part.views.max()) + 1
+    centres = np.zeros((k, Z.shape[1]))
+    np.add.at(centres, part.views, Z[:cut])
+    centres /= np.maximum(np.bincount(part.views, minlength=k), 1)[:, None]
+    later = pairwise_distances_argmin(Z[cut:], centres)
+    fsym = np.concatenate([part.views, later])
+    gate = settings.gates[len(settings.gates) // 2] * part.extent
+    P, copy, _ = odometric_positions(fsym, reckoned_steps(u, lengths, part.V), lengths, gate,
+                                     pull=settings.pull)
+    anchored = float(np.mean(copy[cut:] <= copy[:cut].max()))
+    return P[cut:] / part.extent, anchored
+
+
+def frame_error(placed, frame) -> float:
+    """The median distance between ``placed`` and ``frame`` ((T, 2) arrays)."""
+    return float(np.median(np.linalg.norm(placed - frame, axis=1)))
+
+
+def _state_means(labels, frame) -> np.ndarray:
+    counts = np.maximum(np.bincount(labels), 1)[:, None]
+    return np.column_stack([np.bincount(labels, weights=frame[:, j]) for j in range(2)]) / counts
+
+
+def choose_places(settings: MotionSettings, X, Z, u, lengths, n_states: int, n_actions: int,
+                  build, **kmeans) -> tuple[np.ndarray, dict]:
+    """``(labels, info)``: the places of the whole log (:func:`cut_places`), or its view clusters
+    when the held-out check prefers them or finds no odometry.  ``build(X, u, labels, lengths)``
+    makes a map of labelled steps; ``kmeans``: ``n_init``, ``random_state``, ``method``."""
+    whole = cut_places(settings, Z, u, lengths, n_states, n_actions, **kmeans)
+    info = dict(whole.info)
+    if whole.places is None:
+        return whole.views, dict(info, chosen="views")
+    if settings.holdout == 0 or len(u) * min(settings.holdout, 1 - settings.holdout) < 100:
+        return whole.places, dict(info, chosen="places")
+    head, tail, cut = split_holdout(len(u), lengths, settings.holdout)
+    part: Places = cut_places(settings, Z[:cut], u[:cut], head, n_states, n_actions, **kmeans)
+    if part.places is None:
+        return whole.views, dict(info, chosen="views", check="no odometry on the first part")
+    frame, anchored = held_out_frame(settings, part, Z, u, lengths, cut)
+    errors = {}
+    for name, labels in (("places", part.places), ("views", part.views)):
+        decoded = build(X[:cut], u[:cut], labels, head).predict(X[cut:], u[cut:], lengths=tail)
+        errors[name] = frame_error(_state_means(labels, part.frame)[decoded], frame)
+    chosen = "places" if errors["places"] <= settings.margin * errors["views"] else "views"
+    info.update(chosen=chosen, check={"held_out": len(u) - cut, "anchored": round(anchored, 4),
+                                      **{k: round(e, 4) for k, e in errors.items()}})
+    return (whole.places if chosen == "places" else whole.views), info

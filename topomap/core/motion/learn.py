@@ -1,0 +1,59 @@
+"""The continuous branch of :meth:`topomap.MapLearner.fit`: places instead of a refinement.
+
+After phases 1 and 2 (the paper's split, kept as ``map_split_``), a log that
+:func:`~topomap.core.motion.settings.is_continuous` judges continuous gets as many places as the
+split map has states (:func:`~topomap.core.motion.places.cut_places`); every place is a state
+with its own Gaussian observation model (its ``state_symbol`` is its own id: the places are the
+map's symbols), transitions and actions are counted on the raw rows, so ``labels_`` has a state
+per row and :meth:`~topomap.core.map.model.TopologicalMap.predict`, ``filter`` and ``score`` take
+the same stream as before.  Nothing here runs on a log that is not continuous.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import asdict, replace
+
+import numpy as np
+
+from ..map.model import TopologicalMap
+from .check import choose_places
+from .settings import MotionSettings, is_continuous
+
+__all__ = ["fit_places"]
+
+
+def fit_places(learner, data, settings: MotionSettings, metric) -> bool:
+    """When ``data`` are continuous, replace ``learner``'s map and labels by places (as many
+    states as its split map, observations in ``metric``'s space), record what was measured in
+    ``motion_info_`` and the seconds in ``timings_["places"]``, and return True; else False."""
+    if not is_continuous(settings, learner.labels_phase1_, data.lengths, data.gds):
+        return False
+    if np.any(data.gds >= 0):
+        raise ValueError("motion mode 'continuous' cuts places of plain steps: gds must be all -1")
+    start = time.perf_counter()
+    Z = np.ascontiguousarray(metric.fit_transform(data.X), dtype=np.float64)
+
+    def build(X, u, labels, lengths, **fields):
+        S = int(labels.max()) + 1
+        return TopologicalMap.from_labels(
+            X, u, labels, lengths=lengths, state_symbol=np.arange(S), state_gds=np.full(S, -1),
+            state_parent=np.full(S, -1), n_actions=data.n_actions,
+            covariance_type=learner.covariance_type, reg_covar=learner.reg_covar, **fields)
+
+    labels, info = choose_places(settings, data.X, Z, data.u, data.lengths,
+                                 learner.map_split_.n_states, data.n_actions, build,
+                                 n_init=learner.n_init, random_state=learner.random_state,
+                                 method=learner.phase1)
+    S = int(labels.max()) + 1
+    m = build(data.X, data.u, labels, data.lengths, action_names=data.action_names,
+              gds_names=data.gds_names, split_history=learner.split_history_)
+    learner.motion_info_ = info
+    learner.entropies_.append(dict(m.entropies(), n_states=S, stage="places",
+                                   iteration=len(learner.split_history_) + 1))
+    learner.labels_ = labels
+    learner.map_ = replace(m, entropy_history=learner.entropies_, info=dict(
+        learner.map_split_.info, motion=asdict(settings), motion_info=info))
+    learner.timings_["places"] = time.perf_counter() - start
+    learner._emit("refine", labels=labels, entropies=learner.entropies_[-1], map=learner.map_)
+    return True

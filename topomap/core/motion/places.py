@@ -1,0 +1,83 @@
+"""Places of a continuous log: view clusters kept apart where odometry says they are far apart.
+
+A log recorded at 10-50 Hz repeats one view for many samples and its alike rooms are told apart
+only by the way in: the split's test on ``P(x'|x,u)`` is dominated by self-transitions there, and
+EM loses room identity because it predicts almost nothing (which corridor end follows a room
+visit).  :func:`cut_places` cuts places instead with K-means on each step's view *and* its
+odometric positions (:mod:`topomap.core.motion.odometry`), all in units of one view cluster's
+extent: where views differ they decide, where one view is seen in two rooms the positions do.
+Beside them it keeps the plain view clusters (K-means on the views, as many as places), the map
+:mod:`topomap.core.motion.check` falls back to.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..phase1.clustering import FixedClusters, cluster_observations, make_metric
+from .odometry import (action_vectors, cell_extent, dead_reckoning, odometric_positions,
+                       reckoned_steps)
+from .settings import MotionSettings, mean_run
+
+__all__ = ["Places", "cut_places"]
+
+
+@dataclass
+class Places:
+    """What :func:`cut_places` finds: ``views`` -- K-means on the views, as many clusters as
+    places; ``places`` -- the places (None without odometry); ``V`` -- the actions' learned
+    displacements; ``extent`` -- the cell extent; ``frame`` -- (T, 2) odometric positions of the
+    middle gate in cell extents (None without odometry); ``info`` -- what was measured."""
+
+    views: np.ndarray
+    places: np.ndarray | None
+    V: np.ndarray
+    extent: float
+    frame: np.ndarray | None
+    info: dict
+
+
+def _kmeans(F, k, n_init, random_state, method):
+    return cluster_observations(F, FixedClusters(k), make_metric("euclidean"), n_init=n_init,
+                                random_state=random_state, method=method)[0]
+
+
+def _view_spread(Z, fsym, k) -> float:
+    """The rms distance of a view to its cluster's centre: one view cluster's extent in views."""
+    centres = np.zeros((k, Z.shape[1]))
+    np.add.at(centres, fsym, Z)
+    centres /= np.maximum(np.bincount(fsym, minlength=k), 1)[:, None]
+    return max(float(np.sqrt(np.mean(((Z - centres[fsym]) ** 2).sum(axis=1)))), 1e-12)
+
+
+def cut_places(settings: MotionSettings, Z, u, lengths, n_states: int, n_actions: int, *,
+               n_init: int = 3, random_state: int = 0, method: str = "auto") -> Places:
+    """``n_states`` places for the steps of ``Z`` (observations in the metric's space), the view
+    clusters beside them, and what was measured on the way (:class:`Places`): the view clusters,
+    the actions' displacements learned from them, the cell extent, and for each gate of
+    ``settings.gates`` the copies of view clusters its positions kept."""
+    lengths = np.asarray(lengths, dtype=np.int64)
+    k = min(int(n_states), int(np.unique(Z, axis=0).shape[0]))
+    fsym = _kmeans(Z, k, n_init, random_state, method)
+    V, ratios = action_vectors(Z, fsym, u, lengths, n_actions, seed=random_state,
+                               max_return=settings.max_return)
+    info = {"mean_run": round(mean_run(fsym, lengths), 3), "view_clusters": k,
+            "return_ratios": np.round(ratios, 4).tolist(),
+            "action_vectors": np.round(V, 4).tolist()}
+    if not V.any():  # no odometry: the places are the view clusters
+        info["odometry"] = False
+        return Places(fsym, None, V, 1.0, None, info)
+    r = cell_extent(fsym, dead_reckoning(u, lengths, V), lengths)
+    steps = reckoned_steps(u, lengths, V)
+    positions, copies = [], []
+    for gate in settings.gates:
+        P, _, n_copies = odometric_positions(fsym, steps, lengths, gate * r, pull=settings.pull)
+        positions.append(P / r)
+        copies.append(n_copies)
+    w = settings.weight / np.sqrt(len(positions))  # the gates share the positions' weight
+    F = np.hstack([Z / _view_spread(Z, fsym, k)] + [w * P for P in positions])
+    info.update(odometry=True, cell_extent=round(r, 4), copies=copies)
+    places = _kmeans(F, int(n_states), n_init, random_state, method)
+    return Places(fsym, places, V, r, positions[len(positions) // 2], info)

@@ -1,0 +1,131 @@
+"""How a log recorded at 10-50 Hz is recognised and mapped: :class:`MotionSettings`, the
+``motion`` parameter of :class:`topomap.MapLearner` (``learner.motion.<key>`` in the config), and
+:func:`mean_run`, the statistic that recognises such a log."""
+
+from __future__ import annotations
+
+import numbers
+from collections.abc import Mapping
+from dataclasses import dataclass, fields
+
+import numpy as np
+
+from ..checks import ParameterError, check_count
+
+__all__ = ["MODES", "MotionSettings", "motion_settings", "mean_run", "is_continuous"]
+
+#: what ``MotionSettings.mode`` (or ``motion`` given as a string) accepts
+MODES = ("auto", "discrete", "continuous")
+
+
+@dataclass(frozen=True)
+class MotionSettings:
+    """How :meth:`topomap.MapLearner.fit` maps a log recorded at 10-50 Hz (docs/continuous.md).
+
+    ``mode``: ``"auto"`` recognises such a log (:func:`is_continuous`: ``min_steps`` steps or
+    more, no GDS, every phase-1 symbol entered twice on average, runs of one symbol ``min_run``
+    steps long on average) and cuts its places from views and odometry learned from the data;
+    ``"discrete"`` never does (the paper's map, refined as ``refine`` says); ``"continuous"``
+    always does.  A continuous log gets no ``refine``: its places replace the refinement.
+
+    ``gates``: a step joins a copy of its view cluster within ``gate`` cell extents of its reckoned
+    position (:func:`topomap.core.motion.odometry.odometric_positions`); each gate gives one
+    position estimate, and all of them enter the K-means that cuts the places, so that no single
+    gate decides (a tight gate splits an open room by drift, a wide one joins alike rooms).
+    ``weight``: the positions' weight beside the view in that K-means (both in units of one view
+    cluster's extent).  ``pull``: how far a step's reckoned position moves towards the copy it
+    joins.  ``max_return``: odometry is used only where walks that come back to a view cluster
+    keep at most this share of a random walk's displacement
+    (:func:`topomap.core.motion.odometry.action_vectors`); turn / forward commands fail it and
+    the places are then the view clusters alone.
+
+    ``holdout``: the share of the log, at its end, that the held-out check decodes
+    (:mod:`topomap.core.motion.check`): the places and the view clusters (K-means on the views,
+    as many clusters as places) are learned on the rest and decode it, and the places are kept
+    only when they place its steps nearer the odometric positions the filter carries on than
+    the view clusters do, by ``margin`` (the places' median distance at most ``margin`` times
+    the view clusters'; 1 keeps them whenever they are no farther).  Else the map's states are
+    the view clusters.  ``holdout=0`` (or a held-out part under 100 steps) keeps the places
+    unchecked.
+    """
+
+    mode: str = "auto"
+    min_run: float = 3.0
+    min_steps: int = 1000
+    gates: tuple[float, ...] = (2.5, 3.0, 3.5)
+    weight: float = 1.0
+    pull: float = 0.2
+    max_return: float = 0.35
+    holdout: float = 0.25
+    margin: float = 0.8
+
+
+def motion_settings(value) -> MotionSettings:
+    """``value`` -- a mode name, a :class:`MotionSettings`, or a mapping of some of its fields
+    (the config's ``learner.motion``) -- as checked settings; a :class:`ParameterError` names
+    ``motion`` or ``motion.<field>``."""
+    names = [f.name for f in fields(MotionSettings)]
+    if isinstance(value, str):
+        value = {"mode": value}
+    if isinstance(value, Mapping):
+        unknown = sorted(set(value) - set(names))
+        if unknown:
+            raise ParameterError(f"motion.{unknown[0]}", "is not a motion setting; the settings "
+                                                        "are " + ", ".join(names))
+        value = MotionSettings(**{k: (tuple(v) if k == "gates" and not isinstance(v, str)
+                                      and hasattr(v, "__iter__") else v)
+                                  for k, v in value.items()})
+    if not isinstance(value, MotionSettings):
+        raise ParameterError("motion", f"must be one of {', '.join(MODES)}, a MotionSettings "
+                                       f"or a mapping of its fields, got {value!r}")
+    if value.mode not in MODES:
+        raise ParameterError("motion.mode", f"must be one of {', '.join(MODES)}, "
+                                            f"got {value.mode!r}")
+    check_count(value.min_steps, "motion.min_steps")
+    gates = value.gates
+    if not isinstance(gates, tuple) or not gates or not all(_positive(g) for g in gates):
+        raise ParameterError("motion.gates", f"must be a non-empty list of positive numbers, "
+                                             f"got {gates!r}")
+    for name in ("min_run", "weight", "pull", "max_return"):
+        if not _positive(getattr(value, name)):
+            raise ParameterError(f"motion.{name}", f"must be a positive number, "
+                                                   f"got {getattr(value, name)!r}")
+    if not (isinstance(value.holdout, numbers.Real) and not isinstance(value.holdout, bool)
+            and 0 <= value.holdout < 1):
+        raise ParameterError("motion.holdout", f"must be a number in [0, 1), "
+                                               f"got {value.holdout!r}")
+    if not _positive(value.margin) or value.margin > 1:
+        raise ParameterError("motion.margin", f"must be a number in (0, 1], got {value.margin!r}")
+    if value.pull > 1:
+        raise ParameterError("motion.pull", f"must be at most 1, got {value.pull!r}")
+    return value
+
+
+def _positive(v) -> bool:
+    return isinstance(v, numbers.Real) and not isinstance(v, bool) and np.isfinite(v) and v > 0
+
+
+def mean_run(symbols, lengths) -> float:
+    """Mean number of consecutive steps with one symbol (runs end at episode boundaries)."""
+    symbols = np.asarray(symbols)
+    if symbols.size == 0:
+        return 0.0
+    change = np.ones(symbols.size, dtype=bool)
+    change[1:] = symbols[1:] != symbols[:-1]
+    change[np.cumsum(lengths)[:-1]] = True
+    return float(symbols.size / np.count_nonzero(change))
+
+
+def is_continuous(settings: MotionSettings, symbols, lengths, gds) -> bool:
+    """Whether a log whose phase-1 symbols are ``symbols`` is continuous under ``settings``:
+    ``mode="continuous"``, or ``mode="auto"`` and ``min_steps`` steps or more, no GDS step, two
+    symbols or more, each entered twice on average, and runs of ``min_run`` steps or more on
+    average (1.0-1.3 in every discrete world topomap ships; 13-16 at 10 Hz)."""
+    if settings.mode != "auto":
+        return settings.mode == "continuous"
+    symbols = np.asarray(symbols)
+    n_symbols = np.unique(symbols).size
+    run = mean_run(symbols, lengths)
+    return bool(symbols.size >= settings.min_steps and np.all(np.asarray(gds) < 0)
+                and n_symbols >= 2 and run >= settings.min_run
+                and symbols.size / run >= 2 * n_symbols)
