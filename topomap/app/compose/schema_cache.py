@@ -124,7 +124,9 @@ def _encode_fields(schema) -> list[dict]:
         elif f.default_factory is f.type:  # a nested settings config
             entry["nested"] = True
         elif f.default_factory is not _NO_DEFAULT:
-            entry["factory"] = f.default_factory()
+            entry["factory"] = value = f.default_factory()
+            if isinstance(value, tuple):  # JSON reads it back as a list
+                entry["tuple"] = True
         json.dumps(entry)  # a TypeError when a default has no JSON form
         out.append(entry)
     return out
@@ -139,8 +141,8 @@ def _decode_fields(entries) -> list[tuple]:
         elif e.get("nested"):
             out.append((e["name"], typ, field(default_factory=typ)))
         elif "factory" in e:
-            out.append((e["name"], typ,
-                        field(default_factory=lambda v=e["factory"]: copy.deepcopy(v))))
+            kind = tuple if e.get("tuple") else copy.deepcopy
+            out.append((e["name"], typ, field(default_factory=lambda v=e["factory"], k=kind: k(v))))
         else:
             out.append((e["name"], typ))
     return out
