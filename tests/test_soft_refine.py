@@ -8,7 +8,7 @@ import pytest
 
 from topomap.core.refine.methods import CSCGRefinement, EMRefinement
 from topomap.core.refine.sequence import SymbolSequence
-from topomap.core.refine.soft import SoftSettings, initial_confusion, soft_round
+from topomap.core.refine.soft import SoftSettings, initial_confusion, soft_round, twin_overlap
 from topomap.core.refine.soft_kernels import (SoftData, SoftModel, SoftStats, soft_backward,
                                               soft_candidates, soft_forward, soft_offsets,
                                               soft_viterbi)
@@ -208,3 +208,42 @@ def test_gds_steps_stay_in_their_state():
     assert fit.n_states_ == RING.size
     # every step in its place's state but the last two, both misread (nothing follows them)
     assert same_partition(fit.labels_[:-2], place[:-2])
+
+
+def _dense_twin_overlap(labels, state_symbol, u, has_next, n_actions, n_symbols):
+    """twin_overlap by its definition: the dense (state x predecessor key) shares of every
+    state, compared with every state of another symbol."""
+    S = state_symbol.size
+    t = np.flatnonzero(has_next)
+    P = np.zeros((S, S * n_actions))
+    np.add.at(P, (labels[t + 1], labels[t] * n_actions + u[t]), 1.0)
+    P /= np.maximum(P.sum(axis=1, keepdims=True), 1.0)
+    out, twin = np.zeros(S), np.full(S, -1, dtype=np.int64)
+    plain = np.flatnonzero(state_symbol < n_symbols)
+    for x in plain:
+        others = plain[state_symbol[plain] != state_symbol[x]]
+        if others.size:
+            ov = np.minimum(P[x], P[others]).sum(axis=1)
+            out[x], twin[x] = ov.max(), others[np.argmax(ov)]
+    return out, twin
+
+
+@pytest.mark.parametrize("seed", range(40))
+def test_twin_overlap_matches_the_dense_definition(seed):
+    """Comparing only the states that share a predecessor key gives the dense overlaps bit for
+    bit, and the same twin (the lowest of equals; the first state of another symbol when none
+    shares a key)."""
+    rng = np.random.default_rng(seed)
+    S, A, K, T = int(rng.integers(2, 30)), int(rng.integers(1, 4)), int(rng.integers(1, 4)), 300
+    state_symbol = rng.integers(0, K + 2, S)  # ids from K on are GDS
+    u = rng.integers(0, A, T)
+    succ = rng.integers(0, S, (S, A))
+    labels = np.zeros(T, dtype=np.int64)
+    for t in range(1, T):  # mostly deterministic moves, some noise
+        labels[t] = succ[labels[t - 1], u[t - 1]] if rng.random() < 0.8 else rng.integers(S)
+    has_next = rng.random(T) < 0.95
+    has_next[-1] = False
+    got = twin_overlap(labels, state_symbol, u, has_next, A, K)
+    expect = _dense_twin_overlap(labels, state_symbol, u, has_next, A, K)
+    np.testing.assert_array_equal(got[0], expect[0])
+    np.testing.assert_array_equal(got[1], expect[1])

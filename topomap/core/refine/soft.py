@@ -29,7 +29,7 @@ from ..progress import report
 from .clones import compact_labels
 from .convergence import ConvergenceMonitor
 from .soft_kernels import (SoftData, SoftModel, SoftStats, soft_backward, soft_candidates,
-                           soft_forward, soft_offsets, soft_viterbi)
+                           soft_forward, soft_offsets, soft_viterbi, twin_pairs)
 
 __all__ = ["SoftSettings", "soft_settings", "SoftFit", "EVIDENCE", "check_evidence", "soft_round",
            "misread_rate", "merge_twins", "keep_states", "min_steps_of"]
@@ -275,20 +275,25 @@ def twin_overlap(labels, state_symbol, u, has_next, n_actions: int, n_symbols: i
     distribution (``k`` = previous state and action) with that of a state ``Y`` of another
     K-means symbol.  Misreads of a place's view make a state reached exactly like the place's own
     state (overlap near 1); in a world with deterministic moves two places never share a
-    predecessor key (overlap near 0).  GDS states get 0."""
-    S = state_symbol.size
+    predecessor key (overlap near 0).  GDS states get 0.  Returns ``(overlap, twin)``, ``twin``
+    the state ``Y`` (the lowest of equals; the first state of another symbol when none shares
+    a key, -1 for GDS states and where no state of another symbol exists).  Only states that
+    share a key are compared (:func:`topomap.core.refine.soft_kernels.twin_pairs`)."""
+    S, A = state_symbol.size, n_actions
     t = np.flatnonzero(has_next)
-    key = labels[t] * n_actions + u[t]
-    P = np.zeros((S, S * n_actions))
-    np.add.at(P, (labels[t + 1], key), 1.0)
-    P /= np.maximum(P.sum(axis=1, keepdims=True), 1.0)
-    out, twin = np.zeros(S), np.full(S, -1, dtype=np.int64)
-    plain = np.flatnonzero(state_symbol < n_symbols)
-    for x in plain:
-        others = plain[state_symbol[plain] != state_symbol[x]]
-        if others.size:
-            ov = np.minimum(P[x], P[others]).sum(axis=1)
-            out[x], twin[x] = ov.max(), others[np.argmax(ov)]
+    code, count = np.unique(labels[t + 1] * (S * A) + labels[t] * A + u[t], return_counts=True)
+    dest, key = code // (S * A), code % (S * A)
+    share = count / np.maximum(np.bincount(dest, weights=count, minlength=S), 1.0)[dest]
+    order = np.lexsort((dest, key))
+    kptr = np.searchsorted(key[order], np.arange(S * A + 1))
+    symbol = np.where(state_symbol < n_symbols, state_symbol, -1).astype(np.int64)
+    out, twin = twin_pairs(kptr, dest[order], share[order], symbol, S * A)
+    plain = np.flatnonzero(symbol >= 0)
+    if plain.size:
+        other = plain[state_symbol[plain] != state_symbol[plain[0]]]
+        first = np.where(state_symbol[plain] != state_symbol[plain[0]], plain[0],
+                         other[0] if other.size else -1)
+        twin[plain] = np.where(twin[plain] < 0, first, twin[plain])
     return out, twin
 
 
