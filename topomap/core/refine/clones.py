@@ -149,39 +149,31 @@ def m_step(lay: Layout, counts, pseudocount: float, joint: bool) -> np.ndarray:
 
 
 def e_step(lay: Layout, vals, prune: float = 0.0):
-    """Expected counts, expected clone occupancy, log-likelihood and the most probable clone of
-    every step under ``vals`` (``prune``: see :func:`topomap.core.refine.kernels.clone_forward`)."""
+    """Expected counts, expected clone occupancy and log-likelihood under ``vals`` (``prune``: see
+    :func:`topomap.core.refine.kernels.clone_forward`)."""
     tables = lay.tables
     alpha, log_c = clone_forward(tables, vals, prune)
     counts = np.zeros(vals.size)
     occupancy = np.zeros(lay.n_clones)
-    best = np.empty(lay.sym.size, dtype=np.int64)
-    clone_backward_counts(tables, vals, alpha, log_c, counts, occupancy, best)
-    return counts, occupancy, float(log_c.sum()), best
+    clone_backward_counts(tables, vals, alpha, log_c, counts, occupancy)
+    return counts, occupancy, float(log_c.sum())
 
 
 def baum_welch(lay: Layout, counts, pseudocount: float, joint: bool, *, max_iter: int,
-               tol: float, min_iter: int = 10, prune: float = 0.0, settle: int = 0):
+               tol: float, min_iter: int = 10, prune: float = 0.0):
     """Baum-Welch from ``counts`` until the log-likelihood gains less than ``tol`` nats per step
     (checked from iteration ``min_iter`` on: from a random start the first iterations barely move)
-    or ``max_iter`` iterations.  With ``settle`` > 0 it also stops once the most probable clone
-    of every step has stayed the same for ``settle`` iterations in a row: what EM does after
-    that sharpens probabilities the Viterbi training after it sets anyway.
+    or ``max_iter`` iterations.
 
     Returns ``(counts, occupancy, history)``: the last expected counts (whose M-step is the fitted
     model), the clone occupancy and the log-likelihood of every iteration.
     """
     monitor = ConvergenceMonitor(tol * lay.sym.size, max_iter, min_iter=min_iter)
     occupancy = np.zeros(lay.n_clones)
-    previous, same = None, 0
     while not monitor.converged:
-        counts, occupancy, ll, best = e_step(lay, m_step(lay, counts, pseudocount, joint), prune)
+        counts, occupancy, ll = e_step(lay, m_step(lay, counts, pseudocount, joint), prune)
         monitor.report(ll)
         report("EM", len(monitor.history), max_iter)
-        same = same + 1 if previous is not None and np.array_equal(best, previous) else 0
-        if settle and same >= settle:
-            break
-        previous = best
     report("EM", len(monitor.history), len(monitor.history))  # converged: the loop ends here
     return counts, occupancy, monitor.history
 
@@ -215,7 +207,7 @@ def viterbi_training(lay: Layout, counts, joint: bool, *, pseudocount: float = 0
 
 
 def fit_clones(lay: Layout, init, pseudocount: float, *, max_iter: int, tol: float,
-               prune: float = 0.0, joint: bool = False, settle: int = 0, min_iter: int = 10):
+               prune: float = 0.0, joint: bool = False):
     """Baum-Welch from the counts ``init`` (:func:`baum_welch`), then Viterbi training without
     pseudocount (:func:`viterbi_training`); the clones the final path uses become the states.
 
@@ -224,7 +216,7 @@ def fit_clones(lay: Layout, init, pseudocount: float, *, max_iter: int, tol: flo
     iterations and of the Viterbi paths.
     """
     counts, _, em_history = baum_welch(lay, init, pseudocount, joint, max_iter=max_iter, tol=tol,
-                                       prune=prune, settle=settle, min_iter=min_iter)
+                                       prune=prune)
     path, _, viterbi_history = viterbi_training(lay, counts, joint)
     labels, state_symbol, _ = compact_labels(path, lay.clone_symbol)
     return labels, state_symbol, em_history, viterbi_history

@@ -153,13 +153,12 @@ def _clone_active(alpha, a0, n, out):
 
 
 @njit(cache=True)
-def clone_backward_counts(tables, vals, alpha, log_c, counts, occupancy, best):
+def clone_backward_counts(tables, vals, alpha, log_c, counts, occupancy):
     """Scaled backward pass that accumulates the E-step statistics in place.
 
     ``counts`` (same layout as ``vals``) receives the expected transition counts
-    ``sum_t P(x_t = i, x_{t+1} = j | data)``, ``occupancy`` (S,) the expected number of steps
-    spent in every clone and ``best`` (T,) the most probable clone of every step (global id; the
-    lowest of equals).  ``alpha`` and ``log_c`` come from :func:`clone_forward` on the same
+    ``sum_t P(x_t = i, x_{t+1} = j | data)`` and ``occupancy`` (S,) the expected number of steps
+    spent in every clone.  ``alpha`` and ``log_c`` come from :func:`clone_forward` on the same
     model; clones with ``alpha = 0`` are skipped (their backward message is never needed), so a
     step costs (active clones at t) x (active clones at t + 1).
     """
@@ -190,14 +189,9 @@ def clone_backward_counts(tables, vals, alpha, log_c, counts, occupancy, best):
                     counts[row + j] += w * v
                 beta[i] = acc * inv_c
         c0 = start[sym[t]]
-        top, arg = -1.0, 0
         for k in range(n_act):
             i = act[k]
-            g = alpha[a0 + i] * beta[i]
-            occupancy[c0 + i] += g
-            if g > top:
-                top, arg = g, i
-        best[t] = c0 + arg
+            occupancy[c0 + i] += alpha[a0 + i] * beta[i]
         beta, beta_next = beta_next, beta
         act, act_next = act_next, act
         n_next = n_act
