@@ -8,7 +8,9 @@ import pytest
 
 from topomap.core.refine.methods import CSCGRefinement, EMRefinement
 from topomap.core.refine.sequence import SymbolSequence
-from topomap.core.refine.soft import SoftSettings, initial_confusion, soft_round, twin_overlap
+from topomap.core.refine.soft import (SoftSettings, co_successors, initial_confusion,
+                                      misread_share, soft_round, successor_surprise,
+                                      twin_overlap)
 from topomap.core.refine.soft_kernels import (SoftData, SoftModel, SoftStats, soft_backward,
                                               soft_candidates, soft_forward, soft_offsets,
                                               soft_viterbi)
@@ -140,6 +142,56 @@ def test_auto_keeps_hard_result_without_misreads():
     np.testing.assert_array_equal(auto.labels_, hard.labels_)
     assert auto.info_["soft"] == "skipped"
     assert same_partition(auto.labels_, place)
+    # the states predict every next symbol: no soft round runs at all
+    assert auto.info_["surprise"] == 0.0 and auto.info_["soft_rounds"] == []
+
+
+# a hand-made walk: labels 0 1 0 | 1 0 1 (two episodes), action 0 throughout, symbols 0 1 0 | 0 0 2
+# transitions inside the episodes: (state 0 -> 1), (1 -> 0), (1 -> 0), (0 -> 2)
+_HAND = dict(sym=[0, 1, 0, 0, 0, 2], labels=np.array([0, 1, 0, 1, 0, 1]), lengths=[3, 3])
+
+
+def test_successor_surprise_counts_the_unpredicted_next_symbols():
+    seq = SymbolSequence.build(_HAND["sym"], np.zeros(6), _HAND["lengths"], 1, 3)
+    # state 0 is followed by 1 and 2 (one of its two transitions unpredicted), state 1 by 0, 0
+    assert successor_surprise(seq, _HAND["labels"]) == pytest.approx(1 / 4)
+    # one episode: the step 2 -> 3 (state 0 -> symbol 0) joins state 0's successors 1, 0, 2
+    one = SymbolSequence.build(_HAND["sym"], np.zeros(6), [6], 1, 3)
+    assert successor_surprise(one, _HAND["labels"]) == pytest.approx(2 / 5)
+
+
+def test_co_successors_pair_the_symbols_one_state_action_leads_to():
+    seq = SymbolSequence.build(_HAND["sym"], np.zeros(6), _HAND["lengths"], 1, 3)
+    allowed = co_successors(seq, _HAND["labels"])
+    off = allowed & ~np.eye(3, dtype=bool)
+    assert {tuple(p) for p in np.argwhere(off)} == {(1, 2), (2, 1)}
+
+
+def test_initial_confusion_spreads_the_error_over_the_allowed_pairs_only():
+    allowed = np.zeros((3, 3), dtype=bool)
+    allowed[1, 2] = allowed[2, 1] = True
+    C = initial_confusion(4, 3, 0.2, allowed)  # 3 symbols and one GDS id
+    np.testing.assert_allclose(C, [[1, 0, 0, 0], [0, 0.9, 0.1, 0], [0, 0.1, 0.9, 0],
+                                   [0, 0, 0, 1]])
+    np.testing.assert_allclose(initial_confusion(3, 3, 0.2)[0], [0.8, 0.1, 0.1])
+
+
+def test_misread_share_is_the_off_diagonal_share_of_the_symbol_counts():
+    N = np.array([[8.0, 2.0, 0.0], [0.0, 10.0, 0.0], [0.0, 0.0, 50.0]])  # id 2: a GDS
+    assert misread_share(N, 2) == pytest.approx(2 / 20)
+    assert misread_share(np.zeros((2, 2)), 2) == 0.0
+
+
+def test_exact_readings_stop_a_soft_round_early():
+    sym, u, lengths, place, _ = _ring_walk(misread=0.0)
+    s = SoftSettings()
+    fit = soft_round(_seq(sym, u, lengths), place, RING, settings=s, exact_below=s.detect)
+    assert fit.info["stopped"] == "exact" and fit.info["em_iterations"] <= s.detect_iter
+    np.testing.assert_array_equal(fit.labels, place)
+    np.testing.assert_array_equal(fit.sym, sym)
+    sym, u, lengths, place, _ = _ring_walk(misread=0.06, seed=1)
+    noisy = soft_round(_seq(sym, u, lengths), place, RING, settings=s, exact_below=s.detect)
+    assert "stopped" not in noisy.info and noisy.info["misread"] > 0.03
 
 
 def test_soft_round_learns_confusion():
