@@ -15,6 +15,14 @@ with the app's sensor noise, and a held-out walk of 10,000 steps), and three lea
   pseudocount 2e-3, Baum-Welch to convergence, Viterbi training); its time is phase 1 + EM;
 * ``split+em`` -- the split, then the refinement (``refine=em``).
 
+With ``--cscg PATH`` (the authors' ``chmm_actions.py``, from
+https://github.com/vicariousinc/naturecomm_cscg) a fourth learner, ``cscg``, is their code with
+their recipe on the phase-1 symbols (70 clones per symbol, pseudocount 2e-3, ``learn_em_T`` up to
+1,000 iterations, then ``learn_viterbi_T`` without pseudocount; the states are ``decode``'s
+clones; its time is phase 1 + their EM), and a second table sets ``split+em`` beside it: both fit
+times, their ratio and both ARIs.  Their model is dense, (actions x clones x clones) float32:
+worlds past ``CSCG_MAX_BYTES`` are left out (FourRooms' 450 symbols would need 12 GB).
+
 Columns, medians over the seeds: ARI and NMI against the true places, the states used, the
 held-out log-likelihood per step (``TopologicalMap.score``, nats: a log-density, comparable
 between rows of one world and T) and the fit time (seconds; phase 1 included).  Every run is
@@ -25,10 +33,13 @@ resumes); ``--figure`` draws ARI against fit time.
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import json
 import os
 import statistics
+import sys
 import time
+import types
 from pathlib import Path
 
 import numpy as np
@@ -48,10 +59,17 @@ WORLDS = {
     "gridroom_12x12": ("gridroom 12x12, 8 symbols", GRID12),
     "random_graph_60": ("random_graph 60 places, 15 symbols", RG60),
     "minigrid_empty": ("MiniGrid Empty-8x8", "env=minigrid clusters.ns=86 stop.n_states=140"),
+    "minigrid_crossing": ("MiniGrid SimpleCrossingS9N1 (seed 0)",
+                          "env=minigrid env.name=MiniGrid-SimpleCrossingS9N1-v0 clusters.ns=137 "
+                          "stop.n_states=168"),
     "minigrid_fourrooms": ("MiniGrid FourRooms (seed 0)",
                            FOURROOMS.replace("data.n_steps=50000 ", "")),
 }
-METHODS = {"split": "none", "em": "cscg", "split+em": "em"}
+METHODS = {"split": "none", "em": "cscg", "split+em": "em", "cscg": "none"}
+#: the largest dense CSCG model (bytes of its count array) the authors' code is run on
+CSCG_MAX_BYTES = 2 * 2**30
+#: the authors' ``chmm_actions`` module (``--cscg``), or None
+CSCG = None
 OFFICE_T = 2000
 HELDOUT = 10_000
 
@@ -74,6 +92,8 @@ def fit(registry, command: str, T: int, seed: int, method: str, data=None):
     t = learner.timings_
     if method == "em":  # EM alone: the split it was handed is not part of its work
         seconds = t["phase1"] + t["refine"]
+    if method == "cscg":
+        return authors_cscg(learner, traj, T, seed), data
     m = learner.map_
     return {
         "T": T, "seed": seed, "method": method, "places": int(np.unique(traj.places).size),
@@ -85,9 +105,54 @@ def fit(registry, command: str, T: int, seed: int, method: str, data=None):
     }, data
 
 
+def load_cscg(path: str):
+    """The authors' ``chmm_actions.py`` as a module; without tqdm its progress bars are silent."""
+    try:
+        import tqdm  # noqa: F401
+    except ImportError:
+        class Bar:
+            def __init__(self, n, **_):
+                self.n = n
+
+            def __iter__(self):
+                return iter(range(self.n))
+
+            def set_postfix(self, **_):
+                pass
+
+        sys.modules["tqdm"] = types.SimpleNamespace(trange=Bar)
+    spec = importlib.util.spec_from_file_location("chmm_actions", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def authors_cscg(learner, traj, T: int, seed: int) -> dict:
+    """CSCG by its authors' code and recipe on ``learner``'s phase-1 symbols (the episodes
+    joined: their code takes one sequence); None fields where the dense model is too large."""
+    x = np.unique(learner.labels_phase1_, return_inverse=True)[1].astype(np.int64)
+    a = np.asarray(traj.actions, dtype=np.int64)
+    n_clones = np.full(int(x.max()) + 1, 70, dtype=np.int64)
+    record = {"T": T, "seed": seed, "method": "cscg", "places": int(np.unique(traj.places).size),
+              "ari": None, "nmi": None, "states": None, "heldout": None, "seconds": None,
+              "load": os.getloadavg()[0]}
+    if (int(a.max()) + 1) * int(n_clones.sum()) ** 2 * 4 > CSCG_MAX_BYTES:
+        return record
+    t0 = time.perf_counter()
+    model = CSCG.CHMM(n_clones=n_clones, pseudocount=2e-3, x=x, a=a, seed=seed)
+    model.learn_em_T(x, a, n_iter=1000)
+    model.pseudocount = 0.0
+    model.learn_viterbi_T(x, a, n_iter=100)
+    states = model.decode(x, a)[1]
+    record.update(ari=adjusted_rand(traj.places, states), nmi=nmi(traj.places, states),
+                  states=int(np.unique(states).size),
+                  seconds=learner.timings_["phase1"] + time.perf_counter() - t0)
+    return record
+
+
 def warm_up(registry) -> None:
     """Compile (or load from numba's cache) every kernel before any timing."""
-    for method in METHODS:
+    for method in METHODS if CSCG else [m for m in METHODS if m != "cscg"]:
         fit(registry, "env=gridroom env.width=4 env.height=3 clusters.ns=4 stop.n_states=12",
             600, 0, method)
 
@@ -100,7 +165,8 @@ def table(records) -> list[str]:
     """Markdown rows of the medians per (world, T, method), in the order first seen."""
     groups: dict = {}
     for r in records:
-        groups.setdefault((r["world"], r["T"], r["method"]), []).append(r)
+        if r["method"] != "cscg":  # the authors' code: in versus()
+            groups.setdefault((r["world"], r["T"], r["method"]), []).append(r)
     rows = [HEADER, "|" + "---|" * (HEADER.count("|") - 1)]
     for (world, T, method), rs in groups.items():
         med = {k: statistics.median(r[k] for r in rs)
@@ -114,6 +180,32 @@ def table(records) -> list[str]:
     return rows
 
 
+VERSUS = ("| world | T | split+em s | CSCG (authors) s | x faster | split+em ARI | CSCG ARI |\n"
+          "|---|---|---|---|---|---|---|")
+
+
+def versus(records) -> list[str]:
+    """Markdown rows, medians per (world, T): ``split+em`` beside the authors' CSCG."""
+    groups: dict = {}
+    for r in records:
+        if r["method"] in ("split+em", "cscg"):
+            groups.setdefault((r["world"], r["T"]), {}).setdefault(r["method"], []).append(r)
+    rows = [VERSUS]
+    for (world, T), by in groups.items():
+        ours, theirs = by.get("split+em", []), [r for r in by.get("cscg", []) if r["seconds"]]
+        if not ours or not by.get("cscg"):
+            continue
+        o_s, o_a = (statistics.median(r[k] for r in ours) for k in ("seconds", "ari"))
+        if not theirs:
+            rows.append(f"| {WORLDS[world][0]} | {T:,} | {o_s:.2f} | (model too large) | | "
+                        f"{o_a:.3f} | |")
+            continue
+        c_s, c_a = (statistics.median(r[k] for r in theirs) for k in ("seconds", "ari"))
+        rows.append(f"| {WORLDS[world][0]} | {T:,} | {o_s:.2f} | {c_s:.2f} | {c_s / o_s:.1f} | "
+                    f"{o_a:.3f} | {c_a:.3f} |")
+    return rows
+
+
 def figure(records, path) -> None:
     """ARI against fit time, one panel per T, a marker per method and a colour per world."""
     import matplotlib
@@ -124,13 +216,14 @@ def figure(records, path) -> None:
     sizes = sorted({r["T"] for r in records if r["T"] != OFFICE_T})
     fig, axes = plt.subplots(1, len(sizes), figsize=(5 * len(sizes) + 3, 4.2), squeeze=False,
                              sharey=True)
-    markers = {"split": "o", "em": "s", "split+em": "*"}
+    markers = {"split": "o", "em": "s", "split+em": "*", "cscg": "D"}
     colours = dict(zip(WORLDS, plt.get_cmap("tab10").colors))
     for ax, T in zip(axes[0], sizes):
         for world in WORLDS:
             pts = []
             for method in METHODS:
-                rs = [r for r in records if (r["world"], r["T"], r["method"]) == (world, T, method)]
+                rs = [r for r in records if (r["world"], r["T"], r["method"]) == (world, T, method)
+                      and r["seconds"] is not None]
                 if rs:
                     pts.append((statistics.median(r["seconds"] for r in rs),
                                 statistics.median(r["ari"] for r in rs), method))
@@ -155,11 +248,21 @@ def main():
     ap.add_argument("--worlds", nargs="+", default=list(WORLDS), choices=list(WORLDS))
     ap.add_argument("--sizes", nargs="+", type=int, default=[10_000, 50_000])
     ap.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2])
-    ap.add_argument("--methods", nargs="+", default=list(METHODS), choices=list(METHODS))
+    ap.add_argument("--methods", nargs="+", default=None, choices=list(METHODS),
+                    help="default: all (cscg only with --cscg)")
+    ap.add_argument("--cscg", default=None, metavar="PATH",
+                    help="the authors' chmm_actions.py: fit it too and print it beside split+em")
     ap.add_argument("--log", default="benchmarks/results/bench_em.jsonl")
     ap.add_argument("--figure", default=None, help="write the ARI / fit time figure here")
     ap.add_argument("--report", action="store_true", help="only print the table of --log")
     args = ap.parse_args()
+    global CSCG
+    if args.cscg:
+        CSCG = load_cscg(args.cscg)
+    if args.methods is None:
+        args.methods = [m for m in METHODS if CSCG or m != "cscg"]
+    elif "cscg" in args.methods and not CSCG:
+        ap.error("--methods cscg: give --cscg PATH (the authors' chmm_actions.py)")
     log = Path(args.log)
     done = [json.loads(line) for line in log.read_text().splitlines()] if log.exists() else []
     if not args.report:
@@ -182,6 +285,9 @@ def main():
                 print("\n".join(table([r for r in done if (r["world"], r["T"]) == (world, T)])[2:]),
                       flush=True)
     print("\n".join(table(done)))
+    if any(r["method"] == "cscg" for r in done):
+        print()
+        print("\n".join(versus(done)))
     if args.figure:
         figure(done, args.figure)
 

@@ -224,7 +224,10 @@ def test_an_old_style_refinement_still_works_and_warns():
 
 def test_soft_settings_reach_the_refinement_and_the_map_file_label():
     """A warm-up longer than Baum-Welch's iterations (30 at most) never learns the confusion
-    matrix: every soft round ends with the misread rate it started from, ``init_error``."""
+    matrix: every soft round ends with the one it started from.  The ring is deterministic, so
+    no two symbols follow one state and action of the hard labelling and that start is the
+    identity (``init_error`` goes to the pairs that do); a learned matrix has off-diagonal mass
+    from its prior."""
     from topomap import MapLearner
 
     sym, u, _ = ring_walk(3000, RING, 0)
@@ -232,11 +235,11 @@ def test_soft_settings_reach_the_refinement_and_the_map_file_label():
         evidence="soft", soft={"rounds": 1, "conf_warmup": 100})).fit(noisy(sym, 6), u)
     rounds = learner.refine_info_["soft_rounds"]
     assert len(rounds) == 2  # one soft round and a hard one after it, then the last soft round
-    assert [r["conf_offdiag"] for r in rounds] == pytest.approx([0.2, 0.2], abs=1e-12)
+    assert [r["conf_offdiag"] for r in rounds] == [0.0, 0.0]
     assert "soft=SoftSettings(rounds=1, conf_warmup=100)" in learner.map_.info["refine"]
     learned = MapLearner(n_clusters=6, n_states=6, refine=EMRefinement(
         evidence="soft", soft={"rounds": 1})).fit(noisy(sym, 6), u)
-    assert learned.refine_info_["soft_rounds"][0]["conf_offdiag"] < 0.1
+    assert 0.0 < learned.refine_info_["soft_rounds"][0]["conf_offdiag"] < 0.1
 
 
 def test_the_learner_refines_a_clone_and_never_changes_its_refine():

@@ -8,7 +8,9 @@ import pytest
 
 from topomap.core.refine.methods import CSCGRefinement, EMRefinement
 from topomap.core.refine.sequence import SymbolSequence
-from topomap.core.refine.soft import SoftSettings, initial_confusion, soft_round
+from topomap.core.refine.soft import (SoftSettings, co_successors, initial_confusion,
+                                      misread_share, soft_round, successor_surprise,
+                                      twin_overlap)
 from topomap.core.refine.soft_kernels import (SoftData, SoftModel, SoftStats, soft_backward,
                                               soft_candidates, soft_forward, soft_offsets,
                                               soft_viterbi)
@@ -140,6 +142,56 @@ def test_auto_keeps_hard_result_without_misreads():
     np.testing.assert_array_equal(auto.labels_, hard.labels_)
     assert auto.info_["soft"] == "skipped"
     assert same_partition(auto.labels_, place)
+    # the states predict every next symbol: no soft round runs at all
+    assert auto.info_["surprise"] == 0.0 and auto.info_["soft_rounds"] == []
+
+
+# a hand-made walk: labels 0 1 0 | 1 0 1 (two episodes), action 0 throughout, symbols 0 1 0 | 0 0 2
+# transitions inside the episodes: (state 0 -> 1), (1 -> 0), (1 -> 0), (0 -> 2)
+_HAND = dict(sym=[0, 1, 0, 0, 0, 2], labels=np.array([0, 1, 0, 1, 0, 1]), lengths=[3, 3])
+
+
+def test_successor_surprise_counts_the_unpredicted_next_symbols():
+    seq = SymbolSequence.build(_HAND["sym"], np.zeros(6), _HAND["lengths"], 1, 3)
+    # state 0 is followed by 1 and 2 (one of its two transitions unpredicted), state 1 by 0, 0
+    assert successor_surprise(seq, _HAND["labels"]) == pytest.approx(1 / 4)
+    # one episode: the step 2 -> 3 (state 0 -> symbol 0) joins state 0's successors 1, 0, 2
+    one = SymbolSequence.build(_HAND["sym"], np.zeros(6), [6], 1, 3)
+    assert successor_surprise(one, _HAND["labels"]) == pytest.approx(2 / 5)
+
+
+def test_co_successors_pair_the_symbols_one_state_action_leads_to():
+    seq = SymbolSequence.build(_HAND["sym"], np.zeros(6), _HAND["lengths"], 1, 3)
+    allowed = co_successors(seq, _HAND["labels"])
+    off = allowed & ~np.eye(3, dtype=bool)
+    assert {tuple(p) for p in np.argwhere(off)} == {(1, 2), (2, 1)}
+
+
+def test_initial_confusion_spreads_the_error_over_the_allowed_pairs_only():
+    allowed = np.zeros((3, 3), dtype=bool)
+    allowed[1, 2] = allowed[2, 1] = True
+    C = initial_confusion(4, 3, 0.2, allowed)  # 3 symbols and one GDS id
+    np.testing.assert_allclose(C, [[1, 0, 0, 0], [0, 0.9, 0.1, 0], [0, 0.1, 0.9, 0],
+                                   [0, 0, 0, 1]])
+    np.testing.assert_allclose(initial_confusion(3, 3, 0.2)[0], [0.8, 0.1, 0.1])
+
+
+def test_misread_share_is_the_off_diagonal_share_of_the_symbol_counts():
+    N = np.array([[8.0, 2.0, 0.0], [0.0, 10.0, 0.0], [0.0, 0.0, 50.0]])  # id 2: a GDS
+    assert misread_share(N, 2) == pytest.approx(2 / 20)
+    assert misread_share(np.zeros((2, 2)), 2) == 0.0
+
+
+def test_exact_readings_stop_a_soft_round_early():
+    sym, u, lengths, place, _ = _ring_walk(misread=0.0)
+    s = SoftSettings()
+    fit = soft_round(_seq(sym, u, lengths), place, RING, settings=s, exact_below=s.detect)
+    assert fit.info["stopped"] == "exact" and fit.info["em_iterations"] <= s.detect_iter
+    np.testing.assert_array_equal(fit.labels, place)
+    np.testing.assert_array_equal(fit.sym, sym)
+    sym, u, lengths, place, _ = _ring_walk(misread=0.06, seed=1)
+    noisy = soft_round(_seq(sym, u, lengths), place, RING, settings=s, exact_below=s.detect)
+    assert "stopped" not in noisy.info and noisy.info["misread"] > 0.03
 
 
 def test_soft_round_learns_confusion():
@@ -208,3 +260,42 @@ def test_gds_steps_stay_in_their_state():
     assert fit.n_states_ == RING.size
     # every step in its place's state but the last two, both misread (nothing follows them)
     assert same_partition(fit.labels_[:-2], place[:-2])
+
+
+def _dense_twin_overlap(labels, state_symbol, u, has_next, n_actions, n_symbols):
+    """twin_overlap by its definition: the dense (state x predecessor key) shares of every
+    state, compared with every state of another symbol."""
+    S = state_symbol.size
+    t = np.flatnonzero(has_next)
+    P = np.zeros((S, S * n_actions))
+    np.add.at(P, (labels[t + 1], labels[t] * n_actions + u[t]), 1.0)
+    P /= np.maximum(P.sum(axis=1, keepdims=True), 1.0)
+    out, twin = np.zeros(S), np.full(S, -1, dtype=np.int64)
+    plain = np.flatnonzero(state_symbol < n_symbols)
+    for x in plain:
+        others = plain[state_symbol[plain] != state_symbol[x]]
+        if others.size:
+            ov = np.minimum(P[x], P[others]).sum(axis=1)
+            out[x], twin[x] = ov.max(), others[np.argmax(ov)]
+    return out, twin
+
+
+@pytest.mark.parametrize("seed", range(40))
+def test_twin_overlap_matches_the_dense_definition(seed):
+    """Comparing only the states that share a predecessor key gives the dense overlaps bit for
+    bit, and the same twin (the lowest of equals; the first state of another symbol when none
+    shares a key)."""
+    rng = np.random.default_rng(seed)
+    S, A, K, T = int(rng.integers(2, 30)), int(rng.integers(1, 4)), int(rng.integers(1, 4)), 300
+    state_symbol = rng.integers(0, K + 2, S)  # ids from K on are GDS
+    u = rng.integers(0, A, T)
+    succ = rng.integers(0, S, (S, A))
+    labels = np.zeros(T, dtype=np.int64)
+    for t in range(1, T):  # mostly deterministic moves, some noise
+        labels[t] = succ[labels[t - 1], u[t - 1]] if rng.random() < 0.8 else rng.integers(S)
+    has_next = rng.random(T) < 0.95
+    has_next[-1] = False
+    got = twin_overlap(labels, state_symbol, u, has_next, A, K)
+    expect = _dense_twin_overlap(labels, state_symbol, u, has_next, A, K)
+    np.testing.assert_array_equal(got[0], expect[0])
+    np.testing.assert_array_equal(got[1], expect[1])

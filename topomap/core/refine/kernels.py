@@ -87,12 +87,14 @@ def clone_forward(tables, vals, prune):
     the log scaling factors, whose sum is the log-likelihood (0 at episode starts).  Filtered
     probabilities below ``prune`` are set to exactly 0 (0: exact inference), which lets both passes
     skip the clones a confident model has ruled out.  A step the model gives probability zero
-    yields ``log_c = -inf`` and a zero message.
+    yields ``log_c = -inf`` and a zero message.  A step's message is summed in a buffer of its own
+    (the compiler cannot vectorise a sum into the array it reads from).
     """
-    sym, blk, _, boff, pos = tables
+    sym, blk, start, boff, pos = tables
     T = sym.size
     alpha = np.zeros(pos[T])
     log_c = np.zeros(T)
+    buf = np.zeros(_widest(start))
     for t in range(T):
         a0 = pos[t]
         n = pos[t + 1] - a0
@@ -102,15 +104,27 @@ def clone_forward(tables, vals, prune):
             continue
         p0 = pos[t - 1]
         o = boff[blk[t - 1]]
+        acc = buf[:n]
+        acc[:] = 0.0
         for i in range(a0 - p0):
             ai = alpha[p0 + i]
             if ai == 0.0:
                 continue
-            row = o + i * n
+            row = vals[o + i * n:o + (i + 1) * n]
             for j in range(n):
-                alpha[a0 + j] += ai * vals[row + j]
+                acc[j] += ai * row[j]
+        alpha[a0:a0 + n] = acc
         log_c[t] = np.log(normalise_block(alpha, a0, n, prune))
     return alpha, log_c
+
+
+@njit(cache=True)
+def _widest(start):
+    """The most clones any symbol has."""
+    width = 0
+    for k in range(start.size - 1):
+        width = max(width, start[k + 1] - start[k])
+    return width
 
 
 @njit(cache=True)
@@ -144,14 +158,12 @@ def clone_backward_counts(tables, vals, alpha, log_c, counts, occupancy):
 
     ``counts`` (same layout as ``vals``) receives the expected transition counts
     ``sum_t P(x_t = i, x_{t+1} = j | data)`` and ``occupancy`` (S,) the expected number of steps
-    spent in every clone.  ``alpha`` and ``log_c`` come from :func:`clone_forward` on the same model;
-    clones with ``alpha = 0`` are skipped (their backward message is never needed), so a step
-    costs (active clones at t) x (active clones at t + 1).
+    spent in every clone.  ``alpha`` and ``log_c`` come from :func:`clone_forward` on the same
+    model; clones with ``alpha = 0`` are skipped (their backward message is never needed), so a
+    step costs (active clones at t) x (active clones at t + 1).
     """
     sym, blk, start, boff, pos = tables
-    width = 0
-    for k in range(start.size - 1):
-        width = max(width, start[k + 1] - start[k])
+    width = _widest(start)
     beta, beta_next = np.zeros(width), np.zeros(width)
     act, act_next = np.empty(width, dtype=np.int64), np.empty(width, dtype=np.int64)
     n_next = 0
@@ -201,9 +213,7 @@ def _clone_backtrace(tables, psi, t0, t1, last, path):
 def viterbi_buffers(offsets, pos, T):
     """``(psi, delta, delta_next, path)`` of a Viterbi pass over ``T`` steps whose step ``t`` has
     ``pos[t + 1] - pos[t]`` candidates, at most the widest run of ``offsets``."""
-    width = 0
-    for k in range(offsets.size - 1):
-        width = max(width, offsets[k + 1] - offsets[k])
+    width = _widest(offsets)
     return (np.zeros(pos[T], dtype=np.int64), np.empty(width), np.empty(width),
             np.empty(T, dtype=np.int64))
 

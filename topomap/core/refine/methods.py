@@ -42,7 +42,7 @@ from .clones import (Layout, clone_budget, fit_clones, init_from_path, random_co
                      states_to_clones)
 from .sequence import SymbolSequence
 from .soft import (SoftSettings, check_evidence, keep_states, merge_twins, min_steps_of,
-                   misread_rate, soft_round, soft_settings)
+                   soft_round, soft_settings, successor_surprise)
 from .structure import merge_states, same_partition, split_compounds
 
 __all__ = ["CloneFit", "CloneRefinement", "EMRefinement", "CSCGRefinement", "REFINEMENTS"]
@@ -116,12 +116,21 @@ class CloneRefinement(BaseEstimator):
            hard round gives back the labelling it started from;
         2. a last soft round without spare clones gives the map.
 
-        With ``evidence="auto"``, the hard round is kept when the first soft round finds fewer
-        misreads than ``soft.detect``.  ``n_reference`` is the state count a fractional
-        ``soft.min_steps`` refers to (the split's; default: the hard round's)."""
+        With ``evidence="auto"``, the hard round is kept without a soft round when its labelling
+        predicts the next symbol of all but a ``soft.detect`` share of its transitions
+        (:func:`~topomap.core.refine.soft.successor_surprise`: there is nothing to correct), and
+        after the first soft round when that round explains fewer steps than ``soft.detect`` as
+        misread (:func:`~topomap.core.refine.soft.misread_share`) and corrects fewer.
+        ``n_reference`` is the state count a fractional ``soft.min_steps`` refers to (the
+        split's; default: the hard round's)."""
         s = soft_settings(self.soft)
         if self.evidence == "soft":
             s = replace(s, detect=-1.0)
+        surprise = successor_surprise(seq, hard_fit.labels)
+        if surprise < s.detect:
+            return CloneFit(hard_fit.labels, hard_fit.state_symbol,
+                            {**hard_fit.info, "soft": "skipped", "surprise": surprise,
+                             "soft_rounds": []})
         rng = np.random.default_rng(random_state)
         labels, state_symbol = hard_fit.labels, hard_fit.state_symbol
         n_ref = state_symbol.size if n_reference is None else int(n_reference)
@@ -132,13 +141,15 @@ class CloneRefinement(BaseEstimator):
             keep = keep_states(seq, labels, state_symbol, min_steps if s.prune_every else 0,
                                s.twin)
             soft = soft_round(seq, labels, state_symbol, conf, spare=s.spare, settings=s,
-                              rng=rng, keep=keep)
+                              rng=rng, keep=keep, exact_below=s.detect if r == 0 else None)
             conf = soft.conf
             rounds.append({"states_in": int(state_symbol.size), "twins_merged": n_merged,
                            **soft.info})
-            if r == 0 and max(soft.info["corrected"], misread_rate(conf, seq.n_symbols)) < s.detect:
+            if r == 0 and ("stopped" in soft.info
+                           or max(soft.info["corrected"], soft.info["misread"]) < s.detect):
                 return CloneFit(hard_fit.labels, hard_fit.state_symbol,
-                                {**hard_fit.info, "soft": "skipped", "soft_rounds": rounds})
+                                {**hard_fit.info, "soft": "skipped", "surprise": surprise,
+                                 "soft_rounds": rounds})
             split_symbol = np.where(soft.state_symbol < seq.n_symbols, soft.state_symbol, -1)
             hard = self._hard_round(replace(seq, sym=soft.sym), split_symbol, random_state)
             settled = (hard.n_states == state_symbol.size
@@ -152,7 +163,8 @@ class CloneRefinement(BaseEstimator):
         soft = soft_round(seq, labels, state_symbol, conf, spare=0, settings=s, rng=rng, keep=keep)
         rounds.append({"states_in": int(keep.sum()), **soft.info})
         return CloneFit(soft.labels, soft.state_symbol,
-                        {**hard_fit.info, "soft": "on", "soft_rounds": rounds})
+                        {**hard_fit.info, "soft": "on", "surprise": surprise,
+                         "soft_rounds": rounds})
 
     def _provenance_soft(self) -> str:
         """``soft=SoftSettings(...)`` naming the soft settings changed from their defaults ("" for

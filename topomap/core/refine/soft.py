@@ -29,10 +29,11 @@ from ..progress import report
 from .clones import compact_labels
 from .convergence import ConvergenceMonitor
 from .soft_kernels import (SoftData, SoftModel, SoftStats, soft_backward, soft_candidates,
-                           soft_forward, soft_offsets, soft_viterbi)
+                           soft_forward, soft_offsets, soft_viterbi, twin_pairs)
 
 __all__ = ["SoftSettings", "soft_settings", "SoftFit", "EVIDENCE", "check_evidence", "soft_round",
-           "misread_rate", "merge_twins", "keep_states", "min_steps_of"]
+           "misread_rate", "misread_share", "successor_surprise", "merge_twins", "keep_states",
+           "min_steps_of"]
 
 
 @dataclass(frozen=True)
@@ -50,14 +51,17 @@ class SoftSettings:
     matrix's diagonal / off-diagonal entries (per row); ``init_error`` the misread rate the
     confusion matrix starts from; ``floor`` the smallest ``C[k, r]`` allowed as evidence (smaller
     entries are 0: the sparse kernel never tries clones of ``k`` at a step read as ``r``);
-    ``prune`` the filtered probabilities dropped in the forward pass; ``detect`` the misread rate
-    below which the first soft round stops the refinement (the hard result is kept: clean worlds
-    pay one soft round).  ``clone_prior``: per-clone read distributions shrunk towards the
-    confusion row with that many pseudo-steps (``inf``: the row itself); ``twin`` /
-    ``twin_merge``: the predecessor overlap above which a small state is the residue of misreads
-    / a state is merged into its twin of another symbol (:func:`merge_twins`); ``conf_warmup``:
-    EM iterations with the confusion matrix held at its start before it is learned (0: from the
-    first; docs/refinement.md has its effect on gridroom at 23 % misreads).
+    ``prune`` the filtered probabilities dropped in the forward pass; ``detect``: with
+    ``evidence="auto"`` the hard result is kept when all but that share of its transitions go
+    to the symbol their (state, action) predicts (:func:`successor_surprise`: no soft round),
+    or the first soft round explains fewer steps as misread (:func:`misread_share`, judged
+    after ``detect_iter`` iterations) and corrects fewer.  ``clone_prior``:
+    per-clone read distributions shrunk towards the confusion row with that many pseudo-steps
+    (``inf``: the row itself); ``twin`` / ``twin_merge``: the predecessor overlap above which a
+    small state is the residue of misreads / a state is merged into its twin of another symbol
+    (:func:`merge_twins`); ``conf_warmup``: EM iterations with the confusion matrix held at its
+    start before it is learned (0: from the first; docs/refinement.md has its effect on
+    gridroom at 23 % misreads).
     """
 
     rounds: int = 3
@@ -77,6 +81,7 @@ class SoftSettings:
     twin: float = 0.5
     twin_merge: float = 0.5
     conf_warmup: int = 0
+    detect_iter: int = 3
 
 
 #: the real-valued soft settings and what each must be
@@ -103,7 +108,7 @@ def soft_settings(value) -> SoftSettings:
     if not isinstance(value, SoftSettings):
         raise ParameterError("soft", f"must be SoftSettings or a mapping of its fields, "
                                      f"got {value!r}")
-    for name in ("rounds", "spare", "conf_warmup"):
+    for name in ("rounds", "spare", "conf_warmup", "detect_iter"):
         check_count(getattr(value, name), f"soft.{name}", minimum=0)
     check_count(value.max_iter, "soft.max_iter")
     for name, (ok, what) in _RANGES.items():
@@ -127,14 +132,40 @@ class SoftFit:
     info: dict
 
 
-def initial_confusion(n_ids: int, n_symbols: int, error: float) -> np.ndarray:
+def initial_confusion(n_ids: int, n_symbols: int, error: float, allowed=None) -> np.ndarray:
     """``1 - error`` on the diagonal, ``error`` spread evenly over the other K-means symbols;
-    identity on GDS ids."""
+    identity on GDS ids.  With ``allowed`` (n_symbols, n_symbols) bool, only the allowed pairs
+    get their share ``error / (n_symbols - 1)`` and the diagonal the rest of the row: symbols
+    never confused with another start without its clones as candidates."""
     C = np.eye(n_ids)
     if n_symbols > 1:
-        C[:n_symbols, :n_symbols] = error / (n_symbols - 1)
-        C[np.arange(n_symbols), np.arange(n_symbols)] = 1.0 - error
+        k = np.arange(n_symbols)
+        off = np.full((n_symbols, n_symbols), error / (n_symbols - 1))
+        off[k, k] = 0.0
+        if allowed is not None:
+            off = np.where(allowed, off, 0.0)
+        C[:n_symbols, :n_symbols] = off
+        C[k, k] = 1.0 - error if allowed is None else 1.0 - off.sum(axis=1)
     return C
+
+
+def co_successors(seq, labels) -> np.ndarray:
+    """(n_symbols, n_symbols) bool: the pairs of K-means symbols that follow one (state, action)
+    of the labelling (each, at some step): the readings a misread can swap.  Where every
+    (state, action) is followed by one symbol, no pair is."""
+    t = np.flatnonzero(seq.masks()[1])
+    key = labels[t] * seq.n_actions + seq.u[t]
+    nxt = seq.sym[t + 1]
+    plain = nxt < seq.n_symbols
+    pairs = np.unique(key[plain] * seq.n_symbols + nxt[plain])
+    key, nxt = pairs // seq.n_symbols, pairs % seq.n_symbols
+    first = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
+    size = np.diff(np.r_[first, key.size])
+    allowed = np.zeros((seq.n_symbols, seq.n_symbols), dtype=bool)
+    for f, n in zip(first[size > 1].tolist(), size[size > 1].tolist()):
+        group = nxt[f:f + n]
+        allowed[np.ix_(group, group)] = True
+    return allowed
 
 
 def _confusion_mstep(N: np.ndarray, n_symbols: int, s: SoftSettings) -> np.ndarray:
@@ -211,7 +242,7 @@ def _warm_counts(data: SoftData, labels, state_symbol, keep, n_symbols: int, n_a
 
 def soft_round(seq, labels, state_symbol, conf=None, *, spare: int = 0,
                settings: SoftSettings = SoftSettings(), rng=None, keep=None,
-               learn_conf: bool = True) -> SoftFit:
+               learn_conf: bool = True, exact_below: float | None = None) -> SoftFit:
     """One soft-evidence EM round warm-started from a hard labelling.
 
     ``seq`` is a :class:`topomap.core.refine.methods.SymbolSequence` (the symbols as read),
@@ -221,17 +252,43 @@ def soft_round(seq, labels, state_symbol, conf=None, *, spare: int = 0,
     symbol; Baum-Welch learns the transitions and (``learn_conf``) the confusion matrix ``conf``
     (default :func:`initial_confusion`), then Viterbi decodes.  Returns a :class:`SoftFit` whose
     ``sym`` are the symbols of the decoded clones (the corrected readings).
+
+    With ``exact_below``, the round stops after ``settings.detect_iter`` iterations when EM
+    explains fewer than that share of the steps as misread (:func:`misread_share`): the
+    readings are exact, and the :class:`SoftFit` holds ``labels`` and ``state_symbol``
+    unchanged and ``info["stopped"] = "exact"``.
     """
     s = settings
     rng = np.random.default_rng(0) if rng is None else rng
-    ns, n_ids, A = seq.n_symbols, seq.n_ids, seq.n_actions
+    ns = seq.n_symbols
     state_symbol = np.asarray(state_symbol, dtype=np.int64)
     keep = np.ones(state_symbol.size, bool) if keep is None else np.asarray(keep, bool)
     data = _episode_data(seq)
-    counts, clone_symbol = _warm_counts(data, labels, state_symbol, keep, ns, A, spare, rng)
-    S = clone_symbol.size
+    counts, clone_symbol = _warm_counts(data, labels, state_symbol, keep, ns, seq.n_actions,
+                                        spare, rng)
+    conf = (initial_confusion(seq.n_ids, ns, s.init_error, co_successors(seq, labels))
+            if conf is None else np.asarray(conf, float))
+    em = _soft_em(seq, data, counts, clone_symbol, conf, s, learn_conf, exact_below)
+    trans, emit, conf, N, monitor = em
+    info = {"em_iterations": monitor.iter, "em_loglik": monitor.history[-1],
+            "clones": int(clone_symbol.size), "misread": misread_share(N, ns)}
+    exact = exact_below is not None and info["misread"] < exact_below
+    if exact and monitor.iter <= s.detect_iter:
+        return SoftFit(labels, state_symbol, conf, seq.sym, dict(info, stopped="exact"))
+    model = _model(trans, emit, np.full(clone_symbol.size, 1.0 / clone_symbol.size), s.floor)
+    path, log_p = soft_viterbi(data, _log(model), soft_offsets(data, model))
+    labels, state_symbol, _ = compact_labels(path, clone_symbol)
+    new_sym = clone_symbol[path]
+    info.update(viterbi_logp=float(log_p), corrected=float(np.mean(new_sym != seq.sym)),
+                conf_offdiag=misread_rate(conf, ns))  # the map file's name for the misread rate
+    return SoftFit(labels, state_symbol, conf, new_sym, info)
+
+
+def _soft_em(seq, data, counts, clone_symbol, conf, s, learn_conf, exact_below):
+    """Soft-evidence Baum-Welch from ``counts`` and ``conf`` (:func:`soft_round`); returns
+    ``(trans, emit, conf, N, monitor)``, ``N`` the last E-step's (true x read symbol) counts."""
+    ns, n_ids, A, S = seq.n_symbols, seq.n_ids, seq.n_actions, clone_symbol.size
     init = np.full(S, 1.0 / S)
-    conf = initial_confusion(n_ids, ns, s.init_error) if conf is None else np.asarray(conf, float)
     pseudo = s.row_prior / S
     monitor = ConvergenceMonitor(s.tol * seq.T, s.max_iter, min_iter=2)
     trans = _normalise_trans(counts, pseudo)
@@ -244,24 +301,18 @@ def soft_round(seq, labels, state_symbol, conf=None, *, spare: int = 0,
         soft_backward(data, model, pos, alpha, log_c, stats)
         monitor.report(float(log_c.sum()))
         trans = _normalise_trans(stats.trans, pseudo)
+        N = np.zeros((n_ids, n_ids))
+        np.add.at(N, clone_symbol, stats.emit)
         if learn_conf and monitor.iter >= s.conf_warmup:
-            N = np.zeros((n_ids, n_ids))
-            np.add.at(N, clone_symbol, stats.emit)
             conf = _confusion_mstep(N, ns, s)
         emit = _clone_emission(conf, clone_symbol, stats.emit, s.clone_prior)
         emit[clone_symbol >= ns] = conf[clone_symbol[clone_symbol >= ns]]  # GDS: never confused
         report("EM", monitor.iter, s.max_iter)
+        if (exact_below is not None and monitor.iter == s.detect_iter
+                and misread_share(N, ns) < exact_below):
+            break
     report("EM", monitor.iter, monitor.iter)
-    model = _model(trans, emit, init, s.floor)
-    pos = soft_offsets(data, model)
-    path, log_p = soft_viterbi(data, _log(model), pos)
-    labels, state_symbol, _ = compact_labels(path, clone_symbol)
-    new_sym = clone_symbol[path]
-    info = {"em_iterations": monitor.iter, "em_loglik": monitor.history[-1],
-            "viterbi_logp": float(log_p), "clones": int(S),
-            "corrected": float(np.mean(new_sym != seq.sym)),
-            "conf_offdiag": misread_rate(conf, ns)}  # the map file's name for the misread rate
-    return SoftFit(labels, state_symbol, conf, new_sym, info)
+    return trans, emit, conf, N, monitor
 
 
 def misread_rate(conf, n_symbols: int) -> float:
@@ -270,25 +321,55 @@ def misread_rate(conf, n_symbols: int) -> float:
     return float(1.0 - np.mean(np.diag(conf)[:n_symbols]))
 
 
+def misread_share(N, n_symbols: int) -> float:
+    """The share of the K-means steps EM explains as misread: the off-diagonal part of the
+    expected (true symbol x read symbol) counts ``N`` of its last E-step.  Unlike
+    :func:`misread_rate` it holds no prior (whose ``conf_off`` pseudo-counts outweigh a symbol
+    seen a few dozen times: FourRooms' 450 symbols at 10,000 steps read 40 % from it alone)."""
+    k = n_symbols
+    total = float(N[:k, :k].sum())
+    return 0.0 if total == 0 else float(1.0 - np.trace(N[:k, :k]) / total)
+
+
+def successor_surprise(seq, labels) -> float:
+    """The share of a labelling's transitions whose next symbol is not the one its (state,
+    action) is most often followed by: 0 when the states predict every next view, as in a
+    deterministic world mapped right; every misread raises it (a move from a well-known state
+    that once shows another view): a labelling at 0 leaves a soft round nothing to correct."""
+    t = np.flatnonzero(seq.masks()[1])
+    if t.size == 0:
+        return 0.0
+    key = labels[t] * seq.n_actions + seq.u[t]
+    pairs, count = np.unique(key * seq.n_ids + seq.sym[t + 1], return_counts=True)
+    top = np.zeros(int(key.max()) + 1)
+    np.maximum.at(top, pairs // seq.n_ids, count)
+    return float(1.0 - top.sum() / t.size)
+
+
 def twin_overlap(labels, state_symbol, u, has_next, n_actions: int, n_symbols: int):
     """For every state, the largest overlap ``sum_k min(p_X(k), p_Y(k))`` of its predecessor
     distribution (``k`` = previous state and action) with that of a state ``Y`` of another
     K-means symbol.  Misreads of a place's view make a state reached exactly like the place's own
     state (overlap near 1); in a world with deterministic moves two places never share a
-    predecessor key (overlap near 0).  GDS states get 0."""
-    S = state_symbol.size
+    predecessor key (overlap near 0).  GDS states get 0.  Returns ``(overlap, twin)``, ``twin``
+    the state ``Y`` (the lowest of equals; the first state of another symbol when none shares
+    a key, -1 for GDS states and where no state of another symbol exists).  Only states that
+    share a key are compared (:func:`topomap.core.refine.soft_kernels.twin_pairs`)."""
+    S, A = state_symbol.size, n_actions
     t = np.flatnonzero(has_next)
-    key = labels[t] * n_actions + u[t]
-    P = np.zeros((S, S * n_actions))
-    np.add.at(P, (labels[t + 1], key), 1.0)
-    P /= np.maximum(P.sum(axis=1, keepdims=True), 1.0)
-    out, twin = np.zeros(S), np.full(S, -1, dtype=np.int64)
-    plain = np.flatnonzero(state_symbol < n_symbols)
-    for x in plain:
-        others = plain[state_symbol[plain] != state_symbol[x]]
-        if others.size:
-            ov = np.minimum(P[x], P[others]).sum(axis=1)
-            out[x], twin[x] = ov.max(), others[np.argmax(ov)]
+    code, count = np.unique(labels[t + 1] * (S * A) + labels[t] * A + u[t], return_counts=True)
+    dest, key = code // (S * A), code % (S * A)
+    share = count / np.maximum(np.bincount(dest, weights=count, minlength=S), 1.0)[dest]
+    order = np.lexsort((dest, key))
+    kptr = np.searchsorted(key[order], np.arange(S * A + 1))
+    symbol = np.where(state_symbol < n_symbols, state_symbol, -1).astype(np.int64)
+    out, twin = twin_pairs(kptr, dest[order], share[order], symbol, S * A)
+    plain = np.flatnonzero(symbol >= 0)
+    if plain.size:
+        other = plain[state_symbol[plain] != state_symbol[plain[0]]]
+        first = np.where(state_symbol[plain] != state_symbol[plain[0]], plain[0],
+                         other[0] if other.size else -1)
+        twin[plain] = np.where(twin[plain] < 0, first, twin[plain])
     return out, twin
 
 
