@@ -99,3 +99,24 @@ def test_a_changed_source_file_is_a_new_cache_key(tmp_path, monkeypatch):
     assert schema_cache.source_stamp(package) != before
     monkeypatch.setenv(schema_cache.CACHE_ENV, "")
     assert schema_cache.cache_file() is None
+
+
+def test_a_lazy_name_is_imported_on_first_use_and_kept(monkeypatch):
+    """A package's public name comes from its module when first asked for, then from the
+    package itself; any other name is an AttributeError naming the package."""
+    import types
+
+    from topomap.core.lazy import lazy_getattr
+
+    package = types.ModuleType("lazypkg")
+    package.__path__ = []
+    inner = types.ModuleType("lazypkg.inner")
+    inner.VALUE = object()
+    monkeypatch.setitem(sys.modules, "lazypkg", package)
+    monkeypatch.setitem(sys.modules, "lazypkg.inner", inner)
+    package.__getattr__ = lazy_getattr("lazypkg", {"VALUE": ".inner"})
+    assert "VALUE" not in vars(package)
+    assert package.VALUE is inner.VALUE
+    assert vars(package)["VALUE"] is inner.VALUE
+    with pytest.raises(AttributeError, match="'lazypkg' has no attribute 'OTHER'"):
+        package.OTHER

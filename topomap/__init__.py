@@ -6,7 +6,7 @@ greedy entropy-based splitting of perceptually aliased states.
 
 The package has three floors, each importing only the ones below it:
 
-* :mod:`topomap.core` -- the learning core (numpy and scikit-learn only);
+* :mod:`topomap.core` -- the learning core (numpy, scikit-learn, numba; no Hydra, no simulator);
 * :mod:`topomap.worlds` -- simulated worlds, sensor noise and explorers, producing trajectories;
 * :mod:`topomap.app` -- the ``topomap`` command: Hydra configs, plugins, experiments, sweeps.
 
@@ -17,6 +17,8 @@ with scikit-learn and numba, the plugin marker with pluggy), so the ``topomap`` 
 
 import importlib
 from typing import TYPE_CHECKING
+
+from .core.lazy import lazy_getattr
 
 if TYPE_CHECKING:  # what the names below are, for readers and documentation tools
     from . import metrics
@@ -42,6 +44,7 @@ _PUBLIC = {
 __all__ = ["MapLearner", "TopologicalMap", "Trajectory", "load_trajectory", "save_trajectory",
            "read_rosbag", "write_rosbag", "metrics", "hookimpl", "Component"]
 __version__ = "0.2.0"
+_public = lazy_getattr(__name__, _PUBLIC)
 
 
 def __getattr__(name):
@@ -50,11 +53,7 @@ def __getattr__(name):
     with pluggy)."""
     if name == "metrics":
         return importlib.import_module("topomap.metrics")
-    if name in _PUBLIC:
-        value = getattr(importlib.import_module(_PUBLIC[name]), name)
-        globals()[name] = value
-        return value
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    return _public(name)
 
 
 def __dir__():

@@ -17,20 +17,25 @@ module              its one job
                     symbol evidence, structure moves, resizing
 ``map``             :class:`TopologicalMap`: estimation, entropies, inference, files, planning
 ``size``            ``stop=auto``: the number of states by held-out likelihood or BIC
+``motion``          continuous logs: learned odometry and view copies cut into places
 ``components``      the learner's parameters made into a fit's components
 ``refining``        the learner's refinement stage: the refined map, the BIC guard
 ``online``          what :meth:`MapLearner.partial_fit` keeps between calls
 ``learner``         :class:`MapLearner`, the estimator that runs the phases
+``map_methods``     inference the map and the learner share (hmmlearn's names)
 ``metrics``         learned states against ground-truth places (ARI, NMI, purity, ...)
+``position_scores`` learned states against true positions, in metres, with two yardsticks
 ``stats``, ``sums`` counts, entropies and state matching shared by the rooms; numpy's
                     pairwise sums, compiled
 ``checks``          :class:`~topomap.core.checks.ParameterError`: errors naming a parameter
 ``progress``        progress reports of long loops, for whoever listens
+``lazy``            public names of a package imported on first use
 ==================  ===========================================================================
 """
 
-import importlib
 from typing import TYPE_CHECKING
+
+from .lazy import lazy_getattr
 
 if TYPE_CHECKING:  # what the names below are, for readers and documentation tools
     from .data.trajectory import (Trajectory, check_sequences, load_trajectory,
@@ -48,9 +53,4 @@ _PUBLIC = {"MapLearner": ".learner", "TopologicalMap": ".map.model",
                             "save_trajectory"), ".data.trajectory")}
 
 
-def __getattr__(name):
-    if name in _PUBLIC:
-        value = getattr(importlib.import_module(_PUBLIC[name], __name__), name)
-        globals()[name] = value
-        return value
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+__getattr__ = lazy_getattr(__name__, _PUBLIC)

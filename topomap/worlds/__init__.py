@@ -6,6 +6,8 @@ module              its one job
 ``office/``         the paper's office (layout, actions, motion, sensing, world, plot)
 ``table/``          worlds given by tables: a room of cells (``gridroom``) and a random digraph
                     (``random_graph``) of aliased places, on one base
+``arena/``          continuous motion in a floor plan on ratinabox (optional package): layouts,
+                    recorded paths, sensors, action rules
 ``minigrid``        an adapter for Farama MiniGrid environments (optional package)
 ``checks``          the checks every world makes: its actions, simulate's arguments, choices
 ``noise``           sensor noise models applied to noise-free observations
@@ -15,8 +17,9 @@ module              its one job
 ==================  ===========================================================================
 """
 
-import importlib
 from typing import TYPE_CHECKING
+
+from ..core.lazy import lazy_getattr
 
 if TYPE_CHECKING:  # what the names below are, for readers and documentation tools
     from .explorers import HistoryExplorer, PlanExplorer, RandomExplorer, View, active_explorer
@@ -40,9 +43,4 @@ __all__ = ["DropoutNoise", "GaussianNoise", "GridRoom", "MiniGridWorld", "Multip
            "PlanExplorer", "View", "RandomGraphWorld", "map_while_exploring"]
 
 
-def __getattr__(name):
-    if name in _PUBLIC:
-        value = getattr(importlib.import_module(_PUBLIC[name], __name__), name)
-        globals()[name] = value
-        return value
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+__getattr__ = lazy_getattr(__name__, _PUBLIC)
