@@ -229,9 +229,10 @@ def _backward_rows(tables, vals, alpha, log_c, counts, occupancy):
 @njit(cache=True)
 def _backward_columns(tables, vals_t, alpha, log_c, counts_t, occupancy):
     """:func:`clone_backward_counts` column by column on column-major blocks (``vals_t``,
-    ``counts_t``: block ``b``'s entry ``(i, j)`` at ``boff[b] + j * n(src_b) + i``).  Every clone
-    of a step gets a message and a count; an inactive one's weight is 0, so its counts gain
-    exactly 0 and its message is never read."""
+    ``counts_t``: block ``b``'s entry ``(i, j)`` at ``boff[b] + j * n(src_b) + i``).  Where at
+    least half of a step's clones are active, every clone gets a message and a count (an
+    inactive one's weight is 0, so its counts gain exactly 0, and its message is never read);
+    elsewhere the active clones one by one."""
     sym, blk, start, boff, pos = tables
     width = _widest(start)
     beta, beta_next = np.zeros(width), np.zeros(width)
@@ -248,20 +249,28 @@ def _backward_columns(tables, vals_t, alpha, log_c, counts_t, occupancy):
         else:
             inv_c = np.exp(-log_c[t + 1])
             o = boff[blk[t]]
-            for i in range(n):
-                w[i] = alpha[a0 + i] * inv_c
-                beta[i] = 0.0
-            for kk in range(n_next):
-                j = act_next[kk]
-                bj = beta_next[j]
-                col = vals_t[o + j * n:o + (j + 1) * n]
-                cnt = counts_t[o + j * n:o + (j + 1) * n]
+            if 2 * n_act < n:  # few active clones: one by one
+                for k in range(n_act):
+                    w[act[k]] = alpha[a0 + act[k]] * inv_c
+                _sparse_columns(vals_t, counts_t, o, n, act[:n_act], act_next[:n_next], w,
+                                beta_next, beta)
+                for k in range(n_act):
+                    beta[act[k]] *= inv_c
+            else:
                 for i in range(n):
-                    v = col[i] * bj
-                    beta[i] += v
-                    cnt[i] += w[i] * v
-            for i in range(n):
-                beta[i] = beta[i] * inv_c
+                    w[i] = alpha[a0 + i] * inv_c
+                    beta[i] = 0.0
+                for kk in range(n_next):
+                    j = act_next[kk]
+                    bj = beta_next[j]
+                    col = vals_t[o + j * n:o + (j + 1) * n]
+                    cnt = counts_t[o + j * n:o + (j + 1) * n]
+                    for i in range(n):
+                        v = col[i] * bj
+                        beta[i] += v
+                        cnt[i] += w[i] * v
+                for i in range(n):
+                    beta[i] = beta[i] * inv_c
         c0 = start[sym[t]]
         for k in range(n_act):
             i = act[k]
@@ -270,6 +279,22 @@ def _backward_columns(tables, vals_t, alpha, log_c, counts_t, occupancy):
         act, act_next = act_next, act
         n_next = n_act
     return counts_t, occupancy
+
+
+@njit(cache=True)
+def _sparse_columns(vals_t, counts_t, o, n, act, act_next, w, beta_next, beta):
+    """One step of :func:`_backward_columns` active clone by active clone (the row pass's loops
+    on the column-major block at ``o`` with ``n`` rows, over the active clones ``act`` and
+    ``act_next``); ``beta`` gets the unscaled sums."""
+    for k in range(act.size):
+        i = act[k]
+        acc = 0.0
+        for kk in range(act_next.size):
+            j = act_next[kk]
+            v = vals_t[o + j * n + i] * beta_next[j]
+            acc += v
+            counts_t[o + j * n + i] += w[i] * v
+        beta[i] = acc
 
 
 @njit(cache=True)
