@@ -5,6 +5,7 @@ import itertools
 import numpy as np
 import pytest
 
+from topomap.core.refine import kernels
 from topomap.core.refine.clones import make_layout, m_step
 from topomap.core.refine.kernels import clone_backward_counts as backward_counts
 from topomap.core.refine.kernels import clone_forward as forward
@@ -216,3 +217,28 @@ def test_step_offsets_give_every_step_the_clones_of_its_symbol():
     sizes = [lay.start[s + 1] - lay.start[s] for s in lay.sym]
     np.testing.assert_array_equal(lay.pos, np.concatenate([[0], np.cumsum(sizes)]))
     np.testing.assert_array_equal(step_offsets(lay.sym, lay.start), lay.pos)
+
+
+@pytest.mark.parametrize("prune", [0.0, 0.2])
+def test_column_pass_gives_the_row_pass_bits(prune):
+    """Where the blocks are small next to the steps' work the backward pass runs on column-major
+    copies; its counts and occupancies (added to nonzero starting values) are the row pass's bit
+    for bit, also with pruned clones and several episodes."""
+    rng = np.random.default_rng(3)
+    T, clones = 4000, np.array([5, 3, 6])
+    sym, u = rng.integers(0, 3, T), rng.integers(0, 2, T)
+    lay = make_layout(sym, u, np.array([1500, 1, 2499]), clones, 2)
+    steps = np.flatnonzero(lay.blk >= 0)
+    work = (clones[sym[steps]] * clones[sym[steps + 1]]).sum()
+    assert work >= kernels.COLUMN_PASS_WORK * lay.boff[-1]  # the column pass is the one taken
+    vals = m_step(lay, rng.random(int(lay.boff[-1])) ** 4, 1e-3, joint=False)
+    alpha, log_c = forward(lay.tables, vals, prune)
+    assert prune == 0.0 or (alpha == 0).any()
+    start_counts, start_occ = rng.random(vals.size), rng.random(lay.n_clones)
+    rows = (start_counts.copy(), start_occ.copy())
+    kernels._backward_rows(lay.tables, vals, alpha, log_c, *rows)
+    cols = (start_counts.copy(), start_occ.copy())
+    backward_counts(lay.tables, vals, alpha, log_c, *cols)
+    np.testing.assert_array_equal(cols[0], rows[0])
+    np.testing.assert_array_equal(cols[1], rows[1])
+    assert not np.array_equal(rows[0], start_counts)

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from topomap.core.refine.methods import CSCGRefinement, EMRefinement
+from topomap.core.refine import soft_kernels
 from topomap.core.refine.sequence import SymbolSequence
 from topomap.core.refine.soft import (SoftSettings, co_successors, initial_confusion,
                                       misread_share, soft_round, successor_surprise,
@@ -299,3 +300,50 @@ def test_twin_overlap_matches_the_dense_definition(seed):
     expect = _dense_twin_overlap(labels, state_symbol, u, has_next, A, K)
     np.testing.assert_array_equal(got[0], expect[0])
     np.testing.assert_array_equal(got[1], expect[1])
+
+
+def _gapped(seed):
+    """Like :func:`_tiny` with 4 clones, where read symbol 0 allows clones 0 and 2 only (not a run
+    of clones: the backward pass goes candidate by candidate)."""
+    rng = np.random.default_rng(seed)
+    A, S = 2, 4
+    trans = rng.random((A, S, S)) + 0.1
+    trans /= trans.sum(axis=2, keepdims=True)
+    emit = np.array([[0.8, 0.2], [0.0, 1.0], [0.7, 0.3], [0.0, 1.0]])
+    read = np.array([0, 1, 1, 0, 1, 0], dtype=np.int64)
+    u = np.array([0, 1, 0, 1, 0, 1], dtype=np.int64)
+    has_next = np.array([True, True, False, True, True, False])
+    cptr, cidx = soft_candidates(emit)
+    return SoftData(read, u, has_next), SoftModel(trans, emit, np.full(S, 0.25), cptr, cidx)
+
+
+@pytest.mark.parametrize("make", [_tiny, _gapped])
+@pytest.mark.parametrize("prune", [0.0, 0.3])
+def test_soft_backward_passes_agree_bit_for_bit(make, prune):
+    """The backward pass on runs of clones (column by column) and the candidate-by-candidate one
+    give the same bits; where the candidates are not a run, the latter is the one taken."""
+    data, model = make(1)
+    pos = soft_offsets(data, model)
+    alpha, log_c = soft_forward(data, model, pos, prune)
+    S, K = model.emit.shape
+    got = [SoftStats(np.zeros_like(model.trans), np.zeros((S, K)), np.zeros(S)) for _ in range(2)]
+    soft_backward(data, model, pos, alpha, log_c, got[0])
+    soft_kernels._soft_backward_rows(data, model, pos, alpha, log_c, got[1])
+    for a, b in zip(*got):
+        np.testing.assert_array_equal(a, b)
+    assert got[0].trans.sum() > 0
+    runs = soft_kernels._runs_of_clones(model.cptr, model.cidx)
+    assert runs == (make is _tiny)
+
+
+def test_gapped_candidates_match_enumeration():
+    data, model = _gapped(2)
+    ll, tr, em, ini, _, _ = _enumerate(data, model)
+    pos = soft_offsets(data, model)
+    alpha, log_c = soft_forward(data, model, pos, 0.0)
+    assert log_c.sum() == pytest.approx(ll, rel=1e-10)
+    stats = SoftStats(np.zeros_like(model.trans), np.zeros_like(model.emit), np.zeros(4))
+    soft_backward(data, model, pos, alpha, log_c, stats)
+    np.testing.assert_allclose(stats.trans, tr, atol=1e-12)
+    np.testing.assert_allclose(stats.emit, em, atol=1e-12)
+    np.testing.assert_allclose(stats.init, ini, atol=1e-12)

@@ -90,25 +90,51 @@ def soft_forward(data, model, pos, prune):
             rp = read[t - 1]
             q0 = cptr[rp]
             a = u[t - 1]
-            for i in range(a0 - p0):
-                ai = alpha[p0 + i]
-                if ai == 0.0:
-                    continue
-                ci = cidx[q0 + i]
-                for k in range(n):
-                    alpha[a0 + k] += ai * trans[a, ci, cidx[c0 + k]]
+            lo = cidx[c0]
+            if n > 0 and cidx[c0 + n - 1] - lo == n - 1:  # a run of clones: rows as slices
+                out = alpha[a0:a0 + n]
+                for i in range(a0 - p0):
+                    ai = alpha[p0 + i]
+                    if ai != 0.0:
+                        row = trans[a, cidx[q0 + i], lo:lo + n]
+                        for k in range(n):
+                            out[k] += ai * row[k]
+            else:
+                for i in range(a0 - p0):
+                    ai = alpha[p0 + i]
+                    if ai == 0.0:
+                        continue
+                    ci = cidx[q0 + i]
+                    for k in range(n):
+                        alpha[a0 + k] += ai * trans[a, ci, cidx[c0 + k]]
             for k in range(n):
                 alpha[a0 + k] *= emit[cidx[c0 + k], r]
         log_c[t] = np.log(normalise_block(alpha, a0, n, prune))
     return alpha, log_c
 
 
-@njit(cache=True)
 def soft_backward(data, model, pos, alpha, log_c, stats):
     """Scaled backward pass accumulating the E-step's expected counts into ``stats`` (in place):
     transitions ``P(x_t = i, x_{t+1} = j | data)``, clone x read-symbol occupancy and episode
     starts.  ``alpha``/``log_c`` come from :func:`soft_forward` on the same model; candidates with
-    ``alpha = 0`` are skipped."""
+    ``alpha = 0`` are skipped.
+
+    Where every read symbol's candidates are a run of clones, the pass runs column by column on
+    copies of ``trans`` and ``stats.trans`` with their last two axes swapped
+    (:func:`_soft_backward_columns`): the messages of all candidates of a step are summed at
+    once, over the same terms in the same order, so the counts are the same bits."""
+    if not _runs_of_clones(model.cptr, model.cidx):
+        return _soft_backward_rows(data, model, pos, alpha, log_c, stats)
+    counts_t = _swap_last_axes(stats.trans)
+    _soft_backward_columns(data, model._replace(trans=_swap_last_axes(model.trans)), pos, alpha,
+                           log_c, stats._replace(trans=counts_t))
+    stats.trans[...] = _swap_last_axes(counts_t)
+    return stats
+
+
+@njit(cache=True)
+def _soft_backward_rows(data, model, pos, alpha, log_c, stats):
+    """:func:`soft_backward` candidate by candidate (any candidate lists)."""
     read, u, has_next = data.read, data.u, data.has_next
     trans, emit, cptr, cidx = model.trans, model.emit, model.cptr, model.cidx
     T = read.size
@@ -164,6 +190,84 @@ def soft_backward(data, model, pos, alpha, log_c, stats):
                 stats.init[c] += g
         beta, beta_next = beta_next, beta
     return stats
+
+
+@njit(cache=True)
+def _runs_of_clones(cptr, cidx):
+    """Whether the candidates of every read symbol are consecutive clones."""
+    for r in range(cptr.size - 1):
+        n = cptr[r + 1] - cptr[r]
+        if n > 0 and cidx[cptr[r + 1] - 1] - cidx[cptr[r]] != n - 1:
+            return False
+    return True
+
+
+@njit(cache=True)
+def _swap_last_axes(x):
+    """A contiguous copy of ``x`` (A, S, S) with ``[a, j, i] = x[a, i, j]``."""
+    out = np.empty((x.shape[0], x.shape[2], x.shape[1]))
+    for a in range(x.shape[0]):
+        for i in range(x.shape[1]):
+            for j in range(x.shape[2]):
+                out[a, j, i] = x[a, i, j]
+    return out
+
+
+@njit(cache=True)
+def _soft_backward_columns(data, model_t, pos, alpha, log_c, stats_t):
+    """:func:`soft_backward` where every candidate list is a run of clones, on ``model_t.trans``
+    and ``stats_t.trans`` with their last two axes swapped.  A candidate with ``alpha = 0`` has
+    weight 0 (its counts gain exactly 0) and its message is set to 0 afterwards."""
+    read, u, has_next = data.read, data.u, data.has_next
+    trans_t, emit, cptr, cidx = model_t.trans, model_t.emit, model_t.cptr, model_t.cidx
+    width = 0
+    for r in range(cptr.size - 1):
+        width = max(width, cptr[r + 1] - cptr[r])
+    beta, beta_next, wnext, w = np.zeros(width), np.zeros(width), np.zeros(width), np.zeros(width)
+    for t in range(read.size - 1, -1, -1):
+        a0, r = pos[t], read[t]
+        c0, n = cptr[r], pos[t + 1] - a0
+        if not has_next[t]:
+            beta[:n] = 1.0
+        else:
+            nn, r2, a = pos[t + 2] - pos[t + 1], read[t + 1], u[t]
+            q0, lo = cptr[r2], cidx[c0]
+            inv_c = np.exp(-log_c[t + 1])
+            for kk in range(nn):
+                wnext[kk] = (0.0 if alpha[pos[t + 1] + kk] == 0.0
+                             else emit[cidx[q0 + kk], r2] * beta_next[kk])
+            for k in range(n):
+                w[k] = alpha[a0 + k] * inv_c
+                beta[k] = 0.0
+            for kk in range(nn):
+                wj = wnext[kk]
+                if wj == 0.0:
+                    continue
+                cj = cidx[q0 + kk]
+                col = trans_t[a, cj, lo:lo + n]
+                cnt = stats_t.trans[a, cj, lo:lo + n]
+                for k in range(n):
+                    v = col[k] * wj
+                    beta[k] += v
+                    cnt[k] += w[k] * v
+            for k in range(n):
+                beta[k] = 0.0 if alpha[a0 + k] == 0.0 else beta[k] * inv_c
+        _soft_occupancy(alpha, a0, beta, cidx, c0, n, r, t == 0 or not has_next[t - 1], stats_t)
+        beta, beta_next = beta_next, beta
+    return stats_t
+
+
+@njit(cache=True)
+def _soft_occupancy(alpha, a0, beta, cidx, c0, n, r, start, stats):
+    """Add a step's candidate posteriors to ``stats.emit`` (and ``stats.init`` at a start)."""
+    for k in range(n):
+        g = alpha[a0 + k] * beta[k]
+        if g == 0.0:
+            continue
+        c = cidx[c0 + k]
+        stats.emit[c, r] += g
+        if start:
+            stats.init[c] += g
 
 
 @njit(cache=True)

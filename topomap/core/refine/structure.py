@@ -69,15 +69,25 @@ def _compatible(sig1, sig2, threshold: float) -> bool:
     return not _support_differs(acts1, acts2) or _g_statistic(pred1, pred2) <= threshold
 
 
-def _signatures(x, a, y, block, n_states):
-    """Signature of every state: ``(succ, pred)`` with ``succ[a][block of x'] = count`` over its
-    outgoing transitions and ``pred[(block of x_prev, a)] = count`` over its incoming ones."""
-    sig = [({}, {}) for _ in range(n_states)]
-    key, cnt = np.unique(np.column_stack([x, a, block[y]]), axis=0, return_counts=True)
-    for (s, act, b), c in zip(key.tolist(), cnt.tolist()):
+def _signatures(x, a, y, block, shared):
+    """Signature of every state in a block of several (``shared`` (S,) bool; None elsewhere):
+    ``(succ, pred)`` with ``succ[a][block of x'] = count`` over its outgoing transitions and
+    ``pred[(block of x_prev, a)] = count`` over its incoming ones.  A triple is coded as one
+    integer whose order is the triple's lexicographic order, so every dict is filled in that
+    order."""
+    sig = [({}, {}) if s else None for s in shared.tolist()]
+    n_a, n_b = int(a.max()) + 1 if a.size else 1, int(block.max()) + 1
+    key, cnt = np.unique((x * n_a + a) * n_b + block[y], return_counts=True)
+    keep = shared[key // (n_a * n_b)]
+    key, cnt = key[keep], cnt[keep]
+    for s, act, b, c in zip((key // (n_a * n_b)).tolist(), (key // n_b % n_a).tolist(),
+                            (key % n_b).tolist(), cnt.tolist()):
         sig[s][0].setdefault(act, {})[b] = float(c)
-    key, cnt = np.unique(np.column_stack([y, block[x], a]), axis=0, return_counts=True)
-    for (s, b, act), c in zip(key.tolist(), cnt.tolist()):
+    key, cnt = np.unique((y * n_b + block[x]) * n_a + a, return_counts=True)
+    keep = shared[key // (n_b * n_a)]
+    key, cnt = key[keep], cnt[keep]
+    for s, b, act, c in zip((key // (n_b * n_a)).tolist(), (key // n_a % n_b).tolist(),
+                            (key % n_a).tolist(), cnt.tolist()):
         sig[s][1][(b, act)] = float(c)
     return sig
 
@@ -122,15 +132,23 @@ def bisimilar_blocks(labels, state_symbol, u, has_next, threshold: float) -> np.
     x, a, y = labels[t], u[t], labels[t + 1]
     block = np.unique(state_symbol, return_inverse=True)[1].ravel()
     while True:
-        sig = _signatures(x, a, y, block, S)
+        n_old = int(block.max()) + 1
+        size = np.bincount(block, minlength=n_old)
+        sig = _signatures(x, a, y, block, size[block] > 1)
+        order = np.argsort(block, kind="stable")  # the states of every block, ascending
+        first = np.concatenate([[0], np.cumsum(size)])
         new = np.empty(S, dtype=np.int64)
         n_blocks = 0
-        for b in range(int(block.max()) + 1):
-            members = np.flatnonzero(block == b)
+        for b in range(n_old):
+            members = order[first[b]:first[b + 1]]
+            if members.size == 1:  # a block of one state stays one block
+                new[members] = n_blocks
+                n_blocks += 1
+                continue
             groups = _split_block(members.tolist(), sig, threshold)
             new[members] = n_blocks + groups
             n_blocks += int(groups.max()) + 1
-        if n_blocks == int(block.max()) + 1:
+        if n_blocks == n_old:
             return new
         block = new
 
