@@ -162,18 +162,36 @@ def _distinct_line(T=8000, seed=0):
 
 def test_the_check_falls_back_to_the_views_where_they_place_steps_alone():
     # every view is seen at one place: positions add nothing the views do not say, so the
-    # places cannot place the held-out steps 20 % closer than the view clusters do
+    # places cannot misplace fewer held-out steps than the view clusters do
     Z, u, _ = _distinct_line()
-    learner = MapLearner(n_clusters=4, n_states=8, random_state=0).fit(Z, u)
+    learner = MapLearner(n_clusters=16, n_states=32, random_state=0).fit(Z, u)
     info = learner.motion_info_
     assert info["odometry"] and info["chosen"] == "views"
-    assert info["check"]["places"] >= 0.8 * info["check"]["views"]
+    misplaced = info["check"]["misplaced"]
+    assert misplaced["places"] > 0.8 * misplaced["views"]
     # the states are then the view clusters: K-means on the views with as many clusters
-    unchecked = MapLearner(n_clusters=4, n_states=8, random_state=0,
+    unchecked = MapLearner(n_clusters=16, n_states=32, random_state=0,
                            motion=MotionSettings(holdout=0)).fit(Z, u)
     assert unchecked.motion_info_["chosen"] == "places"
-    kmeans = MapLearner(n_clusters=8, n_states=8, motion="discrete", random_state=0).fit(Z, u)
+    kmeans = MapLearner(n_clusters=32, n_states=32, motion="discrete", random_state=0).fit(Z, u)
     assert _same_partition(learner.labels_, kmeans.labels_phase1_)
+
+
+def test_the_check_counts_steps_placed_far_off_not_the_median_distance():
+    from topomap.core.motion.check import frame_error, keeps_places, misplaced_share
+
+    frame = np.zeros((4, 2))
+    near = np.array([[0.5, 0], [0.5, 0], [0.5, 0], [0.5, 0]])  # every step half a cell off
+    room = np.array([[0.1, 0], [0.1, 0], [0.1, 0], [0, 3.0]])  # one step in the other room
+    assert misplaced_share(near, frame, far=2.0) == 0.0
+    assert misplaced_share(room, frame, far=2.0) == 0.25
+    assert misplaced_share(room, frame, far=3.5) == 0.0
+    assert frame_error(room, frame) < frame_error(near, frame)  # the median misses that step
+    assert keeps_places({"places": 0.1, "views": 0.25}, margin=0.8)      # 0.1 <= 0.2
+    assert not keeps_places({"places": 0.22, "views": 0.25}, margin=0.8)  # fewer, not by 20 %
+    assert keeps_places({"places": 0.22, "views": 0.25}, margin=1.0)
+    assert not keeps_places({"places": 0.25, "views": 0.25}, margin=1.0)  # alike: the views
+    assert not keeps_places({"places": 0.0, "views": 0.0}, margin=1.0)    # none: in doubt
 
 
 def _same_partition(a, b) -> bool:
@@ -217,6 +235,7 @@ def test_discrete_worlds_keep_the_map_of_the_split():
     (MotionSettings(pull=1.5), r"^motion\.pull must be at most 1"),
     ({"holdout": 1.0}, r"^motion\.holdout must be a number in \[0, 1\)"),
     ({"margin": 0}, r"^motion\.margin must be a number in \(0, 1\]"),
+    ({"far": -1.0}, r"^motion\.far must be a positive number"),
 ])
 def test_bad_motion_is_named(motion, message):
     Z, u, _ = _alike_halves(500)

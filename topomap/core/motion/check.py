@@ -9,10 +9,14 @@ decode the rest (:meth:`~topomap.core.map.model.TopologicalMap.predict`, as any 
 decoded state stands at the mean odometric position of its training steps; the odometric
 positions of the held-out steps are the same filter run on
 (:func:`~topomap.core.motion.odometry.odometric_positions`, its copies learned on the first part
-and carried on).  The places are kept only when they place the held-out steps closer to those
-positions than the view clusters do by ``settings.margin`` (:func:`frame_error`); in doubt
--- the two alike, or the carried-on filter lost and no reference for either -- the view
-clusters stay, never worse than themselves.
+and carried on).  What alike rooms cost the view clusters is a held-out step placed in the other
+room: far off, not a little off.  So the check counts the held-out steps each map places more
+than ``settings.far`` cell extents from their odometric position (:func:`misplaced_share`) and
+keeps the places only when they misplace fewer, at most ``settings.margin`` times the view
+clusters' share; in doubt -- the two alike, neither misplacing any, or the carried-on filter
+lost and no reference for either -- the view clusters stay, never worse than themselves.  The
+median distance of each (:func:`frame_error`) is recorded beside: it weighs the many steps both
+maps place within a cell, and fell back on every alcove layout where the places were better.
 """
 
 from __future__ import annotations
@@ -25,7 +29,7 @@ from .odometry import odometric_positions, reckoned_steps
 from .places import Places, cut_places
 from .settings import MotionSettings
 
-__all__ = ["held_out_frame", "frame_error", "choose_places"]
+__all__ = ["held_out_frame", "frame_error", "misplaced_share", "keeps_places", "choose_places"]
 
 
 def held_out_frame(settings: MotionSettings, part: Places, Z, u, lengths, cut: int):
@@ -51,6 +55,18 @@ def frame_error(placed, frame) -> float:
     return float(np.median(np.linalg.norm(placed - frame, axis=1)))
 
 
+def misplaced_share(placed, frame, far: float) -> float:
+    """The share of the rows of ``placed`` more than ``far`` from those of ``frame``."""
+    return float(np.mean(np.linalg.norm(placed - frame, axis=1) > far))
+
+
+def keeps_places(misplaced: dict, margin: float) -> bool:
+    """Whether the places' misplaced share is below the view clusters' and at most ``margin``
+    times it (both none misplaced: in doubt, no)."""
+    return misplaced["places"] < misplaced["views"] and (
+        misplaced["places"] <= margin * misplaced["views"])
+
+
 def _state_means(labels, frame) -> np.ndarray:
     counts = np.maximum(np.bincount(labels), 1)[:, None]
     return np.column_stack([np.bincount(labels, weights=frame[:, j]) for j in range(2)]) / counts
@@ -72,11 +88,13 @@ def choose_places(settings: MotionSettings, X, Z, u, lengths, n_states: int, n_a
     if part.places is None:
         return whole.views, dict(info, chosen="views", check="no odometry on the first part")
     frame, anchored = held_out_frame(settings, part, Z, u, lengths, cut)
-    errors = {}
+    errors, misplaced = {}, {}
     for name, labels in (("places", part.places), ("views", part.views)):
         decoded = build(X[:cut], u[:cut], labels, head).predict(X[cut:], u[cut:], lengths=tail)
-        errors[name] = frame_error(_state_means(labels, part.frame)[decoded], frame)
-    chosen = "places" if errors["places"] <= settings.margin * errors["views"] else "views"
+        placed = _state_means(labels, part.frame)[decoded]
+        errors[name] = round(frame_error(placed, frame), 4)
+        misplaced[name] = round(misplaced_share(placed, frame, settings.far), 4)
+    chosen = "places" if keeps_places(misplaced, settings.margin) else "views"
     info.update(chosen=chosen, check={"held_out": len(u) - cut, "anchored": round(anchored, 4),
-                                      **{k: round(e, 4) for k, e in errors.items()}})
+                                      **errors, "misplaced": misplaced})
     return (whole.places if chosen == "places" else whole.views), info

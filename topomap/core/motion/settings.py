@@ -42,10 +42,11 @@ class MotionSettings:
     ``holdout``: the share of the log, at its end, that the held-out check decodes
     (:mod:`topomap.core.motion.check`): the places and the view clusters (K-means on the views,
     as many clusters as places) are learned on the rest and decode it, and the places are kept
-    only when they place its steps nearer the odometric positions the filter carries on than
-    the view clusters do, by ``margin`` (the places' median distance at most ``margin`` times
-    the view clusters'; 1 keeps them whenever they are no farther).  Else the map's states are
-    the view clusters.  ``holdout=0`` (or a held-out part under 100 steps) keeps the places
+    only when they misplace fewer of its steps than the view clusters do -- a step is misplaced
+    when its decoded state stands more than ``far`` cell extents from the odometric position
+    the filter carries on -- by ``margin`` (the places' share at most ``margin`` times the view
+    clusters'; 1 keeps them whenever they misplace fewer).  Else the map's states are the view
+    clusters.  ``holdout=0`` (or a held-out part under 100 steps) keeps the places
     unchecked.
     """
 
@@ -58,6 +59,7 @@ class MotionSettings:
     max_return: float = 0.35
     holdout: float = 0.25
     margin: float = 0.8
+    far: float = 2.0
 
 
 def motion_settings(value) -> MotionSettings:
@@ -86,7 +88,7 @@ def motion_settings(value) -> MotionSettings:
     if not isinstance(gates, tuple) or not gates or not all(_positive(g) for g in gates):
         raise ParameterError("motion.gates", f"must be a non-empty list of positive numbers, "
                                              f"got {gates!r}")
-    for name in ("min_run", "weight", "pull", "max_return"):
+    for name in ("min_run", "weight", "pull", "max_return", "far"):
         if not _positive(getattr(value, name)):
             raise ParameterError(f"motion.{name}", f"must be a positive number, "
                                                    f"got {getattr(value, name)!r}")
