@@ -24,6 +24,16 @@ def model_sums(X, model, n_models):
 
 
 @njit(cache=True)
+def model_counts(model, n_models):
+    """``np.bincount(model, minlength=n_models)`` as floats, without bincount's int64 copy of an
+    int32 ``model``."""
+    out = np.zeros(n_models)
+    for t in range(model.size):
+        out[model[t]] += 1.0
+    return out
+
+
+@njit(cache=True)
 def model_squares(X, model, means):
     """``np.add.at(sq, model, (X - means[model]) ** 2)``: per-model squared residuals."""
     out = np.zeros(means.shape)
@@ -74,7 +84,7 @@ def observation_models(X, model, n_models, covariance_type="diag", reg_covar=1e-
     """Gaussian of every model id: ``(means (M, D), covariances (M, D[, D]), counts (M,))``,
     the same floats as ``TopologicalMap.from_labels`` (:mod:`topomap.core.map.model`)."""
     T = X.shape[0]
-    n_m = np.bincount(model, minlength=n_models).astype(np.float64)
+    n_m = model_counts(model, n_models)
     means = model_sums(X, model, n_models) / np.maximum(n_m, 1)[:, None]
     reg = reg_covar * float(np.mean(feature_variance(X))) if T > 1 else reg_covar
     reg = reg if reg > 0 else reg_covar

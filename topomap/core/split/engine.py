@@ -32,7 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from .kernels import merge_groups_kernel
+from .kernels import action_table, merge_groups_kernel, transition_table
 from ..stats import conditional_entropy, sparse_conditional_entropy, xlogx
 
 __all__ = ["merge_groups", "Proposal", "SplitEngine", "Splitter"]
@@ -91,21 +91,25 @@ class Proposal:
     score: float
 
 
-@njit(cache=True)
-def group_steps(labels, n_states):
+def group_steps(labels, n_states, dtype=np.int64):
     """Counting sort of steps by state: ``(order, bounds)`` with the steps of state ``s`` in
-    increasing order at ``order[bounds[s]:bounds[s + 1]]``."""
+    increasing order at ``order[bounds[s]:bounds[s + 1]]`` (``order`` of ``dtype``)."""
+    order = np.empty(labels.size, dtype=dtype)
+    return order, _group_steps(labels, n_states, order)
+
+
+@njit(cache=True)
+def _group_steps(labels, n_states, order):
     bounds = np.zeros(n_states + 1, dtype=np.int64)
     for s in labels:
         bounds[s + 1] += 1
     for s in range(n_states):
         bounds[s + 1] += bounds[s]
     fill = bounds[:-1].copy()
-    order = np.empty(labels.size, dtype=np.int64)
     for t in range(labels.size):
         order[fill[labels[t]]] = t
         fill[labels[t]] += 1
-    return order, bounds
+    return bounds
 
 
 @njit(cache=True)
@@ -169,7 +173,8 @@ class SplitEngine:
 
     Parameters: ``labels`` (T,) int (copied), ``actions`` (T,) int, ``n_states``, ``n_actions``,
     ``has_prev`` / ``has_next`` from :func:`topomap.core.stats.episode_masks`.
-    Attributes: ``labels`` (T,) int64, ``members[s]`` sorted steps of state ``s``,
+    Attributes: ``labels`` (T,) int64, ``members[s]`` sorted steps of state ``s`` (int32
+    below 2**31 steps),
     ``state_counts`` (S,), ``action_counts`` (S, A).
     """
 
@@ -179,15 +184,17 @@ class SplitEngine:
         self.S, self.A = int(n_states), int(n_actions)
         self.has_prev, self.has_next = has_prev, has_next
         self.centre = has_prev & has_next
-        order, bounds = group_steps(self.labels, self.S)
-        self.members = [order[bounds[s]:bounds[s + 1]] for s in range(self.S)]
+        # each state's steps in an array of its own (views would keep all of ``order`` alive as
+        # states split), as int32 while every step index fits
+        order, bounds = group_steps(self.labels, self.S,
+                                    np.int32 if self.labels.size < 2**31 else np.int64)
+        self.members = [order[bounds[s]:bounds[s + 1]].copy() for s in range(self.S)]
+        del order
         self.tables = [self._instance_table(m) for m in self.members]
         self.state_counts = np.diff(bounds)
-        self.action_counts = np.bincount(self.labels * self.A + self.u,
-                                         minlength=self.S * self.A).reshape(self.S, self.A)
-        t = np.flatnonzero(has_next)
-        self.transitions = _sparse_table(self.labels[t] * self.A + self.u[t], self.labels[t + 1],
-                                         self.S * self.A)
+        self.action_counts = action_table(self.labels, self.u, self.S, self.A)
+        self.transitions = transition_table(self.labels, self.u, np.asarray(has_next, dtype=bool),
+                                            self.S, self.A)
 
     # ------------------------------------------------------------------ codes
     def _instance_keys(self, c):
@@ -310,6 +317,12 @@ class SplitEngine:
         self.state_counts = np.append(self.state_counts, moved.size)
         self.S += 1
 
+    def release(self) -> None:
+        """Drop the steps and instance tables of every state (no split follows); the labels and
+        counts stay."""
+        self.members = self.tables = None
+        self.centre = None
+
     # ------------------------------------------------------------------ entropies
     def entropies(self, h_state: np.ndarray) -> dict:
         """``H_o``, ``H_u``, ``H_x`` of the current labelling from the counts alone (``h_state``:
@@ -380,6 +393,11 @@ class Splitter:
             "n_steps_kept": int(self.engine.members[q].size), "n_steps_new": int(moved.size),
             "n_groups": int(best.keys.size),
         }
+
+    def finish(self) -> None:
+        """The splits are over: free what only further splits need (every state's steps)."""
+        self.engine.release()
+        self._cache, self._dirty = {}, set()
 
     def entropies(self) -> dict:
         """``H(o|x)``, ``H(u|x)``, ``H(x'|x,u)`` of the current labelling, from counts alone."""

@@ -7,7 +7,7 @@ from numba import njit
 
 from ..sums import pairwise_sum
 
-__all__ = ["merge_groups_kernel"]
+__all__ = ["merge_groups_kernel", "transition_table", "action_table"]
 
 @njit(cache=True)
 def _round(x, scale):
@@ -135,3 +135,37 @@ def merge_groups_kernel(counts, table, decimals):
         _merge_pair(work, table, n, W, owner, cost, a, b, scale, buf)
         _refresh_minima(cost, rmin, rarg, a, b)
     return owner != owner[0]
+
+
+@njit(cache=True)
+def transition_table(x, u, has_next, S, A):
+    """Sorted codes ``(x[t] * A + u[t]) << 32 | x[t + 1]`` of the distinct transitions (steps
+    with ``has_next``) and their counts, in two passes over the steps and no (T,) temporaries:
+    the table ``engine._sparse_table`` makes of the same keys and columns."""
+    key_seen, col_seen = np.zeros(S * A, dtype=np.bool_), np.zeros(S, dtype=np.bool_)
+    for t in range(x.size):
+        if has_next[t]:
+            key_seen[x[t] * A + u[t]] = True
+            col_seen[x[t + 1]] = True
+    keys, cols = np.flatnonzero(key_seen), np.flatnonzero(col_seen)
+    key_rank, col_rank = np.full(S * A, -1), np.full(S, -1)
+    key_rank[keys] = np.arange(keys.size)
+    col_rank[cols] = np.arange(cols.size)
+    n = np.zeros((keys.size, cols.size), dtype=np.int64)
+    for t in range(x.size):
+        if has_next[t]:
+            n[key_rank[x[t] * A + u[t]], col_rank[x[t + 1]]] += 1
+    nz = np.flatnonzero(n)
+    codes = np.empty(nz.size, dtype=np.int64)
+    for i in range(nz.size):
+        codes[i] = (keys[nz[i] // cols.size] << 32) | cols[nz[i] % cols.size]
+    return codes, n.ravel()[nz]
+
+
+@njit(cache=True)
+def action_table(x, u, S, A):
+    """(S, A) how often each state takes each action: ``np.bincount(x * A + u)`` in one pass."""
+    out = np.zeros((S, A), dtype=np.int64)
+    for t in range(x.size):
+        out[x[t], u[t]] += 1
+    return out
