@@ -32,7 +32,8 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from .kernels import action_table, merge_groups_kernel, transition_table
+from .kernels import (action_table, merge_groups_kernel, merge_sorted_delta, pair_codes,
+                      transition_table)
 from ..stats import conditional_entropy, sparse_conditional_entropy, xlogx
 
 __all__ = ["merge_groups", "Proposal", "SplitEngine", "Splitter"]
@@ -152,20 +153,11 @@ def _sparse_table(keys, cols, size):
     return (k[nz // c.size] << _SHIFT) | c[nz % c.size], n[nz]
 
 
-def _merge_delta(codes, counts, d_codes, d_counts):
-    """Add signed counts ``d_counts`` at ``d_codes`` to a sorted sparse table (``codes``,
-    ``counts``); entries that reach zero are dropped.  O(table + delta log delta)."""
-    d_codes, inv = np.unique(d_codes, return_inverse=True)
-    d = np.rint(np.bincount(inv, weights=d_counts, minlength=d_codes.size)).astype(np.int64)
-    idx = np.searchsorted(codes, d_codes)
-    hit = idx < codes.size
-    hit[hit] = codes[idx[hit]] == d_codes[hit]
-    counts = counts.copy()
-    counts[idx[hit]] += d[hit]
-    codes = np.insert(codes, idx[~hit], d_codes[~hit])
-    counts = np.insert(counts, idx[~hit], d[~hit])
-    keep = counts != 0
-    return codes[keep], counts[keep]
+def _merge_delta(table, old, new):
+    """The sorted sparse table ``(codes, counts)`` with one count moved from each code of
+    ``old`` to the code of ``new`` at the same place; entries that reach zero are dropped.
+    O(table + delta log delta)."""
+    return merge_sorted_delta(*table, np.sort(old), np.sort(new))
 
 
 class SplitEngine:
@@ -203,11 +195,10 @@ class SplitEngine:
         return x[c - 1] * A + u[c - 1], x[c + 1] * A + u[c]
 
     def _instance_codes(self, c):
-        key, col = self._instance_keys(c)
-        return (key << _SHIFT) | col
+        return pair_codes(self.labels, self.u, c, self.A, _SHIFT, True)
 
     def _transition_codes(self, t):
-        return ((self.labels[t] * self.A + self.u[t]) << _SHIFT) | self.labels[t + 1]
+        return pair_codes(self.labels, self.u, t, self.A, _SHIFT, False)
 
     def _instance_table(self, steps):
         c = steps[self.centre[steps]]
@@ -290,9 +281,7 @@ class SplitEngine:
         old_inst, old_trans = self._instance_codes(centres), self._transition_codes(starts)
         self.labels[moved] = new
         self._update_instances(centres, old_inst, self._instance_codes(centres))
-        self.transitions = _merge_delta(
-            *self.transitions, np.concatenate([old_trans, self._transition_codes(starts)]),
-            np.repeat([-1, 1], starts.size))
+        self.transitions = _merge_delta(self.transitions, old_trans, self._transition_codes(starts))
         self.members[q] = steps[~goes]
         self.members.append(moved)
         self.tables[q] = self._instance_table(self.members[q])
@@ -306,8 +295,7 @@ class SplitEngine:
         order, bounds = group_steps(self.labels[centres], self.S + 1)
         for s in np.flatnonzero(np.diff(bounds)):
             pick = order[bounds[s]:bounds[s + 1]]
-            self.tables[s] = _merge_delta(*self.tables[s], np.concatenate([old[pick], new[pick]]),
-                                          np.repeat([-1, 1], pick.size))
+            self.tables[s] = _merge_delta(self.tables[s], old[pick], new[pick])
 
     def _update_counts(self, q, moved):
         acts = np.bincount(self.u[moved], minlength=self.A)
