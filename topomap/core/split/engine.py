@@ -114,6 +114,22 @@ def _group_steps(labels, n_states, order):
 
 
 @njit(cache=True)
+def members_of(labels, n_states, like):
+    """The steps of every state, each state's in increasing order in an array of its own (of
+    ``like``'s dtype): a counting sort without a (T,) order array."""
+    counts = np.zeros(n_states, dtype=np.int64)
+    for s in labels:
+        counts[s] += 1
+    out = [np.empty(counts[s], dtype=like.dtype) for s in range(n_states)]
+    fill = np.zeros(n_states, dtype=np.int64)
+    for t in range(labels.size):
+        s = labels[t]
+        out[s][fill[s]] = t
+        fill[s] += 1
+    return out
+
+
+@njit(cache=True)
 def sorted_union(a, b):
     """The distinct values of two sorted int arrays, sorted (a merge: no sort)."""
     out = np.empty(a.size + b.size, dtype=np.int64)
@@ -176,14 +192,12 @@ class SplitEngine:
         self.S, self.A = int(n_states), int(n_actions)
         self.has_prev, self.has_next = has_prev, has_next
         self.centre = has_prev & has_next
-        # each state's steps in an array of its own (views would keep all of ``order`` alive as
-        # states split), as int32 while every step index fits
-        order, bounds = group_steps(self.labels, self.S,
-                                    np.int32 if self.labels.size < 2**31 else np.int64)
-        self.members = [order[bounds[s]:bounds[s + 1]].copy() for s in range(self.S)]
-        del order
+        # each state's steps in an array of its own (views of one array would keep all of it
+        # alive as states split), as int32 while every step index fits
+        like = np.empty(0, dtype=np.int32 if self.labels.size < 2**31 else np.int64)
+        self.members = list(members_of(self.labels, self.S, like))
         self.tables = [self._instance_table(m) for m in self.members]
-        self.state_counts = np.diff(bounds)
+        self.state_counts = np.array([m.size for m in self.members], dtype=np.int64)
         self.action_counts = action_table(self.labels, self.u, self.S, self.A)
         self.transitions = transition_table(self.labels, self.u, np.asarray(has_next, dtype=bool),
                                             self.S, self.A)
@@ -309,7 +323,7 @@ class SplitEngine:
         """Drop the steps and instance tables of every state (no split follows); the labels and
         counts stay."""
         self.members = self.tables = None
-        self.centre = None
+        self.centre = self.has_prev = self.has_next = None
 
     # ------------------------------------------------------------------ entropies
     def entropies(self, h_state: np.ndarray) -> dict:
@@ -386,6 +400,7 @@ class Splitter:
         """The splits are over: free what only further splits need (every state's steps)."""
         self.engine.release()
         self._cache, self._dirty = {}, set()
+        self.has_prev = self.has_next = None
 
     def entropies(self) -> dict:
         """``H(o|x)``, ``H(u|x)``, ``H(x'|x,u)`` of the current labelling, from counts alone."""
