@@ -16,7 +16,7 @@ Worlds:
   ns 50 -> 100 states at T = 1e4 and 1e5, ns 100 -> 200 at T = 1e6 and 1e7.  The data are made in
   blocks (the same numbers as ``aliased_walk``), so that making them peaks at the size of the data.
   Fitted with the split (rows ``new``) and with the split + ``refine="em"`` (rows ``em``, up to
-  ``--refine-max-T``, default 1e6).
+  ``--refine-max-T``, default 1e7).
 * MiniGrid FourRooms (``MiniGridWorld("MiniGrid-FourRooms-v0", 0)``, noise-free 147-D views):
   ns = the number of distinct views of the walk, stopping at 1036 states, at T = 10,000 and
   50,000; then held-out scoring (``map.score``) of a second 50,000-step walk on the T = 50,000 map
@@ -286,7 +286,7 @@ def main():
     ap.add_argument("--sizes", nargs="+", type=float, default=sorted(WALK_SIZES))
     ap.add_argument("--baseline", help="another Python (virtual environment) to time beside this one")
     ap.add_argument("--baseline-max-T", type=float, default=1e6)
-    ap.add_argument("--refine-max-T", type=float, default=1e6,
+    ap.add_argument("--refine-max-T", type=float, default=1e7,
                     help="largest T also fitted with refine=em (0: none)")
     ap.add_argument("--no-fourrooms", action="store_true")
     ap.add_argument("--out", default=str(HERE / "results"))

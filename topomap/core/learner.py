@@ -203,6 +203,7 @@ class MapLearner(MapMethods, BaseEstimator):
                 self.stop_reason_ = "stopping rule"
                 break
             self._record_split(splitter, best)
+        splitter.finish()
         t2 = time.perf_counter()
         self.labels_ = self.labels_split_ = splitter.labels
         info = {
@@ -346,6 +347,7 @@ class MapLearner(MapMethods, BaseEstimator):
             raise ValueError("every step is labelled as a GDS; no observations are left to cluster")
         if symbols is not None:
             choice = {"method": "online codebook"}
+            symbols = np.array(symbols, dtype=np.int64)  # the caller's array is left alone
         else:
             searched = within_told_size(clusters, stopping, np.unique(data.gds[~plain]).size)
             with naming(self, "clusters", method="phase1"):
@@ -357,12 +359,16 @@ class MapLearner(MapMethods, BaseEstimator):
         self.cluster_choice_ = choice
         ns = self.n_clusters_ = int(symbols.max()) + 1
         gds_ids = np.unique(data.gds[~plain])
-        labels = np.empty(data.X.shape[0], dtype=np.int64)
-        labels[plain] = symbols
-        labels[~plain] = ns + np.searchsorted(gds_ids, data.gds[~plain])
+        if gds_ids.size:
+            labels = np.empty(data.X.shape[0], dtype=np.int64)
+            labels[plain] = symbols
+            labels[~plain] = ns + np.searchsorted(gds_ids, data.gds[~plain])
+        else:  # the splitter works on its own copy: the symbols are kept as they are
+            labels = np.asarray(symbols, dtype=np.int64)
+        del symbols
         with naming(self, "stop"):
             stopping.check(ns + gds_ids.size)
-        self.labels_phase1_ = labels.copy()
+        self.labels_phase1_ = labels
         self.split_history_, self.entropies_ = [], []
         splitter = Splitter(labels, data.u, data.n_actions, *data.masks,
                             symbol=list(range(ns)) + [-1] * gds_ids.size,

@@ -9,6 +9,7 @@ result is stored in ``map.json`` the sums are taken in numpy's pairwise order
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
 from .sums import sparse_pairwise_sum
 
@@ -86,17 +87,36 @@ def episode_masks(T: int, lengths) -> tuple[np.ndarray, np.ndarray]:
     return has_prev, has_next
 
 
+@njit(cache=True)
+def _count_tables(x, u, S, A, has_next):
+    """One pass over the steps: the three tables of :func:`count_tables`, no (T,) temporaries."""
+    state = np.zeros(S, dtype=np.int64)
+    action = np.zeros((S, A), dtype=np.int64)
+    trans = np.zeros((S, A, S), dtype=np.int64)
+    for t in range(x.size):
+        state[x[t]] += 1
+        action[x[t], u[t]] += 1
+        if has_next[t]:
+            trans[x[t], u[t], x[t + 1]] += 1
+    return state, action, trans
+
+
 def count_tables(labels, actions, n_states: int, n_actions: int, has_next):
     """``(state_counts (S,), action_counts (S, A), transition_counts (S, A, S))`` of a labelling.
 
     Transitions ``(x_t, u_t) -> x_{t+1}`` are counted only where ``has_next[t]`` (inside episodes).
+    Counted in one compiled pass (a ten-million-step labelling needs no (T,) temporaries).
     """
-    x, u, S, A = labels, actions, int(n_states), int(n_actions)
-    state = np.bincount(x, minlength=S)
-    action = np.bincount(x * A + u, minlength=S * A).reshape(S, A)
-    t = np.flatnonzero(has_next)
-    trans = np.bincount((x[t] * A + u[t]) * S + x[t + 1], minlength=S * A * S).reshape(S, A, S)
-    return state, action, trans
+    x, u, S, A = np.asarray(labels), np.asarray(actions), int(n_states), int(n_actions)
+    has_next = np.asarray(has_next, dtype=bool)
+    if x.shape != u.shape or x.shape != has_next.shape or x.ndim != 1:
+        raise ValueError(f"labels, actions and has_next must be (T,) arrays of one length, got "
+                         f"{x.shape}, {u.shape} and {has_next.shape}")
+    if x.size and (x.min() < 0 or x.max() >= S or u.min() < 0 or u.max() >= A):
+        raise ValueError(f"labels must lie in [0, {S}) and actions in [0, {A})")
+    if x.size and has_next[-1]:
+        raise ValueError("has_next must be False at the last step")
+    return _count_tables(x, u, S, A, has_next)
 
 
 def majority_match(a, b, n_a: int, n_b: int) -> np.ndarray:

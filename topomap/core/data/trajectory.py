@@ -126,7 +126,7 @@ def check_sequences(observations, actions, gds=None, lengths=None, *, min_length
     if u.min() < 0:
         raise ValueError(f"actions must be >= 0, found {int(u.min())} at step {int(np.argmin(u))}")
     if gds is None:
-        g = np.full(T, -1, dtype=np.int64)
+        g = np.broadcast_to(np.int64(-1), (T,))  # read-only, no (T,) array
     else:
         g = _as_int_array(gds, "gds", T)
         if g.min() < -1:

@@ -103,7 +103,10 @@ class TopologicalMap:
         n_sym = int(symbol.max()) + 1 if (symbol >= 0).any() else 0
         model_of_state = np.where(symbol >= 0, symbol, n_sym + gds)
         M = int(model_of_state.max()) + 1
-        mean_m, cov_m, _ = observation_models(X, model_of_state[x], M, covariance_type, reg_covar)
+        if x.size and (x.min() < 0 or x.max() >= S):
+            raise ValueError(f"labels must lie in [0, {S}) (the states of state_symbol)")
+        mean_m, cov_m, _ = observation_models(X, x, M, covariance_type, reg_covar,
+                                              lookup=model_of_state)
         state_counts, action_counts, trans = count_tables(x, u, S, A, has_next)
         info = {"covariance_type": covariance_type, **(info or {})}
         return cls(state_symbol, state_gds, state_parent, mean_m[model_of_state],

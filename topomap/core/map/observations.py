@@ -13,22 +13,34 @@ CHUNK_BYTES = 32 * 2**20
 
 
 @njit(cache=True)
-def model_sums(X, model, n_models):
-    """``np.add.at(sums, model, X)`` with ``sums`` zero (M, D): per-model column sums in step order."""
+def model_sums(X, model, n_models, lookup):
+    """``np.add.at(sums, lookup[model], X)`` with ``sums`` zero (M, D): per-model column sums in
+    step order (``lookup`` maps ``model``'s ids to model ids, so that no (T,) array of model
+    ids is formed)."""
     out = np.zeros((n_models, X.shape[1]))
     for t in range(X.shape[0]):
-        m = model[t]
+        m = lookup[model[t]]
         for d in range(X.shape[1]):
             out[m, d] += X[t, d]
     return out
 
 
 @njit(cache=True)
-def model_squares(X, model, means):
-    """``np.add.at(sq, model, (X - means[model]) ** 2)``: per-model squared residuals."""
+def model_counts(model, n_models, lookup):
+    """``np.bincount(lookup[model], minlength=n_models)`` as floats, in one pass."""
+    out = np.zeros(n_models)
+    for t in range(model.size):
+        out[lookup[model[t]]] += 1.0
+    return out
+
+
+@njit(cache=True)
+def model_squares(X, model, means, lookup):
+    """``np.add.at(sq, lookup[model], (X - means[lookup[model]]) ** 2)``: per-model squared
+    residuals."""
     out = np.zeros(means.shape)
     for t in range(X.shape[0]):
-        m = model[t]
+        m = lookup[model[t]]
         for d in range(X.shape[1]):
             r = X[t, d] - means[m, d]
             out[m, d] += r * r
@@ -70,18 +82,22 @@ def _full_covariances(X, model, means, n_models, reg):
     return cov
 
 
-def observation_models(X, model, n_models, covariance_type="diag", reg_covar=1e-3):
+def observation_models(X, model, n_models, covariance_type="diag", reg_covar=1e-3, lookup=None):
     """Gaussian of every model id: ``(means (M, D), covariances (M, D[, D]), counts (M,))``,
-    the same floats as ``TopologicalMap.from_labels`` (:mod:`topomap.core.map.model`)."""
+    the same floats as ``TopologicalMap.from_labels`` (:mod:`topomap.core.map.model`).  The model
+    id of step ``t`` is ``lookup[model[t]]`` when ``lookup`` is given (a state's model), else
+    ``model[t]``."""
     T = X.shape[0]
-    n_m = np.bincount(model, minlength=n_models).astype(np.float64)
-    means = model_sums(X, model, n_models) / np.maximum(n_m, 1)[:, None]
+    model = np.asarray(model)
+    lookup = np.arange(n_models) if lookup is None else np.asarray(lookup, dtype=np.int64)
+    n_m = model_counts(model, n_models, lookup)
+    means = model_sums(X, model, n_models, lookup) / np.maximum(n_m, 1)[:, None]
     reg = reg_covar * float(np.mean(feature_variance(X))) if T > 1 else reg_covar
     reg = reg if reg > 0 else reg_covar
     if covariance_type == "diag":
-        cov = model_squares(X, model, means) / np.maximum(n_m, 1)[:, None] + reg
+        cov = model_squares(X, model, means, lookup) / np.maximum(n_m, 1)[:, None] + reg
     elif covariance_type == "full":
-        cov = _full_covariances(X, model, means, n_models, reg)
+        cov = _full_covariances(X, lookup[model], means, n_models, reg)
     else:
         raise ValueError(f"covariance_type must be 'diag' or 'full', got {covariance_type!r}")
     return means, cov, n_m

@@ -300,6 +300,6 @@ def cluster_observations(X: np.ndarray, policy, metric, *, n_init: int = 10,
         method = "full"  # the sample would hold every row
     labels = _run(method, Z, ns, n_init=n_init, random_state=random_state, distinct=distinct,
                   sample_size=sample_size)
-    labels = np.asarray(labels, dtype=np.int64)
+    labels = np.asarray(labels)  # scikit-learn's int32: renaming gives int64 without a copy
     rename, _ = first_appearance_order(labels, ns)
     return rename[labels], dict(details, method=method)

@@ -32,7 +32,8 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from .kernels import merge_groups_kernel
+from .kernels import (action_table, merge_groups_kernel, merge_sorted_delta, pair_codes,
+                      transition_table)
 from ..stats import conditional_entropy, sparse_conditional_entropy, xlogx
 
 __all__ = ["merge_groups", "Proposal", "SplitEngine", "Splitter"]
@@ -91,21 +92,41 @@ class Proposal:
     score: float
 
 
-@njit(cache=True)
-def group_steps(labels, n_states):
+def group_steps(labels, n_states, dtype=np.int64):
     """Counting sort of steps by state: ``(order, bounds)`` with the steps of state ``s`` in
-    increasing order at ``order[bounds[s]:bounds[s + 1]]``."""
+    increasing order at ``order[bounds[s]:bounds[s + 1]]`` (``order`` of ``dtype``)."""
+    order = np.empty(labels.size, dtype=dtype)
+    return order, _group_steps(labels, n_states, order)
+
+
+@njit(cache=True)
+def _group_steps(labels, n_states, order):
     bounds = np.zeros(n_states + 1, dtype=np.int64)
     for s in labels:
         bounds[s + 1] += 1
     for s in range(n_states):
         bounds[s + 1] += bounds[s]
     fill = bounds[:-1].copy()
-    order = np.empty(labels.size, dtype=np.int64)
     for t in range(labels.size):
         order[fill[labels[t]]] = t
         fill[labels[t]] += 1
-    return order, bounds
+    return bounds
+
+
+@njit(cache=True)
+def members_of(labels, n_states, like):
+    """The steps of every state, each state's in increasing order in an array of its own (of
+    ``like``'s dtype): a counting sort without a (T,) order array."""
+    counts = np.zeros(n_states, dtype=np.int64)
+    for s in labels:
+        counts[s] += 1
+    out = [np.empty(counts[s], dtype=like.dtype) for s in range(n_states)]
+    fill = np.zeros(n_states, dtype=np.int64)
+    for t in range(labels.size):
+        s = labels[t]
+        out[s][fill[s]] = t
+        fill[s] += 1
+    return out
 
 
 @njit(cache=True)
@@ -148,20 +169,11 @@ def _sparse_table(keys, cols, size):
     return (k[nz // c.size] << _SHIFT) | c[nz % c.size], n[nz]
 
 
-def _merge_delta(codes, counts, d_codes, d_counts):
-    """Add signed counts ``d_counts`` at ``d_codes`` to a sorted sparse table (``codes``,
-    ``counts``); entries that reach zero are dropped.  O(table + delta log delta)."""
-    d_codes, inv = np.unique(d_codes, return_inverse=True)
-    d = np.rint(np.bincount(inv, weights=d_counts, minlength=d_codes.size)).astype(np.int64)
-    idx = np.searchsorted(codes, d_codes)
-    hit = idx < codes.size
-    hit[hit] = codes[idx[hit]] == d_codes[hit]
-    counts = counts.copy()
-    counts[idx[hit]] += d[hit]
-    codes = np.insert(codes, idx[~hit], d_codes[~hit])
-    counts = np.insert(counts, idx[~hit], d[~hit])
-    keep = counts != 0
-    return codes[keep], counts[keep]
+def _merge_delta(table, old, new):
+    """The sorted sparse table ``(codes, counts)`` with one count moved from each code of
+    ``old`` to the code of ``new`` at the same place; entries that reach zero are dropped.
+    O(table + delta log delta)."""
+    return merge_sorted_delta(*table, np.sort(old), np.sort(new))
 
 
 class SplitEngine:
@@ -169,7 +181,8 @@ class SplitEngine:
 
     Parameters: ``labels`` (T,) int (copied), ``actions`` (T,) int, ``n_states``, ``n_actions``,
     ``has_prev`` / ``has_next`` from :func:`topomap.core.stats.episode_masks`.
-    Attributes: ``labels`` (T,) int64, ``members[s]`` sorted steps of state ``s``,
+    Attributes: ``labels`` (T,) int64, ``members[s]`` sorted steps of state ``s`` (int32
+    below 2**31 steps),
     ``state_counts`` (S,), ``action_counts`` (S, A).
     """
 
@@ -179,15 +192,15 @@ class SplitEngine:
         self.S, self.A = int(n_states), int(n_actions)
         self.has_prev, self.has_next = has_prev, has_next
         self.centre = has_prev & has_next
-        order, bounds = group_steps(self.labels, self.S)
-        self.members = [order[bounds[s]:bounds[s + 1]] for s in range(self.S)]
+        # each state's steps in an array of its own (views of one array would keep all of it
+        # alive as states split), as int32 while every step index fits
+        like = np.empty(0, dtype=np.int32 if self.labels.size < 2**31 else np.int64)
+        self.members = list(members_of(self.labels, self.S, like))
         self.tables = [self._instance_table(m) for m in self.members]
-        self.state_counts = np.diff(bounds)
-        self.action_counts = np.bincount(self.labels * self.A + self.u,
-                                         minlength=self.S * self.A).reshape(self.S, self.A)
-        t = np.flatnonzero(has_next)
-        self.transitions = _sparse_table(self.labels[t] * self.A + self.u[t], self.labels[t + 1],
-                                         self.S * self.A)
+        self.state_counts = np.array([m.size for m in self.members], dtype=np.int64)
+        self.action_counts = action_table(self.labels, self.u, self.S, self.A)
+        self.transitions = transition_table(self.labels, self.u, np.asarray(has_next, dtype=bool),
+                                            self.S, self.A)
 
     # ------------------------------------------------------------------ codes
     def _instance_keys(self, c):
@@ -196,11 +209,10 @@ class SplitEngine:
         return x[c - 1] * A + u[c - 1], x[c + 1] * A + u[c]
 
     def _instance_codes(self, c):
-        key, col = self._instance_keys(c)
-        return (key << _SHIFT) | col
+        return pair_codes(self.labels, self.u, c, self.A, _SHIFT, True)
 
     def _transition_codes(self, t):
-        return ((self.labels[t] * self.A + self.u[t]) << _SHIFT) | self.labels[t + 1]
+        return pair_codes(self.labels, self.u, t, self.A, _SHIFT, False)
 
     def _instance_table(self, steps):
         c = steps[self.centre[steps]]
@@ -283,9 +295,7 @@ class SplitEngine:
         old_inst, old_trans = self._instance_codes(centres), self._transition_codes(starts)
         self.labels[moved] = new
         self._update_instances(centres, old_inst, self._instance_codes(centres))
-        self.transitions = _merge_delta(
-            *self.transitions, np.concatenate([old_trans, self._transition_codes(starts)]),
-            np.repeat([-1, 1], starts.size))
+        self.transitions = _merge_delta(self.transitions, old_trans, self._transition_codes(starts))
         self.members[q] = steps[~goes]
         self.members.append(moved)
         self.tables[q] = self._instance_table(self.members[q])
@@ -299,8 +309,7 @@ class SplitEngine:
         order, bounds = group_steps(self.labels[centres], self.S + 1)
         for s in np.flatnonzero(np.diff(bounds)):
             pick = order[bounds[s]:bounds[s + 1]]
-            self.tables[s] = _merge_delta(*self.tables[s], np.concatenate([old[pick], new[pick]]),
-                                          np.repeat([-1, 1], pick.size))
+            self.tables[s] = _merge_delta(self.tables[s], old[pick], new[pick])
 
     def _update_counts(self, q, moved):
         acts = np.bincount(self.u[moved], minlength=self.A)
@@ -309,6 +318,12 @@ class SplitEngine:
         self.state_counts[q] -= moved.size
         self.state_counts = np.append(self.state_counts, moved.size)
         self.S += 1
+
+    def release(self) -> None:
+        """Drop the steps and instance tables of every state (no split follows); the labels and
+        counts stay."""
+        self.members = self.tables = None
+        self.centre = self.has_prev = self.has_next = None
 
     # ------------------------------------------------------------------ entropies
     def entropies(self, h_state: np.ndarray) -> dict:
@@ -380,6 +395,12 @@ class Splitter:
             "n_steps_kept": int(self.engine.members[q].size), "n_steps_new": int(moved.size),
             "n_groups": int(best.keys.size),
         }
+
+    def finish(self) -> None:
+        """The splits are over: free what only further splits need (every state's steps)."""
+        self.engine.release()
+        self._cache, self._dirty = {}, set()
+        self.has_prev = self.has_next = None
 
     def entropies(self) -> dict:
         """``H(o|x)``, ``H(u|x)``, ``H(x'|x,u)`` of the current labelling, from counts alone."""

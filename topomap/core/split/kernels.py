@@ -7,7 +7,8 @@ from numba import njit
 
 from ..sums import pairwise_sum
 
-__all__ = ["merge_groups_kernel"]
+__all__ = ["merge_groups_kernel", "transition_table", "action_table", "merge_sorted_delta",
+           "pair_codes"]
 
 @njit(cache=True)
 def _round(x, scale):
@@ -135,3 +136,81 @@ def merge_groups_kernel(counts, table, decimals):
         _merge_pair(work, table, n, W, owner, cost, a, b, scale, buf)
         _refresh_minima(cost, rmin, rarg, a, b)
     return owner != owner[0]
+
+
+@njit(cache=True)
+def transition_table(x, u, has_next, S, A):
+    """Sorted codes ``(x[t] * A + u[t]) << 32 | x[t + 1]`` of the distinct transitions (steps
+    with ``has_next``) and their counts, in two passes over the steps and no (T,) temporaries:
+    the table ``engine._sparse_table`` makes of the same keys and columns."""
+    key_seen, col_seen = np.zeros(S * A, dtype=np.bool_), np.zeros(S, dtype=np.bool_)
+    for t in range(x.size):
+        if has_next[t]:
+            key_seen[x[t] * A + u[t]] = True
+            col_seen[x[t + 1]] = True
+    keys, cols = np.flatnonzero(key_seen), np.flatnonzero(col_seen)
+    key_rank, col_rank = np.full(S * A, -1), np.full(S, -1)
+    key_rank[keys] = np.arange(keys.size)
+    col_rank[cols] = np.arange(cols.size)
+    n = np.zeros((keys.size, cols.size), dtype=np.int64)
+    for t in range(x.size):
+        if has_next[t]:
+            n[key_rank[x[t] * A + u[t]], col_rank[x[t + 1]]] += 1
+    nz = np.flatnonzero(n)
+    codes = np.empty(nz.size, dtype=np.int64)
+    for i in range(nz.size):
+        codes[i] = (keys[nz[i] // cols.size] << 32) | cols[nz[i] % cols.size]
+    return codes, n.ravel()[nz]
+
+
+@njit(cache=True)
+def action_table(x, u, S, A):
+    """(S, A) how often each state takes each action: ``np.bincount(x * A + u)`` in one pass."""
+    out = np.zeros((S, A), dtype=np.int64)
+    for t in range(x.size):
+        out[x[t], u[t]] += 1
+    return out
+
+
+@njit(cache=True)
+def merge_sorted_delta(codes, counts, minus, plus):
+    """The sorted sparse table (``codes``, ``counts``) with one count taken off at every code of
+    ``minus`` and added at every code of ``plus`` (both sorted; every code of ``minus`` is in
+    the table), entries that reach zero dropped: one merge, no sort of the table."""
+    out_codes = np.empty(codes.size + plus.size, dtype=np.int64)
+    out_counts = np.empty(codes.size + plus.size, dtype=np.int64)
+    i = j = k = n = 0
+    while i < codes.size or k < plus.size:
+        if k >= plus.size or (i < codes.size and codes[i] <= plus[k]):
+            c, v = codes[i], counts[i]
+            i += 1
+        else:
+            c, v = plus[k], 0
+        while k < plus.size and plus[k] == c:
+            v += 1
+            k += 1
+        if j < minus.size and minus[j] < c:
+            raise ValueError("a code taken off is not in the table")
+        while j < minus.size and minus[j] == c:
+            v -= 1
+            j += 1
+        if v != 0:
+            out_codes[n], out_counts[n] = c, v
+            n += 1
+    if j < minus.size:
+        raise ValueError("a code taken off is not in the table")
+    return out_codes[:n], out_counts[:n]
+
+
+@njit(cache=True)
+def pair_codes(x, u, steps, A, shift, centred):
+    """Codes of the steps: with ``centred``, instance codes ``(x[t-1] * A + u[t-1]) << shift |
+    (x[t+1] * A + u[t])``; else transition codes ``(x[t] * A + u[t]) << shift | x[t+1]``."""
+    out = np.empty(steps.size, dtype=np.int64)
+    for i in range(steps.size):
+        t = steps[i]
+        if centred:
+            out[i] = ((x[t - 1] * A + u[t - 1]) << shift) | (x[t + 1] * A + u[t])
+        else:
+            out[i] = ((x[t] * A + u[t]) << shift) | x[t + 1]
+    return out

@@ -1,0 +1,62 @@
+"""The compiled counts of the split and the map on small cases worked out by hand."""
+
+import numpy as np
+import pytest
+
+from topomap.core.map.observations import observation_models
+from topomap.core.split.engine import members_of
+from topomap.core.split.kernels import merge_sorted_delta, pair_codes, transition_table
+from topomap.core.stats import count_tables
+
+
+def test_merge_sorted_delta_moves_counts_and_drops_zeros():
+    codes, counts = np.array([2, 5, 9]), np.array([1, 3, 2])
+    # take one off 2 (-> 0, dropped) and two off 5; add 7 (new) and 9
+    out_codes, out_counts = merge_sorted_delta(codes, counts, np.array([2, 5, 5]),
+                                               np.array([7, 9, 9]))
+    assert out_codes.tolist() == [5, 7, 9]
+    assert out_counts.tolist() == [1, 1, 4]
+
+
+def test_merge_sorted_delta_refuses_a_code_not_in_the_table():
+    with pytest.raises(ValueError, match="not in the table"):
+        merge_sorted_delta(np.array([2, 5]), np.array([1, 1]), np.array([3]), np.array([5]))
+
+
+def test_pair_codes_and_transition_table():
+    x, u, A = np.array([0, 1, 1, 0]), np.array([1, 0, 1, 0]), 2
+    # transitions at t = 0, 1, 2: (0*2+1 -> 1), (1*2+0 -> 1), (1*2+1 -> 0)
+    assert pair_codes(x, u, np.array([0, 1, 2]), A, np.int64(32), False).tolist() == [
+        (1 << 32) | 1, (2 << 32) | 1, (3 << 32) | 0]
+    # the instance centred at t = 1: key x[0]*A+u[0] = 1, column x[2]*A+u[1] = 2
+    assert pair_codes(x, u, np.array([1]), A, np.int64(32), True).tolist() == [(1 << 32) | 2]
+    has_next = np.array([True, False, True, False])
+    codes, counts = transition_table(x, u, has_next, 2, A)
+    assert codes.tolist() == [(1 << 32) | 1, (3 << 32) | 0] and counts.tolist() == [1, 1]
+
+
+def test_members_of_sorts_steps_by_state():
+    members = members_of(np.array([2, 0, 2, 1, 0]), 4, np.empty(0, dtype=np.int32))
+    assert [m.tolist() for m in members] == [[1, 4], [3], [0, 2], []]
+    assert members[0].dtype == np.int32
+
+
+def test_count_tables_by_hand_and_bad_labels():
+    x, u = np.array([0, 1, 1, 0]), np.array([1, 0, 1, 0])
+    state, action, trans = count_tables(x, u, 2, 2, np.array([True, True, True, False]))
+    assert state.tolist() == [2, 2]
+    assert action.tolist() == [[1, 1], [1, 1]]
+    assert trans[0, 1, 1] == 1 and trans[1, 0, 1] == 1 and trans[1, 1, 0] == 1
+    assert trans.sum() == 3
+    with pytest.raises(ValueError, match="labels must lie in"):
+        count_tables(np.array([0, 2]), np.array([0, 0]), 2, 1, np.array([True, False]))
+
+
+def test_observation_models_through_a_lookup():
+    X = np.array([[0.0], [2.0], [10.0], [4.0]])
+    states = np.array([0, 1, 2, 0])  # states 0 and 1 share model 0, state 2 is model 1
+    means, cov, n = observation_models(X, states, 2, lookup=np.array([0, 0, 1]))
+    assert n.tolist() == [3.0, 1.0]
+    assert means[:, 0].tolist() == [2.0, 10.0]
+    direct = observation_models(X, np.array([0, 0, 1, 0]), 2)
+    assert np.array_equal(cov, direct[1])
