@@ -126,8 +126,10 @@ def is_continuous(settings: MotionSettings, symbols, lengths, gds) -> bool:
     if settings.mode != "auto":
         return settings.mode == "continuous"
     symbols = np.asarray(symbols)
-    n_symbols = np.unique(symbols).size
+    if symbols.size < settings.min_steps:
+        return False
     run = mean_run(symbols, lengths)
-    return bool(symbols.size >= settings.min_steps and np.all(np.asarray(gds) < 0)
-                and n_symbols >= 2 and run >= settings.min_run
-                and symbols.size / run >= 2 * n_symbols)
+    if run < settings.min_run or not np.all(np.asarray(gds) < 0):
+        return False  # a discrete world: decided without sorting its symbols
+    n_symbols = np.unique(symbols).size
+    return bool(n_symbols >= 2 and symbols.size / run >= 2 * n_symbols)
