@@ -1,6 +1,6 @@
 """The ``.csv`` trajectory file: a header row ``o0,...,o{D-1},action[,gds][,place][,x,y[,z]]
-[,episode]`` and one row per step (``docs/file-formats.md``), read into a
-:class:`~topomap.core.data.trajectory.Trajectory` (:func:`load_csv`); a spreadsheet's UTF-8
+[,episode]`` and one row per step (``docs/file-formats.md``), read into the fields of a
+:class:`~topomap.core.data.trajectory.Trajectory` (:func:`read_csv`); a spreadsheet's UTF-8
 byte-order mark is dropped, actions may be ids or names."""
 
 from __future__ import annotations
@@ -11,18 +11,8 @@ from pathlib import Path
 import numpy as np
 
 from .positions import POSITION_COLUMNS, csv_positions
-from .trajectory import Trajectory, _as_int_array
 
-__all__ = ["load_csv"]
-
-
-def _episode_lengths(episode) -> np.ndarray:
-    """Episode lengths from a CSV's ``episode`` column (ids that never decrease)."""
-    ep = _as_int_array(episode, "episode")
-    if np.any(np.diff(ep) < 0):
-        raise ValueError("episode ids must not decrease")
-    change = np.flatnonzero(np.diff(ep) != 0)
-    return np.diff(np.concatenate([[0], change + 1, [ep.size]]))
+__all__ = ["read_csv"]
 
 
 def _csv_rows(path: Path) -> list[list[str]]:
@@ -73,9 +63,11 @@ def _action_names(body: list[list[str]], column: int) -> tuple[list[str], list[s
     return [ids[v] for v in values], names
 
 
-def load_csv(path: Path) -> Trajectory:
-    """Read the ``.csv`` trajectory file ``path`` (``docs/file-formats.md``), every problem a
-    one-line ValueError naming the file."""
+def read_csv(path: Path) -> dict:
+    """The columns of the ``.csv`` trajectory file ``path`` (``docs/file-formats.md``) as
+    :class:`~topomap.core.data.trajectory.Trajectory`'s keyword arguments, with its ``episode``
+    column as read (the caller checks it and the fields); every problem a one-line ValueError
+    naming the file."""
     rows = _csv_rows(path)
     if not rows:
         raise ValueError(f"trajectory file {path} is empty")
@@ -112,9 +104,6 @@ def load_csv(path: Path) -> Trajectory:
     positions = csv_positions(header, col, path)
     if positions is not None:
         kwargs["positions"] = positions
-    try:
-        if "episode" in col:
-            kwargs["lengths"] = _episode_lengths(col["episode"])
-        return Trajectory(**kwargs)
-    except ValueError as exc:
-        raise ValueError(f"trajectory file {path}: {exc}") from None
+    if "episode" in col:
+        kwargs["episode"] = col["episode"]
+    return kwargs

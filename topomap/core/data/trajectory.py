@@ -26,6 +26,7 @@ import numpy as np
 
 from ..stats import episode_masks
 from .atomic import atomic_write
+from .csv_file import read_csv
 from .positions import POSITION_COLUMNS, check_positions
 
 __all__ = ["Trajectory", "load_trajectory", "save_trajectory", "check_sequences",
@@ -353,6 +354,15 @@ def _load_npz(path: Path) -> Trajectory:
         raise ValueError(f"trajectory file {path}: {exc}") from None
 
 
+def _episode_lengths(episode) -> np.ndarray:
+    """Episode lengths from a CSV's ``episode`` column (ids that never decrease)."""
+    ep = _as_int_array(episode, "episode")
+    if np.any(np.diff(ep) < 0):
+        raise ValueError("episode ids must not decrease")
+    change = np.flatnonzero(np.diff(ep) != 0)
+    return np.diff(np.concatenate([[0], change + 1, [ep.size]]))
+
+
 def load_trajectory(path) -> Trajectory:
     """Read a trajectory from a ``.npz`` or ``.csv`` file, validating every field."""
     path = Path(path)
@@ -363,7 +373,11 @@ def load_trajectory(path) -> Trajectory:
     if suffix == ".npz":
         return _load_npz(path)
     if suffix == ".csv":
-        from .csv_file import load_csv
-
-        return load_csv(path)
+        fields = read_csv(path)
+        try:
+            if "episode" in fields:
+                fields["lengths"] = _episode_lengths(fields.pop("episode"))
+            return Trajectory(**fields)
+        except ValueError as exc:
+            raise ValueError(f"trajectory file {path}: {exc}") from None
     raise ValueError(f"trajectory file {path} must end in .npz or .csv, not {suffix!r}")
