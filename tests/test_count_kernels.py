@@ -5,7 +5,8 @@ import pytest
 
 from topomap.core.map.observations import observation_models
 from topomap.core.split.engine import members_of
-from topomap.core.split.kernels import merge_sorted_delta, pair_codes, transition_table
+from topomap.core.split.kernels import (instance_table, merge_sorted_delta, pair_codes,
+                                        transition_table)
 from topomap.core.stats import count_tables
 
 
@@ -33,6 +34,17 @@ def test_pair_codes_and_transition_table():
     has_next = np.array([True, False, True, False])
     codes, counts = transition_table(x, u, has_next, 2, A)
     assert codes.tolist() == [(1 << 32) | 1, (3 << 32) | 0] and counts.tolist() == [1, 1]
+
+
+def test_instance_table_counts_the_centres_by_hand():
+    # A = 2; centres are t = 1..4 except t = 3 (an episode boundary after it)
+    x, u, A = np.array([0, 1, 0, 1, 0, 1]), np.array([1, 0, 1, 0, 1, 1]), 2
+    centre = np.array([False, True, True, False, True, False])
+    # t = 1: key x0*2+u0 = 1, column x2*2+u1 = 0; t = 2: key 2, column 3; t = 4: key 2, column 3
+    codes, counts = instance_table(x, u, np.array([1, 2, 3, 4]), centre, A, 6)
+    assert codes.tolist() == [(1 << 32) | 0, (2 << 32) | 3] and counts.tolist() == [1, 2]
+    codes, counts = instance_table(x, u, np.array([0, 3, 5]), centre, A, 6)
+    assert codes.size == 0 and counts.size == 0
 
 
 def test_members_of_sorts_steps_by_state():

@@ -32,8 +32,8 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from .kernels import (action_table, merge_groups_kernel, merge_sorted_delta, pair_codes,
-                      transition_table)
+from .kernels import (action_table, instance_table, merge_groups_kernel, merge_sorted_delta,
+                      pair_codes, transition_table)
 from ..stats import conditional_entropy, sparse_conditional_entropy, xlogx
 
 __all__ = ["merge_groups", "Proposal", "SplitEngine", "Splitter"]
@@ -159,16 +159,6 @@ def _compact(values, size):
     return np.flatnonzero(present), rank[values]
 
 
-def _sparse_table(keys, cols, size):
-    """Sorted codes ``key << 32 | col`` of the distinct pairs and their counts (keys and columns
-    below ``size``), by one bincount."""
-    k, ki = _compact(keys, size)
-    c, ci = _compact(cols, size)
-    n = np.bincount(ki * c.size + ci, minlength=k.size * c.size)
-    nz = np.flatnonzero(n)
-    return (k[nz // c.size] << _SHIFT) | c[nz % c.size], n[nz]
-
-
 def _merge_delta(table, old, new):
     """The sorted sparse table ``(codes, counts)`` with one count moved from each code of
     ``old`` to the code of ``new`` at the same place; entries that reach zero are dropped.
@@ -203,11 +193,6 @@ class SplitEngine:
                                             self.S, self.A)
 
     # ------------------------------------------------------------------ codes
-    def _instance_keys(self, c):
-        """Group keys ``x[t-1] * A + u[t-1]`` and columns ``x[t+1] * A + u[t]`` of centres ``c``."""
-        x, u, A = self.labels, self.u, self.A
-        return x[c - 1] * A + u[c - 1], x[c + 1] * A + u[c]
-
     def _instance_codes(self, c):
         return pair_codes(self.labels, self.u, c, self.A, _SHIFT, True)
 
@@ -215,8 +200,7 @@ class SplitEngine:
         return pair_codes(self.labels, self.u, t, self.A, _SHIFT, False)
 
     def _instance_table(self, steps):
-        c = steps[self.centre[steps]]
-        return _sparse_table(*self._instance_keys(c), (self.S + 1) * self.A)
+        return instance_table(self.labels, self.u, steps, self.centre, self.A, (self.S + 1) * self.A)
 
     # ------------------------------------------------------------------ proposals
     def count_matrix(self, q: int):
@@ -395,6 +379,14 @@ class Splitter:
             "n_steps_kept": int(self.engine.members[q].size), "n_steps_new": int(moved.size),
             "n_groups": int(best.keys.size),
         }
+
+    def roots(self) -> np.ndarray:
+        """The phase-1 state every state descends from (a state of phase 1 is its own)."""
+        root = np.arange(self.n_states)
+        for s, p in enumerate(self.parent):
+            if p >= 0:
+                root[s] = root[p]
+        return root
 
     def finish(self) -> None:
         """The splits are over: free what only further splits need (every state's steps)."""

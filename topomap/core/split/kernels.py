@@ -8,7 +8,7 @@ from numba import njit
 from ..sums import pairwise_sum
 
 __all__ = ["merge_groups_kernel", "transition_table", "action_table", "merge_sorted_delta",
-           "pair_codes"]
+           "pair_codes", "instance_table"]
 
 @njit(cache=True)
 def _round(x, scale):
@@ -142,7 +142,7 @@ def merge_groups_kernel(counts, table, decimals):
 def transition_table(x, u, has_next, S, A):
     """Sorted codes ``(x[t] * A + u[t]) << 32 | x[t + 1]`` of the distinct transitions (steps
     with ``has_next``) and their counts, in two passes over the steps and no (T,) temporaries:
-    the table ``engine._sparse_table`` makes of the same keys and columns."""
+    the same table :func:`instance_table` makes of instances."""
     key_seen, col_seen = np.zeros(S * A, dtype=np.bool_), np.zeros(S, dtype=np.bool_)
     for t in range(x.size):
         if has_next[t]:
@@ -214,3 +214,46 @@ def pair_codes(x, u, steps, A, shift, centred):
         else:
             out[i] = ((x[t] * A + u[t]) << shift) | x[t + 1]
     return out
+
+
+@njit(cache=True)
+def instance_table(x, u, steps, centre, A, size):
+    """The instance table of ``steps``: sorted codes ``key << 32 | column`` (key ``x[t-1] * A +
+    u[t-1]``, column ``x[t+1] * A + u[t]``) of the distinct pairs of the steps that are centres,
+    and their counts (keys and columns below ``size``).  One pass gathers the pairs; a counting
+    sort by key and a per-key tally of the columns give the table in O(steps + size), with no
+    (keys x columns) array."""
+    keys, cols = np.empty(steps.size, dtype=np.int64), np.empty(steps.size, dtype=np.int64)
+    start = np.zeros(size + 1, dtype=np.int64)
+    n = 0
+    for t in steps:
+        if centre[t]:
+            keys[n], cols[n] = x[t - 1] * A + u[t - 1], x[t + 1] * A + u[t]
+            start[keys[n] + 1] += 1
+            n += 1
+    for k in range(size):
+        start[k + 1] += start[k]
+    by_key, fill = np.empty(n, dtype=np.int64), start[:-1].copy()
+    for i in range(n):
+        by_key[fill[keys[i]]] = cols[i]
+        fill[keys[i]] += 1
+    tally = np.zeros(size, dtype=np.int64)
+    codes, counts = np.empty(n, dtype=np.int64), np.empty(n, dtype=np.int64)
+    m = 0
+    for k in range(size):
+        if start[k + 1] == start[k]:
+            continue
+        first = m
+        for i in range(start[k], start[k + 1]):
+            c = by_key[i]
+            if tally[c] == 0:
+                codes[m] = c
+                m += 1
+            tally[c] += 1
+        codes[first:m].sort()
+        for i in range(first, m):
+            c = codes[i]
+            counts[i] = tally[c]
+            tally[c] = 0
+            codes[i] = (np.int64(k) << 32) | c
+    return codes[:m].copy(), counts[:m].copy()
