@@ -5,23 +5,34 @@ import pytest
 
 from topomap.core.map.observations import observation_models
 from topomap.core.split.engine import members_of
-from topomap.core.split.kernels import (instance_table, merge_sorted_delta, pair_codes,
+from topomap.core.split.kernels import (instance_table, merge_tallies, pair_codes, tally_codes,
                                         transition_table)
 from topomap.core.stats import count_tables
 
 
-def test_merge_sorted_delta_moves_counts_and_drops_zeros():
+def test_merge_tallies_moves_counts_and_drops_zeros():
     codes, counts = np.array([2, 5, 9]), np.array([1, 3, 2])
-    # take one off 2 (-> 0, dropped) and two off 5; add 7 (new) and 9
-    out_codes, out_counts = merge_sorted_delta(codes, counts, np.array([2, 5, 5]),
-                                               np.array([7, 9, 9]))
+    # take one off 2 (-> 0, dropped) and two off 5; add 7 (new) once and 9 twice
+    out_codes, out_counts = merge_tallies(codes, counts, np.array([2, 5]), np.array([1, 2]),
+                                          np.array([7, 9]), np.array([1, 2]))
     assert out_codes.tolist() == [5, 7, 9]
     assert out_counts.tolist() == [1, 1, 4]
 
 
-def test_merge_sorted_delta_refuses_a_code_not_in_the_table():
+def test_merge_tallies_refuses_a_code_not_in_the_table_or_too_many_taken_off():
     with pytest.raises(ValueError, match="not in the table"):
-        merge_sorted_delta(np.array([2, 5]), np.array([1, 1]), np.array([3]), np.array([5]))
+        merge_tallies(np.array([2, 5]), np.array([1, 1]), np.array([3]), np.array([1]),
+                      np.array([5]), np.array([1]))
+    with pytest.raises(ValueError, match="more taken off"):
+        merge_tallies(np.array([2, 5]), np.array([1, 1]), np.array([5]), np.array([2]),
+                      np.array([2]), np.array([1]))
+
+
+def test_tally_codes_sorts_and_counts():
+    # keys and columns below 4: codes (1, 3), (0, 2), (1, 3), (1, 0)
+    codes = np.array([(1 << 32) | 3, 2, (1 << 32) | 3, 1 << 32])
+    out, n = tally_codes(codes, 4)
+    assert out.tolist() == [2, 1 << 32, (1 << 32) | 3] and n.tolist() == [1, 1, 2]
 
 
 def test_pair_codes_and_transition_table():
