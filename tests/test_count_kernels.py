@@ -31,8 +31,9 @@ def test_merge_tallies_refuses_a_code_not_in_the_table_or_too_many_taken_off():
 def test_tally_codes_sorts_and_counts():
     # keys and columns below 4: codes (1, 3), (0, 2), (1, 3), (1, 0)
     codes = np.array([(1 << 32) | 3, 2, (1 << 32) | 3, 1 << 32])
-    out, n = tally_codes(codes, 4)
-    assert out.tolist() == [2, 1 << 32, (1 << 32) | 3] and n.tolist() == [1, 1, 2]
+    for size in (4, 1000):  # a counting sort by key; a sort when the codes are few
+        out, n = tally_codes(codes, size)
+        assert out.tolist() == [2, 1 << 32, (1 << 32) | 3] and n.tolist() == [1, 1, 2]
 
 
 def test_pair_codes_and_transition_table():

@@ -146,15 +146,7 @@ def _merge_delta(table, old, new, size):
     """The sorted sparse table ``(codes, counts)`` with one count moved from each code of
     ``old`` to the code of ``new`` at the same place (codes' keys and columns below ``size``);
     entries that reach zero are dropped.  O(table + delta + size)."""
-    return merge_tallies(*table, *_tally(old, size), *_tally(new, size))
-
-
-def _tally(codes, size):
-    """Sorted distinct ``codes`` and their counts: by a counting sort, or by sorting when
-    ``codes`` is short next to ``size``."""
-    if 16 * codes.size < size:
-        return np.unique(codes, return_counts=True)
-    return tally_codes(codes, size)
+    return merge_tallies(*table, *tally_codes(old, size), *tally_codes(new, size))
 
 
 class SplitEngine:

@@ -220,11 +220,28 @@ def pair_codes(x, u, steps, A, shift, centred):
 
 
 @njit(cache=True)
+def _tally_sorted(codes):
+    """Sorted distinct ``codes`` and their counts, by sorting them."""
+    codes = np.sort(codes)
+    out, counts = np.empty(codes.size, dtype=np.int64), np.empty(codes.size, dtype=np.int64)
+    m = 0
+    for i in range(codes.size):
+        if m > 0 and out[m - 1] == codes[i]:
+            counts[m - 1] += 1
+        else:
+            out[m], counts[m] = codes[i], 1
+            m += 1
+    return out[:m], counts[:m]
+
+
+@njit(cache=True)
 def _tally(keys, cols, size):
     """Sorted distinct codes ``key << 32 | col`` of the pairs (keys and columns below ``size``)
     and their counts: a counting sort by key, then a tally of the columns of each key, in
-    O(pairs + size)."""
+    O(pairs + size); by a sort, O(pairs log pairs), when the pairs are few next to ``size``."""
     n = keys.size
+    if 16 * n < size:
+        return _tally_sorted((keys << 32) | cols)
     start = np.zeros(size + 1, dtype=np.int64)
     for i in range(n):
         start[keys[i] + 1] += 1
