@@ -84,3 +84,29 @@ def test_observation_models_through_a_lookup():
     assert means[:, 0].tolist() == [2.0, 10.0]
     direct = observation_models(X, np.array([0, 0, 1, 0]), 2)
     assert np.array_equal(cov, direct[1])
+
+
+def test_diagonal_models_in_two_passes_by_hand():
+    # two features (the two-pass path): model 0 holds rows 0, 1, 3, model 1 row 2
+    X = np.array([[0.0, 1.0], [2.0, 1.0], [10.0, 1.0], [4.0, 1.0]])
+    means, cov, n = observation_models(X, np.array([0, 1, 2, 0]), 2, reg_covar=1e-3,
+                                       lookup=np.array([0, 0, 1]))
+    assert n.tolist() == [3.0, 1.0]
+    assert means.tolist() == [[2.0, 1.0], [10.0, 1.0]]
+    # feature variances 14 and 0: reg = 1e-3 * 7; model 0's first variance (4 + 0 + 4) / 3
+    assert np.allclose(cov, [[8 / 3 + 0.007, 0.007], [0.007, 0.007]], rtol=0, atol=1e-15)
+
+
+def test_diagonal_models_in_two_passes_are_the_separate_sums():
+    from topomap.core.map.observations import (feature_variance, model_counts, model_squares,
+                                               model_sums)
+    rng = np.random.default_rng(3)
+    X = rng.normal(size=(500, 4)) * 3 + 1
+    model, lookup = rng.integers(0, 6, 500), rng.integers(0, 3, 6)
+    means, cov, n = observation_models(X, model, 3, reg_covar=1e-3, lookup=lookup)
+    n_ref = model_counts(model, 3, lookup)
+    means_ref = model_sums(X, model, 3, lookup) / np.maximum(n_ref, 1)[:, None]
+    reg = 1e-3 * float(np.mean(feature_variance(X)))
+    cov_ref = model_squares(X, model, means_ref, lookup) / np.maximum(n_ref, 1)[:, None] + reg
+    for a, b in ((n, n_ref), (means, means_ref), (cov, cov_ref)):
+        assert np.array_equal(a.view(np.int64), b.view(np.int64))

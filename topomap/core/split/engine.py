@@ -183,7 +183,8 @@ class SplitEngine:
         return pair_codes(self.labels, self.u, t, self.A, _SHIFT, False)
 
     def _instance_table(self, steps):
-        return instance_table(self.labels, self.u, steps, self.centre, self.A, (self.S + 1) * self.A)
+        return instance_table(self.labels, self.u, steps, self.centre, self.A,
+                              (self.S + 1) * self.A)
 
     # ------------------------------------------------------------------ proposals
     def count_matrix(self, q: int):

@@ -1,4 +1,5 @@
-"""Compiled bookkeeping of the split: the bottom-up merge of count rows, bit for bit as numpy."""
+"""Compiled bookkeeping of the split: the bottom-up merge of count rows (bit for bit as numpy),
+the instance and transition tables, tallies of their updates, the steps a split moves or touches."""
 
 from __future__ import annotations
 
@@ -7,8 +8,8 @@ from numba import njit
 
 from ..sums import pairwise_sum
 
-__all__ = ["merge_groups_kernel", "transition_table", "action_table", "merge_tallies", "tally_codes",
-           "pair_codes", "instance_table", "sorted_union", "follow_keys", "next_to",
+__all__ = ["merge_groups_kernel", "transition_table", "action_table", "merge_tallies",
+           "tally_codes", "pair_codes", "instance_table", "sorted_union", "follow_keys", "next_to",
            "states_near"]
 
 @njit(cache=True)
