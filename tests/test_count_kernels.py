@@ -5,8 +5,8 @@ import pytest
 
 from topomap.core.map.observations import observation_models
 from topomap.core.split.engine import members_of
-from topomap.core.split.kernels import (instance_table, merge_tallies, pack_steps, pair_codes,
-                                        relabel, tally_codes, transition_table)
+from topomap.core.split.kernels import (instance_table, merge_tallies, pair_codes, tally_codes,
+                                        transition_table)
 from topomap.core.stats import count_tables
 
 
@@ -38,36 +38,25 @@ def test_tally_codes_sorts_and_counts():
 
 def test_pair_codes_and_transition_table():
     x, u, A = np.array([0, 1, 1, 0]), np.array([1, 0, 1, 0]), 2
-    has_next = np.array([True, True, True, False])
-    packed = pack_steps(x, u, np.array([False, True, True, True]), has_next)
     # transitions at t = 0, 1, 2: (0*2+1 -> 1), (1*2+0 -> 1), (1*2+1 -> 0)
-    assert pair_codes(packed, np.array([0, 1, 2]), A, np.int64(32), False).tolist() == [
+    assert pair_codes(x, u, np.array([0, 1, 2]), A, np.int64(32), False).tolist() == [
         (1 << 32) | 1, (2 << 32) | 1, (3 << 32) | 0]
     # the instance centred at t = 1: key x[0]*A+u[0] = 1, column x[2]*A+u[1] = 2
-    assert pair_codes(packed, np.array([1]), A, np.int64(32), True).tolist() == [(1 << 32) | 2]
+    assert pair_codes(x, u, np.array([1]), A, np.int64(32), True).tolist() == [(1 << 32) | 2]
     has_next = np.array([True, False, True, False])
     codes, counts = transition_table(x, u, has_next, 2, A)
     assert codes.tolist() == [(1 << 32) | 1, (3 << 32) | 0] and counts.tolist() == [1, 1]
 
 
-def test_packed_steps_hold_state_action_and_flags():
-    packed = pack_steps(np.array([3, 0]), np.array([5, 2]), np.array([False, True]),
-                        np.array([True, False]))
-    assert packed.tolist() == [(3 << 32) | (1 << 31) | 5, (1 << 30) | 2]
-    relabel(packed, np.array([1]), 7)  # the state changes, the action and flags stay
-    assert packed[1] == (7 << 32) | (1 << 30) | 2
-
-
 def test_instance_table_counts_the_centres_by_hand():
-    # one episode of six steps, A = 2: the centres are t = 1..4
+    # A = 2; centres are t = 1..4 except t = 3 (an episode boundary after it)
     x, u, A = np.array([0, 1, 0, 1, 0, 1]), np.array([1, 0, 1, 0, 1, 1]), 2
-    ends = np.arange(6)
-    packed = pack_steps(x, u, ends > 0, ends < 5)
-    # t = 1, 3: key x*2+u of t-1 = 1, column x[t+1]*2+u[t] = 0; t = 2, 4: key 2, column 3
-    codes, counts = instance_table(packed, np.array([1, 2, 3, 4]), A, 6)
-    assert codes.tolist() == [(1 << 32) | 0, (2 << 32) | 3] and counts.tolist() == [2, 2]
-    codes, counts = instance_table(packed, np.array([2, 5]), A, 6)  # t = 5 is no centre
-    assert codes.tolist() == [(2 << 32) | 3] and counts.tolist() == [1]
+    centre = np.array([False, True, True, False, True, False])
+    # t = 1: key x0*2+u0 = 1, column x2*2+u1 = 0; t = 2: key 2, column 3; t = 4: key 2, column 3
+    codes, counts = instance_table(x, u, np.array([1, 2, 3, 4]), centre, A, 6)
+    assert codes.tolist() == [(1 << 32) | 0, (2 << 32) | 3] and counts.tolist() == [1, 2]
+    codes, counts = instance_table(x, u, np.array([0, 3, 5]), centre, A, 6)
+    assert codes.size == 0 and counts.size == 0
 
 
 def test_members_of_sorts_steps_by_state():

@@ -32,9 +32,9 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from .kernels import (MAX_ACTIONS, action_table, episode_starts, follow_keys, instance_table,
-                      merge_groups_kernel, merge_tallies, next_to, pack_steps, pair_codes, relabel,
-                      states_near, tally_codes, transition_table)
+from .kernels import (action_table, follow_keys, instance_table, merge_groups_kernel,
+                      merge_tallies, next_to, pair_codes, states_near, tally_codes,
+                      transition_table)
 from ..stats import conditional_entropy, sparse_conditional_entropy, xlogx
 
 __all__ = ["merge_groups", "Proposal", "SplitEngine", "Splitter"]
@@ -164,9 +164,7 @@ class SplitEngine:
         self.u = np.asarray(actions, dtype=np.int64)
         self.S, self.A = int(n_states), int(n_actions)
         self.has_prev, self.has_next = has_prev, has_next
-        if self.A > MAX_ACTIONS:
-            raise ValueError(f"n_actions must be at most {MAX_ACTIONS}, got {self.A}")
-        self.packed = pack_steps(self.labels, self.u, has_prev, has_next)
+        self.centre = has_prev & has_next
         # each state's steps in an array of its own (views of one array would keep all of it
         # alive as states split), as int32 while every step index fits
         like = np.empty(0, dtype=np.int32 if self.labels.size < 2**31 else np.int64)
@@ -179,13 +177,14 @@ class SplitEngine:
 
     # ------------------------------------------------------------------ codes
     def _instance_codes(self, c):
-        return pair_codes(self.packed, c, self.A, _SHIFT, True)
+        return pair_codes(self.labels, self.u, c, self.A, _SHIFT, True)
 
     def _transition_codes(self, t):
-        return pair_codes(self.packed, t, self.A, _SHIFT, False)
+        return pair_codes(self.labels, self.u, t, self.A, _SHIFT, False)
 
     def _instance_table(self, steps):
-        return instance_table(self.packed, steps, self.A, (self.S + 1) * self.A)
+        return instance_table(self.labels, self.u, steps, self.centre, self.A,
+                              (self.S + 1) * self.A)
 
     # ------------------------------------------------------------------ proposals
     def count_matrix(self, q: int):
@@ -233,8 +232,8 @@ class SplitEngine:
         steps = self.members[p.state]
         chosen = np.zeros(self.S * A, dtype=bool)
         chosen[p.keys[side]] = True
-        goes = follow_keys(self.packed, steps, A, chosen)
-        is_start = episode_starts(self.packed, steps)
+        goes = follow_keys(x, u, steps, self.has_prev, A, chosen)
+        is_start = ~self.has_prev[steps] & self.has_next[steps]
         if is_start.any():
             starts = steps[is_start]
             halves = np.stack([p.counts[~side].sum(axis=0), p.counts[side].sum(axis=0)])
@@ -246,7 +245,7 @@ class SplitEngine:
 
     def _touched(self, moved, q):
         """Instance centres outside ``q`` and transition starts next to the moved steps."""
-        return next_to(moved, self.packed, q)
+        return next_to(moved, self.has_prev, self.has_next, self.centre, self.labels, q)
 
     def split(self, p: Proposal, new: int) -> np.ndarray:
         """Split ``p.state``: its moving steps become state ``new`` (= the current state count).
@@ -258,7 +257,6 @@ class SplitEngine:
         centres, starts = self._touched(moved, q)
         old_inst, old_trans = self._instance_codes(centres), self._transition_codes(starts)
         self.labels[moved] = new
-        relabel(self.packed, moved, new)
         self._update_instances(centres, old_inst, self._instance_codes(centres))
         self.transitions = _merge_delta(self.transitions, old_trans,
                                         self._transition_codes(starts), (self.S + 1) * self.A)
@@ -290,7 +288,7 @@ class SplitEngine:
         """Drop the steps and instance tables of every state (no split follows); the labels and
         counts stay."""
         self.members = self.tables = None
-        self.packed = self.has_prev = self.has_next = None
+        self.centre = self.has_prev = self.has_next = None
 
     # ------------------------------------------------------------------ entropies
     def entropies(self, h_state: np.ndarray) -> dict:
@@ -351,7 +349,7 @@ class Splitter:
         self.parent.append(q)
         self.obs_entropy = np.append(self.obs_entropy, self.obs_entropy[q])
         # a state's instances change only where a neighbouring step moved q -> new
-        touched = states_near(moved, self.engine.packed, self.n_states)
+        touched = states_near(moved, self.has_prev, self.has_next, self.labels, self.n_states)
         self._dirty = set(np.flatnonzero(touched).tolist()) | {q, new}
         if self.recompute_all:
             self._dirty = set(range(self.n_states))

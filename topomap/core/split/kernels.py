@@ -10,7 +10,7 @@ from ..sums import pairwise_sum
 
 __all__ = ["merge_groups_kernel", "transition_table", "action_table", "merge_tallies",
            "tally_codes", "pair_codes", "instance_table", "sorted_union", "follow_keys", "next_to",
-           "states_near", "episode_starts", "pack_steps", "relabel", "MAX_ACTIONS"]
+           "states_near"]
 
 @njit(cache=True)
 def _round(x, scale):
@@ -206,56 +206,17 @@ def merge_tallies(codes, counts, minus, minus_n, plus, plus_n):
     return out_codes[:n], out_counts[:n]
 
 
-#: bits of a packed step (:func:`pack_steps`): its action below bit 30, then "has a
-#: predecessor" and "has a successor", its state in the upper 32 bits
-_ACTION = np.int64((1 << 30) - 1)
-_PREV = np.int64(1 << 30)
-_NEXT = np.int64(1 << 31)
-MAX_ACTIONS = 1 << 30
-
-
 @njit(cache=True)
-def pack_steps(x, u, has_prev, has_next):
-    """Every step's state, action and episode flags in one int64 (``x << 32 | next << 31 |
-    prev << 30 | u``; actions below 2**30): the split reads a step and its neighbours from one
-    array, mostly one cache line, instead of four."""
-    out = np.empty(x.size, dtype=np.int64)
-    for t in range(x.size):
-        out[t] = (x[t] << 32) | u[t] | (_PREV if has_prev[t] else 0) | (_NEXT if has_next[t] else 0)
-    return out
-
-
-@njit(cache=True)
-def relabel(packed, steps, state):
-    """Give ``steps`` the state ``state`` in the packed steps."""
-    for t in steps:
-        packed[t] = (np.int64(state) << 32) | (packed[t] & 0xFFFFFFFF)
-
-
-@njit(cache=True)
-def _sa(w, A):
-    """The key ``x * A + u`` of a packed step."""
-    return (w >> 32) * A + (w & _ACTION)
-
-
-@njit(cache=True)
-def _is_centre(w):
-    return (w & _PREV) != 0 and (w & _NEXT) != 0
-
-
-@njit(cache=True)
-def pair_codes(packed, steps, A, shift, centred):
-    """Codes of the (packed) steps: with ``centred``, instance codes ``(x[t-1] * A + u[t-1]) <<
-    shift | (x[t+1] * A + u[t])``; else transition codes ``(x[t] * A + u[t]) << shift |
-    x[t+1]``."""
+def pair_codes(x, u, steps, A, shift, centred):
+    """Codes of the steps: with ``centred``, instance codes ``(x[t-1] * A + u[t-1]) << shift |
+    (x[t+1] * A + u[t])``; else transition codes ``(x[t] * A + u[t]) << shift | x[t+1]``."""
     out = np.empty(steps.size, dtype=np.int64)
     for i in range(steps.size):
         t = steps[i]
         if centred:
-            out[i] = (_sa(packed[t - 1], A) << shift) | ((packed[t + 1] >> 32) * A
-                                                         + (packed[t] & _ACTION))
+            out[i] = ((x[t - 1] * A + u[t - 1]) << shift) | (x[t + 1] * A + u[t])
         else:
-            out[i] = (_sa(packed[t], A) << shift) | (packed[t + 1] >> 32)
+            out[i] = ((x[t] * A + u[t]) << shift) | x[t + 1]
     return out
 
 
@@ -319,18 +280,16 @@ def tally_codes(codes, size):
 
 
 @njit(cache=True)
-def instance_table(packed, steps, A, size):
+def instance_table(x, u, steps, centre, A, size):
     """The instance table of ``steps``: sorted codes ``key << 32 | column`` (key ``x[t-1] * A +
-    u[t-1]``, column ``x[t+1] * A + u[t]``) of the distinct pairs of the steps that are centres
-    (``packed``: :func:`pack_steps`), and their counts (keys and columns below ``size``): one
-    pass gathers the pairs, then :func:`_tally`; no (keys x columns) array."""
+    u[t-1]``, column ``x[t+1] * A + u[t]``) of the distinct pairs of the steps that are centres,
+    and their counts (keys and columns below ``size``): one pass gathers the pairs, then
+    :func:`_tally`; no (keys x columns) array."""
     keys, cols = np.empty(steps.size, dtype=np.int64), np.empty(steps.size, dtype=np.int64)
     n = 0
     for t in steps:
-        w = packed[t]
-        if _is_centre(w):
-            keys[n] = _sa(packed[t - 1], A)
-            cols[n] = (packed[t + 1] >> 32) * A + (w & _ACTION)
+        if centre[t]:
+            keys[n], cols[n] = x[t - 1] * A + u[t - 1], x[t + 1] * A + u[t]
             n += 1
     return _tally(keys[:n], cols[:n], size)
 
@@ -354,64 +313,53 @@ def sorted_union(a, b):
 
 
 @njit(cache=True)
-def follow_keys(packed, steps, A, chosen):
+def follow_keys(x, u, steps, has_prev, A, chosen):
     """Mask over ``steps``: those with a predecessor whose key ``x[t-1] * A + u[t-1]`` is
     ``chosen`` (a mask over the keys)."""
     goes = np.zeros(steps.size, dtype=np.bool_)
     for i in range(steps.size):
         t = steps[i]
-        if packed[t] & _PREV:
-            goes[i] = chosen[_sa(packed[t - 1], A)]
+        if has_prev[t]:
+            goes[i] = chosen[x[t - 1] * A + u[t - 1]]
     return goes
 
 
 @njit(cache=True)
-def episode_starts(packed, steps):
-    """Mask over ``steps``: the first steps of episodes that have a successor."""
-    out = np.zeros(steps.size, dtype=np.bool_)
-    for i in range(steps.size):
-        w = packed[steps[i]]
-        out[i] = (w & _PREV) == 0 and (w & _NEXT) != 0
-    return out
-
-
-@njit(cache=True)
-def _shifted(moved, packed, flag, shift):
+def _shifted(moved, has, shift):
     out = np.empty(moved.size, dtype=np.int64)
     n = 0
     for t in moved:
-        if packed[t] & flag:
+        if has[t]:
             out[n] = t + shift
             n += 1
     return out[:n]
 
 
 @njit(cache=True)
-def next_to(moved, packed, q):
+def next_to(moved, has_prev, has_next, centre, x, q):
     """The steps a move of the sorted steps ``moved`` out of state ``q`` touches: the instance
     centres next to them that lie outside ``q``, and the transition starts next to or at them
     (both sorted)."""
-    before, after = _shifted(moved, packed, _PREV, -1), _shifted(moved, packed, _NEXT, 1)
+    before, after = _shifted(moved, has_prev, -1), _shifted(moved, has_next, 1)
     c = sorted_union(before, after)
     keep = np.zeros(c.size, dtype=np.bool_)
     for i in range(c.size):
-        keep[i] = _is_centre(packed[c[i]]) and (packed[c[i]] >> 32) != q
-    t = sorted_union(_shifted(moved, packed, _NEXT, 0), before)
+        keep[i] = centre[c[i]] and x[c[i]] != q
+    t = sorted_union(_shifted(moved, has_next, 0), before)
     starts = np.zeros(t.size, dtype=np.bool_)
     for i in range(t.size):
-        starts[i] = (packed[t[i]] & _NEXT) != 0
+        starts[i] = has_next[t[i]]
     return c[keep], t[starts]
 
 
 @njit(cache=True)
-def states_near(moved, packed, S):
+def states_near(moved, has_prev, has_next, x, S):
     """Mask over the ``S`` states: those holding a step of ``moved`` or a neighbour of one."""
     near = np.zeros(S, dtype=np.bool_)
     for t in moved:
-        w = packed[t]
-        near[w >> 32] = True
-        if w & _PREV:
-            near[packed[t - 1] >> 32] = True
-        if w & _NEXT:
-            near[packed[t + 1] >> 32] = True
+        near[x[t]] = True
+        if has_prev[t]:
+            near[x[t - 1]] = True
+        if has_next[t]:
+            near[x[t + 1]] = True
     return near
