@@ -25,8 +25,10 @@ Worlds:
 Every measurement runs in a fresh subprocess.  Peak RSS: the process's ``ru_maxrss`` right after
 the fit (``getrusage(RUSAGE_SELF)``) and, for scoring, the ``ru_maxrss`` that ``os.wait4`` reports
 for the finished child; both include the interpreter and the data.  The time is the wall time of
-``fit`` (or ``score``) alone, after a warm-up fit (numba compilation excluded).  ``k`` is the
-least-squares slope of log(time) on log(T) over the aliased-walk sizes.
+``fit`` (or ``score``) alone, after a warm-up fit (numba compilation excluded), beside the
+process's CPU time of the fit (``CPU``: all its threads; less sensitive than the wall time to
+other work on the machine).  On the aliased walk the versions take turns within each repeat.
+``k`` is the least-squares slope of log(time) on log(T) over the aliased-walk sizes.
 """
 
 from __future__ import annotations
@@ -104,11 +106,11 @@ def _fit_record(X, u, places, ns, S, **kw):
     from topomap.metrics import adjusted_rand  # the same name in every version
 
     learner = _learner(n_clusters=ns, n_states=S, random_state=0, **kw)
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     learner.fit(X, u)
-    total = time.perf_counter() - t0
+    total, cpu = time.perf_counter() - t0, time.process_time() - c0
     fit_rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024 / 1e9
-    return learner, {"time": total, "refine": 0.0, **learner.timings_, "S": learner.map_.n_states,
+    return learner, {"time": total, "cpu": cpu, "refine": 0.0, **learner.timings_, "S": learner.map_.n_states,
                      "fit_rss_gb": fit_rss,
                      "ari0": adjusted_rand(places, learner.labels_phase1_),
                      "ari1": adjusted_rand(places, learner.labels_),
@@ -175,13 +177,23 @@ def measure(repeats, python, *args) -> dict:
 
 
 def walk_rows(sizes, repeats, versions, baseline_max_T, refine_max_T):
+    """Every size fitted by every version, the versions taking turns within each repeat (so
+    that a change of load falls on all of them alike)."""
     rows = []
     for T in sizes:
-        for impl, python in versions:
-            if (impl == "old" and T > baseline_max_T) or (impl == "em" and T > refine_max_T):
-                continue
-            rec = measure(repeats, python, "walk", T, *(["em"] if impl == "em" else []))
-            rows.append({"world": "aliased_walk", "T": T, "impl": impl, **rec})
+        todo = [(impl, python) for impl, python in versions
+                if not (impl == "old" and T > baseline_max_T)
+                and not (impl == "em" and T > refine_max_T)]
+        records = {impl: [] for impl, _ in todo}
+        for _ in range(repeats):
+            for impl, python in todo:
+                load = os.getloadavg()[0]
+                rec = run_child(python, "walk", T, *(["em"] if impl == "em" else []))
+                records[impl].append({**rec, "load": load})
+        for impl, _ in todo:
+            rec = median_record(records[impl])
+            rows.append({"world": "aliased_walk", "T": T, "impl": impl, **rec,
+                         "times": [r["time"] for r in records[impl]]})
             print(format_row(rows[-1]), flush=True)
     return rows
 
@@ -203,7 +215,7 @@ def fourrooms_rows(repeats, data, versions):
 def format_row(r) -> str:
     text = (f"{r['world']:12s} T={r['T']:>10,} {r['impl']:3s} [{r['method']:8s}] "
             f"-> {r['S']:5d} states | phase1 {r['phase1']:7.2f} s  phase2 {r['phase2']:7.2f} s  "
-            f"refine {r.get('refine', 0.0):7.2f} s  fit {r['time']:7.2f} s  RSS {r['fit_rss_gb']:5.2f} GB | ARI {r['ari0']:.3f} -> "
+            f"refine {r.get('refine', 0.0):7.2f} s  fit {r['time']:7.2f} s (CPU {r.get('cpu', 0.0):6.2f} s)  RSS {r['fit_rss_gb']:5.2f} GB | ARI {r['ari0']:.3f} -> "
             f"{r['ari1']:.3f} | load {r['load']:.1f}")
     if r.get("score_steps"):
         text += (f" | score {r['score_steps']:,} steps {r['score_time']:.2f} s, "

@@ -5,22 +5,35 @@ import pytest
 
 from topomap.core.map.observations import observation_models
 from topomap.core.split.engine import members_of
-from topomap.core.split.kernels import merge_sorted_delta, pair_codes, transition_table
+from topomap.core.split.kernels import (instance_table, merge_tallies, pair_codes, tally_codes,
+                                        transition_table)
 from topomap.core.stats import count_tables
 
 
-def test_merge_sorted_delta_moves_counts_and_drops_zeros():
+def test_merge_tallies_moves_counts_and_drops_zeros():
     codes, counts = np.array([2, 5, 9]), np.array([1, 3, 2])
-    # take one off 2 (-> 0, dropped) and two off 5; add 7 (new) and 9
-    out_codes, out_counts = merge_sorted_delta(codes, counts, np.array([2, 5, 5]),
-                                               np.array([7, 9, 9]))
+    # take one off 2 (-> 0, dropped) and two off 5; add 7 (new) once and 9 twice
+    out_codes, out_counts = merge_tallies(codes, counts, np.array([2, 5]), np.array([1, 2]),
+                                          np.array([7, 9]), np.array([1, 2]))
     assert out_codes.tolist() == [5, 7, 9]
     assert out_counts.tolist() == [1, 1, 4]
 
 
-def test_merge_sorted_delta_refuses_a_code_not_in_the_table():
+def test_merge_tallies_refuses_a_code_not_in_the_table_or_too_many_taken_off():
     with pytest.raises(ValueError, match="not in the table"):
-        merge_sorted_delta(np.array([2, 5]), np.array([1, 1]), np.array([3]), np.array([5]))
+        merge_tallies(np.array([2, 5]), np.array([1, 1]), np.array([3]), np.array([1]),
+                      np.array([5]), np.array([1]))
+    with pytest.raises(ValueError, match="more taken off"):
+        merge_tallies(np.array([2, 5]), np.array([1, 1]), np.array([5]), np.array([2]),
+                      np.array([2]), np.array([1]))
+
+
+def test_tally_codes_sorts_and_counts():
+    # keys and columns below 4: codes (1, 3), (0, 2), (1, 3), (1, 0)
+    codes = np.array([(1 << 32) | 3, 2, (1 << 32) | 3, 1 << 32])
+    for size in (4, 1000):  # a counting sort by key; a sort when the codes are few
+        out, n = tally_codes(codes, size)
+        assert out.tolist() == [2, 1 << 32, (1 << 32) | 3] and n.tolist() == [1, 1, 2]
 
 
 def test_pair_codes_and_transition_table():
@@ -33,6 +46,17 @@ def test_pair_codes_and_transition_table():
     has_next = np.array([True, False, True, False])
     codes, counts = transition_table(x, u, has_next, 2, A)
     assert codes.tolist() == [(1 << 32) | 1, (3 << 32) | 0] and counts.tolist() == [1, 1]
+
+
+def test_instance_table_counts_the_centres_by_hand():
+    # A = 2; centres are t = 1..4 except t = 3 (an episode boundary after it)
+    x, u, A = np.array([0, 1, 0, 1, 0, 1]), np.array([1, 0, 1, 0, 1, 1]), 2
+    centre = np.array([False, True, True, False, True, False])
+    # t = 1: key x0*2+u0 = 1, column x2*2+u1 = 0; t = 2: key 2, column 3; t = 4: key 2, column 3
+    codes, counts = instance_table(x, u, np.array([1, 2, 3, 4]), centre, A, 6)
+    assert codes.tolist() == [(1 << 32) | 0, (2 << 32) | 3] and counts.tolist() == [1, 2]
+    codes, counts = instance_table(x, u, np.array([0, 3, 5]), centre, A, 6)
+    assert codes.size == 0 and counts.size == 0
 
 
 def test_members_of_sorts_steps_by_state():
@@ -60,3 +84,29 @@ def test_observation_models_through_a_lookup():
     assert means[:, 0].tolist() == [2.0, 10.0]
     direct = observation_models(X, np.array([0, 0, 1, 0]), 2)
     assert np.array_equal(cov, direct[1])
+
+
+def test_diagonal_models_in_two_passes_by_hand():
+    # two features (the two-pass path): model 0 holds rows 0, 1, 3, model 1 row 2
+    X = np.array([[0.0, 1.0], [2.0, 1.0], [10.0, 1.0], [4.0, 1.0]])
+    means, cov, n = observation_models(X, np.array([0, 1, 2, 0]), 2, reg_covar=1e-3,
+                                       lookup=np.array([0, 0, 1]))
+    assert n.tolist() == [3.0, 1.0]
+    assert means.tolist() == [[2.0, 1.0], [10.0, 1.0]]
+    # feature variances 14 and 0: reg = 1e-3 * 7; model 0's first variance (4 + 0 + 4) / 3
+    assert np.allclose(cov, [[8 / 3 + 0.007, 0.007], [0.007, 0.007]], rtol=0, atol=1e-15)
+
+
+def test_diagonal_models_in_two_passes_are_the_separate_sums():
+    from topomap.core.map.observations import (feature_variance, model_counts, model_squares,
+                                               model_sums)
+    rng = np.random.default_rng(3)
+    X = rng.normal(size=(500, 4)) * 3 + 1
+    model, lookup = rng.integers(0, 6, 500), rng.integers(0, 3, 6)
+    means, cov, n = observation_models(X, model, 3, reg_covar=1e-3, lookup=lookup)
+    n_ref = model_counts(model, 3, lookup)
+    means_ref = model_sums(X, model, 3, lookup) / np.maximum(n_ref, 1)[:, None]
+    reg = 1e-3 * float(np.mean(feature_variance(X)))
+    cov_ref = model_squares(X, model, means_ref, lookup) / np.maximum(n_ref, 1)[:, None] + reg
+    for a, b in ((n, n_ref), (means, means_ref), (cov, cov_ref)):
+        assert np.array_equal(a.view(np.int64), b.view(np.int64))

@@ -213,7 +213,9 @@ class MapLearner(MapMethods, BaseEstimator):
         }
         if hasattr(self, "size_choice_"):
             info["size_choice"] = {k: self.size_choice_[k] for k in ("criterion", "chosen")}
-        self.map_ = self.map_split_ = self._make_map(data, splitter, info)
+        root, first = splitter.roots(), self.map_phase1_  # symbols kept: phase 1's P(o|x)
+        self.map_ = self.map_split_ = self._make_map(
+            data, splitter, info, models=(first.means[root], first.covariances[root]))
         self.timings_ = {"phase1": t1 - t0, "phase2": t2 - t1}
         continuous = places is not None and fit_places(self, data, places, metric)
         if refinement is not None and not continuous:
@@ -421,14 +423,14 @@ class MapLearner(MapMethods, BaseEstimator):
         for cb in self.callbacks:
             cb(event, dict(info, learner=self))
 
-    def _make_map(self, data: FitData, splitter: Splitter, info=None) -> TopologicalMap:
+    def _make_map(self, data: FitData, splitter: Splitter, info=None, models=None):
         return TopologicalMap.from_labels(
             data.X, data.u, splitter.labels, lengths=data.lengths, state_symbol=splitter.symbol,
             state_gds=splitter.gds, state_parent=splitter.parent, n_actions=data.n_actions,
             covariance_type=self.covariance_type, reg_covar=self.reg_covar,
             action_names=data.action_names, gds_names=data.gds_names,
             split_history=self.split_history_, entropy_history=self.entropies_, info=info,
-        )
+            models=models)
 
     # ------------------------------------------------------------------ conveniences
     def _forget_fit(self) -> None:

@@ -81,9 +81,12 @@ class TopologicalMap:
     @classmethod
     def from_labels(cls, observations, actions, labels, *, lengths=None, state_symbol, state_gds,
                     state_parent, n_actions, covariance_type="diag", reg_covar=1e-3, info=None,
-                    **fields):
+                    models=None, **fields):
         """Estimate every table from a labelled sequence (labels in ``[0, S)``); ``fields`` are
         the map's keyword fields (names, histories), ``info`` gets ``covariance_type`` first.
+        ``models``: the ``(means, covariances)`` of every state when they are known already (a
+        split keeps every step's symbol, so the split map's are phase 1's); they are not
+        estimated again.
 
         The observation model of a state is the Gaussian of all steps sharing its symbol (or its
         GDS id); ``reg_covar`` times the mean feature variance of the data is added to every
@@ -105,12 +108,14 @@ class TopologicalMap:
         M = int(model_of_state.max()) + 1
         if x.size and (x.min() < 0 or x.max() >= S):
             raise ValueError(f"labels must lie in [0, {S}) (the states of state_symbol)")
-        mean_m, cov_m, _ = observation_models(X, x, M, covariance_type, reg_covar,
-                                              lookup=model_of_state)
+        if models is None:
+            mean_m, cov_m, _ = observation_models(X, x, M, covariance_type, reg_covar,
+                                                  lookup=model_of_state)
+            models = mean_m[model_of_state], cov_m[model_of_state]
         state_counts, action_counts, trans = count_tables(x, u, S, A, has_next)
         info = {"covariance_type": covariance_type, **(info or {})}
-        return cls(state_symbol, state_gds, state_parent, mean_m[model_of_state],
-                   cov_m[model_of_state], state_counts, action_counts, trans, info=info, **fields)
+        return cls(state_symbol, state_gds, state_parent, *models, state_counts, action_counts,
+                   trans, info=info, **fields)
 
     # ------------------------------------------------------------------ sizes and tables
     @property

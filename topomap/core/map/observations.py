@@ -82,6 +82,46 @@ def _full_covariances(X, model, means, n_models, reg):
     return cov
 
 
+@njit(cache=True)
+def _diag_moments(X, model, n_models, lookup):
+    """``model_counts``, ``model_sums`` and the column sums of ``_column_var_rowwise`` in one
+    pass over ``X`` (each sum in step order, as theirs)."""
+    n, sums, col = np.zeros(n_models), np.zeros((n_models, X.shape[1])), np.zeros(X.shape[1])
+    for t in range(X.shape[0]):
+        m = lookup[model[t]]
+        n[m] += 1.0
+        for d in range(X.shape[1]):
+            sums[m, d] += X[t, d]
+            col[d] += X[t, d]
+    return n, sums, col
+
+
+@njit(cache=True)
+def _diag_residuals(X, model, means, lookup, col_mean):
+    """``model_squares`` and the squared residuals of ``_column_var_rowwise`` in one pass."""
+    sq, q = np.zeros(means.shape), np.zeros(X.shape[1])
+    for t in range(X.shape[0]):
+        m = lookup[model[t]]
+        for d in range(X.shape[1]):
+            r = X[t, d] - means[m, d]
+            sq[m, d] += r * r
+            g = X[t, d] - col_mean[d]
+            q[d] += g * g
+    return sq, q
+
+
+def _diag_models(X, model, n_models, reg_covar, lookup):
+    """The diagonal models of :func:`observation_models` in two passes over ``X`` (C-contiguous,
+    T > 1, D > 1), the same floats."""
+    T = X.shape[0]
+    n_m, sums, col = _diag_moments(X, model, n_models, lookup)
+    means = sums / np.maximum(n_m, 1)[:, None]
+    sq, q = _diag_residuals(X, model, means, lookup, col / T)
+    reg = reg_covar * float(np.mean(q / T))
+    reg = reg if reg > 0 else reg_covar
+    return means, sq / np.maximum(n_m, 1)[:, None] + reg, n_m
+
+
 def observation_models(X, model, n_models, covariance_type="diag", reg_covar=1e-3, lookup=None):
     """Gaussian of every model id: ``(means (M, D), covariances (M, D[, D]), counts (M,))``,
     the same floats as ``TopologicalMap.from_labels`` (:mod:`topomap.core.map.model`).  The model
@@ -90,6 +130,8 @@ def observation_models(X, model, n_models, covariance_type="diag", reg_covar=1e-
     T = X.shape[0]
     model = np.asarray(model)
     lookup = np.arange(n_models) if lookup is None else np.asarray(lookup, dtype=np.int64)
+    if covariance_type == "diag" and T > 1 and X.flags.c_contiguous and X.shape[1] >= 2:
+        return _diag_models(X, model, n_models, reg_covar, lookup)
     n_m = model_counts(model, n_models, lookup)
     means = model_sums(X, model, n_models, lookup) / np.maximum(n_m, 1)[:, None]
     reg = reg_covar * float(np.mean(feature_variance(X))) if T > 1 else reg_covar

@@ -32,7 +32,8 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from .kernels import (action_table, merge_groups_kernel, merge_sorted_delta, pair_codes,
+from .kernels import (action_table, follow_keys, instance_table, merge_groups_kernel,
+                      merge_tallies, next_to, pair_codes, states_near, tally_codes,
                       transition_table)
 from ..stats import conditional_entropy, sparse_conditional_entropy, xlogx
 
@@ -129,24 +130,6 @@ def members_of(labels, n_states, like):
     return out
 
 
-@njit(cache=True)
-def sorted_union(a, b):
-    """The distinct values of two sorted int arrays, sorted (a merge: no sort)."""
-    out = np.empty(a.size + b.size, dtype=np.int64)
-    i = j = n = 0
-    while i < a.size or j < b.size:
-        if j >= b.size or (i < a.size and a[i] <= b[j]):
-            v = a[i]
-            i += 1
-        else:
-            v = b[j]
-            j += 1
-        if n == 0 or out[n - 1] != v:
-            out[n] = v
-            n += 1
-    return out[:n]
-
-
 def _compact(values, size):
     """The sorted distinct entries of ``values`` (ints in ``[0, size)``) and each entry's rank
     among them: by a presence mask in O(len(values) + size), or by sorting when ``values`` is
@@ -159,21 +142,11 @@ def _compact(values, size):
     return np.flatnonzero(present), rank[values]
 
 
-def _sparse_table(keys, cols, size):
-    """Sorted codes ``key << 32 | col`` of the distinct pairs and their counts (keys and columns
-    below ``size``), by one bincount."""
-    k, ki = _compact(keys, size)
-    c, ci = _compact(cols, size)
-    n = np.bincount(ki * c.size + ci, minlength=k.size * c.size)
-    nz = np.flatnonzero(n)
-    return (k[nz // c.size] << _SHIFT) | c[nz % c.size], n[nz]
-
-
-def _merge_delta(table, old, new):
+def _merge_delta(table, old, new, size):
     """The sorted sparse table ``(codes, counts)`` with one count moved from each code of
-    ``old`` to the code of ``new`` at the same place; entries that reach zero are dropped.
-    O(table + delta log delta)."""
-    return merge_sorted_delta(*table, np.sort(old), np.sort(new))
+    ``old`` to the code of ``new`` at the same place (codes' keys and columns below ``size``);
+    entries that reach zero are dropped.  O(table + delta + size)."""
+    return merge_tallies(*table, *tally_codes(old, size), *tally_codes(new, size))
 
 
 class SplitEngine:
@@ -203,11 +176,6 @@ class SplitEngine:
                                             self.S, self.A)
 
     # ------------------------------------------------------------------ codes
-    def _instance_keys(self, c):
-        """Group keys ``x[t-1] * A + u[t-1]`` and columns ``x[t+1] * A + u[t]`` of centres ``c``."""
-        x, u, A = self.labels, self.u, self.A
-        return x[c - 1] * A + u[c - 1], x[c + 1] * A + u[c]
-
     def _instance_codes(self, c):
         return pair_codes(self.labels, self.u, c, self.A, _SHIFT, True)
 
@@ -215,8 +183,8 @@ class SplitEngine:
         return pair_codes(self.labels, self.u, t, self.A, _SHIFT, False)
 
     def _instance_table(self, steps):
-        c = steps[self.centre[steps]]
-        return _sparse_table(*self._instance_keys(c), (self.S + 1) * self.A)
+        return instance_table(self.labels, self.u, steps, self.centre, self.A,
+                              (self.S + 1) * self.A)
 
     # ------------------------------------------------------------------ proposals
     def count_matrix(self, q: int):
@@ -262,11 +230,10 @@ class SplitEngine:
         if p.counts[side].sum() > p.counts[~side].sum():
             side = ~side
         steps = self.members[p.state]
-        hp = self.has_prev[steps]
-        goes = np.zeros(steps.size, dtype=bool)
-        with_prev = steps[hp]
-        goes[hp] = np.isin(x[with_prev - 1] * A + u[with_prev - 1], p.keys[side])
-        is_start = ~hp & self.has_next[steps]
+        chosen = np.zeros(self.S * A, dtype=bool)
+        chosen[p.keys[side]] = True
+        goes = follow_keys(x, u, steps, self.has_prev, A, chosen)
+        is_start = ~self.has_prev[steps] & self.has_next[steps]
         if is_start.any():
             starts = steps[is_start]
             halves = np.stack([p.counts[~side].sum(axis=0), p.counts[side].sum(axis=0)])
@@ -278,11 +245,7 @@ class SplitEngine:
 
     def _touched(self, moved, q):
         """Instance centres outside ``q`` and transition starts next to the moved steps."""
-        hp, hn = self.has_prev[moved], self.has_next[moved]
-        c = sorted_union(moved[hp] - 1, moved[hn] + 1)
-        c = c[self.centre[c] & (self.labels[c] != q)]
-        t = sorted_union(moved[hn], moved[hp] - 1)
-        return c, t[self.has_next[t]]
+        return next_to(moved, self.has_prev, self.has_next, self.centre, self.labels, q)
 
     def split(self, p: Proposal, new: int) -> np.ndarray:
         """Split ``p.state``: its moving steps become state ``new`` (= the current state count).
@@ -295,7 +258,8 @@ class SplitEngine:
         old_inst, old_trans = self._instance_codes(centres), self._transition_codes(starts)
         self.labels[moved] = new
         self._update_instances(centres, old_inst, self._instance_codes(centres))
-        self.transitions = _merge_delta(self.transitions, old_trans, self._transition_codes(starts))
+        self.transitions = _merge_delta(self.transitions, old_trans,
+                                        self._transition_codes(starts), (self.S + 1) * self.A)
         self.members[q] = steps[~goes]
         self.members.append(moved)
         self.tables[q] = self._instance_table(self.members[q])
@@ -309,7 +273,8 @@ class SplitEngine:
         order, bounds = group_steps(self.labels[centres], self.S + 1)
         for s in np.flatnonzero(np.diff(bounds)):
             pick = order[bounds[s]:bounds[s + 1]]
-            self.tables[s] = _merge_delta(self.tables[s], old[pick], new[pick])
+            self.tables[s] = _merge_delta(self.tables[s], old[pick], new[pick],
+                                          (self.S + 1) * self.A)
 
     def _update_counts(self, q, moved):
         acts = np.bincount(self.u[moved], minlength=self.A)
@@ -379,14 +344,12 @@ class Splitter:
         q, new = best.state, self.n_states
         n_before = int(self.engine.members[q].size)
         moved = self.engine.split(best, new)
-        # a state's instances change only where a neighbouring step moved q -> new
-        near = np.concatenate([moved, moved[self.has_prev[moved]] - 1,
-                               moved[self.has_next[moved]] + 1])
         self.symbol.append(self.symbol[q])
         self.gds.append(-1)
         self.parent.append(q)
         self.obs_entropy = np.append(self.obs_entropy, self.obs_entropy[q])
-        touched = np.bincount(self.labels[near], minlength=self.n_states)
+        # a state's instances change only where a neighbouring step moved q -> new
+        touched = states_near(moved, self.has_prev, self.has_next, self.labels, self.n_states)
         self._dirty = set(np.flatnonzero(touched).tolist()) | {q, new}
         if self.recompute_all:
             self._dirty = set(range(self.n_states))
@@ -395,6 +358,14 @@ class Splitter:
             "n_steps_kept": int(self.engine.members[q].size), "n_steps_new": int(moved.size),
             "n_groups": int(best.keys.size),
         }
+
+    def roots(self) -> np.ndarray:
+        """The phase-1 state every state descends from (a state of phase 1 is its own)."""
+        root = np.arange(self.n_states)
+        for s, p in enumerate(self.parent):
+            if p >= 0:
+                root[s] = root[p]
+        return root
 
     def finish(self) -> None:
         """The splits are over: free what only further splits need (every state's steps)."""

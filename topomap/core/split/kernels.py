@@ -1,4 +1,5 @@
-"""Compiled bookkeeping of the split: the bottom-up merge of count rows, bit for bit as numpy."""
+"""Compiled bookkeeping of the split: the bottom-up merge of count rows (bit for bit as numpy),
+the instance and transition tables, tallies of their updates, the steps a split moves or touches."""
 
 from __future__ import annotations
 
@@ -7,8 +8,9 @@ from numba import njit
 
 from ..sums import pairwise_sum
 
-__all__ = ["merge_groups_kernel", "transition_table", "action_table", "merge_sorted_delta",
-           "pair_codes"]
+__all__ = ["merge_groups_kernel", "transition_table", "action_table", "merge_tallies",
+           "tally_codes", "pair_codes", "instance_table", "sorted_union", "follow_keys", "next_to",
+           "states_near"]
 
 @njit(cache=True)
 def _round(x, scale):
@@ -142,7 +144,7 @@ def merge_groups_kernel(counts, table, decimals):
 def transition_table(x, u, has_next, S, A):
     """Sorted codes ``(x[t] * A + u[t]) << 32 | x[t + 1]`` of the distinct transitions (steps
     with ``has_next``) and their counts, in two passes over the steps and no (T,) temporaries:
-    the table ``engine._sparse_table`` makes of the same keys and columns."""
+    the same table :func:`instance_table` makes of instances."""
     key_seen, col_seen = np.zeros(S * A, dtype=np.bool_), np.zeros(S, dtype=np.bool_)
     for t in range(x.size):
         if has_next[t]:
@@ -173,10 +175,10 @@ def action_table(x, u, S, A):
 
 
 @njit(cache=True)
-def merge_sorted_delta(codes, counts, minus, plus):
-    """The sorted sparse table (``codes``, ``counts``) with one count taken off at every code of
-    ``minus`` and added at every code of ``plus`` (both sorted; every code of ``minus`` is in
-    the table), entries that reach zero dropped: one merge, no sort of the table."""
+def merge_tallies(codes, counts, minus, minus_n, plus, plus_n):
+    """The sorted sparse table (``codes``, ``counts``) with ``minus_n[j]`` taken off at code
+    ``minus[j]`` and ``plus_n[k]`` added at code ``plus[k]`` (both tallies sorted and distinct;
+    every code of ``minus`` is in the table), entries that reach zero dropped: one merge."""
     out_codes = np.empty(codes.size + plus.size, dtype=np.int64)
     out_counts = np.empty(codes.size + plus.size, dtype=np.int64)
     i = j = k = n = 0
@@ -186,14 +188,16 @@ def merge_sorted_delta(codes, counts, minus, plus):
             i += 1
         else:
             c, v = plus[k], 0
-        while k < plus.size and plus[k] == c:
-            v += 1
+        if k < plus.size and plus[k] == c:
+            v += plus_n[k]
             k += 1
         if j < minus.size and minus[j] < c:
             raise ValueError("a code taken off is not in the table")
-        while j < minus.size and minus[j] == c:
-            v -= 1
+        if j < minus.size and minus[j] == c:
+            v -= minus_n[j]
             j += 1
+        if v < 0:
+            raise ValueError("more taken off a code than the table holds")
         if v != 0:
             out_codes[n], out_counts[n] = c, v
             n += 1
@@ -214,3 +218,148 @@ def pair_codes(x, u, steps, A, shift, centred):
         else:
             out[i] = ((x[t] * A + u[t]) << shift) | x[t + 1]
     return out
+
+
+@njit(cache=True)
+def _tally_sorted(codes):
+    """Sorted distinct ``codes`` and their counts, by sorting them."""
+    codes = np.sort(codes)
+    out, counts = np.empty(codes.size, dtype=np.int64), np.empty(codes.size, dtype=np.int64)
+    m = 0
+    for i in range(codes.size):
+        if m > 0 and out[m - 1] == codes[i]:
+            counts[m - 1] += 1
+        else:
+            out[m], counts[m] = codes[i], 1
+            m += 1
+    return out[:m], counts[:m]
+
+
+@njit(cache=True)
+def _tally(keys, cols, size):
+    """Sorted distinct codes ``key << 32 | col`` of the pairs (keys and columns below ``size``)
+    and their counts: a counting sort by key, then a tally of the columns of each key, in
+    O(pairs + size); by a sort, O(pairs log pairs), when the pairs are few next to ``size``."""
+    n = keys.size
+    if 16 * n < size:
+        return _tally_sorted((keys << 32) | cols)
+    start = np.zeros(size + 1, dtype=np.int64)
+    for i in range(n):
+        start[keys[i] + 1] += 1
+    for k in range(size):
+        start[k + 1] += start[k]
+    by_key, fill = np.empty(n, dtype=np.int64), start[:-1].copy()
+    for i in range(n):
+        by_key[fill[keys[i]]] = cols[i]
+        fill[keys[i]] += 1
+    tally = np.zeros(size, dtype=np.int64)
+    codes, counts = np.empty(n, dtype=np.int64), np.empty(n, dtype=np.int64)
+    m = 0
+    for k in range(size):
+        first = m
+        for i in range(start[k], start[k + 1]):
+            c = by_key[i]
+            if tally[c] == 0:
+                codes[m] = c
+                m += 1
+            tally[c] += 1
+        codes[first:m].sort()
+        for i in range(first, m):
+            c = codes[i]
+            counts[i] = tally[c]
+            tally[c] = 0
+            codes[i] = (np.int64(k) << 32) | c
+    return codes[:m].copy(), counts[:m].copy()
+
+
+@njit(cache=True)
+def tally_codes(codes, size):
+    """Sorted distinct values of ``codes`` (``key << 32 | col``, keys and columns below
+    ``size``) and how often each occurs."""
+    return _tally(codes >> 32, codes & 0xFFFFFFFF, size)
+
+
+@njit(cache=True)
+def instance_table(x, u, steps, centre, A, size):
+    """The instance table of ``steps``: sorted codes ``key << 32 | column`` (key ``x[t-1] * A +
+    u[t-1]``, column ``x[t+1] * A + u[t]``) of the distinct pairs of the steps that are centres,
+    and their counts (keys and columns below ``size``): one pass gathers the pairs, then
+    :func:`_tally`; no (keys x columns) array."""
+    keys, cols = np.empty(steps.size, dtype=np.int64), np.empty(steps.size, dtype=np.int64)
+    n = 0
+    for t in steps:
+        if centre[t]:
+            keys[n], cols[n] = x[t - 1] * A + u[t - 1], x[t + 1] * A + u[t]
+            n += 1
+    return _tally(keys[:n], cols[:n], size)
+
+
+@njit(cache=True)
+def sorted_union(a, b):
+    """The distinct values of two sorted int arrays, sorted (a merge: no sort)."""
+    out = np.empty(a.size + b.size, dtype=np.int64)
+    i = j = n = 0
+    while i < a.size or j < b.size:
+        if j >= b.size or (i < a.size and a[i] <= b[j]):
+            v = a[i]
+            i += 1
+        else:
+            v = b[j]
+            j += 1
+        if n == 0 or out[n - 1] != v:
+            out[n] = v
+            n += 1
+    return out[:n]
+
+
+@njit(cache=True)
+def follow_keys(x, u, steps, has_prev, A, chosen):
+    """Mask over ``steps``: those with a predecessor whose key ``x[t-1] * A + u[t-1]`` is
+    ``chosen`` (a mask over the keys)."""
+    goes = np.zeros(steps.size, dtype=np.bool_)
+    for i in range(steps.size):
+        t = steps[i]
+        if has_prev[t]:
+            goes[i] = chosen[x[t - 1] * A + u[t - 1]]
+    return goes
+
+
+@njit(cache=True)
+def _shifted(moved, has, shift):
+    out = np.empty(moved.size, dtype=np.int64)
+    n = 0
+    for t in moved:
+        if has[t]:
+            out[n] = t + shift
+            n += 1
+    return out[:n]
+
+
+@njit(cache=True)
+def next_to(moved, has_prev, has_next, centre, x, q):
+    """The steps a move of the sorted steps ``moved`` out of state ``q`` touches: the instance
+    centres next to them that lie outside ``q``, and the transition starts next to or at them
+    (both sorted)."""
+    before, after = _shifted(moved, has_prev, -1), _shifted(moved, has_next, 1)
+    c = sorted_union(before, after)
+    keep = np.zeros(c.size, dtype=np.bool_)
+    for i in range(c.size):
+        keep[i] = centre[c[i]] and x[c[i]] != q
+    t = sorted_union(_shifted(moved, has_next, 0), before)
+    starts = np.zeros(t.size, dtype=np.bool_)
+    for i in range(t.size):
+        starts[i] = has_next[t[i]]
+    return c[keep], t[starts]
+
+
+@njit(cache=True)
+def states_near(moved, has_prev, has_next, x, S):
+    """Mask over the ``S`` states: those holding a step of ``moved`` or a neighbour of one."""
+    near = np.zeros(S, dtype=np.bool_)
+    for t in moved:
+        near[x[t]] = True
+        if has_prev[t]:
+            near[x[t - 1]] = True
+        if has_next[t]:
+            near[x[t + 1]] = True
+    return near
