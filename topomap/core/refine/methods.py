@@ -81,7 +81,9 @@ class EMRefinement(CloneRefinement):
     symbol sequences), ``"split"`` only ``clone_factor`` x its split states + ``spare``.
 
     ``evidence`` (:data:`~topomap.core.refine.soft.EVIDENCE`): ``"auto"`` (default) corrects
-    misread symbols when the first soft round finds some, ``"soft"`` always, ``"hard"`` never;
+    misread symbols when the first soft round finds some (the first hard round stops before
+    stage 3 where its labelling already shows misreads: :meth:`_first_hard_round`), ``"soft"``
+    always, ``"hard"`` never;
     ``soft`` holds the soft rounds' settings (:class:`~topomap.core.refine.soft.SoftSettings`, or
     a mapping of some of its fields, e.g. ``{"conf_warmup": 10}``).
 
@@ -179,16 +181,6 @@ class EMRefinement(CloneRefinement):
         yield labels, state_symbol, {"stages": list(stages)}
         (labels, state_symbol), rounds = self._rounds_on_all_steps(seq, labels, state_symbol,
                                                                    rng, stages)
-        return CloneFit(labels, state_symbol, {"stages": stages, "rounds_on_all_steps": rounds})
-
-    def _corrected_round(self, seq: SymbolSequence, soft, random_state: int) -> CloneFit:
-        """The hard round on the symbols a soft round corrected (``seq``), warm-started from the
-        soft round's labelling: only the rounds on all steps (stage 3), no prefix grown from a
-        random start (that labelling already holds the structure)."""
-        rng = np.random.default_rng(random_state)
-        stages = []
-        (labels, state_symbol), rounds = self._rounds_on_all_steps(
-            seq, soft.labels, soft.state_symbol, rng, stages)
         return CloneFit(labels, state_symbol, {"stages": stages, "rounds_on_all_steps": rounds})
 
     def _first_round(self, seq: SymbolSequence, split_state_symbol, rng):

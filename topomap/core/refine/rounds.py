@@ -138,7 +138,8 @@ class CloneRefinement(BaseEstimator):
                 return CloneFit(hard_fit.labels, hard_fit.state_symbol,
                                 {**hard_fit.info, "soft": "skipped", "surprise": surprise,
                                  "soft_rounds": rounds})
-            hard = self._corrected_round(replace(seq, sym=soft.sym), soft, random_state)
+            split_symbol = np.where(soft.state_symbol < seq.n_symbols, soft.state_symbol, -1)
+            hard = self._hard_round(replace(seq, sym=soft.sym), split_symbol, random_state)
             settled = (hard.n_states == state_symbol.size
                        and same_partition(hard.labels, labels))
             labels, state_symbol = hard.labels, hard.state_symbol
@@ -152,11 +153,6 @@ class CloneRefinement(BaseEstimator):
         return CloneFit(soft.labels, soft.state_symbol,
                         {**hard_fit.info, "soft": "on", "surprise": surprise,
                          "soft_rounds": rounds})
-
-    def _corrected_round(self, seq: SymbolSequence, soft, random_state: int) -> CloneFit:
-        """The hard round on the symbols the soft round ``soft`` corrected (``seq``)."""
-        split_symbol = np.where(soft.state_symbol < seq.n_symbols, soft.state_symbol, -1)
-        return self._hard_round(seq, split_symbol, random_state)
 
     def _provenance_soft(self) -> str:
         """``soft=SoftSettings(...)`` naming the soft settings changed from their defaults ("" for
