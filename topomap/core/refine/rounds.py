@@ -70,9 +70,12 @@ class CloneRefinement(BaseEstimator):
         if self.evidence == "hard":
             fit = self._hard_round(seq, split_state_symbol, random_state)
         else:
-            fit = self._first_hard_round(seq, split_state_symbol, random_state)
+            hard = self._first_hard_round(seq, split_state_symbol, random_state)
             n_reference = None if split_state_symbol is None else len(split_state_symbol)
-            fit = self._soft_rounds(seq, fit, n_reference, random_state)
+            fit = self._soft_rounds(seq, hard, n_reference, random_state)
+            if fit.info["soft"] == "skipped" and hard.resume is not None:
+                # a hard round cut short, and nothing to correct: finish it, start again from it
+                fit = self._soft_rounds(seq, hard.resume(), n_reference, random_state)
         self.labels_, self.state_symbol_, self.info_ = fit.labels, fit.state_symbol, fit.info
         self.n_states_ = fit.n_states
         return self
@@ -102,9 +105,7 @@ class CloneRefinement(BaseEstimator):
         predicts the next symbol of all but a ``soft.detect`` share of its transitions
         (:func:`~topomap.core.refine.soft.successor_surprise`: there is nothing to correct), and
         after the first soft round when that round explains fewer steps than ``soft.detect`` as
-        misread (:func:`~topomap.core.refine.soft.misread_share`) and corrects fewer; either way a
-        hard round cut short (``hard_fit.resume``) is first finished and these rounds start again
-        from it.
+        misread (:func:`~topomap.core.refine.soft.misread_share`) and corrects fewer.
         ``n_reference`` is the state count a fractional ``soft.min_steps`` refers to (the
         split's; default: the hard round's)."""
         s = soft_settings(self.soft)
@@ -112,8 +113,6 @@ class CloneRefinement(BaseEstimator):
             s = replace(s, detect=-1.0)
         surprise = successor_surprise(seq, hard_fit.labels)
         if surprise < s.detect:
-            if hard_fit.resume is not None:  # nothing to correct: the whole hard round
-                return self._soft_rounds(seq, hard_fit.resume(), n_reference, random_state)
             return CloneFit(hard_fit.labels, hard_fit.state_symbol,
                             {**hard_fit.info, "soft": "skipped", "surprise": surprise,
                              "soft_rounds": []})
@@ -133,8 +132,6 @@ class CloneRefinement(BaseEstimator):
                            **soft.info})
             if r == 0 and ("stopped" in soft.info
                            or max(soft.info["corrected"], soft.info["misread"]) < s.detect):
-                if hard_fit.resume is not None:  # no misreads after all: the whole hard round
-                    return self._soft_rounds(seq, hard_fit.resume(), n_reference, random_state)
                 return CloneFit(hard_fit.labels, hard_fit.state_symbol,
                                 {**hard_fit.info, "soft": "skipped", "surprise": surprise,
                                  "soft_rounds": rounds})
