@@ -6,6 +6,7 @@ import itertools
 import numpy as np
 import pytest
 
+from topomap.core.refine import methods, rounds
 from topomap.core.refine.methods import CSCGRefinement, EMRefinement
 from topomap.core.refine import soft_kernels
 from topomap.core.refine.sequence import SymbolSequence
@@ -146,6 +147,41 @@ def test_auto_keeps_hard_result_without_misreads():
     # the states predict every next symbol: no soft round runs at all
     assert auto.info_["surprise"] == 0.0 and auto.info_["soft_rounds"] == []
 
+
+
+def test_a_hard_round_cut_short_finishes_as_the_whole_round():
+    """Misreads show after stage 2 (many transitions go to a symbol their state does not
+    predict), so the first hard round stops there; finishing it gives the whole round."""
+    sym, u, lengths, _, _ = _ring_walk()
+    seq = _seq(sym, u, lengths)
+    est = EMRefinement()
+    cut = est._first_hard_round(seq, RING, 0)
+    assert cut.info["cut"] and cut.info["rounds_on_all_steps"] == 0
+    assert successor_surprise(seq, cut.labels) >= methods.CUT_SURPRISE * SoftSettings().detect
+    whole = est._hard_round(seq, RING, 0)
+    assert whole.info["rounds_on_all_steps"] >= 1
+    resumed = cut.resume()
+    np.testing.assert_array_equal(resumed.labels, whole.labels)
+    np.testing.assert_array_equal(resumed.state_symbol, whole.state_symbol)
+    assert resumed.info == whole.info
+
+
+@pytest.mark.parametrize("soft_surprise", [None, 1.0])
+def test_exact_readings_after_a_cut_give_the_uncut_fit(monkeypatch, soft_surprise):
+    """Exact readings: a first hard round cut short (every cut forced) is finished, and the fit
+    is the one without cuts -- whether the soft rounds stop at once (surprise below detect) or
+    after the first soft round finds no misreads (the surprise forced high)."""
+    sym, u, lengths, _, _ = _ring_walk(misread=0.0)
+    seq = _seq(sym, u, lengths)
+    if soft_surprise is not None:
+        monkeypatch.setattr(rounds, "successor_surprise", lambda *a: soft_surprise)
+    monkeypatch.setattr(methods, "CUT_SURPRISE", float("inf"))  # never cut
+    uncut = EMRefinement().fit(seq, RING, 0)
+    monkeypatch.setattr(methods, "CUT_SURPRISE", -1.0)  # always cut
+    cut = EMRefinement().fit(seq, RING, 0)
+    assert "cut" not in uncut.info_ and uncut.info_["soft"] == "skipped"
+    np.testing.assert_array_equal(cut.labels_, uncut.labels_)
+    assert cut.info_ == uncut.info_
 
 # a hand-made walk: labels 0 1 0 | 1 0 1 (two episodes), action 0 throughout, symbols 0 1 0 | 0 0 2
 # transitions inside the episodes: (state 0 -> 1), (1 -> 0), (1 -> 0), (0 -> 2)

@@ -30,149 +30,19 @@ they share (layout, Baum-Welch, Viterbi training) is :mod:`topomap.core.refine.c
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, field, fields, replace
-from typing import Self
 
 import numpy as np
-from sklearn.base import BaseEstimator
 
-from ..checks import ParameterError, check_count
+from ..checks import check_count
 from .budget import BUDGETS
 from .clones import (Layout, clone_budget, fit_clones, init_from_path, random_counts,
                      states_to_clones)
+from .rounds import CloneFit, CloneRefinement, _check
 from .sequence import SymbolSequence
-from .soft import (SoftSettings, check_evidence, keep_states, merge_twins, min_steps_of,
-                   soft_round, soft_settings, successor_surprise)
+from .soft import SoftSettings, soft_settings, successor_surprise
 from .structure import merge_states, same_partition, split_compounds
 
 __all__ = ["CloneFit", "CloneRefinement", "EMRefinement", "CSCGRefinement", "REFINEMENTS"]
-
-
-@dataclass
-class CloneFit:
-    """A labelling of the steps into states, each state emitting one symbol: what one hard round
-    gives (and what a refinement's ``fit`` returned before it returned the estimator).
-
-    Attributes
-    ----------
-    labels : (T,) int -- state of every step (states ``0..n_states-1``, numbered by first use)
-    state_symbol : (n_states,) int -- symbol id each state emits
-    info : dict -- iterations and log-likelihoods of the stages (no times: it is stored in
-        ``map.json``, which the same config and seed must reproduce byte for byte; the learner's
-        ``timings_`` holds the refinement's seconds)
-    """
-
-    labels: np.ndarray
-    state_symbol: np.ndarray
-    info: dict = field(default_factory=dict)
-
-    @property
-    def n_states(self) -> int:
-        """Number of states."""
-        return int(self.state_symbol.size)
-
-
-def _check(ok: bool, param: str, value, what: str) -> None:
-    """A :class:`ParameterError` naming ``param`` unless ``ok``."""
-    if not ok:
-        raise ParameterError(param, f"must be {what}, got {value!r}")
-
-
-class CloneRefinement(BaseEstimator):
-    """What the built-in refinements share: ``fit`` as a template -- check the parameters, a
-    hard round (the subclass's :meth:`_hard_round`), then, unless ``evidence="hard"``, hard and
-    soft rounds in turn (:meth:`_soft_rounds`) -- and the ``evidence`` and ``soft`` parameters."""
-
-    name = ""
-
-    def fit(self, seq: SymbolSequence, split_state_symbol=None, random_state: int = 0) -> Self:
-        """Refine ``seq``; ``split_state_symbol`` is the symbol of every split state
-        (``map_.state_symbol``, -1 for GDS).  Sets ``labels_``, ``state_symbol_``, ``n_states_``
-        and ``info_`` (with ``evidence`` other than ``"hard"`` also ``"soft"`` and
-        ``"soft_rounds"``); returns ``self``."""
-        self.check_params()
-        fit = self._hard_round(seq, split_state_symbol, random_state)
-        if self.evidence != "hard":
-            n_reference = None if split_state_symbol is None else len(split_state_symbol)
-            fit = self._soft_rounds(seq, fit, n_reference, random_state)
-        self.labels_, self.state_symbol_, self.info_ = fit.labels, fit.state_symbol, fit.info
-        self.n_states_ = fit.n_states
-        return self
-
-    def check_params(self) -> None:
-        """Check the parameters (``fit`` does); a :class:`ParameterError` names the bad one."""
-        check_evidence(self.evidence)
-        soft_settings(self.soft)
-
-    def _hard_round(self, seq: SymbolSequence, split_state_symbol, random_state: int) -> CloneFit:
-        raise NotImplementedError
-
-    def _soft_rounds(self, seq: SymbolSequence, hard_fit: CloneFit, n_reference, random_state):
-        """Hard and soft rounds in turn, from the hard round ``hard_fit`` on ``seq``:
-
-        1. ``soft.rounds`` times: twin states merged, small states dropped, a soft round (over
-           the states found plus ``soft.spare`` clones per symbol), every step's symbol replaced
-           by the symbol of its decoded clone, and a hard round on the corrected symbols; until a
-           hard round gives back the labelling it started from;
-        2. a last soft round without spare clones gives the map.
-
-        With ``evidence="auto"``, the hard round is kept without a soft round when its labelling
-        predicts the next symbol of all but a ``soft.detect`` share of its transitions
-        (:func:`~topomap.core.refine.soft.successor_surprise`: there is nothing to correct), and
-        after the first soft round when that round explains fewer steps than ``soft.detect`` as
-        misread (:func:`~topomap.core.refine.soft.misread_share`) and corrects fewer.
-        ``n_reference`` is the state count a fractional ``soft.min_steps`` refers to (the
-        split's; default: the hard round's)."""
-        s = soft_settings(self.soft)
-        if self.evidence == "soft":
-            s = replace(s, detect=-1.0)
-        surprise = successor_surprise(seq, hard_fit.labels)
-        if surprise < s.detect:
-            return CloneFit(hard_fit.labels, hard_fit.state_symbol,
-                            {**hard_fit.info, "soft": "skipped", "surprise": surprise,
-                             "soft_rounds": []})
-        rng = np.random.default_rng(random_state)
-        labels, state_symbol = hard_fit.labels, hard_fit.state_symbol
-        n_ref = state_symbol.size if n_reference is None else int(n_reference)
-        min_steps = min_steps_of(s, seq.T, n_ref)
-        conf, rounds = None, []
-        for r in range(s.rounds):
-            labels, state_symbol, n_merged = merge_twins(seq, labels, state_symbol, s.twin_merge)
-            keep = keep_states(seq, labels, state_symbol, min_steps if s.prune_every else 0,
-                               s.twin)
-            soft = soft_round(seq, labels, state_symbol, conf, spare=s.spare, settings=s,
-                              rng=rng, keep=keep, exact_below=s.detect if r == 0 else None)
-            conf = soft.conf
-            rounds.append({"states_in": int(state_symbol.size), "twins_merged": n_merged,
-                           **soft.info})
-            if r == 0 and ("stopped" in soft.info
-                           or max(soft.info["corrected"], soft.info["misread"]) < s.detect):
-                return CloneFit(hard_fit.labels, hard_fit.state_symbol,
-                                {**hard_fit.info, "soft": "skipped", "surprise": surprise,
-                                 "soft_rounds": rounds})
-            split_symbol = np.where(soft.state_symbol < seq.n_symbols, soft.state_symbol, -1)
-            hard = self._hard_round(replace(seq, sym=soft.sym), split_symbol, random_state)
-            settled = (hard.n_states == state_symbol.size
-                       and same_partition(hard.labels, labels))
-            labels, state_symbol = hard.labels, hard.state_symbol
-            rounds[-1]["hard_states"] = int(state_symbol.size)
-            if settled:
-                break
-        labels, state_symbol, _ = merge_twins(seq, labels, state_symbol, s.twin_merge)
-        keep = keep_states(seq, labels, state_symbol, min_steps, s.twin)
-        soft = soft_round(seq, labels, state_symbol, conf, spare=0, settings=s, rng=rng, keep=keep)
-        rounds.append({"states_in": int(keep.sum()), **soft.info})
-        return CloneFit(soft.labels, soft.state_symbol,
-                        {**hard_fit.info, "soft": "on", "surprise": surprise,
-                         "soft_rounds": rounds})
-
-    def _provenance_soft(self) -> str:
-        """``soft=SoftSettings(...)`` naming the soft settings changed from their defaults ("" for
-        none), for :meth:`provenance`."""
-        s, default = soft_settings(self.soft), SoftSettings()
-        changed = [f"{f.name}={getattr(s, f.name)!r}" for f in fields(SoftSettings)
-                   if getattr(s, f.name) != getattr(default, f.name)]
-        return f"soft=SoftSettings({', '.join(changed)})" if changed else ""
 
 
 #: the knobs of every EM round of :class:`EMRefinement`, in the order :meth:`provenance` lists
@@ -211,7 +81,9 @@ class EMRefinement(CloneRefinement):
     symbol sequences), ``"split"`` only ``clone_factor`` x its split states + ``spare``.
 
     ``evidence`` (:data:`~topomap.core.refine.soft.EVIDENCE`): ``"auto"`` (default) corrects
-    misread symbols when the first soft round finds some, ``"soft"`` always, ``"hard"`` never;
+    misread symbols when the first soft round finds some (the first hard round stops before
+    stage 3 where its labelling already shows misreads: :meth:`_first_hard_round`), ``"soft"``
+    always, ``"hard"`` never;
     ``soft`` holds the soft rounds' settings (:class:`~topomap.core.refine.soft.SoftSettings`, or
     a mapping of some of its fields, e.g. ``{"conf_warmup": 10}``).
 
@@ -273,6 +145,27 @@ class EMRefinement(CloneRefinement):
 
     def _hard_round(self, seq: SymbolSequence, split_state_symbol, random_state: int) -> CloneFit:
         """The refinement taking every step's symbol as exact (stages 1 to 3 above)."""
+        return _finish(self._stages(seq, split_state_symbol, random_state))
+
+    def _first_hard_round(self, seq: SymbolSequence, split_state_symbol, random_state: int):
+        """:meth:`_hard_round`, cut short before stage 3 when the labelling of all steps stage 2
+        gives already shows misreads: its successor surprise
+        (:func:`~topomap.core.refine.soft.successor_surprise`) at least ``CUT_SURPRISE`` x
+        ``soft.detect`` (with ``evidence="soft"``: always).  Stage 3's rounds would not settle
+        on misread symbols; the soft rounds start from that labelling instead, and the fit's
+        ``resume`` finishes the round should the first soft round find no misreads."""
+        s = soft_settings(self.soft)
+        stages = self._stages(seq, split_state_symbol, random_state)
+        labels, state_symbol, info = next(stages)
+        surprise = successor_surprise(seq, labels)
+        if self.evidence == "soft" or surprise >= CUT_SURPRISE * s.detect:
+            return CloneFit(labels, state_symbol, {**info, "rounds_on_all_steps": 0, "cut": True},
+                            resume=lambda: _finish(stages))
+        return _finish(stages)
+
+    def _stages(self, seq: SymbolSequence, split_state_symbol, random_state: int):
+        """Stages 1 to 3 as a generator: it yields ``(labels, state_symbol, info)`` of stage 2's
+        last labelling, then returns the round's :class:`CloneFit` (:func:`_finish`)."""
         rng = np.random.default_rng(random_state)
         split_state_symbol = np.asarray(split_state_symbol)
         n_split = int(np.sum(split_state_symbol >= 0))
@@ -285,6 +178,7 @@ class EMRefinement(CloneRefinement):
             n = seq.T if settled else min(2 * n, seq.T)
             labels, state_symbol, iters = self._warm_round(seq.head(n), *split, rng)
             stages.append((n, int(state_symbol.size), iters))
+        yield labels, state_symbol, {"stages": list(stages)}
         (labels, state_symbol), rounds = self._rounds_on_all_steps(seq, labels, state_symbol,
                                                                    rng, stages)
         return CloneFit(labels, state_symbol, {"stages": stages, "rounds_on_all_steps": rounds})
@@ -339,6 +233,18 @@ class EMRefinement(CloneRefinement):
             labels, state_symbol, iters = self._warm_round(seq, *split, rng)
             stages.append((seq.T, int(state_symbol.size), iters))
 
+
+#: the successor surprise (in ``soft.detect``) that cuts :meth:`EMRefinement._first_hard_round`
+CUT_SURPRISE = 5.0
+
+
+def _finish(stages) -> CloneFit:
+    """The return of the generator ``stages`` (:meth:`EMRefinement._stages`), run to its end."""
+    while True:
+        try:
+            next(stages)
+        except StopIteration as done:
+            return done.value
 
 
 class CSCGRefinement(CloneRefinement):

@@ -1,0 +1,160 @@
+"""What the built-in refinements share: a labelling of the steps (:class:`CloneFit`) and the fit
+as a template (:class:`CloneRefinement`) -- a hard round, then, unless ``evidence="hard"``, hard
+and soft rounds in turn (the soft rounds of :mod:`topomap.core.refine.soft`).  The refinements
+themselves, the hard rounds, are :mod:`topomap.core.refine.methods`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field, fields, replace
+from typing import Self
+
+import numpy as np
+from sklearn.base import BaseEstimator
+
+from ..checks import ParameterError
+from .sequence import SymbolSequence
+from .soft import (SoftSettings, check_evidence, keep_states, merge_twins, min_steps_of,
+                   soft_round, soft_settings, successor_surprise)
+from .structure import same_partition
+
+__all__ = ["CloneFit", "CloneRefinement"]
+
+@dataclass
+class CloneFit:
+    """A labelling of the steps into states, each state emitting one symbol: what one hard round
+    gives (and what a refinement's ``fit`` returned before it returned the estimator).
+
+    Attributes
+    ----------
+    labels : (T,) int -- state of every step (states ``0..n_states-1``, numbered by first use)
+    state_symbol : (n_states,) int -- symbol id each state emits
+    info : dict -- iterations and log-likelihoods of the stages (no times: it is stored in
+        ``map.json``, which the same config and seed must reproduce byte for byte; the learner's
+        ``timings_`` holds the refinement's seconds)
+    """
+
+    labels: np.ndarray
+    state_symbol: np.ndarray
+    info: dict = field(default_factory=dict)
+    #: for a hard round cut short (:meth:`EMRefinement._first_hard_round`): finishes it, giving
+    #: the fit the whole round gives (None: the round is whole)
+    resume: Callable[[], "CloneFit"] | None = field(default=None, repr=False, compare=False)
+
+    @property
+    def n_states(self) -> int:
+        """Number of states."""
+        return int(self.state_symbol.size)
+
+
+def _check(ok: bool, param: str, value, what: str) -> None:
+    """A :class:`ParameterError` naming ``param`` unless ``ok``."""
+    if not ok:
+        raise ParameterError(param, f"must be {what}, got {value!r}")
+
+
+class CloneRefinement(BaseEstimator):
+    """What the built-in refinements share: ``fit`` as a template -- check the parameters, a
+    hard round (the subclass's :meth:`_hard_round`), then, unless ``evidence="hard"``, hard and
+    soft rounds in turn (:meth:`_soft_rounds`) -- and the ``evidence`` and ``soft`` parameters."""
+
+    name = ""
+
+    def fit(self, seq: SymbolSequence, split_state_symbol=None, random_state: int = 0) -> Self:
+        """Refine ``seq``; ``split_state_symbol`` is the symbol of every split state
+        (``map_.state_symbol``, -1 for GDS).  Sets ``labels_``, ``state_symbol_``, ``n_states_``
+        and ``info_`` (with ``evidence`` other than ``"hard"`` also ``"soft"`` and
+        ``"soft_rounds"``); returns ``self``."""
+        self.check_params()
+        if self.evidence == "hard":
+            fit = self._hard_round(seq, split_state_symbol, random_state)
+        else:
+            hard = self._first_hard_round(seq, split_state_symbol, random_state)
+            n_reference = None if split_state_symbol is None else len(split_state_symbol)
+            fit = self._soft_rounds(seq, hard, n_reference, random_state)
+            if fit.info["soft"] == "skipped" and hard.resume is not None:
+                # a hard round cut short, and nothing to correct: finish it, start again from it
+                fit = self._soft_rounds(seq, hard.resume(), n_reference, random_state)
+        self.labels_, self.state_symbol_, self.info_ = fit.labels, fit.state_symbol, fit.info
+        self.n_states_ = fit.n_states
+        return self
+
+    def check_params(self) -> None:
+        """Check the parameters (``fit`` does); a :class:`ParameterError` names the bad one."""
+        check_evidence(self.evidence)
+        soft_settings(self.soft)
+
+    def _hard_round(self, seq: SymbolSequence, split_state_symbol, random_state: int) -> CloneFit:
+        raise NotImplementedError
+
+    def _first_hard_round(self, seq: SymbolSequence, split_state_symbol, random_state: int):
+        """The hard round the soft rounds start from (default: :meth:`_hard_round`)."""
+        return self._hard_round(seq, split_state_symbol, random_state)
+
+    def _soft_rounds(self, seq: SymbolSequence, hard_fit: CloneFit, n_reference, random_state):
+        """Hard and soft rounds in turn, from the hard round ``hard_fit`` on ``seq``:
+
+        1. ``soft.rounds`` times: twin states merged, small states dropped, a soft round (over
+           the states found plus ``soft.spare`` clones per symbol), every step's symbol replaced
+           by the symbol of its decoded clone, and a hard round on the corrected symbols; until a
+           hard round gives back the labelling it started from;
+        2. a last soft round without spare clones gives the map.
+
+        With ``evidence="auto"``, the hard round is kept without a soft round when its labelling
+        predicts the next symbol of all but a ``soft.detect`` share of its transitions
+        (:func:`~topomap.core.refine.soft.successor_surprise`: there is nothing to correct), and
+        after the first soft round when that round explains fewer steps than ``soft.detect`` as
+        misread (:func:`~topomap.core.refine.soft.misread_share`) and corrects fewer.
+        ``n_reference`` is the state count a fractional ``soft.min_steps`` refers to (the
+        split's; default: the hard round's)."""
+        s = soft_settings(self.soft)
+        if self.evidence == "soft":
+            s = replace(s, detect=-1.0)
+        surprise = successor_surprise(seq, hard_fit.labels)
+        if surprise < s.detect:
+            return CloneFit(hard_fit.labels, hard_fit.state_symbol,
+                            {**hard_fit.info, "soft": "skipped", "surprise": surprise,
+                             "soft_rounds": []})
+        rng = np.random.default_rng(random_state)
+        labels, state_symbol = hard_fit.labels, hard_fit.state_symbol
+        n_ref = state_symbol.size if n_reference is None else int(n_reference)
+        min_steps = min_steps_of(s, seq.T, n_ref)
+        conf, rounds = None, []
+        for r in range(s.rounds):
+            labels, state_symbol, n_merged = merge_twins(seq, labels, state_symbol, s.twin_merge)
+            keep = keep_states(seq, labels, state_symbol, min_steps if s.prune_every else 0,
+                               s.twin)
+            soft = soft_round(seq, labels, state_symbol, conf, spare=s.spare, settings=s,
+                              rng=rng, keep=keep, exact_below=s.detect if r == 0 else None)
+            conf = soft.conf
+            rounds.append({"states_in": int(state_symbol.size), "twins_merged": n_merged,
+                           **soft.info})
+            if r == 0 and ("stopped" in soft.info
+                           or max(soft.info["corrected"], soft.info["misread"]) < s.detect):
+                return CloneFit(hard_fit.labels, hard_fit.state_symbol,
+                                {**hard_fit.info, "soft": "skipped", "surprise": surprise,
+                                 "soft_rounds": rounds})
+            split_symbol = np.where(soft.state_symbol < seq.n_symbols, soft.state_symbol, -1)
+            hard = self._hard_round(replace(seq, sym=soft.sym), split_symbol, random_state)
+            settled = (hard.n_states == state_symbol.size
+                       and same_partition(hard.labels, labels))
+            labels, state_symbol = hard.labels, hard.state_symbol
+            rounds[-1]["hard_states"] = int(state_symbol.size)
+            if settled:
+                break
+        labels, state_symbol, _ = merge_twins(seq, labels, state_symbol, s.twin_merge)
+        keep = keep_states(seq, labels, state_symbol, min_steps, s.twin)
+        soft = soft_round(seq, labels, state_symbol, conf, spare=0, settings=s, rng=rng, keep=keep)
+        rounds.append({"states_in": int(keep.sum()), **soft.info})
+        return CloneFit(soft.labels, soft.state_symbol,
+                        {**hard_fit.info, "soft": "on", "surprise": surprise,
+                         "soft_rounds": rounds})
+
+    def _provenance_soft(self) -> str:
+        """``soft=SoftSettings(...)`` naming the soft settings changed from their defaults ("" for
+        none), for :meth:`provenance`."""
+        s, default = soft_settings(self.soft), SoftSettings()
+        changed = [f"{f.name}={getattr(s, f.name)!r}" for f in fields(SoftSettings)
+                   if getattr(s, f.name) != getattr(default, f.name)]
+        return f"soft=SoftSettings({', '.join(changed)})" if changed else ""
