@@ -48,6 +48,11 @@ class MotionSettings:
     clusters'; 1 keeps them whenever they misplace fewer).  Else the map's states are the view
     clusters.  ``holdout=0`` (or a held-out part under 100 steps) keeps the places
     unchecked.
+
+    ``n_init``: the k-means++ starts of the view clusters (scikit-learn's ``KMeans`` on every
+    row, as :func:`topomap.core.position_scores.kmeans_view_scores`).  A map that falls back to
+    them gives every state one variance, pooled over the states and the features: its Viterbi
+    decoding is then the nearest centre, smoothed by the map's transitions.
     """
 
     mode: str = "auto"
@@ -60,6 +65,8 @@ class MotionSettings:
     holdout: float = 0.25
     margin: float = 0.8
     far: float = 2.0
+    n_init: int = 4
+    folds: int = 1
 
 
 def motion_settings(value) -> MotionSettings:
@@ -84,6 +91,8 @@ def motion_settings(value) -> MotionSettings:
         raise ParameterError("motion.mode", f"must be one of {', '.join(MODES)}, "
                                             f"got {value.mode!r}")
     check_count(value.min_steps, "motion.min_steps")
+    check_count(value.n_init, "motion.n_init")
+    check_count(value.folds, "motion.folds")
     gates = value.gates
     if not isinstance(gates, tuple) or not gates or not all(_positive(g) for g in gates):
         raise ParameterError("motion.gates", f"must be a non-empty list of positive numbers, "
