@@ -134,6 +134,24 @@ def test_continuous_log_gets_places_that_tell_alike_halves_apart():
     assert learner.predict(Zt, ut).shape == (2000,)
 
 
+def test_the_check_holds_out_successive_quarters_and_keeps_the_places_on_their_mean():
+    from topomap.core.motion.check import keeps_places
+
+    Z, u, _ = _alike_halves()  # 8,000 steps: quarters of 2,000
+    # fold i learns from the steps before 6,000 - 2,000 i and decodes the 2,000 after them; a
+    # fourth fold would learn from no step, so four folds asked for give three
+    learner = MapLearner(n_clusters=4, n_states=8, random_state=0,
+                         motion=MotionSettings(folds=4)).fit(Z, u)
+    check = learner.motion_info_["check"]
+    assert [f["learned"] for f in check["folds"]] == [6000, 4000, 2000]
+    assert [f["held_out"] for f in check["folds"]] == [2000, 2000, 2000]
+    for name in ("places", "views"):
+        mean = np.mean([f["misplaced"][name] for f in check["folds"]])
+        assert check["mean_misplaced"][name] == pytest.approx(mean, abs=1e-4)
+    assert keeps_places(check["mean_misplaced"], 0.9)
+    assert learner.motion_info_["chosen"] == "places"
+
+
 def test_the_held_out_frame_carries_the_filter_on_from_the_copies_learned_before_the_cut():
     from topomap.core.motion.check import held_out_frame
     from topomap.core.motion.places import Places

@@ -11,10 +11,12 @@ positions of the held-out steps are the same filter run on
 (:func:`~topomap.core.motion.odometry.odometric_positions`, its copies learned on the first part
 and carried on).  What alike rooms cost the view clusters is a held-out step placed in the other
 room: far off, not a little off.  So the check counts the held-out steps each map places more
-than ``settings.far`` cell extents from their odometric position (:func:`misplaced_share`) and
-keeps the places only when they misplace fewer, at most ``settings.margin`` times the view
-clusters' share; in doubt -- the two alike, neither misplacing any, or the carried-on filter
-lost and no reference for either -- the view clusters stay, never worse than themselves.  The
+than ``settings.far`` cell extents from their odometric position (:func:`misplaced_share`).
+One held-out part is one draw of where the log happens to end; ``settings.folds`` parts are held
+out one after another from the end (each learned from the steps before it), and the places are
+kept only when their mean share over the folds is below the view clusters' and at most
+``settings.margin`` times it; in doubt -- the two alike, neither misplacing any, or the
+carried-on filter lost and no reference for either -- the view clusters stay.  The
 median distance of each (:func:`frame_error`) is recorded beside: it weighs the many steps both
 maps place within a cell, and fell back on every alcove layout where the places were better.
 """
@@ -92,7 +94,7 @@ def _fold(settings: MotionSettings, X, Z, u, lengths, end: int, held: int, build
         placed = _state_means(labels, part.frame)[decoded]
         errors[name] = round(frame_error(placed, frame), 4)
         misplaced[name] = round(misplaced_share(placed, frame, settings.far), 4)
-    return {"held_out": end - cut, "anchored": round(anchored, 4), **errors,
+    return {"learned": cut, "held_out": end - cut, "anchored": round(anchored, 4), **errors,
             "misplaced": misplaced}
 
 

@@ -41,13 +41,13 @@ class MotionSettings:
 
     ``holdout``: the share of the log, at its end, that the held-out check decodes
     (:mod:`topomap.core.motion.check`): the places and the view clusters (K-means on the views,
-    as many clusters as places) are learned on the rest and decode it, and the places are kept
-    only when they misplace fewer of its steps than the view clusters do -- a step is misplaced
-    when its decoded state stands more than ``far`` cell extents from the odometric position
-    the filter carries on -- by ``margin`` (the places' share at most ``margin`` times the view
-    clusters'; 1 keeps them whenever they misplace fewer).  Else the map's states are the view
-    clusters.  ``holdout=0`` (or a held-out part under 100 steps) keeps the places
-    unchecked.
+    as many clusters as places) are learned on the rest and decode it; a held-out step is
+    misplaced when its decoded state stands more than ``far`` cell extents from the odometric
+    position the filter carries on.  ``folds`` such parts are held out, one after another from
+    the end (the second learns from the steps before the last two, and decodes the first of
+    them), and the places are kept only when their mean misplaced share over the folds is below
+    the view clusters' and at most ``margin`` times it.  Else the map's states are the view
+    clusters.  ``holdout=0`` (or a held-out part under 100 steps) keeps the places unchecked.
 
     ``n_init``: the k-means++ starts of the view clusters (scikit-learn's ``KMeans`` on every
     row, as :func:`topomap.core.position_scores.kmeans_view_scores`).  A map that falls back to
@@ -63,10 +63,10 @@ class MotionSettings:
     pull: float = 0.2
     max_return: float = 0.35
     holdout: float = 0.25
-    margin: float = 0.8
+    margin: float = 0.9
     far: float = 2.0
     n_init: int = 4
-    folds: int = 1
+    folds: int = 2
 
 
 def motion_settings(value) -> MotionSettings:
