@@ -11,7 +11,8 @@ Cases (compass-aligned range beams plus Gaussian noise, compass actions; 10 Hz u
 * ``two_rooms``, ``four_rooms``, ``corridor``, ``open`` (the arena's layouts) and ``alcoves``
   (``benchmarks/floorplans/alcoves.yaml``: three identical alcoves off a corridor) -- 18,000
   training steps of ratinabox's random motion, a held-out walk of 6,000 steps of another seed,
-  ``n_clusters=32, n_states=64``;
+  ``n_clusters=32, n_states=64``; ``l_rooms`` and ``pillars`` (``benchmarks/floorplans/``)
+  likewise, kept out of the default cases: floor plans no setting was chosen on;
 * ``tanni`` -- Tanni et al.'s rat path: its first 75 % to learn, the rest held out,
   ``n_clusters=50, n_states=100``.
 
@@ -24,7 +25,10 @@ call: ``MapLearner(n_clusters, n_states, refine="em", random_state=0)``, motion=
 ``MotionSettings(holdout=0)``), ``one_gate`` (the shipped route with one gate of 3 cell extents),
 ``no_odometry`` (places are the view clusters: K-means with as many clusters as states, each its
 own Gaussian, decoded by the map), ``merged_runs`` (runs of one symbol merged into one step, split
-+ EM on the runs, each row labelled with its run's state). Scores
++ EM on the runs, each row labelled with its run's state), ``fallback`` (the map the default
+falls back to: the view clusters, every state one pooled variance), ``folds3`` (the default
+with three held-out quarters, each recorded in its row's ``motion``). ``views`` is seeded with
+``random_state=0``. Scores
 (:mod:`topomap.core.position_scores`): median and 90th-percentile error, wrong-region share;
 states; fit seconds; the peak RSS of the benchmark process so far (``rss_mib``: a bound on the
 route's own, see ``--timing`` for a fresh process). Every row is appended to ``--log`` (JSON lines)
