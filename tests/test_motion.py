@@ -185,8 +185,8 @@ def test_the_check_falls_back_to_the_views_where_they_place_steps_alone():
     learner = MapLearner(n_clusters=16, n_states=32, random_state=0).fit(Z, u)
     info = learner.motion_info_
     assert info["odometry"] and info["chosen"] == "views"
-    misplaced = info["check"]["misplaced"]
-    assert misplaced["places"] > 0.8 * misplaced["views"]
+    misplaced = info["check"]["mean_misplaced"]  # over the two held-out quarters
+    assert misplaced["places"] > 0.9 * misplaced["views"]
     # the states are then the view clusters: K-means on the views with as many clusters
     unchecked = MapLearner(n_clusters=16, n_states=32, random_state=0,
                            motion=MotionSettings(holdout=0)).fit(Z, u)
