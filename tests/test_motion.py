@@ -134,6 +134,24 @@ def test_continuous_log_gets_places_that_tell_alike_halves_apart():
     assert learner.predict(Zt, ut).shape == (2000,)
 
 
+def test_the_check_holds_out_successive_quarters_and_keeps_the_places_on_their_mean():
+    from topomap.core.motion.check import keeps_places
+
+    Z, u, _ = _alike_halves()  # 8,000 steps: quarters of 2,000
+    # fold i learns from the steps before 6,000 - 2,000 i and decodes the 2,000 after them; a
+    # fourth fold would learn from no step, so four folds asked for give three
+    learner = MapLearner(n_clusters=4, n_states=8, random_state=0,
+                         motion=MotionSettings(folds=4)).fit(Z, u)
+    check = learner.motion_info_["check"]
+    assert [f["learned"] for f in check["folds"]] == [6000, 4000, 2000]
+    assert [f["held_out"] for f in check["folds"]] == [2000, 2000, 2000]
+    for name in ("places", "views"):
+        mean = np.mean([f["misplaced"][name] for f in check["folds"]])
+        assert check["mean_misplaced"][name] == pytest.approx(mean, abs=1e-4)
+    assert keeps_places(check["mean_misplaced"], 0.9)
+    assert learner.motion_info_["chosen"] == "places"
+
+
 def test_the_held_out_frame_carries_the_filter_on_from_the_copies_learned_before_the_cut():
     from topomap.core.motion.check import held_out_frame
     from topomap.core.motion.places import Places
@@ -167,14 +185,49 @@ def test_the_check_falls_back_to_the_views_where_they_place_steps_alone():
     learner = MapLearner(n_clusters=16, n_states=32, random_state=0).fit(Z, u)
     info = learner.motion_info_
     assert info["odometry"] and info["chosen"] == "views"
-    misplaced = info["check"]["misplaced"]
-    assert misplaced["places"] > 0.8 * misplaced["views"]
+    misplaced = info["check"]["mean_misplaced"]  # over the two held-out quarters
+    assert misplaced["places"] > 0.9 * misplaced["views"]
     # the states are then the view clusters: K-means on the views with as many clusters
     unchecked = MapLearner(n_clusters=16, n_states=32, random_state=0,
                            motion=MotionSettings(holdout=0)).fit(Z, u)
     assert unchecked.motion_info_["chosen"] == "places"
-    kmeans = MapLearner(n_clusters=32, n_states=32, motion="discrete", random_state=0).fit(Z, u)
-    assert _same_partition(learner.labels_, kmeans.labels_phase1_)
+    from sklearn.cluster import KMeans
+
+    kmeans = KMeans(32, n_init=4, random_state=0).fit(Z)  # the yardstick's own clusters
+    assert _same_partition(learner.labels_, kmeans.labels_)
+    # each state's Gaussian has the one variance pooled over the states and the features
+    cov = learner.map_.covariances
+    assert np.all(cov == cov[0, 0])
+
+
+def test_view_clusters_are_numbered_by_first_appearance():
+    from topomap.core.motion.places import view_clusters
+
+    Z = np.array([[5.0, 5.0], [0.0, 0.0], [5.0, 5.1], [0.0, 0.1], [9.0, 0.0], [0.1, 0.0]])
+    np.testing.assert_array_equal(view_clusters(Z, 3, n_init=4, random_state=0),
+                                  [0, 1, 0, 1, 2, 1])
+
+
+def test_pooled_variances_rank_a_view_by_its_distance_to_each_state_mean():
+    from topomap.core.map.model import TopologicalMap
+    from topomap.core.motion.learn import pooled_variances
+
+    # state 0: views -0.1, 0.1 (mean 0, variance 0.01); state 1: views 0, 20 (mean 10,
+    # variance 100); one variance for both: (0.01 + 0.01 + 100 + 100) / 4 = 50.005
+    X = np.array([[-0.1], [0.1], [0.0], [20.0]])
+    labels = np.array([0, 0, 1, 1])
+    for cov_type, pooled in (("diag", [[50.005], [50.005]]), ("full", [[[50.005]], [[50.005]]])):
+        m = TopologicalMap.from_labels(X, np.zeros(4, dtype=np.int64), labels,
+                                       state_symbol=np.arange(2), state_gds=np.full(2, -1),
+                                       state_parent=np.full(2, -1), n_actions=1,
+                                       covariance_type=cov_type, reg_covar=0.0)
+        p = pooled_variances(m, X, labels, reg_covar=0.0)
+        np.testing.assert_allclose(p.covariances, pooled)
+        np.testing.assert_array_equal(p.means, m.means)
+        # a view at 3 is nearer state 0 (3 away, not 7): the pooled map says so, the map of each
+        # state's own variance gives it to the broad state 1
+        assert p.predict(np.array([[3.0]]), np.zeros(1, dtype=np.int64))[0] == 0
+        assert m.predict(np.array([[3.0]]), np.zeros(1, dtype=np.int64))[0] == 1
 
 
 def test_the_check_counts_steps_placed_far_off_not_the_median_distance():
@@ -236,6 +289,8 @@ def test_discrete_worlds_keep_the_map_of_the_split():
     ({"holdout": 1.0}, r"^motion\.holdout must be a number in \[0, 1\)"),
     ({"margin": 0}, r"^motion\.margin must be a number in \(0, 1\]"),
     ({"far": -1.0}, r"^motion\.far must be a positive number"),
+    ({"n_init": 0}, r"^motion\.n_init must be a positive integer"),
+    ({"folds": 1.5}, r"^motion\.folds must be a positive integer"),
 ])
 def test_bad_motion_is_named(motion, message):
     Z, u, _ = _alike_halves(500)

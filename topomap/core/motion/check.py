@@ -11,10 +11,12 @@ positions of the held-out steps are the same filter run on
 (:func:`~topomap.core.motion.odometry.odometric_positions`, its copies learned on the first part
 and carried on).  What alike rooms cost the view clusters is a held-out step placed in the other
 room: far off, not a little off.  So the check counts the held-out steps each map places more
-than ``settings.far`` cell extents from their odometric position (:func:`misplaced_share`) and
-keeps the places only when they misplace fewer, at most ``settings.margin`` times the view
-clusters' share; in doubt -- the two alike, neither misplacing any, or the carried-on filter
-lost and no reference for either -- the view clusters stay, never worse than themselves.  The
+than ``settings.far`` cell extents from their odometric position (:func:`misplaced_share`).
+One held-out part is one draw of where the log happens to end; ``settings.folds`` parts are held
+out one after another from the end (each learned from the steps before it), and the places are
+kept only when their mean share over the folds is below the view clusters' and at most
+``settings.margin`` times it; in doubt -- the two alike, neither misplacing any, or the
+carried-on filter lost and no reference for either -- the view clusters stay.  The
 median distance of each (:func:`frame_error`) is recorded beside: it weighs the many steps both
 maps place within a cell, and fell back on every alcove layout where the places were better.
 """
@@ -72,29 +74,57 @@ def _state_means(labels, frame) -> np.ndarray:
     return np.column_stack([np.bincount(labels, weights=frame[:, j]) for j in range(2)]) / counts
 
 
+def _fold(settings: MotionSettings, X, Z, u, lengths, end: int, held: int, build,
+          n_states: int, n_actions: int, **kmeans) -> dict | None:
+    """The check on the steps before ``end``: places and view clusters learned on the steps
+    before ``end - held``, decoding the ``held`` steps after them; None when the first part
+    gives no odometry."""
+    if end < len(u):
+        lengths = split_holdout(len(u), lengths, 1 - end / len(u))[0]
+        X, Z, u = X[:end], Z[:end], u[:end]
+    head, tail, cut = split_holdout(end, lengths, held / end)
+    part: Places = cut_places(settings, Z[:cut], u[:cut], head, n_states, n_actions, **kmeans)
+    if part.places is None:
+        return None
+    frame, anchored = held_out_frame(settings, part, Z, u, lengths, cut)
+    errors, misplaced = {}, {}
+    for name, labels in (("places", part.places), ("views", part.views)):
+        decoded = build(X[:cut], u[:cut], labels, head, pooled=name == "views").predict(
+            X[cut:], u[cut:], lengths=tail)
+        placed = _state_means(labels, part.frame)[decoded]
+        errors[name] = round(frame_error(placed, frame), 4)
+        misplaced[name] = round(misplaced_share(placed, frame, settings.far), 4)
+    return {"learned": cut, "held_out": end - cut, "anchored": round(anchored, 4), **errors,
+            "misplaced": misplaced}
+
+
 def choose_places(settings: MotionSettings, X, Z, u, lengths, n_states: int, n_actions: int,
                   build, **kmeans) -> tuple[np.ndarray, dict]:
     """``(labels, info)``: the places of the whole log (:func:`cut_places`), or its view clusters
     when the held-out check prefers them or finds no odometry.  ``build(X, u, labels, lengths)``
-    makes a map of labelled steps; ``kmeans``: ``n_init``, ``random_state``, ``method``."""
+    makes a map of labelled steps (``pooled=True``: one variance shared by its states, the view
+    clusters' map); ``kmeans``: ``n_init``, ``random_state``, ``method``."""
     whole = cut_places(settings, Z, u, lengths, n_states, n_actions, **kmeans)
     info = dict(whole.info)
     if whole.places is None:
         return whole.views, dict(info, chosen="views")
-    if settings.holdout == 0 or len(u) * min(settings.holdout, 1 - settings.holdout) < 100:
+    T = len(u)
+    if settings.holdout == 0 or T * min(settings.holdout, 1 - settings.holdout) < 100:
         return whole.places, dict(info, chosen="places")
-    head, tail, cut = split_holdout(len(u), lengths, settings.holdout)
-    part: Places = cut_places(settings, Z[:cut], u[:cut], head, n_states, n_actions, **kmeans)
-    if part.places is None:
+    step = int(round(T * settings.holdout))
+    folds = []
+    for i in range(settings.folds):
+        if T - (i + 1) * step < 100:
+            break
+        fold = _fold(settings, X, Z, u, lengths, T - i * step, step, build, n_states,
+                     n_actions, **kmeans)
+        if fold is None:
+            break
+        folds.append(fold)
+    if not folds:
         return whole.views, dict(info, chosen="views", check="no odometry on the first part")
-    frame, anchored = held_out_frame(settings, part, Z, u, lengths, cut)
-    errors, misplaced = {}, {}
-    for name, labels in (("places", part.places), ("views", part.views)):
-        decoded = build(X[:cut], u[:cut], labels, head).predict(X[cut:], u[cut:], lengths=tail)
-        placed = _state_means(labels, part.frame)[decoded]
-        errors[name] = round(frame_error(placed, frame), 4)
-        misplaced[name] = round(misplaced_share(placed, frame, settings.far), 4)
+    misplaced = {name: round(float(np.mean([f["misplaced"][name] for f in folds])), 4)
+                 for name in ("places", "views")}
     chosen = "places" if keeps_places(misplaced, settings.margin) else "views"
-    info.update(chosen=chosen, check={"held_out": len(u) - cut, "anchored": round(anchored, 4),
-                                      **errors, "misplaced": misplaced})
+    info.update(chosen=chosen, check=dict(folds[0], folds=folds, mean_misplaced=misplaced))
     return (whole.places if chosen == "places" else whole.views), info

@@ -20,7 +20,20 @@ from ..map.model import TopologicalMap
 from .check import choose_places
 from .settings import MotionSettings, is_continuous
 
-__all__ = ["fit_places"]
+__all__ = ["fit_places", "pooled_variances"]
+
+
+def pooled_variances(tmap: TopologicalMap, X, labels, reg_covar: float) -> TopologicalMap:
+    """``tmap`` with one variance for every state and feature: the mean squared distance of the
+    rows of ``X`` to their state's mean (``labels``), plus ``reg_covar`` -- diagonal or full as
+    ``tmap``'s covariances.  Every state's Gaussian then ranks a view by its distance to the
+    state's mean alone, as the nearest centre does."""
+    X = np.asarray(X, dtype=np.float64)
+    var = float(np.mean((X - tmap.means[labels]) ** 2)) + float(reg_covar)
+    S, D = tmap.means.shape
+    cov = np.full((S, D), var) if tmap.covariance_type == "diag" else \
+        np.broadcast_to(var * np.eye(D), (S, D, D)).copy()
+    return replace(tmap, covariances=cov)
 
 
 def fit_places(learner, data, settings: MotionSettings, metric) -> bool:
@@ -34,20 +47,22 @@ def fit_places(learner, data, settings: MotionSettings, metric) -> bool:
     start = time.perf_counter()
     Z = np.ascontiguousarray(metric.fit_transform(data.X), dtype=np.float64)
 
-    def build(X, u, labels, lengths, **fields):
+    def build(X, u, labels, lengths, pooled=False, **fields):
         S = int(labels.max()) + 1
-        return TopologicalMap.from_labels(
+        m = TopologicalMap.from_labels(
             X, u, labels, lengths=lengths, state_symbol=np.arange(S), state_gds=np.full(S, -1),
             state_parent=np.full(S, -1), n_actions=data.n_actions,
             covariance_type=learner.covariance_type, reg_covar=learner.reg_covar, **fields)
+        return pooled_variances(m, X, labels, learner.reg_covar) if pooled else m
 
     labels, info = choose_places(settings, data.X, Z, data.u, data.lengths,
                                  learner.map_split_.n_states, data.n_actions, build,
                                  n_init=learner.n_init, random_state=learner.random_state,
                                  method=learner.phase1)
     S = int(labels.max()) + 1
-    m = build(data.X, data.u, labels, data.lengths, action_names=data.action_names,
-              gds_names=data.gds_names, split_history=learner.split_history_)
+    m = build(data.X, data.u, labels, data.lengths, pooled=info["chosen"] == "views",
+              action_names=data.action_names, gds_names=data.gds_names,
+              split_history=learner.split_history_)
     learner.motion_info_ = info
     learner.entropies_.append(dict(m.entropies(), n_states=S, stage="places",
                                    iteration=len(learner.split_history_) + 1))

@@ -16,12 +16,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..phase1.clustering import FixedClusters, cluster_observations, make_metric
+from sklearn.cluster import KMeans
+from threadpoolctl import threadpool_limits
+
+from ..phase1.clustering import (FixedClusters, cluster_observations, first_appearance_order,
+                                 make_metric)
 from .odometry import (action_vectors, cell_extent, dead_reckoning, odometric_positions,
                        reckoned_steps)
 from .settings import MotionSettings, mean_run
 
-__all__ = ["Places", "cut_places"]
+__all__ = ["Places", "cut_places", "view_clusters"]
 
 
 @dataclass
@@ -44,6 +48,18 @@ def _kmeans(F, k, n_init, random_state, method):
                                 random_state=random_state, method=method)[0]
 
 
+def view_clusters(Z, k: int, n_init: int, random_state) -> np.ndarray:
+    """(T,) K-means on the views ``Z``, ``k`` clusters numbered by first appearance: scikit-learn's
+    ``KMeans`` on every row, ``n_init`` k-means++ starts -- the clustering
+    :func:`topomap.core.position_scores.kmeans_view_scores` scores, so that the view clusters a
+    map falls back to are that yardstick's own."""
+    with threadpool_limits(limits=1, user_api="blas"):
+        labels = KMeans(int(k), n_init=int(n_init), random_state=random_state).fit(Z).labels_
+    labels = np.asarray(labels, dtype=np.int64)
+    rename, _ = first_appearance_order(labels, int(k))
+    return rename[labels]
+
+
 def _view_spread(Z, fsym, k) -> float:
     """The rms distance of a view to its cluster's centre: one view cluster's extent in views."""
     centres = np.zeros((k, Z.shape[1]))
@@ -60,7 +76,7 @@ def cut_places(settings: MotionSettings, Z, u, lengths, n_states: int, n_actions
     ``settings.gates`` the copies of view clusters its positions kept."""
     lengths = np.asarray(lengths, dtype=np.int64)
     k = min(int(n_states), int(np.unique(Z, axis=0).shape[0]))
-    fsym = _kmeans(Z, k, n_init, random_state, method)
+    fsym = view_clusters(Z, k, settings.n_init, random_state)
     V, ratios = action_vectors(Z, fsym, u, lengths, n_actions, seed=random_state,
                                max_return=settings.max_return)
     info = {"mean_run": round(mean_run(fsym, lengths), 3), "view_clusters": k,

@@ -41,13 +41,18 @@ class MotionSettings:
 
     ``holdout``: the share of the log, at its end, that the held-out check decodes
     (:mod:`topomap.core.motion.check`): the places and the view clusters (K-means on the views,
-    as many clusters as places) are learned on the rest and decode it, and the places are kept
-    only when they misplace fewer of its steps than the view clusters do -- a step is misplaced
-    when its decoded state stands more than ``far`` cell extents from the odometric position
-    the filter carries on -- by ``margin`` (the places' share at most ``margin`` times the view
-    clusters'; 1 keeps them whenever they misplace fewer).  Else the map's states are the view
-    clusters.  ``holdout=0`` (or a held-out part under 100 steps) keeps the places
-    unchecked.
+    as many clusters as places) are learned on the rest and decode it; a held-out step is
+    misplaced when its decoded state stands more than ``far`` cell extents from the odometric
+    position the filter carries on.  ``folds`` such parts are held out, one after another from
+    the end (the second learns from the steps before the last two, and decodes the first of
+    them), and the places are kept only when their mean misplaced share over the folds is below
+    the view clusters' and at most ``margin`` times it.  Else the map's states are the view
+    clusters.  ``holdout=0`` (or a held-out part under 100 steps) keeps the places unchecked.
+
+    ``n_init``: the k-means++ starts of the view clusters (scikit-learn's ``KMeans`` on every
+    row, as :func:`topomap.core.position_scores.kmeans_view_scores`).  A map that falls back to
+    them gives every state one variance, pooled over the states and the features: its Viterbi
+    decoding is then the nearest centre, smoothed by the map's transitions.
     """
 
     mode: str = "auto"
@@ -58,8 +63,10 @@ class MotionSettings:
     pull: float = 0.2
     max_return: float = 0.35
     holdout: float = 0.25
-    margin: float = 0.8
+    margin: float = 0.9
     far: float = 2.0
+    n_init: int = 4
+    folds: int = 2
 
 
 def motion_settings(value) -> MotionSettings:
@@ -84,6 +91,8 @@ def motion_settings(value) -> MotionSettings:
         raise ParameterError("motion.mode", f"must be one of {', '.join(MODES)}, "
                                             f"got {value.mode!r}")
     check_count(value.min_steps, "motion.min_steps")
+    check_count(value.n_init, "motion.n_init")
+    check_count(value.folds, "motion.folds")
     gates = value.gates
     if not isinstance(gates, tuple) or not gates or not all(_positive(g) for g in gates):
         raise ParameterError("motion.gates", f"must be a non-empty list of positive numbers, "
