@@ -3,6 +3,7 @@
     python benchmarks/bench_continuous.py                               # the main table
     python benchmarks/bench_continuous.py --cases two_rooms --routes shipped views --seeds 0
     python benchmarks/bench_continuous.py --settings                    # unseen sensor settings
+    python benchmarks/bench_continuous.py --settings 10 --steps 72000   # 40 Hz for 30 minutes
     python benchmarks/bench_continuous.py --curve --cases two_rooms alcoves   # error vs steps
     python benchmarks/bench_continuous.py --timing                      # the whole rat path
 
@@ -325,6 +326,8 @@ def main() -> None:
     p.add_argument("--settings", nargs="*", type=int, default=None, metavar="I",
                    help="the unseen sensor settings (all, or those of these indices of SETTINGS)")
     p.add_argument("--curve", action="store_true", help="4,500 to 36,000 training steps")
+    p.add_argument("--steps", type=int, default=18_000,
+                   help="training steps of the random walks (72,000: 30 minutes at 40 Hz)")
     p.add_argument("--timing", action="store_true", help="the whole rat path in a fresh process")
     p.add_argument("--log", default="bench_continuous.jsonl")
     p.add_argument("--cache", default=os.path.expanduser("~/.cache/topomap-bench"))
@@ -335,7 +338,7 @@ def main() -> None:
         return timing(cache)
     picked = None if a.settings is None else (a.settings or range(len(SETTINGS)))
     settings = [BASE] if picked is None else [dict(BASE, **SETTINGS[i]) for i in picked]
-    steps = [4_500, 9_000, 18_000, 36_000] if a.curve else [18_000]
+    steps = [4_500, 9_000, 18_000, 36_000] if a.curve else [a.steps]
     run(a.cases, a.routes, a.seeds, settings, steps, log, cache)
     print_table([r for r in table(log) if r["case"] in a.cases])
     print(f"peak RSS of this process: "

@@ -162,12 +162,28 @@ def test_the_held_out_frame_carries_the_filter_on_from_the_copies_learned_before
     V = np.array([[1.0, 0.0], [-1.0, 0.0]])
     P, _, _ = odometric_positions(sym[:cut], reckoned_steps(u[:cut], [cut], V), [cut], gate=2.0)
     part = Places(sym[:cut], None, V, 1.0, P, {})
-    frame, anchored = held_out_frame(MotionSettings(gates=(2.0,)), part, Z, u, [x.size], cut)
+    frame, joined = held_out_frame(MotionSettings(gates=(2.0,)), part, Z, u, [x.size], cut)
     np.testing.assert_allclose(frame[:, 0], x[cut:])  # every later step where it is
-    assert anchored == 1.0                            # joining a copy made before the cut
+    assert joined.all()                               # joining a copy made before the cut
     # with a wider gate alike cells share copies, pulled between their positions
     wide, _ = held_out_frame(MotionSettings(gates=(7.0,)), part, Z, u, [x.size], cut)
     assert np.abs(wide[:, 0] - x[cut:]).max() > 0.5
+
+
+def test_held_out_steps_where_the_learned_part_never_went_join_no_earlier_copy():
+    from topomap.core.motion.check import held_out_frame
+    from topomap.core.motion.places import Places
+
+    x, sym, u = _line_walk(cycles=4)  # cells 0..9 and back, symbol x mod 5, exact odometry
+    Z = np.eye(5)[sym]
+    cut = 5                           # the learned part saw cells 0..4 only
+    V = np.array([[1.0, 0.0], [-1.0, 0.0]])
+    P, _, _ = odometric_positions(sym[:cut], reckoned_steps(u[:cut], [cut], V), [cut], gate=2.0)
+    part = Places(sym[:cut], None, V, 1.0, P, {})
+    frame, joined = held_out_frame(MotionSettings(gates=(2.0,)), part, Z, u, [x.size], cut)
+    # cells 5..9 look like 0..4 but lie 5 cells off: their copies are made after the cut
+    np.testing.assert_array_equal(joined, x[cut:] <= 4)
+    np.testing.assert_allclose(frame[:, 0], x[cut:])
 
 
 def _distinct_line(T=8000, seed=0):

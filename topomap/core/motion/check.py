@@ -11,7 +11,10 @@ positions of the held-out steps are the same filter run on
 (:func:`~topomap.core.motion.odometry.odometric_positions`, its copies learned on the first part
 and carried on).  What alike rooms cost the view clusters is a held-out step placed in the other
 room: far off, not a little off.  So the check counts the held-out steps each map places more
-than ``settings.far`` cell extents from their odometric position (:func:`misplaced_share`).
+than ``settings.far`` cell extents from their odometric position (:func:`misplaced_share`),
+among the held-out steps that joined a copy made before the held-out part: where the log's end
+goes where its start had not been, the filter makes new copies there, whose positions neither
+map was learned on (a fold where no step joined one gives no reference).
 One held-out part is one draw of where the log happens to end; ``settings.folds`` parts are held
 out one after another from the end (each learned from the steps before it), and the places are
 kept only when their mean share over the folds is below the view clusters' and at most
@@ -35,10 +38,11 @@ __all__ = ["held_out_frame", "frame_error", "misplaced_share", "keeps_places", "
 
 
 def held_out_frame(settings: MotionSettings, part: Places, Z, u, lengths, cut: int):
-    """``(P, anchored)``: (T - cut, 2) odometric positions (cell extents) of the steps from
+    """``(P, joined)``: (T - cut, 2) odometric positions (cell extents) of the steps from
     ``cut`` on -- the filter of ``part`` (learned on the steps before ``cut``) carried on, each
-    later step taking the view cluster of the nearest centre -- and the share of those steps
-    that joined a copy made before ``cut``."""
+    later step taking the view cluster of the nearest centre -- and (T - cut,) whether each of
+    those steps joined a copy made before ``cut`` (a step that did not has no position the
+    maps learned on the steps before ``cut`` could be measured against)."""
     k = int(part.views.max()) + 1
     centres = np.zeros((k, Z.shape[1]))
     np.add.at(centres, part.views, Z[:cut])
@@ -48,8 +52,7 @@ def held_out_frame(settings: MotionSettings, part: Places, Z, u, lengths, cut: i
     gate = settings.gates[len(settings.gates) // 2] * part.extent
     P, copy, _ = odometric_positions(fsym, reckoned_steps(u, lengths, part.V), lengths, gate,
                                      pull=settings.pull)
-    anchored = float(np.mean(copy[cut:] <= copy[:cut].max()))
-    return P[cut:] / part.extent, anchored
+    return P[cut:] / part.extent, copy[cut:] <= copy[:cut].max()
 
 
 def frame_error(placed, frame) -> float:
@@ -86,15 +89,18 @@ def _fold(settings: MotionSettings, X, Z, u, lengths, end: int, held: int, build
     part: Places = cut_places(settings, Z[:cut], u[:cut], head, n_states, n_actions, **kmeans)
     if part.places is None:
         return None
-    frame, anchored = held_out_frame(settings, part, Z, u, lengths, cut)
+    frame, joined = held_out_frame(settings, part, Z, u, lengths, cut)
+    if not joined.any():
+        return None
     errors, misplaced = {}, {}
     for name, labels in (("places", part.places), ("views", part.views)):
         decoded = build(X[:cut], u[:cut], labels, head, pooled=name == "views").predict(
             X[cut:], u[cut:], lengths=tail)
         placed = _state_means(labels, part.frame)[decoded]
         errors[name] = round(frame_error(placed, frame), 4)
-        misplaced[name] = round(misplaced_share(placed, frame, settings.far), 4)
-    return {"learned": cut, "held_out": end - cut, "anchored": round(anchored, 4), **errors,
+        misplaced[name] = round(misplaced_share(placed[joined], frame[joined], settings.far), 4)
+    return {"learned": cut, "held_out": end - cut, "anchored": round(float(joined.mean()), 4),
+            **errors,
             "misplaced": misplaced}
 
 

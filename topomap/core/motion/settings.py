@@ -43,7 +43,8 @@ class MotionSettings:
     (:mod:`topomap.core.motion.check`): the places and the view clusters (K-means on the views,
     as many clusters as places) are learned on the rest and decode it; a held-out step is
     misplaced when its decoded state stands more than ``far`` cell extents from the odometric
-    position the filter carries on.  ``folds`` such parts are held out, one after another from
+    position the filter carries on (counted over the held-out steps that joined a copy made
+    before them).  ``folds`` such parts are held out, one after another from
     the end (the second learns from the steps before the last two, and decodes the first of
     them), and the places are kept only when their mean misplaced share over the folds is below
     the view clusters' and at most ``margin`` times it.  Else the map's states are the view
