@@ -100,8 +100,7 @@ def _fold(settings: MotionSettings, X, Z, u, lengths, end: int, held: int, build
         errors[name] = round(frame_error(placed, frame), 4)
         misplaced[name] = round(misplaced_share(placed[joined], frame[joined], settings.far), 4)
     return {"learned": cut, "held_out": end - cut, "anchored": round(float(joined.mean()), 4),
-            **errors,
-            "misplaced": misplaced}
+            **errors, "misplaced": misplaced}
 
 
 def choose_places(settings: MotionSettings, X, Z, u, lengths, n_states: int, n_actions: int,
@@ -128,7 +127,8 @@ def choose_places(settings: MotionSettings, X, Z, u, lengths, n_states: int, n_a
             break
         folds.append(fold)
     if not folds:
-        return whole.views, dict(info, chosen="views", check="no odometry on the first part")
+        return whole.views, dict(info, chosen="views",
+                                  check="no held-out part with odometry and a reference")
     misplaced = {name: round(float(np.mean([f["misplaced"][name] for f in folds])), 4)
                  for name in ("places", "views")}
     chosen = "places" if keeps_places(misplaced, settings.margin) else "views"
