@@ -156,11 +156,13 @@ class EMRefinement(CloneRefinement):
         ``resume`` finishes the round should the first soft round find no misreads."""
         s = soft_settings(self.soft)
         stages = self._stages(seq, split_state_symbol, random_state)
-        labels, state_symbol, info = next(stages)
-        surprise = successor_surprise(seq, labels)
-        if self.evidence == "soft" or surprise >= CUT_SURPRISE * s.detect:
-            return CloneFit(labels, state_symbol, {**info, "rounds_on_all_steps": 0, "cut": True},
-                            resume=lambda: _finish(stages))
+        for _ in range(2):
+            labels, state_symbol, info = next(stages)
+            surprise = successor_surprise(seq.head(labels.size), labels)
+            if self.evidence == "soft" or surprise >= CUT_SURPRISE * s.detect:
+                return CloneFit(labels, state_symbol,
+                                {**info, "rounds_on_all_steps": 0, "cut": True},
+                                resume=lambda: _finish(stages))
         return _finish(stages)
 
     def _stages(self, seq: SymbolSequence, split_state_symbol, random_state: int):
@@ -172,6 +174,7 @@ class EMRefinement(CloneRefinement):
         n = min(max(self.prefix, self.prefix_visits * n_split), seq.T)
         labels, state_symbol, iters = self._first_round(seq.head(n), split_state_symbol, rng)
         stages = [(n, int(state_symbol.size), iters)]
+        yield labels, state_symbol, {"stages": list(stages)}
         while n < seq.T:  # growth: the prefix doubles, or takes all steps once settled
             _, split, _ = self._restructure(seq.head(n), labels, state_symbol)
             settled = len(stages) > 1 and stages[-1][1] == stages[-2][1]

@@ -111,7 +111,7 @@ class CloneRefinement(BaseEstimator):
         s = soft_settings(self.soft)
         if self.evidence == "soft":
             s = replace(s, detect=-1.0)
-        surprise = successor_surprise(seq, hard_fit.labels)
+        surprise = successor_surprise(seq.head(hard_fit.labels.size), hard_fit.labels)
         if surprise < s.detect:
             return CloneFit(hard_fit.labels, hard_fit.state_symbol,
                             {**hard_fit.info, "soft": "skipped", "surprise": surprise,
@@ -119,12 +119,12 @@ class CloneRefinement(BaseEstimator):
         rng = np.random.default_rng(random_state)
         labels, state_symbol = hard_fit.labels, hard_fit.state_symbol
         n_ref = state_symbol.size if n_reference is None else int(n_reference)
-        min_steps = min_steps_of(s, seq.T, n_ref)
-        conf, rounds = None, []
+        conf, rounds, read = None, [], seq.sym
         for r in range(s.rounds):
-            labels, state_symbol, n_merged = merge_twins(seq, labels, state_symbol, s.twin_merge)
-            keep = keep_states(seq, labels, state_symbol, min_steps if s.prune_every else 0,
-                               s.twin)
+            head = seq.head(labels.size)  # a hard round cut short labels a prefix
+            labels, state_symbol, n_merged = merge_twins(head, labels, state_symbol, s.twin_merge)
+            keep = keep_states(head, labels, state_symbol,
+                               min_steps_of(s, head.T, n_ref) if s.prune_every else 0, s.twin)
             soft = soft_round(seq, labels, state_symbol, conf, spare=s.spare, settings=s,
                               rng=rng, keep=keep, exact_below=s.detect if r == 0 else None)
             conf = soft.conf
@@ -135,18 +135,21 @@ class CloneRefinement(BaseEstimator):
                 return CloneFit(hard_fit.labels, hard_fit.state_symbol,
                                 {**hard_fit.info, "soft": "skipped", "surprise": surprise,
                                  "soft_rounds": rounds})
+            if r > 0:
+                rounds[-1]["reread"] = reread_share(soft.sym, read)
+                if rounds[-1]["reread"] < SETTLE_REREAD * s.detect:
+                    break  # the next hard round would read (nearly) the symbols the last one did
             split_symbol = np.where(soft.state_symbol < seq.n_symbols, soft.state_symbol, -1)
-            hard = self._hard_round(replace(seq, sym=soft.sym), split_symbol, random_state)
-            settled = (hard.n_states == state_symbol.size
+            read = soft.sym
+            hard = self._hard_round(replace(seq, sym=read), split_symbol, random_state)
+            settled = (hard.labels.size == labels.size and hard.n_states == state_symbol.size
                        and same_partition(hard.labels, labels))
             labels, state_symbol = hard.labels, hard.state_symbol
             rounds[-1]["hard_states"] = int(state_symbol.size)
             if settled:
                 break
-        labels, state_symbol, _ = merge_twins(seq, labels, state_symbol, s.twin_merge)
-        keep = keep_states(seq, labels, state_symbol, min_steps, s.twin)
-        soft = soft_round(seq, labels, state_symbol, conf, spare=0, settings=s, rng=rng, keep=keep)
-        rounds.append({"states_in": int(keep.sum()), **soft.info})
+        soft = _last_soft_round(seq, labels, state_symbol, conf, s, rng, n_ref)
+        rounds.append(soft.info)
         return CloneFit(soft.labels, soft.state_symbol,
                         {**hard_fit.info, "soft": "on", "surprise": surprise,
                          "soft_rounds": rounds})
@@ -158,3 +161,24 @@ class CloneRefinement(BaseEstimator):
         changed = [f"{f.name}={getattr(s, f.name)!r}" for f in fields(SoftSettings)
                    if getattr(s, f.name) != getattr(default, f.name)]
         return f"soft=SoftSettings({', '.join(changed)})" if changed else ""
+
+
+#: the share of steps (in ``soft.detect``) below which a soft round's re-read symbols count as
+#: the ones the last hard round learned on: the hard and soft rounds stop there
+SETTLE_REREAD = 5.0
+
+
+def reread_share(sym, read) -> float:
+    """The share of steps whose symbol ``sym`` differs from ``read``."""
+    return float(np.mean(np.asarray(sym) != np.asarray(read))) if len(read) else 0.0
+
+
+def _last_soft_round(seq, labels, state_symbol, conf, s, rng, n_ref):
+    """The map: twins merged, states under ``soft.min_steps`` dropped, a soft round without spare
+    clones; its info holds ``states_in``, the states kept."""
+    head = seq.head(labels.size)
+    labels, state_symbol, _ = merge_twins(head, labels, state_symbol, s.twin_merge)
+    keep = keep_states(head, labels, state_symbol, min_steps_of(s, head.T, n_ref), s.twin)
+    soft = soft_round(seq, labels, state_symbol, conf, spare=0, settings=s, rng=rng, keep=keep)
+    soft.info = {"states_in": int(keep.sum()), **soft.info}
+    return soft
