@@ -81,8 +81,8 @@ class EMRefinement(CloneRefinement):
     symbol sequences), ``"split"`` only ``clone_factor`` x its split states + ``spare``.
 
     ``evidence`` (:data:`~topomap.core.refine.soft.EVIDENCE`): ``"auto"`` (default) corrects
-    misread symbols when the first soft round finds some (the first hard round stops before
-    stage 3 where its labelling already shows misreads: :meth:`_first_hard_round`), ``"soft"``
+    misread symbols when the first soft round finds some (the first hard round stops after
+    stage 1 or 2 where its labelling already shows misreads: :meth:`_first_hard_round`), ``"soft"``
     always, ``"hard"`` never;
     ``soft`` holds the soft rounds' settings (:class:`~topomap.core.refine.soft.SoftSettings`, or
     a mapping of some of its fields, e.g. ``{"conf_warmup": 10}``).
@@ -148,12 +148,13 @@ class EMRefinement(CloneRefinement):
         return _finish(self._stages(seq, split_state_symbol, random_state))
 
     def _first_hard_round(self, seq: SymbolSequence, split_state_symbol, random_state: int):
-        """:meth:`_hard_round`, cut short before stage 3 when the labelling of all steps stage 2
-        gives already shows misreads: its successor surprise
-        (:func:`~topomap.core.refine.soft.successor_surprise`) at least ``CUT_SURPRISE`` x
-        ``soft.detect`` (with ``evidence="soft"``: always).  Stage 3's rounds would not settle
-        on misread symbols; the soft rounds start from that labelling instead, and the fit's
-        ``resume`` finishes the round should the first soft round find no misreads."""
+        """:meth:`_hard_round`, cut short when a labelling shows misreads: its successor
+        surprise (:func:`~topomap.core.refine.soft.successor_surprise`) at least
+        ``CUT_SURPRISE`` x ``soft.detect`` (with ``evidence="soft"``: always) -- first stage 1's
+        labelling of the prefix, then stage 2's of all steps.  The growth and stage 3's rounds
+        would not settle on misread symbols; the soft rounds start from that labelling (of the
+        prefix only, after stage 1) instead, and the fit's ``resume`` finishes the round should
+        the first soft round find no misreads."""
         s = soft_settings(self.soft)
         stages = self._stages(seq, split_state_symbol, random_state)
         for _ in range(2):
@@ -166,8 +167,9 @@ class EMRefinement(CloneRefinement):
         return _finish(stages)
 
     def _stages(self, seq: SymbolSequence, split_state_symbol, random_state: int):
-        """Stages 1 to 3 as a generator: it yields ``(labels, state_symbol, info)`` of stage 2's
-        last labelling, then returns the round's :class:`CloneFit` (:func:`_finish`)."""
+        """Stages 1 to 3 as a generator: it yields ``(labels, state_symbol, info)`` of stage 1's
+        labelling (of the prefix) and of stage 2's last (of all steps), then returns the round's
+        :class:`CloneFit` (:func:`_finish`)."""
         rng = np.random.default_rng(random_state)
         split_state_symbol = np.asarray(split_state_symbol)
         n_split = int(np.sum(split_state_symbol >= 0))

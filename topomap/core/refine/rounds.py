@@ -15,8 +15,8 @@ from sklearn.base import BaseEstimator
 
 from ..checks import ParameterError
 from .sequence import SymbolSequence
-from .soft import (SoftSettings, check_evidence, keep_states, merge_twins, min_steps_of,
-                   soft_round, soft_settings, successor_surprise)
+from .soft import SoftSettings, check_evidence, soft_round, soft_settings, successor_surprise
+from .soft_states import keep_states, merge_twins, min_steps_of
 from .structure import same_partition
 
 __all__ = ["CloneFit", "CloneRefinement"]
@@ -98,8 +98,14 @@ class CloneRefinement(BaseEstimator):
         1. ``soft.rounds`` times: twin states merged, small states dropped, a soft round (over
            the states found plus ``soft.spare`` clones per symbol), every step's symbol replaced
            by the symbol of its decoded clone, and a hard round on the corrected symbols; until a
-           hard round gives back the labelling it started from;
+           hard round gives back the labelling it started from, or a soft round after the first
+           re-reads all but fewer than ``SETTLE_REREAD`` x ``soft.detect`` of the steps as the
+           symbols the last hard round learned on (``reread`` in its record: a hard round on
+           them would repeat that one);
         2. a last soft round without spare clones gives the map.
+
+        ``hard_fit`` may label a prefix of the steps only (a hard round cut short after its
+        first stage): the first soft round starts from the prefix's states and transitions.
 
         With ``evidence="auto"``, the hard round is kept without a soft round when its labelling
         predicts the next symbol of all but a ``soft.detect`` share of its transitions
@@ -113,28 +119,19 @@ class CloneRefinement(BaseEstimator):
             s = replace(s, detect=-1.0)
         surprise = successor_surprise(seq.head(hard_fit.labels.size), hard_fit.labels)
         if surprise < s.detect:
-            return CloneFit(hard_fit.labels, hard_fit.state_symbol,
-                            {**hard_fit.info, "soft": "skipped", "surprise": surprise,
-                             "soft_rounds": []})
+            return _skipped(hard_fit, surprise, [])
         rng = np.random.default_rng(random_state)
         labels, state_symbol = hard_fit.labels, hard_fit.state_symbol
         n_ref = state_symbol.size if n_reference is None else int(n_reference)
         conf, rounds, read = None, [], seq.sym
         for r in range(s.rounds):
-            head = seq.head(labels.size)  # a hard round cut short labels a prefix
-            labels, state_symbol, n_merged = merge_twins(head, labels, state_symbol, s.twin_merge)
-            keep = keep_states(head, labels, state_symbol,
-                               min_steps_of(s, head.T, n_ref) if s.prune_every else 0, s.twin)
-            soft = soft_round(seq, labels, state_symbol, conf, spare=s.spare, settings=s,
-                              rng=rng, keep=keep, exact_below=s.detect if r == 0 else None)
+            soft, labels, state_symbol = _spare_soft_round(seq, labels, state_symbol, conf, s,
+                                                           rng, n_ref, r == 0)
             conf = soft.conf
-            rounds.append({"states_in": int(state_symbol.size), "twins_merged": n_merged,
-                           **soft.info})
+            rounds.append(soft.info)
             if r == 0 and ("stopped" in soft.info
                            or max(soft.info["corrected"], soft.info["misread"]) < s.detect):
-                return CloneFit(hard_fit.labels, hard_fit.state_symbol,
-                                {**hard_fit.info, "soft": "skipped", "surprise": surprise,
-                                 "soft_rounds": rounds})
+                return _skipped(hard_fit, surprise, rounds)
             if r > 0:
                 rounds[-1]["reread"] = reread_share(soft.sym, read)
                 if rounds[-1]["reread"] < SETTLE_REREAD * s.detect:
@@ -171,6 +168,28 @@ SETTLE_REREAD = 5.0
 def reread_share(sym, read) -> float:
     """The share of steps whose symbol ``sym`` differs from ``read``."""
     return float(np.mean(np.asarray(sym) != np.asarray(read))) if len(read) else 0.0
+
+
+def _skipped(hard_fit: CloneFit, surprise: float, rounds) -> CloneFit:
+    """The hard round ``hard_fit`` kept: nothing to correct."""
+    return CloneFit(hard_fit.labels, hard_fit.state_symbol,
+                    {**hard_fit.info, "soft": "skipped", "surprise": surprise,
+                     "soft_rounds": rounds})
+
+
+def _spare_soft_round(seq, labels, state_symbol, conf, s, rng, n_ref, first: bool):
+    """A soft round of the cycles: twins merged, small states dropped (``soft.prune_every``),
+    ``soft.spare`` clones per symbol; the ``first`` stops early on exact readings.  ``labels``
+    may cover a prefix of the steps only.  Returns the round (its info starting with
+    ``states_in`` and ``twins_merged``) and the labelling with twins merged."""
+    head = seq.head(labels.size)  # a hard round cut short labels a prefix
+    labels, state_symbol, n_merged = merge_twins(head, labels, state_symbol, s.twin_merge)
+    keep = keep_states(head, labels, state_symbol,
+                       min_steps_of(s, head.T, n_ref) if s.prune_every else 0, s.twin)
+    soft = soft_round(seq, labels, state_symbol, conf, spare=s.spare, settings=s, rng=rng,
+                      keep=keep, exact_below=s.detect if first else None)
+    soft.info = {"states_in": int(state_symbol.size), "twins_merged": n_merged, **soft.info}
+    return soft, labels, state_symbol
 
 
 def _last_soft_round(seq, labels, state_symbol, conf, s, rng, n_ref):
