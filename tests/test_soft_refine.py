@@ -8,7 +8,7 @@ import pytest
 
 from topomap.core.refine import methods, rounds
 from topomap.core.refine.methods import CSCGRefinement, EMRefinement
-from topomap.core.refine import soft, soft_kernels
+from topomap.core.refine import soft_kernels
 from topomap.core.refine.sequence import SymbolSequence
 from topomap.core.refine.soft import (SoftSettings, co_successors, initial_confusion,
                                       misread_share, soft_round, successor_surprise,
@@ -150,18 +150,14 @@ def test_auto_keeps_hard_result_without_misreads():
 
 
 def test_a_hard_round_cut_short_finishes_as_the_whole_round():
-    """Misreads show after stage 1 (many transitions of the prefix go to a symbol their state
-    does not predict), so the first hard round stops there, with a labelling of the prefix only;
-    finishing it gives the whole round."""
+    """Misreads show after stage 2 (many transitions go to a symbol their state does not
+    predict), so the first hard round stops there; finishing it gives the whole round."""
     sym, u, lengths, _, _ = _ring_walk()
     seq = _seq(sym, u, lengths)
     est = EMRefinement()
     cut = est._first_hard_round(seq, RING, 0)
     assert cut.info["cut"] and cut.info["rounds_on_all_steps"] == 0
-    assert [stage[0] for stage in cut.info["stages"]] == [est.prefix]  # stage 1 alone
-    assert cut.labels.size == est.prefix < seq.T
-    head = seq.head(cut.labels.size)
-    assert successor_surprise(head, cut.labels) >= methods.CUT_SURPRISE * SoftSettings().detect
+    assert successor_surprise(seq, cut.labels) >= methods.CUT_SURPRISE * SoftSettings().detect
     whole = est._hard_round(seq, RING, 0)
     assert whole.info["rounds_on_all_steps"] >= 1
     resumed = cut.resume()
@@ -222,19 +218,6 @@ def test_soft_rounds_stop_once_the_reread_symbols_settle(monkeypatch, settle):
 def test_reread_share_counts_the_changed_symbols():
     assert rounds.reread_share([0, 1, 2, 2], [0, 1, 1, 0]) == 0.5
     assert rounds.reread_share([3], [3]) == 0.0
-
-
-def test_a_prefix_labelling_warm_starts_from_the_prefix_transitions():
-    """A hard round cut short labels the first steps only: the soft round's counts hold the
-    transitions inside that prefix, none reaching past it."""
-    seq = SymbolSequence.build(_HAND["sym"], np.zeros(6), _HAND["lengths"], 1, 3)
-    data = soft._episode_data(seq)
-    labels = _HAND["labels"][:5]  # steps 0-4; episodes 0 1 0 | 1 0 (1)
-    counts, clone_symbol = soft._warm_counts(data, labels, np.array([0, 1]),
-                                             np.array([True, True]), 3, 1, 0, None)
-    # transitions 0 -> 1, 1 -> 0 (first episode), 1 -> 0 (second); 0 -> step 5 lies past it
-    np.testing.assert_array_equal(counts[0], [[0, 1], [2, 0]])
-    np.testing.assert_array_equal(clone_symbol, [0, 1])
 
 
 # a hand-made walk: labels 0 1 0 | 1 0 1 (two episodes), action 0 throughout, symbols 0 1 0 | 0 0 2

@@ -81,8 +81,8 @@ class EMRefinement(CloneRefinement):
     symbol sequences), ``"split"`` only ``clone_factor`` x its split states + ``spare``.
 
     ``evidence`` (:data:`~topomap.core.refine.soft.EVIDENCE`): ``"auto"`` (default) corrects
-    misread symbols when the first soft round finds some (the first hard round stops after
-    stage 1 or 2 where its labelling already shows misreads: :meth:`_first_hard_round`), ``"soft"``
+    misread symbols when the first soft round finds some (the first hard round stops before
+    stage 3 where its labelling already shows misreads: :meth:`_first_hard_round`), ``"soft"``
     always, ``"hard"`` never;
     ``soft`` holds the soft rounds' settings (:class:`~topomap.core.refine.soft.SoftSettings`, or
     a mapping of some of its fields, e.g. ``{"conf_warmup": 10}``).
@@ -148,35 +148,30 @@ class EMRefinement(CloneRefinement):
         return _finish(self._stages(seq, split_state_symbol, random_state))
 
     def _first_hard_round(self, seq: SymbolSequence, split_state_symbol, random_state: int):
-        """:meth:`_hard_round`, cut short when a labelling shows misreads: its successor
-        surprise (:func:`~topomap.core.refine.soft.successor_surprise`) at least
-        ``CUT_SURPRISE`` x ``soft.detect`` (with ``evidence="soft"``: always) -- first stage 1's
-        labelling of the prefix, then stage 2's of all steps.  The growth and stage 3's rounds
-        would not settle on misread symbols; the soft rounds start from that labelling (of the
-        prefix only, after stage 1) instead, and the fit's ``resume`` finishes the round should
-        the first soft round find no misreads."""
+        """:meth:`_hard_round`, cut short before stage 3 when the labelling of all steps stage 2
+        gives already shows misreads: its successor surprise
+        (:func:`~topomap.core.refine.soft.successor_surprise`) at least ``CUT_SURPRISE`` x
+        ``soft.detect`` (with ``evidence="soft"``: always).  Stage 3's rounds would not settle
+        on misread symbols; the soft rounds start from that labelling instead, and the fit's
+        ``resume`` finishes the round should the first soft round find no misreads."""
         s = soft_settings(self.soft)
         stages = self._stages(seq, split_state_symbol, random_state)
-        for _ in range(2):
-            labels, state_symbol, info = next(stages)
-            surprise = successor_surprise(seq.head(labels.size), labels)
-            if self.evidence == "soft" or surprise >= CUT_SURPRISE * s.detect:
-                return CloneFit(labels, state_symbol,
-                                {**info, "rounds_on_all_steps": 0, "cut": True},
-                                resume=lambda: _finish(stages))
+        labels, state_symbol, info = next(stages)
+        surprise = successor_surprise(seq, labels)
+        if self.evidence == "soft" or surprise >= CUT_SURPRISE * s.detect:
+            return CloneFit(labels, state_symbol, {**info, "rounds_on_all_steps": 0, "cut": True},
+                            resume=lambda: _finish(stages))
         return _finish(stages)
 
     def _stages(self, seq: SymbolSequence, split_state_symbol, random_state: int):
-        """Stages 1 to 3 as a generator: it yields ``(labels, state_symbol, info)`` of stage 1's
-        labelling (of the prefix) and of stage 2's last (of all steps), then returns the round's
-        :class:`CloneFit` (:func:`_finish`)."""
+        """Stages 1 to 3 as a generator: it yields ``(labels, state_symbol, info)`` of stage 2's
+        last labelling, then returns the round's :class:`CloneFit` (:func:`_finish`)."""
         rng = np.random.default_rng(random_state)
         split_state_symbol = np.asarray(split_state_symbol)
         n_split = int(np.sum(split_state_symbol >= 0))
         n = min(max(self.prefix, self.prefix_visits * n_split), seq.T)
         labels, state_symbol, iters = self._first_round(seq.head(n), split_state_symbol, rng)
         stages = [(n, int(state_symbol.size), iters)]
-        yield labels, state_symbol, {"stages": list(stages)}
         while n < seq.T:  # growth: the prefix doubles, or takes all steps once settled
             _, split, _ = self._restructure(seq.head(n), labels, state_symbol)
             settled = len(stages) > 1 and stages[-1][1] == stages[-2][1]

@@ -104,9 +104,6 @@ class CloneRefinement(BaseEstimator):
            them would repeat that one);
         2. a last soft round without spare clones gives the map.
 
-        ``hard_fit`` may label a prefix of the steps only (a hard round cut short after its
-        first stage): the first soft round starts from the prefix's states and transitions.
-
         With ``evidence="auto"``, the hard round is kept without a soft round when its labelling
         predicts the next symbol of all but a ``soft.detect`` share of its transitions
         (:func:`~topomap.core.refine.soft.successor_surprise`: there is nothing to correct), and
@@ -117,7 +114,7 @@ class CloneRefinement(BaseEstimator):
         s = soft_settings(self.soft)
         if self.evidence == "soft":
             s = replace(s, detect=-1.0)
-        surprise = successor_surprise(seq.head(hard_fit.labels.size), hard_fit.labels)
+        surprise = successor_surprise(seq, hard_fit.labels)
         if surprise < s.detect:
             return _skipped(hard_fit, surprise, [])
         rng = np.random.default_rng(random_state)
@@ -139,7 +136,7 @@ class CloneRefinement(BaseEstimator):
             split_symbol = np.where(soft.state_symbol < seq.n_symbols, soft.state_symbol, -1)
             read = soft.sym
             hard = self._hard_round(replace(seq, sym=read), split_symbol, random_state)
-            settled = (hard.labels.size == labels.size and hard.n_states == state_symbol.size
+            settled = (hard.n_states == state_symbol.size
                        and same_partition(hard.labels, labels))
             labels, state_symbol = hard.labels, hard.state_symbol
             rounds[-1]["hard_states"] = int(state_symbol.size)
@@ -179,13 +176,12 @@ def _skipped(hard_fit: CloneFit, surprise: float, rounds) -> CloneFit:
 
 def _spare_soft_round(seq, labels, state_symbol, conf, s, rng, n_ref, first: bool):
     """A soft round of the cycles: twins merged, small states dropped (``soft.prune_every``),
-    ``soft.spare`` clones per symbol; the ``first`` stops early on exact readings.  ``labels``
-    may cover a prefix of the steps only.  Returns the round (its info starting with
-    ``states_in`` and ``twins_merged``) and the labelling with twins merged."""
-    head = seq.head(labels.size)  # a hard round cut short labels a prefix
-    labels, state_symbol, n_merged = merge_twins(head, labels, state_symbol, s.twin_merge)
-    keep = keep_states(head, labels, state_symbol,
-                       min_steps_of(s, head.T, n_ref) if s.prune_every else 0, s.twin)
+    ``soft.spare`` clones per symbol; the ``first`` stops early on exact readings.  Returns the
+    round (its info starting with ``states_in`` and ``twins_merged``) and the labelling with
+    twins merged."""
+    labels, state_symbol, n_merged = merge_twins(seq, labels, state_symbol, s.twin_merge)
+    keep = keep_states(seq, labels, state_symbol,
+                       min_steps_of(s, seq.T, n_ref) if s.prune_every else 0, s.twin)
     soft = soft_round(seq, labels, state_symbol, conf, spare=s.spare, settings=s, rng=rng,
                       keep=keep, exact_below=s.detect if first else None)
     soft.info = {"states_in": int(state_symbol.size), "twins_merged": n_merged, **soft.info}
@@ -195,9 +191,8 @@ def _spare_soft_round(seq, labels, state_symbol, conf, s, rng, n_ref, first: boo
 def _last_soft_round(seq, labels, state_symbol, conf, s, rng, n_ref):
     """The map: twins merged, states under ``soft.min_steps`` dropped, a soft round without spare
     clones; its info holds ``states_in``, the states kept."""
-    head = seq.head(labels.size)
-    labels, state_symbol, _ = merge_twins(head, labels, state_symbol, s.twin_merge)
-    keep = keep_states(head, labels, state_symbol, min_steps_of(s, head.T, n_ref), s.twin)
+    labels, state_symbol, _ = merge_twins(seq, labels, state_symbol, s.twin_merge)
+    keep = keep_states(seq, labels, state_symbol, min_steps_of(s, seq.T, n_ref), s.twin)
     soft = soft_round(seq, labels, state_symbol, conf, spare=0, settings=s, rng=rng, keep=keep)
     soft.info = {"states_in": int(keep.sum()), **soft.info}
     return soft

@@ -11,8 +11,8 @@ another symbol, which corrects the reading.
 This module holds the soft round (:func:`soft_round`: Baum-Welch with soft evidence, then
 Viterbi) and its pieces: the settings (:class:`SoftSettings`), the confusion matrix, the misread
 rate; merging twin states (:func:`merge_twins`) and choosing the states a round keeps
-(:func:`keep_states`) are :mod:`topomap.core.refine.soft_states`.  Soft EM cannot create structure and a hard refinement on misread symbols
-creates too much, so the two alternate; :mod:`topomap.core.refine.methods` sequences the hard and
+(:func:`keep_states`) are :mod:`topomap.core.refine.soft_states`.  Soft EM cannot create
+structure and a hard refinement on misread symbols creates too much, so the two alternate; :mod:`topomap.core.refine.methods` sequences the hard and
 soft rounds.  Kernels: :mod:`topomap.core.refine.soft_kernels`.
 """
 
@@ -230,7 +230,7 @@ def _warm_counts(data: SoftData, labels, state_symbol, keep, n_symbols: int, n_a
                                    np.repeat(np.arange(n_symbols, dtype=np.int64), spare)])
     S, A = clone_symbol.size, n_actions
     x = rename[labels]
-    t = np.flatnonzero(data.has_next[:labels.size - 1])
+    t = np.flatnonzero(data.has_next)
     ok = (x[t] >= 0) & (x[t + 1] >= 0)
     counts = np.zeros((A, S, S))
     np.add.at(counts, (data.u[t[ok]], x[t[ok]], x[t[ok] + 1]), 1.0)
@@ -267,8 +267,7 @@ def soft_round(seq, labels, state_symbol, conf=None, *, spare: int = 0,
     data = _episode_data(seq)
     counts, clone_symbol = _warm_counts(data, labels, state_symbol, keep, ns, seq.n_actions,
                                         spare, rng)
-    conf = (initial_confusion(seq.n_ids, ns, s.init_error,
-                              co_successors(seq.head(labels.size), labels))
+    conf = (initial_confusion(seq.n_ids, ns, s.init_error, co_successors(seq, labels))
             if conf is None else np.asarray(conf, float))
     em = _soft_em(seq, data, counts, clone_symbol, conf, s, learn_conf, exact_below)
     trans, emit, conf, N, monitor = em
