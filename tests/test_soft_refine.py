@@ -183,6 +183,43 @@ def test_exact_readings_after_a_cut_give_the_uncut_fit(monkeypatch, soft_surpris
     np.testing.assert_array_equal(cut.labels_, uncut.labels_)
     assert cut.info_ == uncut.info_
 
+@pytest.mark.parametrize("settle", [rounds.SETTLE_REREAD, 0.0])
+def test_soft_rounds_stop_once_the_reread_symbols_settle(monkeypatch, settle):
+    """On the ring with misreads, the first soft round reads every step as its place's symbol
+    (each misread corrected, nothing else) and the second reads the same symbols again: the hard
+    round on them would repeat the one before, so the rounds stop after one hard round.  With
+    the rule off (``SETTLE_REREAD = 0``) a second hard round runs and finds the same map."""
+    sym, u, lengths, place, _ = _ring_walk()
+    seq = _seq(sym, u, lengths)
+    reads, hard_rounds = [], []
+    soft_round_of, hard_round_of = rounds.soft_round, EMRefinement._hard_round
+
+    def recorded_soft(*args, **kwargs):
+        fit = soft_round_of(*args, **kwargs)
+        reads.append(fit.sym)
+        return fit
+
+    def counted_hard(self, *args):
+        hard_rounds.append(args[0].sym)
+        return hard_round_of(self, *args)
+
+    monkeypatch.setattr(rounds, "soft_round", recorded_soft)
+    monkeypatch.setattr(EMRefinement, "_hard_round", counted_hard)
+    monkeypatch.setattr(rounds, "SETTLE_REREAD", settle)
+    fit = EMRefinement().fit(seq, RING, 0)
+    np.testing.assert_array_equal(reads[0], RING[place])
+    np.testing.assert_array_equal(reads[1], RING[place])
+    assert [r["reread"] for r in fit.info_["soft_rounds"] if "reread" in r][0] == 0.0
+    assert len(hard_rounds) == (1 if settle > 0 else 2)
+    np.testing.assert_array_equal(hard_rounds[0], RING[place])
+    assert fit.n_states_ == RING.size and same_partition(fit.labels_, place)
+
+
+def test_reread_share_counts_the_changed_symbols():
+    assert rounds.reread_share([0, 1, 2, 2], [0, 1, 1, 0]) == 0.5
+    assert rounds.reread_share([3], [3]) == 0.0
+
+
 # a hand-made walk: labels 0 1 0 | 1 0 1 (two episodes), action 0 throughout, symbols 0 1 0 | 0 0 2
 # transitions inside the episodes: (state 0 -> 1), (1 -> 0), (1 -> 0), (0 -> 2)
 _HAND = dict(sym=[0, 1, 0, 0, 0, 2], labels=np.array([0, 1, 0, 1, 0, 1]), lengths=[3, 3])

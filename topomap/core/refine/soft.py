@@ -10,9 +10,9 @@ another symbol, which corrects the reading.
 
 This module holds the soft round (:func:`soft_round`: Baum-Welch with soft evidence, then
 Viterbi) and its pieces: the settings (:class:`SoftSettings`), the confusion matrix, the misread
-rate, merging twin states (:func:`merge_twins`) and choosing the states a round keeps
-(:func:`keep_states`).  Soft EM cannot create structure and a hard refinement on misread symbols
-creates too much, so the two alternate; :mod:`topomap.core.refine.methods` sequences the hard and
+rate; merging twin states (:func:`merge_twins`) and choosing the states a round keeps
+(:func:`keep_states`) are :mod:`topomap.core.refine.soft_states`.  Soft EM cannot create
+structure and a hard refinement on misread symbols creates too much, so the two alternate; :mod:`topomap.core.refine.methods` sequences the hard and
 soft rounds.  Kernels: :mod:`topomap.core.refine.soft_kernels`.
 """
 
@@ -29,7 +29,8 @@ from ..progress import report
 from .clones import compact_labels
 from .convergence import ConvergenceMonitor
 from .soft_kernels import (SoftData, SoftModel, SoftStats, soft_backward, soft_candidates,
-                           soft_forward, soft_offsets, soft_viterbi, twin_pairs)
+                           soft_forward, soft_offsets, soft_viterbi)
+from .soft_states import keep_states, merge_twins, min_steps_of, twin_overlap
 
 __all__ = ["SoftSettings", "soft_settings", "SoftFit", "EVIDENCE", "check_evidence", "soft_round",
            "misread_rate", "misread_share", "successor_surprise", "merge_twins", "keep_states",
@@ -344,96 +345,6 @@ def successor_surprise(seq, labels) -> float:
     top = np.zeros(int(key.max()) + 1)
     np.maximum.at(top, pairs // seq.n_ids, count)
     return float(1.0 - top.sum() / t.size)
-
-
-def twin_overlap(labels, state_symbol, u, has_next, n_actions: int, n_symbols: int):
-    """For every state, the largest overlap ``sum_k min(p_X(k), p_Y(k))`` of its predecessor
-    distribution (``k`` = previous state and action) with that of a state ``Y`` of another
-    K-means symbol.  Misreads of a place's view make a state reached exactly like the place's own
-    state (overlap near 1); in a world with deterministic moves two places never share a
-    predecessor key (overlap near 0).  GDS states get 0.  Returns ``(overlap, twin)``, ``twin``
-    the state ``Y`` (the lowest of equals; the first state of another symbol when none shares
-    a key, -1 for GDS states and where no state of another symbol exists).  Only states that
-    share a key are compared (:func:`topomap.core.refine.soft_kernels.twin_pairs`)."""
-    S, A = state_symbol.size, n_actions
-    t = np.flatnonzero(has_next)
-    code, count = np.unique(labels[t + 1] * (S * A) + labels[t] * A + u[t], return_counts=True)
-    dest, key = code // (S * A), code % (S * A)
-    share = count / np.maximum(np.bincount(dest, weights=count, minlength=S), 1.0)[dest]
-    order = np.lexsort((dest, key))
-    kptr = np.searchsorted(key[order], np.arange(S * A + 1))
-    symbol = np.where(state_symbol < n_symbols, state_symbol, -1).astype(np.int64)
-    out, twin = twin_pairs(kptr, dest[order], share[order], symbol, S * A)
-    plain = np.flatnonzero(symbol >= 0)
-    if plain.size:
-        other = plain[state_symbol[plain] != state_symbol[plain[0]]]
-        first = np.where(state_symbol[plain] != state_symbol[plain[0]], plain[0],
-                         other[0] if other.size else -1)
-        twin[plain] = np.where(twin[plain] < 0, first, twin[plain])
-    return out, twin
-
-
-def merge_twins(seq, labels, state_symbol, twin: float):
-    """Merge every state into its twin of another symbol (:func:`twin_overlap` at least
-    ``twin``), the smaller state into the larger: the steps of a place read as two symbols (its
-    view lies between two K-means clusters, or misreads started a chain) become one state, which
-    keeps the larger state's symbol.  Returns ``(labels, state_symbol, n_merged)``; unused
-    states are removed and states renumbered by first use."""
-    if twin >= 1.0:
-        return labels, state_symbol, 0
-    overlap, partner = twin_overlap(labels, state_symbol, seq.u, seq.masks()[1], seq.n_actions,
-                                    seq.n_symbols)
-    sizes = np.bincount(labels, minlength=state_symbol.size)
-    target = np.arange(state_symbol.size)
-    for x in np.argsort(sizes, kind="stable"):
-        y = partner[x]
-        if overlap[x] >= twin and y >= 0 and sizes[y] >= sizes[x] and target[y] != x:
-            target[x] = y
-    for _ in range(state_symbol.size):  # follow chains x -> y -> z
-        nxt = target[target]
-        if np.array_equal(nxt, target):
-            break
-        target = nxt
-    n_merged = int(np.sum(target != np.arange(state_symbol.size)))
-    labels, state_symbol, _ = compact_labels(target[labels], state_symbol)
-    return labels, state_symbol, n_merged
-
-
-def min_steps_of(settings: SoftSettings, n_steps: int, n_reference: int) -> float:
-    """The steps a state needs to be kept: ``settings.min_steps`` itself from 1 on, else that
-    fraction of the mean steps per state of ``n_reference`` states."""
-    m = settings.min_steps
-    return m if m >= 1 else int(np.ceil(m * n_steps / n_reference))
-
-
-def keep_states(seq, labels, state_symbol, min_steps: int, twin: float) -> np.ndarray:
-    """States to keep: GDS states, those with at least ``min_steps`` steps, and small ones that
-    look like a rarely visited place rather than the residue of misreads: no twin of another
-    symbol (:func:`twin_overlap` below ``twin``), reached mostly from kept-size states, and
-    the usual outcome of those arrivals (from its predecessor keys, at least half the
-    transitions lead to it: a misread is the unusual outcome of a move).  States below
-    ``min_steps / 5`` steps always go."""
-    sizes = np.bincount(labels, minlength=state_symbol.size)
-    big = sizes >= min_steps
-    keep = big | (state_symbol >= seq.n_symbols)
-    if twin < 1.0 and not keep.all():
-        has_next = seq.masks()[1]
-        overlap, _ = twin_overlap(labels, state_symbol, seq.u, has_next, seq.n_actions,
-                                  seq.n_symbols)
-        t = np.flatnonzero(has_next)
-        key = labels[t] * seq.n_actions + seq.u[t]
-        key_total = np.bincount(key, minlength=state_symbol.size * seq.n_actions)
-        S = state_symbol.size
-        into = np.bincount(labels[t + 1], minlength=S)
-        from_big = np.bincount(labels[t + 1], weights=big[labels[t]], minlength=S)
-        pairs = np.unique(labels[t + 1] * (S * seq.n_actions) + key)
-        reach = np.bincount(pairs // (S * seq.n_actions),
-                            weights=key_total[pairs % (S * seq.n_actions)], minlength=S)
-        share = into / np.maximum(reach, 1.0)
-        rare_place = ((overlap < twin) & (from_big >= 0.5 * into) & (share >= 0.5)
-                      & (sizes >= min_steps / 5))
-        keep |= rare_place
-    return keep
 
 
 EVIDENCE = ("auto", "soft", "hard")
