@@ -62,3 +62,27 @@ def test_many_clusters_give_scikit_learns_labels():
     _, first, inverse = np.unique(plain, return_index=True, return_inverse=True)
     rank = np.argsort(np.argsort(first))  # cluster -> rank of its first appearance
     assert np.array_equal(ours, rank[inverse])
+
+
+def pairs(n_pairs, dim, seed):
+    """``n_pairs`` pairs of rows, each pair 0.01 apart and far from the others: once a centre
+    is near every pair, the two rows of a pair drawn as candidates lower the sum of squared
+    distances by the same amount, an exact tie that only the rounding of the distances breaks."""
+    rng = np.random.default_rng(seed)
+    centres = rng.random((n_pairs, dim)) * 10
+    offset = rng.normal(0, 1, (n_pairs, dim))
+    offset *= 0.005 / np.linalg.norm(offset, axis=1, keepdims=True)
+    X = np.concatenate([centres + offset, centres - offset])
+    return X[rng.permutation(X.shape[0])]
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_ties_are_broken_as_scikit_learn_breaks_them(seed):
+    """Few rows are within reach of the candidates, but their distances are computed over at
+    least PRODUCT_ROWS rows: with fewer, OpenBLAS's small-matrix kernels round them otherwise and
+    ties fall the other way here."""
+    X = pairs(300, 64, seed)
+    X -= X.mean(axis=0)
+    theirs, _ = kmeans_plusplus(X, 450, random_state=np.random.RandomState(seed))
+    ours = PrunedPlusPlus()(X, 450, np.random.RandomState(seed))
+    assert np.array_equal(ours, theirs)
