@@ -32,7 +32,7 @@ How K-means runs (``method`` of :func:`cluster_observations`, ``MapLearner(phase
     on a seeded sample of that size), else ``"sample"``.  So every run of up to 20,000 steps
     whose rows do not repeat gets the exact full fit.
 
-All methods run with single-threaded BLAS (see :func:`_run`).  From ``MIN_CLUSTERS`` (200)
+All methods run with single-threaded BLAS (see :func:`_run`).  From ``MIN_CLUSTERS`` (100)
 clusters on, ``KMeans`` is seeded by :class:`~topomap.core.phase1.seeding.PrunedPlusPlus` and
 iterated by Elkan's algorithm: scikit-learn's own k-means++ and Lloyd iterations with the
 distances the triangle inequality rules out left uncomputed.

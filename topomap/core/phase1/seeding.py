@@ -27,7 +27,7 @@ from sklearn.utils.extmath import row_norms
 __all__ = ["PrunedPlusPlus", "MIN_CLUSTERS", "PRODUCT_ROWS"]
 
 #: from this many clusters on, phase 1 seeds K-means with :class:`PrunedPlusPlus`
-MIN_CLUSTERS = 200
+MIN_CLUSTERS = 100
 #: the fewest rows a candidates' distance product is computed over: OpenBLAS computes products
 #: of a few rows with its small-matrix kernels, whose entries round otherwise than the product of
 #: all rows scikit-learn computes (seen below about 200 rows at 8 candidates x 147 features)
