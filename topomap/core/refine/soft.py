@@ -211,10 +211,9 @@ def _log(model: SoftModel) -> SoftModel:
                          model.cptr, model.cidx)
 
 
-def _normalise_trans(counts, pseudo):
-    S = counts.shape[1]
-    z = counts.sum(axis=2, keepdims=True) + pseudo * S
-    return (counts + pseudo) / z
+def _normalise_trans(counts, pseudo):  # in place (no new (A, S, S) array): counts is not reused
+    z = counts.sum(axis=2, keepdims=True) + pseudo * counts.shape[1]
+    return np.divide(np.add(counts, pseudo, out=counts), z, out=counts)
 
 
 def _warm_counts(data: SoftData, labels, state_symbol, keep, n_symbols: int, n_actions: int,
