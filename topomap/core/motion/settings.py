@@ -52,8 +52,11 @@ class MotionSettings:
 
     ``n_init``: the k-means++ starts of the view clusters (scikit-learn's ``KMeans`` on every
     row, as :func:`topomap.core.position_scores.kmeans_view_scores`).  A map that falls back to
-    them gives every state one variance, pooled over the states and the features: its Viterbi
-    decoding is then the nearest centre, smoothed by the map's transitions.
+    them gives every state one variance, pooled over the states and the features, times
+    ``fallback_variance``: its Viterbi decoding then ranks states by the distance of a view to
+    their means, as the nearest centre does, and at 0.01 (a tenth of a cluster's spread) that
+    ranking outweighs the transitions but where two centres are all but equally near (at 1 the
+    transitions move steps off their nearest centre, up to 2 % farther off on a held-out walk).
     """
 
     mode: str = "auto"
@@ -68,6 +71,7 @@ class MotionSettings:
     far: float = 2.0
     n_init: int = 4
     folds: int = 2
+    fallback_variance: float = 0.01
 
 
 def motion_settings(value) -> MotionSettings:
@@ -106,8 +110,10 @@ def motion_settings(value) -> MotionSettings:
             and 0 <= value.holdout < 1):
         raise ParameterError("motion.holdout", f"must be a number in [0, 1), "
                                                f"got {value.holdout!r}")
-    if not _positive(value.margin) or value.margin > 1:
-        raise ParameterError("motion.margin", f"must be a number in (0, 1], got {value.margin!r}")
+    for name in ("margin", "fallback_variance"):
+        v = getattr(value, name)
+        if not _positive(v) or v > 1:
+            raise ParameterError(f"motion.{name}", f"must be a number in (0, 1], got {v!r}")
     if value.pull > 1:
         raise ParameterError("motion.pull", f"must be at most 1, got {value.pull!r}")
     return value
