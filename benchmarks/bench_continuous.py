@@ -30,8 +30,8 @@ own Gaussian, decoded by the map), ``merged_runs`` (runs of one symbol merged in
 + EM on the runs, each row labelled with its run's state), ``fallback`` (the map the default
 falls back to: the view clusters, every state one pooled variance), ``folds3`` (the default
 with three held-out quarters, each recorded in its row's ``motion``), ``unscaled`` (the default
-with the fallback's pooled variance not scaled down, ``fallback_variance=1``: the version
-before it was). ``views`` is seeded with
+with the fallback's pooled variance not scaled down and no least gain of the check,
+``fallback_variance=1, min_gain=0``: the version before both). ``views`` is seeded with
 ``random_state=0``. Scores
 (:mod:`topomap.core.position_scores`): median and 90th-percentile error, wrong-region share;
 states; fit seconds; the peak RSS of the benchmark process so far (``rss_mib``: a bound on the
@@ -176,7 +176,7 @@ def route(name, train, held, ns, S, regions, seed):
         motion = {"shipped": MotionSettings(), "unchecked": MotionSettings(holdout=0),
                   "one_gate": MotionSettings(gates=(3.0,)),
                   "folds3": MotionSettings(folds=3),
-                  "unscaled": MotionSettings(fallback_variance=1.0)}[name]
+                  "unscaled": MotionSettings(fallback_variance=1.0, min_gain=0.0)}[name]
         return _learner_row(*_fit(train, refine="em", motion=motion, **kw), train, held, regions)
     start = time.perf_counter()
     if name == "views":

@@ -290,6 +290,10 @@ def test_the_check_counts_steps_placed_far_off_not_the_median_distance():
     assert keeps_places({"places": 0.22, "views": 0.25}, margin=1.0)
     assert not keeps_places({"places": 0.25, "views": 0.25}, margin=1.0)  # alike: the views
     assert not keeps_places({"places": 0.0, "views": 0.0}, margin=1.0)    # none: in doubt
+    # 0.010 against 0.021: at most 0.9 times, but 0.011 fewer, under a least gain of 0.02
+    assert keeps_places({"places": 0.010, "views": 0.021}, margin=0.9)
+    assert not keeps_places({"places": 0.010, "views": 0.021}, margin=0.9, min_gain=0.02)
+    assert keeps_places({"places": 0.10, "views": 0.125}, margin=0.9, min_gain=0.02)  # 0.025
 
 
 def _same_partition(a, b) -> bool:
@@ -338,6 +342,7 @@ def test_discrete_worlds_keep_the_map_of_the_split():
     ({"folds": 1.5}, r"^motion\.folds must be a positive integer"),
     ({"fallback_variance": 2.0}, r"^motion\.fallback_variance must be a number in \(0, 1\]"),
     ({"fallback_variance": 0}, r"^motion\.fallback_variance must be a number in \(0, 1\]"),
+    ({"min_gain": -0.1}, r"^motion\.min_gain must be a number in \[0, 1\)"),
 ])
 def test_bad_motion_is_named(motion, message):
     Z, u, _ = _alike_halves(500)
