@@ -12,8 +12,9 @@ Cases (compass-aligned range beams plus Gaussian noise, compass actions; 10 Hz u
 * ``two_rooms``, ``four_rooms``, ``corridor``, ``open`` (the arena's layouts) and ``alcoves``
   (``benchmarks/floorplans/alcoves.yaml``: three identical alcoves off a corridor) -- 18,000
   training steps of ratinabox's random motion, a held-out walk of 6,000 steps of another seed,
-  ``n_clusters=32, n_states=64``; ``l_rooms`` and ``pillars`` (``benchmarks/floorplans/``)
-  likewise, kept out of the default cases: floor plans no setting was chosen on;
+  ``n_clusters=32, n_states=64``; ``l_rooms``, ``pillars``, ``three_rooms``, ``grid6``,
+  ``ring`` and ``sizes`` (``benchmarks/floorplans/``) likewise, kept out of the default cases:
+  floor plans no setting was chosen on;
 * ``tanni`` -- Tanni et al.'s rat path: its first 75 % to learn, the rest held out,
   ``n_clusters=50, n_states=100``.
 
@@ -28,7 +29,9 @@ call: ``MapLearner(n_clusters, n_states, refine="em", random_state=0)``, motion=
 own Gaussian, decoded by the map), ``merged_runs`` (runs of one symbol merged into one step, split
 + EM on the runs, each row labelled with its run's state), ``fallback`` (the map the default
 falls back to: the view clusters, every state one pooled variance), ``folds3`` (the default
-with three held-out quarters, each recorded in its row's ``motion``). ``views`` is seeded with
+with three held-out quarters, each recorded in its row's ``motion``), ``unscaled`` (the default
+with the fallback's pooled variance not scaled down and no least gain of the check,
+``fallback_variance=1, min_gain=0``: the version before both). ``views`` is seeded with
 ``random_state=0``. Scores
 (:mod:`topomap.core.position_scores`): median and 90th-percentile error, wrong-region share;
 states; fit seconds; the peak RSS of the benchmark process so far (``rss_mib``: a bound on the
@@ -57,12 +60,13 @@ from topomap.core.position_scores import (ceiling_scores, kmeans_view_scores, ma
 
 HERE = Path(__file__).resolve().parent
 LAYOUTS = {name: str(HERE / "floorplans" / f"{name}.yaml")
-           for name in ("alcoves", "l_rooms", "pillars")}
+           for name in ("alcoves", "l_rooms", "pillars", "three_rooms", "grid6", "ring",
+                        "sizes")}
 ROOMS = ("two_rooms", "four_rooms", "corridor", "open", "alcoves")
 #: floor plans kept out of the main table: layouts the default was not developed on
-UNSEEN = ("l_rooms", "pillars")
+UNSEEN = ("l_rooms", "pillars", "three_rooms", "grid6", "ring", "sizes")
 ROUTES = ("split", "em", "views", "ceiling", "positions", "shipped", "unchecked", "one_gate",
-          "no_odometry", "merged_runs", "fallback", "folds3")
+          "no_odometry", "merged_runs", "fallback", "folds3", "unscaled")
 #: the main sensor: 12 compass beams, max range 3 m, noise 0.02; random motion 0.16 m/s, 10 Hz
 BASE = {"beams": 12, "max_range": 3.0, "sigma": 0.02, "speed": 0.16, "dt": 0.1,
         "actions": "compass", "frame": "compass", "sensor": "range"}
@@ -70,7 +74,7 @@ BASE = {"beams": 12, "max_range": 3.0, "sigma": 0.02, "speed": 0.16, "dt": 0.1,
 SETTINGS = [{"beams": 8, "max_range": 2.0}, {"beams": 16, "sigma": 0.03}, {"sigma": 0.01},
             {"speed": 0.08}, {"speed": 0.12, "max_range": 2.0}, {"dt": 0.05, "beams": 8},
             {"actions": "turns"}, {"frame": "egocentric"}, {"sensor": "bvc"}, {"sigma": 0.05},
-            {"dt": 0.025}]
+            {"dt": 0.025}, {"dt": 0.05}, {"dt": 0.02}]
 
 
 def setting_name(s: dict) -> str:
@@ -168,10 +172,11 @@ def route(name, train, held, ns, S, regions, seed):
     if name in ("split", "em"):
         return _learner_row(*_fit(train, motion="discrete", refine="em" if name == "em" else None,
                                   **kw), train, held, regions)
-    if name in ("shipped", "unchecked", "one_gate", "folds3"):
+    if name in ("shipped", "unchecked", "one_gate", "folds3", "unscaled"):
         motion = {"shipped": MotionSettings(), "unchecked": MotionSettings(holdout=0),
                   "one_gate": MotionSettings(gates=(3.0,)),
-                  "folds3": MotionSettings(folds=3)}[name]
+                  "folds3": MotionSettings(folds=3),
+                  "unscaled": MotionSettings(fallback_variance=1.0, min_gain=0.0)}[name]
         return _learner_row(*_fit(train, refine="em", motion=motion, **kw), train, held, regions)
     start = time.perf_counter()
     if name == "views":
@@ -200,7 +205,8 @@ def route(name, train, held, ns, S, regions, seed):
 
         labels = view_clusters(train.observations, S, MotionSettings().n_init, 0)
         m = pooled_variances(_own_gaussians(train.observations, train.actions, labels,
-                                            train.n_actions), train.observations, labels, 1e-3)
+                                            train.n_actions), train.observations, labels, 1e-3,
+                             MotionSettings().fallback_variance)
         scores = map_scores(m, labels, train, held, regions)
     elif name == "merged_runs":
         m, labels = merged_runs(train, ns, S)

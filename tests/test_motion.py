@@ -211,9 +211,13 @@ def test_the_check_falls_back_to_the_views_where_they_place_steps_alone():
 
     kmeans = KMeans(32, n_init=4, random_state=0).fit(Z)  # the yardstick's own clusters
     assert _same_partition(learner.labels_, kmeans.labels_)
-    # each state's Gaussian has the one variance pooled over the states and the features
+    # each state's Gaussian has the one variance pooled over the states and the features,
+    # a hundredth of the mean squared distance of a view to its cluster's mean
     cov = learner.map_.covariances
     assert np.all(cov == cov[0, 0])
+    m = learner.map_
+    spread = np.mean((Z - m.means[learner.labels_]) ** 2)
+    np.testing.assert_allclose(cov[0, 0], 0.01 * (spread + learner.reg_covar))
 
 
 def test_view_clusters_are_numbered_by_first_appearance():
@@ -246,6 +250,31 @@ def test_pooled_variances_rank_a_view_by_its_distance_to_each_state_mean():
         assert m.predict(np.array([[3.0]]), np.zeros(1, dtype=np.int64))[0] == 1
 
 
+def test_a_scaled_pooled_variance_keeps_a_step_at_its_nearest_centre():
+    from topomap.core.map.model import TopologicalMap
+    from topomap.core.motion.learn import pooled_variances
+
+    # 100 views -0.1 / 0.1 (state 0), then 100 views 0.9 / 1.1 (state 1): the pooled variance is
+    # 0.01, and state 1 was never left for state 0 (that transition: 1e-6 / 2 after smoothing,
+    # a cost of log(2e6) = 14.5 nats)
+    X = np.r_[np.tile([-0.1, 0.1], 50), np.tile([0.9, 1.1], 50)][:, None]
+    labels = np.repeat([0, 1], 100)
+    u = np.zeros(200, dtype=np.int64)
+    m = TopologicalMap.from_labels(X, u, labels, state_symbol=np.arange(2),
+                                   state_gds=np.full(2, -1), state_parent=np.full(2, -1),
+                                   n_actions=1, reg_covar=0.0)
+    walk = np.array([[1.0], [1.0], [1.0], [0.45]])  # the last view is nearer state 0's mean
+    # at the variance 0.01 it gains (0.55^2 - 0.45^2) / (2 * 0.01) = 5 nats in state 0, less than
+    # the transition costs: the decoding keeps it in state 1
+    plain = pooled_variances(m, X, labels, reg_covar=0.0)
+    np.testing.assert_allclose(plain.covariances, [[0.01], [0.01]])
+    assert plain.predict(walk, u[:4]).tolist() == [1, 1, 1, 1]
+    # at a hundredth of it, 500 nats: the nearest centre wins
+    sharp = pooled_variances(m, X, labels, reg_covar=0.0, scale=0.01)
+    np.testing.assert_allclose(sharp.covariances, [[1e-4], [1e-4]])
+    assert sharp.predict(walk, u[:4]).tolist() == [1, 1, 1, 0]
+
+
 def test_the_check_counts_steps_placed_far_off_not_the_median_distance():
     from topomap.core.motion.check import frame_error, keeps_places, misplaced_share
 
@@ -261,6 +290,10 @@ def test_the_check_counts_steps_placed_far_off_not_the_median_distance():
     assert keeps_places({"places": 0.22, "views": 0.25}, margin=1.0)
     assert not keeps_places({"places": 0.25, "views": 0.25}, margin=1.0)  # alike: the views
     assert not keeps_places({"places": 0.0, "views": 0.0}, margin=1.0)    # none: in doubt
+    # 0.010 against 0.021: at most 0.9 times, but 0.011 fewer, under a least gain of 0.02
+    assert keeps_places({"places": 0.010, "views": 0.021}, margin=0.9)
+    assert not keeps_places({"places": 0.010, "views": 0.021}, margin=0.9, min_gain=0.02)
+    assert keeps_places({"places": 0.10, "views": 0.125}, margin=0.9, min_gain=0.02)  # 0.025
 
 
 def _same_partition(a, b) -> bool:
@@ -307,6 +340,9 @@ def test_discrete_worlds_keep_the_map_of_the_split():
     ({"far": -1.0}, r"^motion\.far must be a positive number"),
     ({"n_init": 0}, r"^motion\.n_init must be a positive integer"),
     ({"folds": 1.5}, r"^motion\.folds must be a positive integer"),
+    ({"fallback_variance": 2.0}, r"^motion\.fallback_variance must be a number in \(0, 1\]"),
+    ({"fallback_variance": 0}, r"^motion\.fallback_variance must be a number in \(0, 1\]"),
+    ({"min_gain": -0.1}, r"^motion\.min_gain must be a number in \[0, 1\)"),
 ])
 def test_bad_motion_is_named(motion, message):
     Z, u, _ = _alike_halves(500)

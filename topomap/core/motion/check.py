@@ -17,9 +17,10 @@ goes where its start had not been, the filter makes new copies there, whose posi
 map was learned on (a fold where no step joined one gives no reference).
 One held-out part is one draw of where the log happens to end; ``settings.folds`` parts are held
 out one after another from the end (each learned from the steps before it), and the places are
-kept only when their mean share over the folds is below the view clusters' and at most
-``settings.margin`` times it; in doubt -- the two alike, neither misplacing any, or the
-carried-on filter lost and no reference for either -- the view clusters stay.  The
+kept only when their mean share over the folds is below the view clusters', at most
+``settings.margin`` times it and at least ``settings.min_gain`` below it; in doubt -- the two
+alike, neither misplacing more than a few steps, or the carried-on filter lost and no reference
+for either -- the view clusters stay.  The
 median distance of each (:func:`frame_error`) is recorded beside: it weighs the many steps both
 maps place within a cell, and fell back on every alcove layout where the places were better.
 """
@@ -65,11 +66,14 @@ def misplaced_share(placed, frame, far: float) -> float:
     return float(np.mean(np.linalg.norm(placed - frame, axis=1) > far))
 
 
-def keeps_places(misplaced: dict, margin: float) -> bool:
-    """Whether the places' misplaced share is below the view clusters' and at most ``margin``
-    times it (both none misplaced: in doubt, no)."""
+def keeps_places(misplaced: dict, margin: float, min_gain: float = 0.0) -> bool:
+    """Whether the places' misplaced share is below the view clusters', at most ``margin``
+    times it, and at least ``min_gain`` below it (both none misplaced: in doubt, no; a few
+    held-out steps either way, too: the held-out steps come in runs of one view, and a share
+    of a hundredth is a handful of runs)."""
     return misplaced["places"] < misplaced["views"] and (
-        misplaced["places"] <= margin * misplaced["views"])
+        misplaced["places"] <= margin * misplaced["views"]) and (
+        misplaced["views"] - misplaced["places"] >= min_gain)
 
 
 def _state_means(labels, frame) -> np.ndarray:
@@ -131,6 +135,6 @@ def choose_places(settings: MotionSettings, X, Z, u, lengths, n_states: int, n_a
                                   check="no held-out part with odometry and a reference")
     misplaced = {name: round(float(np.mean([f["misplaced"][name] for f in folds])), 4)
                  for name in ("places", "views")}
-    chosen = "places" if keeps_places(misplaced, settings.margin) else "views"
+    chosen = "places" if keeps_places(misplaced, settings.margin, settings.min_gain) else "views"
     info.update(chosen=chosen, check=dict(folds[0], folds=folds, mean_misplaced=misplaced))
     return (whole.places if chosen == "places" else whole.views), info

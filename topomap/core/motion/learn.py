@@ -23,13 +23,16 @@ from .settings import MotionSettings, is_continuous
 __all__ = ["fit_places", "pooled_variances"]
 
 
-def pooled_variances(tmap: TopologicalMap, X, labels, reg_covar: float) -> TopologicalMap:
-    """``tmap`` with one variance for every state and feature: the mean squared distance of the
-    rows of ``X`` to their state's mean (``labels``), plus ``reg_covar`` -- diagonal or full as
-    ``tmap``'s covariances.  Every state's Gaussian then ranks a view by its distance to the
-    state's mean alone, as the nearest centre does."""
+def pooled_variances(tmap: TopologicalMap, X, labels, reg_covar: float,
+                     scale: float = 1.0) -> TopologicalMap:
+    """``tmap`` with one variance for every state and feature: ``scale`` times the mean squared
+    distance of the rows of ``X`` to their state's mean (``labels``) plus ``reg_covar`` --
+    diagonal or full as ``tmap``'s covariances.  Every state's Gaussian then ranks a view by its
+    distance to the state's mean alone, as the nearest centre does; a ``scale`` below 1 makes
+    that ranking outweigh the transitions in a decoding, which then moves a step off its nearest
+    centre only where two centres are all but equally near."""
     X = np.asarray(X, dtype=np.float64)
-    var = float(np.mean((X - tmap.means[labels]) ** 2)) + float(reg_covar)
+    var = float(scale) * (float(np.mean((X - tmap.means[labels]) ** 2)) + float(reg_covar))
     S, D = tmap.means.shape
     cov = np.full((S, D), var) if tmap.covariance_type == "diag" else \
         np.broadcast_to(var * np.eye(D), (S, D, D)).copy()
@@ -53,7 +56,8 @@ def fit_places(learner, data, settings: MotionSettings, metric) -> bool:
             X, u, labels, lengths=lengths, state_symbol=np.arange(S), state_gds=np.full(S, -1),
             state_parent=np.full(S, -1), n_actions=data.n_actions,
             covariance_type=learner.covariance_type, reg_covar=learner.reg_covar, **fields)
-        return pooled_variances(m, X, labels, learner.reg_covar) if pooled else m
+        return pooled_variances(m, X, labels, learner.reg_covar,
+                                settings.fallback_variance) if pooled else m
 
     labels, info = choose_places(settings, data.X, Z, data.u, data.lengths,
                                  learner.map_split_.n_states, data.n_actions, build,

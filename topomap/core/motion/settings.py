@@ -47,13 +47,18 @@ class MotionSettings:
     before them).  ``folds`` such parts are held out, one after another from
     the end (the second learns from the steps before the last two, and decodes the first of
     them), and the places are kept only when their mean misplaced share over the folds is below
-    the view clusters' and at most ``margin`` times it.  Else the map's states are the view
-    clusters.  ``holdout=0`` (or a held-out part under 100 steps) keeps the places unchecked.
+    the view clusters', at most ``margin`` times it and at least ``min_gain`` below it (two
+    shares of a hundredth or so are a handful of runs of one view either way).  Else the map's
+    states are the view clusters.  ``holdout=0`` (or a held-out part under 100 steps) keeps the
+    places unchecked.
 
     ``n_init``: the k-means++ starts of the view clusters (scikit-learn's ``KMeans`` on every
     row, as :func:`topomap.core.position_scores.kmeans_view_scores`).  A map that falls back to
-    them gives every state one variance, pooled over the states and the features: its Viterbi
-    decoding is then the nearest centre, smoothed by the map's transitions.
+    them gives every state one variance, pooled over the states and the features, times
+    ``fallback_variance``: its Viterbi decoding then ranks states by the distance of a view to
+    their means, as the nearest centre does, and at 0.01 (a tenth of a cluster's spread) that
+    ranking outweighs the transitions but where two centres are all but equally near (at 1 the
+    transitions move steps off their nearest centre, up to 2 % farther off on a held-out walk).
     """
 
     mode: str = "auto"
@@ -68,6 +73,8 @@ class MotionSettings:
     far: float = 2.0
     n_init: int = 4
     folds: int = 2
+    fallback_variance: float = 0.01
+    min_gain: float = 0.02
 
 
 def motion_settings(value) -> MotionSettings:
@@ -102,12 +109,14 @@ def motion_settings(value) -> MotionSettings:
         if not _positive(getattr(value, name)):
             raise ParameterError(f"motion.{name}", f"must be a positive number, "
                                                    f"got {getattr(value, name)!r}")
-    if not (isinstance(value.holdout, numbers.Real) and not isinstance(value.holdout, bool)
-            and 0 <= value.holdout < 1):
-        raise ParameterError("motion.holdout", f"must be a number in [0, 1), "
-                                               f"got {value.holdout!r}")
-    if not _positive(value.margin) or value.margin > 1:
-        raise ParameterError("motion.margin", f"must be a number in (0, 1], got {value.margin!r}")
+    for name in ("holdout", "min_gain"):
+        v = getattr(value, name)
+        if not (isinstance(v, numbers.Real) and not isinstance(v, bool) and 0 <= v < 1):
+            raise ParameterError(f"motion.{name}", f"must be a number in [0, 1), got {v!r}")
+    for name in ("margin", "fallback_variance"):
+        v = getattr(value, name)
+        if not _positive(v) or v > 1:
+            raise ParameterError(f"motion.{name}", f"must be a number in (0, 1], got {v!r}")
     if value.pull > 1:
         raise ParameterError("motion.pull", f"must be at most 1, got {value.pull!r}")
     return value
