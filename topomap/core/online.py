@@ -41,10 +41,12 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from sklearn.metrics.pairwise import euclidean_distances
 
+from .data.trajectory import check_fit_data
 from .refine.clones import decode, make_layout
 from .stats import majority_match
 
-__all__ = ["StepRecord", "Window", "Codebook", "OnlineState", "decode_symbols", "lengths_of"]
+__all__ = ["StepRecord", "Window", "Codebook", "OnlineState", "decode_symbols", "lengths_of",
+           "warm_labelling", "wider_pass"]
 
 #: steps before a chunk decoded with it, so a chunk's first states are not guessed blind
 CONTEXT = 16
@@ -326,9 +328,9 @@ class OnlineState:
         self.pass_first, self.pass_steps = first, self.n_steps
         self.n_passes += 1
 
-    def decode_chunk(self, m, n: int):
-        """The map ``m`` with the last ``n`` steps decoded (after up to :data:`CONTEXT` steps
-        before them) and their counts added to its tables."""
+    def _decode_last(self, m, n: int) -> int:
+        """Label the last ``n`` steps with the states of ``m`` (decoded after up to
+        :data:`CONTEXT` steps before them); returns the first step decoded."""
         rec, total = self.record, self.n_steps
         lo = max(self.pass_first, total - n - CONTEXT)
         sl = slice(lo, total)
@@ -336,9 +338,27 @@ class OnlineState:
                               rec.start[sl].astype(bool), self.state_id, m.transition_counts,
                               self.n_ids)
         rec.labels[total - n:] = path[-n:]
+        return lo
+
+    def decode_chunk(self, m, n: int):
+        """The map ``m`` with the last ``n`` steps decoded (after up to :data:`CONTEXT` steps
+        before them) and their counts added to its tables."""
+        total = self.n_steps
+        lo = self._decode_last(m, n)
         self.last_work = {"decoded": int(total - lo), "pass": 0, "relabelled": 0}
         j = max(total - n - 1, self.pass_first)  # the transition into the chunk counts too
+        rec = self.record
         return add_counts(m, rec.labels[j:], rec.act[j:], rec.start[j:], total - j - n)
+
+    def warm_labels(self, m, n: int, first: int):
+        """The labels a pass on the window from step ``first`` starts EM from: the states of
+        the map ``m`` its steps hold, the call's ``n`` new steps decoded with ``m`` first
+        (-1 where ``m`` cannot label a step); None while the window holds every step seen
+        (its pass runs K-means again, so the symbols change) or before the first map."""
+        if m is None or self.state_id is None or first == 0:
+            return None
+        self._decode_last(m, n)
+        return self.record.labels[first:].astype(np.int64)
 
     def summary(self) -> dict:
         """``online_``: steps seen, calls, wider passes, the steps the last call's kernels
@@ -349,6 +369,36 @@ class OnlineState:
                 "memory": {"per_step": self.record.nbytes, "window": self.window.nbytes,
                            "codebook": 0 if self.codebook is None
                            else int(self.codebook.means.nbytes)}}
+
+
+def wider_pass(learner, state: OnlineState, X_call) -> None:
+    """A wider pass of ``learner`` (a :class:`~topomap.MapLearner`): learn the map from the
+    window (its fit with the codebook's symbols, or with K-means while the window holds every
+    step seen; EM started from the last map's states once steps have left the window) and bind
+    ``state`` to it.  ``X_call``: the observations of the call."""
+    Xw, uw, gw, sw, first = state.window.arrays()
+    plain = gw < 0
+    symbols, present = state.window_symbols(first, plain)
+    warm = state.warm_labels(getattr(learner, "map_", None), X_call.shape[0], first)
+    learner._fit(check_fit_data(Xw, uw, gw, lengths_of(sw), state.n_actions, state.action_names,
+                                state.gds_names), symbols, motion=False, warm=warm)
+    if symbols is None:  # phase 1's K-means symbols of every step seen become the codebook
+        state.learn_codebook(X_call, Xw, plain, learner.labels_phase1_[plain],
+                             learner.n_clusters_, first)
+    state.after_pass(learner.map_, learner.labels_, gw, first, present)
+    del learner.labels_phase1_, learner.labels_split_  # the window's: labels_ covers every step
+
+
+def warm_labelling(old, sym):
+    """``(labels, state_symbol)`` a warm-started refinement starts from, given the last map's
+    state ``old`` of every step (-1: none) and the step's symbol id ``sym``: one state for every
+    distinct ``(old state, symbol)`` pair, so every state emits one symbol, and the steps the
+    last map could not label form one state per symbol."""
+    old = np.asarray(old, dtype=np.int64)
+    sym = np.asarray(sym, dtype=np.int64)
+    n_ids = int(sym.max()) + 1
+    pairs, labels = np.unique((old + 1) * n_ids + sym, return_inverse=True)
+    return labels.ravel().astype(np.int64), pairs % n_ids
 
 
 def add_counts(m, labels, actions, starts, n_old: int):

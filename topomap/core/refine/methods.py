@@ -143,11 +143,14 @@ class EMRefinement(CloneRefinement):
                 f"prefix_visits={self.prefix_visits}, max_rounds={self.max_rounds}, "
                 f"guard={bool(self.guard)}, {changed}settings=EMSettings({rounds}))")
 
-    def _hard_round(self, seq: SymbolSequence, split_state_symbol, random_state: int) -> CloneFit:
-        """The refinement taking every step's symbol as exact (stages 1 to 3 above)."""
-        return _finish(self._stages(seq, split_state_symbol, random_state))
+    def _hard_round(self, seq: SymbolSequence, split_state_symbol, random_state: int,
+                    init=None) -> CloneFit:
+        """The refinement taking every step's symbol as exact (stages 1 to 3 above; from
+        ``init`` instead of stages 1 and 2 when given)."""
+        return _finish(self._stages(seq, split_state_symbol, random_state, init))
 
-    def _first_hard_round(self, seq: SymbolSequence, split_state_symbol, random_state: int):
+    def _first_hard_round(self, seq: SymbolSequence, split_state_symbol, random_state: int,
+                          init=None):
         """:meth:`_hard_round`, cut short before stage 3 when the labelling of all steps stage 2
         gives already shows misreads: its successor surprise
         (:func:`~topomap.core.refine.soft.successor_surprise`) at least ``CUT_SURPRISE`` x
@@ -155,7 +158,7 @@ class EMRefinement(CloneRefinement):
         on misread symbols; the soft rounds start from that labelling instead, and the fit's
         ``resume`` finishes the round should the first soft round find no misreads."""
         s = soft_settings(self.soft)
-        stages = self._stages(seq, split_state_symbol, random_state)
+        stages = self._stages(seq, split_state_symbol, random_state, init)
         labels, state_symbol, info = next(stages)
         surprise = successor_surprise(seq, labels)
         if self.evidence == "soft" or surprise >= CUT_SURPRISE * s.detect:
@@ -163,10 +166,20 @@ class EMRefinement(CloneRefinement):
                             resume=lambda: _finish(stages))
         return _finish(stages)
 
-    def _stages(self, seq: SymbolSequence, split_state_symbol, random_state: int):
+    def _stages(self, seq: SymbolSequence, split_state_symbol, random_state: int, init=None):
         """Stages 1 to 3 as a generator: it yields ``(labels, state_symbol, info)`` of stage 2's
-        last labelling, then returns the round's :class:`CloneFit` (:func:`_finish`)."""
+        last labelling, then returns the round's :class:`CloneFit` (:func:`_finish`).  With
+        ``init``, a labelling ``(labels, state_symbol)`` of all steps, one EM round on all steps
+        started from it (:meth:`_warm_round`) replaces stages 1 and 2."""
         rng = np.random.default_rng(random_state)
+        if init is not None:
+            labels, state_symbol, iters = self._warm_round(seq, *init, rng)
+            stages = [(seq.T, int(state_symbol.size), iters)]
+            yield labels, state_symbol, {"stages": list(stages), "warm_start": True}
+            (labels, state_symbol), rounds = self._rounds_on_all_steps(seq, labels, state_symbol,
+                                                                       rng, stages)
+            return CloneFit(labels, state_symbol, {"stages": stages, "warm_start": True,
+                                                   "rounds_on_all_steps": rounds})
         split_state_symbol = np.asarray(split_state_symbol)
         n_split = int(np.sum(split_state_symbol >= 0))
         n = min(max(self.prefix, self.prefix_visits * n_split), seq.T)
@@ -288,8 +301,10 @@ class CSCGRefinement(CloneRefinement):
                 f"{'' if self.evidence == 'auto' else f', evidence={self.evidence!r}'}"
                 f"{', ' + soft if soft else ''})")
 
-    def _hard_round(self, seq: SymbolSequence, split_state_symbol, random_state: int) -> CloneFit:
-        """EM alone taking every step's symbol as exact (the split is not used)."""
+    def _hard_round(self, seq: SymbolSequence, split_state_symbol, random_state: int,
+                    init=None) -> CloneFit:
+        """EM alone taking every step's symbol as exact (neither the split nor ``init`` is
+        used)."""
         lay = seq.layout(clone_budget(seq.n_symbols, seq.n_gds, self.clones_per_symbol))
         rng = np.random.default_rng(random_state)
         labels, state_symbol, em, viterbi = fit_clones(
