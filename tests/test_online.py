@@ -77,6 +77,23 @@ def test_passes_started_from_the_last_map_find_the_cells_of_an_aliased_room(seed
     assert adjusted_rand_score(traj.places, learner.labels_) == 1.0
 
 
+@pytest.mark.parametrize("refine, passes", [
+    # every 500 steps after the doubling start
+    (None, [250, 500, 1000, 1500, 2000, 2500, 3000, 3500, 4000, 4500, 5000]),
+    # with EM: doubling up to the window's 2500 steps (the pass at 2000 is followed by one when
+    # the window is full, 500 steps later), then every 500
+    ("em", [250, 500, 1000, 2000, 2500, 3000, 3500, 4000, 4500, 5000]),
+])
+def test_passes_come_at_doubling_sizes_until_the_window_is_full_with_em(refine, passes):
+    traj = walk(4, 3, 3, 5000, seed=6)
+    learner = MapLearner(3, 12, refine=refine, window=2500, refit_every=500)
+    seen = []
+    for i in range(0, 5000, 250):
+        learner.partial_fit(traj.observations[i:i + 250], traj.actions[i:i + 250], n_actions=4)
+        seen += [i + 250] if learner.online_["last_work"]["pass"] else []
+    assert seen == passes
+
+
 def test_warm_labelling_gives_a_state_to_every_old_state_and_symbol():
     # steps of old states 0, 0, 1, none, 1, none, 2 showing symbols 3, 3, 1, 1, 2, 3, 1: the
     # pairs sorted by (old state + 1, symbol) are (none, 1), (none, 3), (0, 3), (1, 1), (1, 2),

@@ -15,7 +15,7 @@ from .checks import check_count
 from .components import (DEPRECATED, fit_refinement, make_components, make_refinement, naming,
                          refinement_label, warn_renamed, within_told_size)
 from .refining import bic_scores, heldout_scores, refined_from, resized, symbol_map
-from .online import OnlineState, Window, warm_labelling, wider_pass
+from .online import OnlineState, Window, warm_labelling, warm_starts, wider_pass
 from .phase1.clustering import cluster_observations
 from .size import AutoStates, probe_sizes, split_holdout
 from .map.model import TopologicalMap
@@ -254,7 +254,7 @@ class MapLearner(MapMethods, BaseEstimator):
         saved, learned = state.snapshot(), self._learned()
         try:
             state.take(X, u, g, starts, n_actions, action_names, gds_names)
-            if state.needs_pass(getattr(self, "map_", None), every):
+            if state.needs_pass(getattr(self, "map_", None), every, warm_starts(self.refine)):
                 wider_pass(self, state, X)
             else:
                 self.map_ = state.decode_chunk(self.map_, X.shape[0])

@@ -18,8 +18,15 @@ seen before it:
   size choice: the learner's fit with the codebook's symbols -- on a bounded window of the
   latest ``window`` steps.  It runs on the first call, then whenever the steps since the last
   pass reach ``refit_every`` or the steps the map was last learned from (so passes come at
-  doubling sizes early on), and at once when a chunk brings a GDS id, an action or a symbol the
-  map does not know, or a call declares more actions (``n_actions``) than the map has.
+  doubling sizes early on; with ``refine="em"``, at doubling sizes until the window is full,
+  :meth:`OnlineState.interval`), and at once when a chunk brings a GDS id, an action or a
+  symbol the map does not know, or a call declares more actions (``n_actions``) than the map
+  has.
+* **A warm start.** With ``refine="em"`` (:class:`~.refine.methods.EMRefinement`), a pass on a window that has
+  lost steps starts EM from the last map (:func:`warm_labelling`: the states its steps hold,
+  the call's new steps decoded with it first) instead of from the split, and runs only the
+  rounds on all steps: most of EM's work is already done.  While the window holds every step,
+  K-means runs again and its symbols change, so those passes start afresh, as ``fit`` does.
 
 **Labels.** Every step's label is kept in the :class:`StepRecord` (``labels_`` is a view of it),
 always a state of the current map (or -1): a chunk's steps get the states they are decoded to; a
@@ -43,10 +50,11 @@ from sklearn.metrics.pairwise import euclidean_distances
 
 from .data.trajectory import check_fit_data
 from .refine.clones import decode, make_layout
+from .refine.methods import EMRefinement
 from .stats import majority_match
 
 __all__ = ["StepRecord", "Window", "Codebook", "OnlineState", "decode_symbols", "lengths_of",
-           "warm_labelling", "wider_pass"]
+           "warm_labelling", "warm_starts", "wider_pass"]
 
 #: steps before a chunk decoded with it, so a chunk's first states are not guessed blind
 CONTEXT = 16
@@ -263,13 +271,12 @@ class OnlineState:
             out[is_g] = np.where(ok, self.codebook.size + pos, -1)
         return out
 
-    def needs_pass(self, m, every: int) -> bool:
-        """A pass is due: no map yet, ``refit_every`` (or, early on, as many steps as the last
-        pass saw) new steps, more actions than the map has, or a GDS id or symbol the map does
-        not know."""
+    def needs_pass(self, m, every: int, grow: bool = False) -> bool:
+        """A pass is due: no map yet, :meth:`interval` new steps, more actions than the map
+        has, or a GDS id or symbol the map does not know."""
         if self.codebook is None or self.state_id is None or m is None:
             return True
-        if self.n_steps - self.pass_steps >= min(every, max(self.pass_steps, 1)):
+        if self.n_steps - self.pass_steps >= self.interval(every, grow):
             return True
         if self.n_actions > m.n_actions:
             return True
@@ -277,6 +284,18 @@ class OnlineState:
         ids = self.ids(self.record.sym[since], self.record.gds[since])
         per = np.bincount(self.state_id, minlength=self.n_ids)
         return bool((ids < 0).any() or (per[ids] == 0).any())
+
+    def interval(self, every: int, grow: bool = False) -> int:
+        """New steps after which the next pass comes: as many as the last pass saw, at most
+        ``every`` (passes at doubling sizes early on, then every ``every`` steps).  With
+        ``grow`` (a refinement that starts later passes from the last map: :func:`warm_starts`),
+        while the last pass saw every step seen, as many as it saw whatever ``every`` is, but no
+        more than fill the window: those passes run K-means and the refinement afresh on every
+        step, so they come at doubling sizes up to the window's."""
+        seen = max(self.pass_steps, 1)
+        if grow and self.pass_first == 0 and self.pass_steps < self.window.capacity:
+            return min(seen, self.window.capacity - self.pass_steps)
+        return min(every, seen)
 
     def window_symbols(self, first: int, plain: np.ndarray):
         """``(symbols, present)`` a pass fits the window from ``first`` on with: the codebook's
@@ -387,6 +406,12 @@ def wider_pass(learner, state: OnlineState, X_call) -> None:
                              learner.n_clusters_, first)
     state.after_pass(learner.map_, learner.labels_, gw, first, present)
     del learner.labels_phase1_, learner.labels_split_  # the window's: labels_ covers every step
+
+
+def warm_starts(refine) -> bool:
+    """Whether the learner's ``refine`` starts a wider pass from the last map once steps have
+    left the window: ``"em"`` (:class:`~topomap.core.refine.methods.EMRefinement`)."""
+    return refine == "em" if isinstance(refine, str) else isinstance(refine, EMRefinement)
 
 
 def warm_labelling(old, sym):
