@@ -15,14 +15,14 @@ from .checks import check_count
 from .components import (DEPRECATED, fit_refinement, make_components, make_refinement, naming,
                          refinement_label, warn_renamed, within_told_size)
 from .refining import bic_scores, heldout_scores, refined_from, resized, symbol_map
-from .online import OnlineState, Window, warm_labelling, warm_starts, wider_pass
+from .online import OnlineState, Window
+from .online_pass import warm_start, warm_starts, wider_pass
 from .phase1.clustering import cluster_observations
 from .size import AutoStates, probe_sizes, split_holdout
 from .map.model import TopologicalMap
 from .map_methods import MapMethods
 from .motion.learn import fit_places
 from .motion.settings import MotionSettings, motion_settings
-from .refine.rounds import CloneRefinement
 from .refine.sequence import SymbolSequence
 from .split.engine import Splitter
 from .split.stopping import TargetStates
@@ -182,13 +182,14 @@ class MapLearner(MapMethods, BaseEstimator):
         return self._fit(data)
 
     def _fit(self, data: FitData, symbols: np.ndarray | None = None, motion: bool = True,
-             warm: np.ndarray | None = None) -> Self:
+             warm: tuple | None = None) -> Self:
         """Phase 1, the split, the map and the refinement on checked ``data``, forgetting what an
         earlier fit (or pass) learned.  ``symbols``: the K-means symbol of every non-GDS step,
         given instead of running K-means (a wider pass of :meth:`partial_fit` gives the
         codebook's); ``motion=False``: no places of a continuous log (wider passes); ``warm``:
-        the last map's state of every step (-1: none), which a built-in refinement starts from
-        instead of the split (:func:`~topomap.core.online.warm_labelling`)."""
+        ``(the last map's state of every step (-1: none), whether that map's refinement found no
+        misread symbols)``, which a built-in refinement starts from instead of the split
+        (:func:`~topomap.core.online.warm_start`)."""
         clusters, metric, criterion, stopping = make_components(self)
         refinement = make_refinement(self.refine)
         places = motion_settings(self.motion) if motion else None
@@ -283,11 +284,12 @@ class MapLearner(MapMethods, BaseEstimator):
         held."""
         ns = self.n_clusters_
         seq = SymbolSequence.build(self.labels_phase1_, data.u, data.lengths, data.n_actions, ns)
-        init = warm_labelling(warm, seq.sym) if warm is not None and isinstance(
-            refinement, CloneRefinement) else None
+        runner, init = warm_start(refinement, warm, seq.sym)
         with naming(self, "refine"):
-            fit = fit_refinement(refinement, seq, self._split_symbol(splitter), self.random_state,
+            fit = fit_refinement(runner, seq, self._split_symbol(splitter), self.random_state,
                                  init)
+        if runner is not refinement:  # the last map's refinement found no misread symbols
+            fit.info.update(soft="skipped", soft_from="the last map")
         if told is not None and self.refined_size == "told" and fit.n_states != told:
             fit = resized(fit, data, told, splitter.criterion, ns)
         refined = symbol_map(data, slice(None), data.lengths, fit.labels, fit.state_symbol, ns,

@@ -22,11 +22,11 @@ seen before it:
   :meth:`OnlineState.interval`), and at once when a chunk brings a GDS id, an action or a
   symbol the map does not know, or a call declares more actions (``n_actions``) than the map
   has.
-* **A warm start.** With ``refine="em"`` (:class:`~.refine.methods.EMRefinement`), a pass on a window that has
-  lost steps starts EM from the last map (:func:`warm_labelling`: the states its steps hold,
-  the call's new steps decoded with it first) instead of from the split, and runs only the
-  rounds on all steps: most of EM's work is already done.  While the window holds every step,
-  K-means runs again and its symbols change, so those passes start afresh, as ``fit`` does.
+* **A warm start** (:mod:`topomap.core.online_pass`).  With ``refine="em"``, a pass on a window
+  that has lost steps starts EM from the last map (the states its steps hold, the call's new
+  steps decoded with it first) instead of from the split, and runs a few short rounds on all
+  steps: most of EM's work is done already.  While the window holds every step, K-means runs
+  again and its symbols change, so those passes start afresh, as ``fit`` does.
 
 **Labels.** Every step's label is kept in the :class:`StepRecord` (``labels_`` is a view of it),
 always a state of the current map (or -1): a chunk's steps get the states they are decoded to; a
@@ -48,13 +48,10 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from sklearn.metrics.pairwise import euclidean_distances
 
-from .data.trajectory import check_fit_data
 from .refine.clones import decode, make_layout
-from .refine.methods import EMRefinement
 from .stats import majority_match
 
-__all__ = ["StepRecord", "Window", "Codebook", "OnlineState", "decode_symbols", "lengths_of",
-           "warm_labelling", "warm_starts", "wider_pass"]
+__all__ = ["StepRecord", "Window", "Codebook", "OnlineState", "decode_symbols", "lengths_of"]
 
 #: steps before a chunk decoded with it, so a chunk's first states are not guessed blind
 CONTEXT = 16
@@ -288,7 +285,8 @@ class OnlineState:
     def interval(self, every: int, grow: bool = False) -> int:
         """New steps after which the next pass comes: as many as the last pass saw, at most
         ``every`` (passes at doubling sizes early on, then every ``every`` steps).  With
-        ``grow`` (a refinement that starts later passes from the last map: :func:`warm_starts`),
+        ``grow`` (a refinement that starts later passes from the last map:
+        :func:`~topomap.core.online_pass.warm_starts`),
         while the last pass saw every step seen, as many as it saw whatever ``every`` is, but no
         more than fill the window: those passes run K-means and the refinement afresh on every
         step, so they come at doubling sizes up to the window's."""
@@ -388,42 +386,6 @@ class OnlineState:
                 "memory": {"per_step": self.record.nbytes, "window": self.window.nbytes,
                            "codebook": 0 if self.codebook is None
                            else int(self.codebook.means.nbytes)}}
-
-
-def wider_pass(learner, state: OnlineState, X_call) -> None:
-    """A wider pass of ``learner`` (a :class:`~topomap.MapLearner`): learn the map from the
-    window (its fit with the codebook's symbols, or with K-means while the window holds every
-    step seen; EM started from the last map's states once steps have left the window) and bind
-    ``state`` to it.  ``X_call``: the observations of the call."""
-    Xw, uw, gw, sw, first = state.window.arrays()
-    plain = gw < 0
-    symbols, present = state.window_symbols(first, plain)
-    warm = state.warm_labels(getattr(learner, "map_", None), X_call.shape[0], first)
-    learner._fit(check_fit_data(Xw, uw, gw, lengths_of(sw), state.n_actions, state.action_names,
-                                state.gds_names), symbols, motion=False, warm=warm)
-    if symbols is None:  # phase 1's K-means symbols of every step seen become the codebook
-        state.learn_codebook(X_call, Xw, plain, learner.labels_phase1_[plain],
-                             learner.n_clusters_, first)
-    state.after_pass(learner.map_, learner.labels_, gw, first, present)
-    del learner.labels_phase1_, learner.labels_split_  # the window's: labels_ covers every step
-
-
-def warm_starts(refine) -> bool:
-    """Whether the learner's ``refine`` starts a wider pass from the last map once steps have
-    left the window: ``"em"`` (:class:`~topomap.core.refine.methods.EMRefinement`)."""
-    return refine == "em" if isinstance(refine, str) else isinstance(refine, EMRefinement)
-
-
-def warm_labelling(old, sym):
-    """``(labels, state_symbol)`` a warm-started refinement starts from, given the last map's
-    state ``old`` of every step (-1: none) and the step's symbol id ``sym``: one state for every
-    distinct ``(old state, symbol)`` pair, so every state emits one symbol, and the steps the
-    last map could not label form one state per symbol."""
-    old = np.asarray(old, dtype=np.int64)
-    sym = np.asarray(sym, dtype=np.int64)
-    n_ids = int(sym.max()) + 1
-    pairs, labels = np.unique((old + 1) * n_ids + sym, return_inverse=True)
-    return labels.ravel().astype(np.int64), pairs % n_ids
 
 
 def add_counts(m, labels, actions, starts, n_old: int):
