@@ -80,11 +80,11 @@ def test_passes_started_from_the_last_map_find_the_cells_of_an_aliased_room(seed
 @pytest.mark.parametrize("refine, passes", [
     # every 500 steps after the doubling start
     (None, [250, 500, 1000, 1500, 2000, 2500, 3000, 3500, 4000, 4500, 5000]),
-    # with EM: doubling up to the window's 2500 steps (the pass at 2000 is followed by one when
-    # the window is full, 500 steps later), then every 500
-    ("em", [250, 500, 1000, 2000, 2500, 3000, 3500, 4000, 4500, 5000]),
+    # with EM: the pass at 1500 steps saw more than half the window (2500), the next comes when
+    # the window is full; then every 500 again
+    ("em", [250, 500, 1000, 1500, 2500, 3000, 3500, 4000, 4500, 5000]),
 ])
-def test_passes_come_at_doubling_sizes_until_the_window_is_full_with_em(refine, passes):
+def test_with_em_no_pass_comes_between_half_the_window_and_the_full_window(refine, passes):
     traj = walk(4, 3, 3, 5000, seed=6)
     learner = MapLearner(3, 12, refine=refine, window=2500, refit_every=500)
     seen = []

@@ -18,8 +18,8 @@ seen before it:
   size choice: the learner's fit with the codebook's symbols -- on a bounded window of the
   latest ``window`` steps.  It runs on the first call, then whenever the steps since the last
   pass reach ``refit_every`` or the steps the map was last learned from (so passes come at
-  doubling sizes early on; with ``refine="em"``, at doubling sizes until the window is full,
-  :meth:`OnlineState.interval`), and at once when a chunk brings a GDS id, an action or a
+  doubling sizes early on; with ``refine="em"``, none between half the window and the full
+  window, :meth:`OnlineState.interval`), and at once when a chunk brings a GDS id, an action or a
   symbol the map does not know, or a call declares more actions (``n_actions``) than the map
   has.
 * **A warm start** (:mod:`topomap.core.online_pass`).  With ``refine="em"``, a pass on a window
@@ -286,14 +286,13 @@ class OnlineState:
         """New steps after which the next pass comes: as many as the last pass saw, at most
         ``every`` (passes at doubling sizes early on, then every ``every`` steps).  With
         ``grow`` (a refinement that starts later passes from the last map:
-        :func:`~topomap.core.online_pass.warm_starts`),
-        while the last pass saw every step seen, as many as it saw whatever ``every`` is, but no
-        more than fill the window: those passes run K-means and the refinement afresh on every
-        step, so they come at doubling sizes up to the window's."""
-        seen = max(self.pass_steps, 1)
-        if grow and self.pass_first == 0 and self.pass_steps < self.window.capacity:
-            return min(seen, self.window.capacity - self.pass_steps)
-        return min(every, seen)
+        :func:`~topomap.core.online_pass.warm_starts`), once a pass that saw every step saw
+        at least half the window, the next comes when the window is full: such passes run
+        K-means and the refinement afresh on every step, and cost the more the more steps."""
+        cap = self.window.capacity
+        if grow and self.pass_first == 0 and cap <= 2 * self.pass_steps < 2 * cap:
+            return cap - self.pass_steps
+        return min(every, max(self.pass_steps, 1))
 
     def window_symbols(self, first: int, plain: np.ndarray):
         """``(symbols, present)`` a pass fits the window from ``first`` on with: the codebook's
