@@ -98,7 +98,8 @@ def test_warm_labelling_gives_a_state_to_every_old_state_and_symbol():
     # steps of old states 0, 0, 1, none, 1, none, 2 showing symbols 3, 3, 1, 1, 2, 3, 1: the
     # pairs sorted by (old state + 1, symbol) are (none, 1), (none, 3), (0, 3), (1, 1), (1, 2),
     # (2, 1) -- old state 1 shows two symbols, so it becomes two states
-    labels, state_symbol = online_pass.warm_labelling([0, 0, 1, -1, 1, -1, 2], [3, 3, 1, 1, 2, 3, 1])
+    labels, state_symbol = online_pass.warm_labelling([0, 0, 1, -1, 1, -1, 2],
+                                                      [3, 3, 1, 1, 2, 3, 1])
     assert labels.tolist() == [2, 2, 3, 0, 4, 1, 5]
     assert state_symbol.tolist() == [1, 3, 3, 1, 2, 1]
 

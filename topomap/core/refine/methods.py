@@ -161,7 +161,7 @@ class EMRefinement(CloneRefinement):
         if init is not None:  # its rounds are few and short: nothing to gain by a cut
             return self._hard_round(seq, split_state_symbol, random_state, init)
         s = soft_settings(self.soft)
-        stages = self._stages(seq, split_state_symbol, random_state, init)
+        stages = self._stages(seq, split_state_symbol, random_state)
         labels, state_symbol, info = next(stages)
         surprise = successor_surprise(seq, labels)
         if self.evidence == "soft" or surprise >= CUT_SURPRISE * s.detect:
@@ -173,7 +173,8 @@ class EMRefinement(CloneRefinement):
         """Stages 1 to 3 as a generator: it yields ``(labels, state_symbol, info)`` of stage 2's
         last labelling, then returns the round's :class:`CloneFit` (:func:`_finish`).  With
         ``init``, a labelling ``(labels, state_symbol)`` of all steps, one EM round on all steps
-        started from it (:meth:`_warm_round`) replaces stages 1 and 2."""
+        started from it (:meth:`_warm_round`) replaces stages 1 and 2, and stage 3 is kept
+        short: at most :data:`WARM_ROUNDS` rounds of :data:`WARM_ITER` EM iterations."""
         rng = np.random.default_rng(random_state)
         if init is not None:
             short = {"max_rounds": min(self.max_rounds, WARM_ROUNDS),
