@@ -189,7 +189,7 @@ class MapLearner(MapMethods, BaseEstimator):
         codebook's); ``motion=False``: no places of a continuous log (wider passes); ``warm``:
         ``(the last map's state of every step (-1: none), whether that map's refinement found no
         misread symbols)``, which a built-in refinement starts from instead of the split
-        (:func:`~topomap.core.online.warm_start`)."""
+        (:func:`~topomap.core.online_pass.warm_start`)."""
         clusters, metric, criterion, stopping = make_components(self)
         refinement = make_refinement(self.refine)
         places = motion_settings(self.motion) if motion else None
