@@ -392,3 +392,33 @@ def test_a_sequence_head_keeps_the_episodes_it_covers():
     has_prev, has_next = head.masks()
     assert has_prev.tolist() == [False, True, True, True, False, True, True]
     assert has_next.tolist() == [True, True, True, False, True, True, False]
+
+
+def test_em_started_from_the_places_keeps_them():
+    """A warm start from the right labelling of the ring: every state one place, so EM's
+    rounds have nothing to move, merge or split."""
+    sym, u, places = ring_walk(3000, RING, seed=0)
+    seq = SymbolSequence.build(sym, u, [3000], 2, 6)
+    fit = EMRefinement().fit(seq, np.arange(6), 0, init=(places, np.asarray(RING)))
+    assert fit.info_["warm_start"] and fit.info_["stages"][0][0] == 3000
+    assert fit.n_states_ == 8 and same_partition(fit.labels_, places)
+
+
+def test_em_started_from_one_state_per_symbol_finds_the_aliased_places():
+    """A warm start that has not told the aliased places apart (each symbol one state): the
+    spare clones and the split test of the rounds on all steps separate them."""
+    sym, u, places = ring_walk(3000, RING, seed=1)
+    seq = SymbolSequence.build(sym, u, [3000], 2, 6)
+    fit = EMRefinement().fit(seq, np.arange(6), 0, init=(sym, np.arange(6)))
+    assert fit.n_states_ == 8 and adjusted_rand_score(places, fit.labels_) == 1.0
+
+
+@pytest.mark.parametrize("init, message", [
+    ((np.zeros(5, int), np.zeros(1, int)), "5 labels for 8 steps"),
+    ((np.full(8, 3), np.arange(3)), "labels must be states 0..2"),
+    ((np.zeros(8, int), np.zeros(1, int)), "does not emit the symbol"),
+])
+def test_a_bad_warm_start_is_refused_in_one_line(init, message):
+    seq = SymbolSequence.build([0, 1, 2, 0, 1, 2, 0, 1], np.zeros(8, int), [8], 1, 3)
+    with pytest.raises(ValueError, match=message):
+        EMRefinement().fit(seq, np.arange(3), 0, init=init)

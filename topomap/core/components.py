@@ -131,13 +131,17 @@ def make_refinement(refine):
     return None if refine is None else clone(refine, safe=False)
 
 
-def fit_refinement(refinement, seq, split_state_symbol, random_state: int) -> CloneFit:
+def fit_refinement(refinement, seq, split_state_symbol, random_state: int,
+                   init=None) -> CloneFit:
     """Fit ``refinement`` and return what it learned as a :class:`CloneFit`.
 
     A refinement's ``fit`` returns the refinement, its ``labels_``, ``state_symbol_`` and
     ``info_`` set (``info_`` optional).  A ``fit`` that returns a ``CloneFit`` itself (the
-    contract before 0.3) is still accepted, with a ``FutureWarning``, until 0.4."""
-    out = refinement.fit(seq, split_state_symbol, random_state)
+    contract before 0.3) is still accepted, with a ``FutureWarning``, until 0.4.  ``init`` (a
+    labelling to start from, :meth:`~topomap.core.refine.rounds.CloneRefinement.fit`) is given
+    only when not None, so a refinement whose ``fit`` does not take it still works without."""
+    extra = {} if init is None else {"init": init}
+    out = refinement.fit(seq, split_state_symbol, random_state, **extra)
     if isinstance(out, CloneFit):
         warnings.warn(f"{type(refinement).__name__}.fit returned a CloneFit; since 0.3 a "
                       "refinement's fit returns self with labels_, state_symbol_ and info_ set "

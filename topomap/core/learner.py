@@ -15,7 +15,8 @@ from .checks import check_count
 from .components import (DEPRECATED, fit_refinement, make_components, make_refinement, naming,
                          refinement_label, warn_renamed, within_told_size)
 from .refining import bic_scores, heldout_scores, refined_from, resized, symbol_map
-from .online import OnlineState, Window, lengths_of
+from .online import OnlineState, Window
+from .online_pass import warm_start, warm_starts, wider_pass
 from .phase1.clustering import cluster_observations
 from .size import AutoStates, probe_sizes, split_holdout
 from .map.model import TopologicalMap
@@ -180,11 +181,15 @@ class MapLearner(MapMethods, BaseEstimator):
         self._online = None
         return self._fit(data)
 
-    def _fit(self, data: FitData, symbols: np.ndarray | None = None, motion: bool = True) -> Self:
+    def _fit(self, data: FitData, symbols: np.ndarray | None = None, motion: bool = True,
+             warm: tuple | None = None) -> Self:
         """Phase 1, the split, the map and the refinement on checked ``data``, forgetting what an
         earlier fit (or pass) learned.  ``symbols``: the K-means symbol of every non-GDS step,
         given instead of running K-means (a wider pass of :meth:`partial_fit` gives the
-        codebook's); ``motion=False``: no places of a continuous log (wider passes)."""
+        codebook's); ``motion=False``: no places of a continuous log (wider passes); ``warm``:
+        ``(the last map's state of every step (-1: none), whether that map's refinement found no
+        misread symbols)``, which a built-in refinement starts from instead of the split
+        (:func:`~topomap.core.online_pass.warm_start`)."""
         clusters, metric, criterion, stopping = make_components(self)
         refinement = make_refinement(self.refine)
         places = motion_settings(self.motion) if motion else None
@@ -221,7 +226,7 @@ class MapLearner(MapMethods, BaseEstimator):
         if refinement is not None and not continuous:
             if auto is not None and auto.criterion == "heldout" and self.refined_size == "told":
                 told = self._choose_refined_size(data, splitter, refinement, auto)
-            self._refine(data, splitter, refinement, told)
+            self._refine(data, splitter, refinement, told, warm)
             self.timings_["refine"] = time.perf_counter() - t2
         self._emit("done", labels=self.labels_, entropies=self.entropies_[-1], map=self.map_)
         return self
@@ -250,8 +255,8 @@ class MapLearner(MapMethods, BaseEstimator):
         saved, learned = state.snapshot(), self._learned()
         try:
             state.take(X, u, g, starts, n_actions, action_names, gds_names)
-            if state.needs_pass(getattr(self, "map_", None), every):
-                self._online_pass(state, X)
+            if state.needs_pass(getattr(self, "map_", None), every, warm_starts(self.refine)):
+                wider_pass(self, state, X)
             else:
                 self.map_ = state.decode_chunk(self.map_, X.shape[0])
         except BaseException:
@@ -266,25 +271,12 @@ class MapLearner(MapMethods, BaseEstimator):
         self.online_ = state.summary()
         return self
 
-    def _online_pass(self, state: OnlineState, X_call) -> None:
-        """Learn the map from the window (:meth:`_fit` with the codebook's symbols, or with
-        K-means while the window holds every step seen) and bind ``state`` to it."""
-        Xw, uw, gw, sw, first = state.window.arrays()
-        plain = gw < 0
-        symbols, present = state.window_symbols(first, plain)
-        self._fit(check_fit_data(Xw, uw, gw, lengths_of(sw), state.n_actions, state.action_names,
-                                 state.gds_names), symbols, motion=False)
-        if symbols is None:  # phase 1's K-means symbols of every step seen become the codebook
-            state.learn_codebook(X_call, Xw, plain, self.labels_phase1_[plain], self.n_clusters_,
-                                 first)
-        state.after_pass(self.map_, self.labels_, gw, first, present)
-        del self.labels_phase1_, self.labels_split_  # the window's: labels_ covers every step
-
     def _learned(self) -> dict:
         """The learned attributes (names ending in ``_``), to restore after a failed call."""
         return {k: v for k, v in vars(self).items() if k.endswith("_") and not k.startswith("_")}
 
-    def _refine(self, data: FitData, splitter: Splitter, refinement, told: int | None) -> None:
+    def _refine(self, data: FitData, splitter: Splitter, refinement, told: int | None,
+                warm=None) -> None:
         """Re-estimate every state jointly (:mod:`topomap.core.refine.methods`); the split map
         stays as ``map_split_``.  With ``guard``, the refined map is kept only when its BIC is no
         worse (both BICs and the map kept go into ``refine_info_``).  Refined states have no
@@ -292,8 +284,12 @@ class MapLearner(MapMethods, BaseEstimator):
         held."""
         ns = self.n_clusters_
         seq = SymbolSequence.build(self.labels_phase1_, data.u, data.lengths, data.n_actions, ns)
+        runner, init = warm_start(refinement, warm, seq.sym)
         with naming(self, "refine"):
-            fit = fit_refinement(refinement, seq, self._split_symbol(splitter), self.random_state)
+            fit = fit_refinement(runner, seq, self._split_symbol(splitter), self.random_state,
+                                 init)
+        if runner is not refinement:  # the last map's refinement found no misread symbols
+            fit.info.update(soft="skipped", soft_from="the last map")
         if told is not None and self.refined_size == "told" and fit.n_states != told:
             fit = resized(fit, data, told, splitter.criterion, ns)
         refined = symbol_map(data, slice(None), data.lengths, fit.labels, fit.state_symbol, ns,

@@ -18,8 +18,15 @@ seen before it:
   size choice: the learner's fit with the codebook's symbols -- on a bounded window of the
   latest ``window`` steps.  It runs on the first call, then whenever the steps since the last
   pass reach ``refit_every`` or the steps the map was last learned from (so passes come at
-  doubling sizes early on), and at once when a chunk brings a GDS id, an action or a symbol the
-  map does not know, or a call declares more actions (``n_actions``) than the map has.
+  doubling sizes early on; with ``refine="em"``, none between half the window and the full
+  window, :meth:`OnlineState.interval`), and at once when a chunk brings a GDS id, an action or a
+  symbol the map does not know, or a call declares more actions (``n_actions``) than the map
+  has.
+* **A warm start** (:mod:`topomap.core.online_pass`).  With ``refine="em"``, a pass on a window
+  that has lost steps starts EM from the last map (the states its steps hold, the call's new
+  steps decoded with it first) instead of from the split, and runs a few short rounds on all
+  steps: most of EM's work is done already.  While the window holds every step, K-means runs
+  again and its symbols change, so those passes start afresh, as ``fit`` does.
 
 **Labels.** Every step's label is kept in the :class:`StepRecord` (``labels_`` is a view of it),
 always a state of the current map (or -1): a chunk's steps get the states they are decoded to; a
@@ -261,13 +268,12 @@ class OnlineState:
             out[is_g] = np.where(ok, self.codebook.size + pos, -1)
         return out
 
-    def needs_pass(self, m, every: int) -> bool:
-        """A pass is due: no map yet, ``refit_every`` (or, early on, as many steps as the last
-        pass saw) new steps, more actions than the map has, or a GDS id or symbol the map does
-        not know."""
+    def needs_pass(self, m, every: int, grow: bool = False) -> bool:
+        """A pass is due: no map yet, :meth:`interval` new steps, more actions than the map
+        has, or a GDS id or symbol the map does not know."""
         if self.codebook is None or self.state_id is None or m is None:
             return True
-        if self.n_steps - self.pass_steps >= min(every, max(self.pass_steps, 1)):
+        if self.n_steps - self.pass_steps >= self.interval(every, grow):
             return True
         if self.n_actions > m.n_actions:
             return True
@@ -275,6 +281,18 @@ class OnlineState:
         ids = self.ids(self.record.sym[since], self.record.gds[since])
         per = np.bincount(self.state_id, minlength=self.n_ids)
         return bool((ids < 0).any() or (per[ids] == 0).any())
+
+    def interval(self, every: int, grow: bool = False) -> int:
+        """New steps after which the next pass comes: as many as the last pass saw, at most
+        ``every`` (passes at doubling sizes early on, then every ``every`` steps).  With
+        ``grow`` (a refinement that starts later passes from the last map:
+        :func:`~topomap.core.online_pass.warm_starts`), once a pass that saw every step saw
+        at least half the window, the next comes when the window is full: such passes run
+        K-means and the refinement afresh on every step, and cost the more the more steps."""
+        cap = self.window.capacity
+        if grow and self.pass_first == 0 and cap <= 2 * self.pass_steps < 2 * cap:
+            return cap - self.pass_steps
+        return min(every, max(self.pass_steps, 1))
 
     def window_symbols(self, first: int, plain: np.ndarray):
         """``(symbols, present)`` a pass fits the window from ``first`` on with: the codebook's
@@ -326,9 +344,9 @@ class OnlineState:
         self.pass_first, self.pass_steps = first, self.n_steps
         self.n_passes += 1
 
-    def decode_chunk(self, m, n: int):
-        """The map ``m`` with the last ``n`` steps decoded (after up to :data:`CONTEXT` steps
-        before them) and their counts added to its tables."""
+    def _decode_last(self, m, n: int) -> int:
+        """Label the last ``n`` steps with the states of ``m`` (decoded after up to
+        :data:`CONTEXT` steps before them); returns the first step decoded."""
         rec, total = self.record, self.n_steps
         lo = max(self.pass_first, total - n - CONTEXT)
         sl = slice(lo, total)
@@ -336,9 +354,27 @@ class OnlineState:
                               rec.start[sl].astype(bool), self.state_id, m.transition_counts,
                               self.n_ids)
         rec.labels[total - n:] = path[-n:]
+        return lo
+
+    def decode_chunk(self, m, n: int):
+        """The map ``m`` with the last ``n`` steps decoded (after up to :data:`CONTEXT` steps
+        before them) and their counts added to its tables."""
+        total = self.n_steps
+        lo = self._decode_last(m, n)
         self.last_work = {"decoded": int(total - lo), "pass": 0, "relabelled": 0}
         j = max(total - n - 1, self.pass_first)  # the transition into the chunk counts too
+        rec = self.record
         return add_counts(m, rec.labels[j:], rec.act[j:], rec.start[j:], total - j - n)
+
+    def warm_labels(self, m, n: int, first: int):
+        """The labels a pass on the window from step ``first`` starts EM from: the states of
+        the map ``m`` its steps hold, the call's ``n`` new steps decoded with ``m`` first
+        (-1 where ``m`` cannot label a step); None while the window holds every step seen
+        (its pass runs K-means again, so the symbols change) or before the first map."""
+        if m is None or self.state_id is None or first == 0:
+            return None
+        self._decode_last(m, n)
+        return self.record.labels[first:].astype(np.int64)
 
     def summary(self) -> dict:
         """``online_``: steps seen, calls, wider passes, the steps the last call's kernels

@@ -143,17 +143,23 @@ class EMRefinement(CloneRefinement):
                 f"prefix_visits={self.prefix_visits}, max_rounds={self.max_rounds}, "
                 f"guard={bool(self.guard)}, {changed}settings=EMSettings({rounds}))")
 
-    def _hard_round(self, seq: SymbolSequence, split_state_symbol, random_state: int) -> CloneFit:
-        """The refinement taking every step's symbol as exact (stages 1 to 3 above)."""
-        return _finish(self._stages(seq, split_state_symbol, random_state))
+    def _hard_round(self, seq: SymbolSequence, split_state_symbol, random_state: int,
+                    init=None) -> CloneFit:
+        """The refinement taking every step's symbol as exact (stages 1 to 3 above; from
+        ``init`` instead of stages 1 and 2 when given)."""
+        return _finish(self._stages(seq, split_state_symbol, random_state, init))
 
-    def _first_hard_round(self, seq: SymbolSequence, split_state_symbol, random_state: int):
+    def _first_hard_round(self, seq: SymbolSequence, split_state_symbol, random_state: int,
+                          init=None):
         """:meth:`_hard_round`, cut short before stage 3 when the labelling of all steps stage 2
         gives already shows misreads: its successor surprise
         (:func:`~topomap.core.refine.soft.successor_surprise`) at least ``CUT_SURPRISE`` x
         ``soft.detect`` (with ``evidence="soft"``: always).  Stage 3's rounds would not settle
         on misread symbols; the soft rounds start from that labelling instead, and the fit's
-        ``resume`` finishes the round should the first soft round find no misreads."""
+        ``resume`` finishes the round should the first soft round find no misreads.  A round
+        from ``init`` is never cut."""
+        if init is not None:  # its rounds are few and short: nothing to gain by a cut
+            return self._hard_round(seq, split_state_symbol, random_state, init)
         s = soft_settings(self.soft)
         stages = self._stages(seq, split_state_symbol, random_state)
         labels, state_symbol, info = next(stages)
@@ -163,10 +169,23 @@ class EMRefinement(CloneRefinement):
                             resume=lambda: _finish(stages))
         return _finish(stages)
 
-    def _stages(self, seq: SymbolSequence, split_state_symbol, random_state: int):
+    def _stages(self, seq: SymbolSequence, split_state_symbol, random_state: int, init=None):
         """Stages 1 to 3 as a generator: it yields ``(labels, state_symbol, info)`` of stage 2's
-        last labelling, then returns the round's :class:`CloneFit` (:func:`_finish`)."""
+        last labelling, then returns the round's :class:`CloneFit` (:func:`_finish`).  With
+        ``init``, a labelling ``(labels, state_symbol)`` of all steps, one EM round on all steps
+        started from it (:meth:`_warm_round`) replaces stages 1 and 2, and stage 3 is kept
+        short: at most :data:`WARM_ROUNDS` rounds of :data:`WARM_ITER` EM iterations."""
         rng = np.random.default_rng(random_state)
+        if init is not None:
+            short = {"max_rounds": min(self.max_rounds, WARM_ROUNDS),
+                     "max_iter": min(self.max_iter, WARM_ITER)}
+            labels, state_symbol, iters = self._warm_round(seq, *init, rng, short["max_iter"])
+            stages = [(seq.T, int(state_symbol.size), iters)]
+            yield labels, state_symbol, {"stages": list(stages), "warm_start": True}
+            (labels, state_symbol), rounds = self._rounds_on_all_steps(
+                seq, labels, state_symbol, rng, stages, **short)
+            return CloneFit(labels, state_symbol, {"stages": stages, "warm_start": True,
+                                                   "rounds_on_all_steps": rounds})
         split_state_symbol = np.asarray(split_state_symbol)
         n_split = int(np.sum(split_state_symbol >= 0))
         n = min(max(self.prefix, self.prefix_visits * n_split), seq.T)
@@ -190,20 +209,23 @@ class EMRefinement(CloneRefinement):
                                               self.spare))
         return self._fit_layout(lay, random_counts(lay, rng))
 
-    def _warm_round(self, seq: SymbolSequence, labels, state_symbol, rng):
+    def _warm_round(self, seq: SymbolSequence, labels, state_symbol, rng, max_iter=None):
         """One EM round on ``seq`` started from a labelling of its first ``labels.size`` steps:
-        each state becomes a clone, every K-means symbol gets ``spare`` more."""
+        each state becomes a clone, every K-means symbol gets ``spare`` more (at most
+        ``max_iter`` EM iterations; default: the parameter's)."""
         budget, path = states_to_clones(labels, state_symbol, seq.n_ids, seq.n_symbols,
                                         self.spare)
         lay = seq.layout(budget)
         return self._fit_layout(lay, init_from_path(lay, path, labels.size, rng,
-                                                    self.init_noise))
+                                                    self.init_noise), max_iter)
 
-    def _fit_layout(self, lay: Layout, init):
-        """Baum-Welch then Viterbi training on ``lay`` from ``init``; returns the labels and state
-        symbols of the clones the path uses, and the number of EM iterations."""
+    def _fit_layout(self, lay: Layout, init, max_iter=None):
+        """Baum-Welch then Viterbi training on ``lay`` from ``init`` (at most ``max_iter`` EM
+        iterations; default: the parameter's); returns the labels and state symbols of the clones
+        the path uses, and the number of EM iterations."""
         labels, state_symbol, em_history, _ = fit_clones(
-            lay, init, self.row_prior / lay.n_clones, max_iter=self.max_iter, tol=self.tol,
+            lay, init, self.row_prior / lay.n_clones,
+            max_iter=self.max_iter if max_iter is None else max_iter, tol=self.tol,
             prune=self.prune)
         return labels, state_symbol, len(em_history)
 
@@ -218,21 +240,30 @@ class EMRefinement(CloneRefinement):
         changed = split[1].size > merged[1].size or merged[1].size < state_symbol.size
         return merged, split, changed
 
-    def _rounds_on_all_steps(self, seq: SymbolSequence, labels, state_symbol, rng, stages):
+    def _rounds_on_all_steps(self, seq: SymbolSequence, labels, state_symbol, rng, stages,
+                             max_rounds: int | None = None, max_iter: int | None = None):
         """Stage 3: rounds on all steps until nothing is merged or split, a round's merged
-        labelling is the one of the round before, or ``max_rounds`` rounds; appends every EM
-        round to ``stages``.  Returns the last merged labelling and the number of rounds."""
+        labelling is the one of the round before, or ``max_rounds`` rounds (EM rounds of at most
+        ``max_iter`` iterations; defaults: the parameters'); appends every EM round to
+        ``stages``.  Returns the last merged labelling and the number of rounds."""
         previous, rounds = None, 0
+        max_rounds = self.max_rounds if max_rounds is None else max_rounds
         while True:
             merged, split, changed = self._restructure(seq, labels, state_symbol)
             rounds += 1
-            if not changed or rounds >= self.max_rounds or (
+            if not changed or rounds >= max_rounds or (
                     previous is not None and same_partition(previous, merged[0])):
                 return merged, rounds
             previous = merged[0]
-            labels, state_symbol, iters = self._warm_round(seq, *split, rng)
+            labels, state_symbol, iters = self._warm_round(seq, *split, rng, max_iter)
             stages.append((seq.T, int(state_symbol.size), iters))
 
+
+#: rounds on all steps at most after a warm start (``init``), and the EM iterations of each: the
+#: labelling it starts from has had its rounds already (the last map's), so a few short EM
+#: rounds with their merges and splits bring it to the steps it had not seen
+WARM_ROUNDS = 3
+WARM_ITER = 15
 
 #: the successor surprise (in ``soft.detect``) that cuts :meth:`EMRefinement._first_hard_round`
 CUT_SURPRISE = 5.0
@@ -288,8 +319,10 @@ class CSCGRefinement(CloneRefinement):
                 f"{'' if self.evidence == 'auto' else f', evidence={self.evidence!r}'}"
                 f"{', ' + soft if soft else ''})")
 
-    def _hard_round(self, seq: SymbolSequence, split_state_symbol, random_state: int) -> CloneFit:
-        """EM alone taking every step's symbol as exact (the split is not used)."""
+    def _hard_round(self, seq: SymbolSequence, split_state_symbol, random_state: int,
+                    init=None) -> CloneFit:
+        """EM alone taking every step's symbol as exact (neither the split nor ``init`` is
+        used)."""
         lay = seq.layout(clone_budget(seq.n_symbols, seq.n_gds, self.clones_per_symbol))
         rng = np.random.default_rng(random_state)
         labels, state_symbol, em, viterbi = fit_clones(

@@ -54,6 +54,20 @@ def _check(ok: bool, param: str, value, what: str) -> None:
         raise ParameterError(param, f"must be {what}, got {value!r}")
 
 
+def _checked_init(seq: SymbolSequence, labels, state_symbol):
+    """``init`` of :meth:`CloneRefinement.fit` as int64 arrays, or a ``ValueError`` naming what
+    is wrong: a label for every step, each a state, each state emitting its steps' symbol."""
+    labels = np.asarray(labels, dtype=np.int64)
+    state_symbol = np.asarray(state_symbol, dtype=np.int64)
+    if labels.shape != (seq.T,):
+        raise ValueError(f"init: {labels.size} labels for {seq.T} steps")
+    if labels.size and (labels.min() < 0 or labels.max() >= state_symbol.size):
+        raise ValueError(f"init: labels must be states 0..{state_symbol.size - 1}")
+    if not np.array_equal(state_symbol[labels], seq.sym):
+        raise ValueError("init: a state does not emit the symbol of every step labelled with it")
+    return labels, state_symbol
+
+
 class CloneRefinement(BaseEstimator):
     """What the built-in refinements share: ``fit`` as a template -- check the parameters, a
     hard round (the subclass's :meth:`_hard_round`), then, unless ``evidence="hard"``, hard and
@@ -61,16 +75,22 @@ class CloneRefinement(BaseEstimator):
 
     name = ""
 
-    def fit(self, seq: SymbolSequence, split_state_symbol=None, random_state: int = 0) -> Self:
+    def fit(self, seq: SymbolSequence, split_state_symbol=None, random_state: int = 0, *,
+            init=None) -> Self:
         """Refine ``seq``; ``split_state_symbol`` is the symbol of every split state
-        (``map_.state_symbol``, -1 for GDS).  Sets ``labels_``, ``state_symbol_``, ``n_states_``
-        and ``info_`` (with ``evidence`` other than ``"hard"`` also ``"soft"`` and
-        ``"soft_rounds"``); returns ``self``."""
+        (``map_.state_symbol``, -1 for GDS); ``init``, optional, a labelling ``(labels,
+        state_symbol)`` of every step of ``seq`` (each state emitting one symbol id) the first
+        hard round starts from instead (a warm start: :class:`EMRefinement` runs its rounds on
+        all steps from it; :class:`CSCGRefinement` ignores it).  Sets ``labels_``,
+        ``state_symbol_``, ``n_states_`` and ``info_`` (with ``evidence`` other than ``"hard"``
+        also ``"soft"`` and ``"soft_rounds"``); returns ``self``."""
         self.check_params()
+        if init is not None:
+            init = _checked_init(seq, *init)
         if self.evidence == "hard":
-            fit = self._hard_round(seq, split_state_symbol, random_state)
+            fit = self._hard_round(seq, split_state_symbol, random_state, init)
         else:
-            hard = self._first_hard_round(seq, split_state_symbol, random_state)
+            hard = self._first_hard_round(seq, split_state_symbol, random_state, init)
             n_reference = None if split_state_symbol is None else len(split_state_symbol)
             fit = self._soft_rounds(seq, hard, n_reference, random_state)
             if fit.info["soft"] == "skipped" and hard.resume is not None:
@@ -85,12 +105,14 @@ class CloneRefinement(BaseEstimator):
         check_evidence(self.evidence)
         soft_settings(self.soft)
 
-    def _hard_round(self, seq: SymbolSequence, split_state_symbol, random_state: int) -> CloneFit:
+    def _hard_round(self, seq: SymbolSequence, split_state_symbol, random_state: int,
+                    init=None) -> CloneFit:
         raise NotImplementedError
 
-    def _first_hard_round(self, seq: SymbolSequence, split_state_symbol, random_state: int):
+    def _first_hard_round(self, seq: SymbolSequence, split_state_symbol, random_state: int,
+                          init=None):
         """The hard round the soft rounds start from (default: :meth:`_hard_round`)."""
-        return self._hard_round(seq, split_state_symbol, random_state)
+        return self._hard_round(seq, split_state_symbol, random_state, init)
 
     def _soft_rounds(self, seq: SymbolSequence, hard_fit: CloneFit, n_reference, random_state):
         """Hard and soft rounds in turn, from the hard round ``hard_fit`` on ``seq``:
