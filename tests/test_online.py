@@ -77,6 +77,15 @@ def test_passes_started_from_the_last_map_find_the_cells_of_an_aliased_room(seed
     assert adjusted_rand_score(traj.places, learner.labels_) == 1.0
 
 
+def test_only_em_starts_a_pass_from_the_last_map():
+    # CSCG's EM starts from its own random clones: its passes on a window that has lost steps
+    # start afresh, and its soft check is made again (no evidence switched to hard)
+    traj = walk(5, 4, 3, 3000, seed=3)
+    learner = feed(MapLearner(3, 20, refine="cscg", window=1000, refit_every=1000), traj, 500)
+    assert learner.online_["pass_from"] > 0
+    assert "warm_start" not in learner.refine_info_ and "soft_from" not in learner.refine_info_
+
+
 @pytest.mark.parametrize("refine, passes", [
     # every 500 steps after the doubling start
     (None, [250, 500, 1000, 1500, 2000, 2500, 3000, 3500, 4000, 4500, 5000]),

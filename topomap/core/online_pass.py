@@ -23,7 +23,9 @@ def wider_pass(learner, state: OnlineState, X_call) -> None:
     Xw, uw, gw, sw, first = state.window.arrays()
     plain = gw < 0
     symbols, present = state.window_symbols(first, plain)
-    warm = state.warm_labels(getattr(learner, "map_", None), X_call.shape[0], first)
+    warm = None  # only a refinement that starts from the last map needs its labels
+    if warm_starts(learner.refine):
+        warm = state.warm_labels(getattr(learner, "map_", None), X_call.shape[0], first)
     if warm is not None:  # with whether the last map's refinement found no misread symbols
         warm = (warm, getattr(learner, "refine_info_", {}).get("soft") == "skipped")
     learner._fit(check_fit_data(Xw, uw, gw, lengths_of(sw), state.n_actions, state.action_names,
