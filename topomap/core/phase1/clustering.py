@@ -49,6 +49,7 @@ from threadpoolctl import threadpool_limits
 from ..checks import ParameterError, check_count
 from ..progress import report
 from .distinct import distinct_rows
+from .repair import repair_cut_views
 from .seeding import MIN_CLUSTERS, PrunedPlusPlus
 
 __all__ = [
@@ -241,16 +242,24 @@ def _kmeans(ns, n_init, random_state, sample_weight=None):
                   random_state=random_state, algorithm="elkan")
 
 
+def _fitted(Z, ns, n_init, random_state, weight=None):
+    """``KMeans`` fitted on ``Z``; from :data:`MIN_CLUSTERS` clusters on with the views it cut in
+    two repaired (:func:`~topomap.core.phase1.repair.repair_cut_views`)."""
+    km = _kmeans(ns, n_init, random_state, weight).fit(Z, sample_weight=weight)
+    if ns < MIN_CLUSTERS:
+        return km, None
+    return repair_cut_views(km, Z, weight, random_state)
+
+
 def _fit_full(Z, ns, n_init, random_state, **_):
-    return _kmeans(ns, n_init, random_state).fit_predict(Z)
+    km, info = _fitted(Z, ns, n_init, random_state)
+    return km.labels_, info
 
 
 def _fit_distinct(Z, ns, n_init, random_state, distinct, **_):
     first, inverse, counts = distinct
-    weight = counts.astype(np.float64)
-    km = _kmeans(ns, n_init, random_state, weight)
-    km.fit(Z[first], sample_weight=weight)
-    return km.labels_[inverse]
+    km, info = _fitted(Z[first], ns, n_init, random_state, counts.astype(np.float64))
+    return km.labels_[inverse], info
 
 
 def sample_rows(n_clusters: int, sample_size: int | None = None) -> int:
@@ -261,13 +270,14 @@ def sample_rows(n_clusters: int, sample_size: int | None = None) -> int:
 def _fit_sample(Z, ns, n_init, random_state, sample_size=None, **_):
     T, m = Z.shape[0], sample_rows(ns, sample_size)
     rows = np.sort(np.random.default_rng(random_state).choice(T, size=m, replace=False))
-    return _kmeans(ns, n_init, random_state).fit(Z[rows]).predict(Z)
+    km, info = _fitted(Z[rows], ns, n_init, random_state)
+    return km.predict(Z), info
 
 
 def _fit_minibatch(Z, ns, n_init, random_state, **_):
     km = MiniBatchKMeans(n_clusters=ns, n_init=n_init, random_state=random_state,
                          batch_size=max(1024, 8 * ns))
-    return km.fit(Z).labels_
+    return km.fit(Z).labels_, None
 
 
 _FITTERS = {"full": _fit_full, "distinct": _fit_distinct, "sample": _fit_sample,
@@ -313,8 +323,10 @@ def cluster_observations(X: np.ndarray, policy, metric, *, n_init: int = 10,
         distinct = distinct_rows(Z)
     if method == "sample" and sample_rows(ns, sample_size) >= Z.shape[0]:
         method = "full"  # the sample would hold every row
-    labels = _run(method, Z, ns, n_init=n_init, random_state=random_state, distinct=distinct,
-                  sample_size=sample_size)
+    labels, cut = _run(method, Z, ns, n_init=n_init, random_state=random_state,
+                       distinct=distinct, sample_size=sample_size)
+    if cut is not None:
+        details = dict(details, cut_views=cut)
     labels = np.asarray(labels)  # scikit-learn's int32: renaming gives int64 without a copy
     rename, _ = first_appearance_order(labels, ns)
     return rename[labels], dict(details, method=method)
