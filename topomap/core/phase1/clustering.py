@@ -35,7 +35,11 @@ How K-means runs (``method`` of :func:`cluster_observations`, ``MapLearner(phase
 All methods run with single-threaded BLAS (see :func:`_run`).  From ``MIN_CLUSTERS`` (100)
 clusters on, ``KMeans`` is seeded by :class:`~topomap.core.phase1.seeding.PrunedPlusPlus` and
 iterated by Elkan's algorithm: scikit-learn's own k-means++ and Lloyd iterations with the
-distances the triangle inequality rules out left uncomputed.
+distances the triangle inequality rules out left uncomputed.  From that many clusters on, the
+``"full"``, ``"distinct"`` and ``"sample"`` fits are also checked for a view cut in two
+(:mod:`topomap.core.phase1.repair`): two centres closer than half their clusters' rms spread are
+joined and K-means runs again, kept only when its inertia falls by at least 1 %; what was found
+is ``details["cut_views"]`` (``MapLearner.cluster_choice_``).
 """
 
 from __future__ import annotations

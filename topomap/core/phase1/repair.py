@@ -8,9 +8,10 @@ with an rms spread of 0.090, so 12.9 % of the steps carry the other symbol of th
 :func:`repair_cut_views` looks for such pairs -- two centres closer than :data:`CUT_RATIO` times
 the smaller of their clusters' rms spreads (the rms distance of a cluster's rows to its centre) --
 joins every group of them into one cluster, gives each freed cluster to the cluster whose 2-means
-cut lowers the inertia most, runs K-means again from those centres and keeps the result only when
-its inertia is at least :data:`MIN_GAIN` below the first one's.  Otherwise, and where no pair is
-that close, the first K-means is returned untouched (the same object: the same centres and labels).
+cut lowers the inertia most, and when the rows so parted already have an inertia at least
+:data:`MIN_GAIN` below the first K-means' (a fraction of it), runs K-means again from those
+centres (which can only lower it further).  Otherwise, and where no pair is that close, the first
+K-means is returned untouched (the same object: the same centres and labels).
 """
 
 from __future__ import annotations
@@ -63,70 +64,79 @@ def _joined(pairs, k):
     return keeper[group]
 
 
+def _sq(Z, c):
+    return np.einsum("ij,ij->i", Z - c, Z - c)
+
+
 def _two_means(Zc, wc, iterations: int = 30):
-    """(inertia gain, the two centres) of a 2-means cut of one cluster's rows: Lloyd's iterations
-    from the row farthest from the mean and the row farthest from that one (a cheap, seedless
-    start: the gain only ranks the clusters; K-means then runs on all of them)."""
+    """(inertia gain, the two centres, the rows nearer the second) of a 2-means cut of one
+    cluster's rows: Lloyd's iterations from the row farthest from the mean and the row farthest
+    from that one (a cheap, seedless start); a gain of 0 and no centres for one point."""
     if Zc.shape[0] < 2:
-        return 0.0, None
+        return 0.0, None, None
     mean = np.average(Zc, axis=0, weights=wc)
-    sq = np.einsum("ij,ij->i", Zc - mean, Zc - mean)
-    whole = float(wc @ sq)
+    sq = _sq(Zc, mean)
     a = Zc[np.argmax(sq)]
-    pair = np.stack([a, Zc[np.argmax(np.einsum("ij,ij->i", Zc - a, Zc - a))]])
+    pair = np.stack([a, Zc[np.argmax(_sq(Zc, a))]])
     side = None
     for _ in range(iterations):
-        d = [np.einsum("ij,ij->i", Zc - c, Zc - c) for c in pair]
-        new_side = d[1] < d[0]
+        new_side = _sq(Zc, pair[1]) < _sq(Zc, pair[0])
         if not new_side.any() or new_side.all():
-            return 0.0, None  # every row is one point
+            return 0.0, None, None  # every row is one point
         if side is not None and np.array_equal(side, new_side):
             break
         side = new_side
         pair = np.stack([np.average(Zc[side == s], axis=0, weights=wc[side == s])
                          for s in (False, True)])
-    d = np.minimum(*(np.einsum("ij,ij->i", Zc - c, Zc - c) for c in pair))
-    return whole - float(wc @ d), pair
+    side = _sq(Zc, pair[1]) < _sq(Zc, pair[0])
+    cut = np.where(side, _sq(Zc, pair[1]), _sq(Zc, pair[0]))
+    return float(wc @ sq) - float(wc @ cut), pair, side
 
 
 def _start(Z, labels, centres, w, pairs):
-    """The centres K-means starts again from: each group of cut pairs joined at its rows' mean,
-    each freed cluster's centre given to the cluster whose 2-means cut gains most."""
+    """``(centres, inertia)`` K-means starts again from: each group of cut pairs joined at its
+    rows' mean, each freed cluster's centre given to the cluster whose 2-means cut gains most;
+    the inertia of the rows so parted about those centres (K-means can only lower it)."""
     k = centres.shape[0]
     keeper = _joined(pairs, k)
     freed = np.flatnonzero(keeper != np.arange(k))
-    joined = keeper[labels]
+    part = keeper[labels]
     start = centres.copy()
     for c in np.unique(keeper[freed]):
-        rows = joined == c
+        rows = part == c
         start[c] = np.average(Z[rows], axis=0, weights=w[rows])
     cuts = []
     for c in np.flatnonzero(keeper == np.arange(k)):
-        rows = joined == c
-        gain, pair = _two_means(Z[rows], w[rows])
+        rows = np.flatnonzero(part == c)
+        gain, pair, side = _two_means(Z[rows], w[rows])
         if pair is not None:
-            cuts.append((-gain, int(c), pair))
+            cuts.append((-gain, int(c), pair, rows[side]))
     cuts.sort(key=lambda cut: cut[:2])
-    for f, (_, c, pair) in zip(freed, cuts):
+    for f, (_, c, pair, second) in zip(freed, cuts):
         start[c], start[f] = pair
-    return start
+        part[second] = f
+    return start, float(w @ _sq(Z, start[part]))
 
 
 def repair_cut_views(km: KMeans, Z: np.ndarray, weight=None, random_state=0,
                      ratio: float = CUT_RATIO, min_gain: float = MIN_GAIN):
     """``(km, info)``: ``km`` (fitted on ``Z`` with ``weight``) or, when it cut views in two and
-    the repair lowers its inertia by at least ``min_gain`` (a fraction), the K-means run again
-    from repaired centres (module docstring); ``info`` is None where no pair of centres is that
-    close, else ``{"pairs", "inertia", "repaired", "kept"}`` (the inertias before and after)."""
+    the repaired start already lowers its inertia by at least ``min_gain`` (a fraction), the
+    K-means run again from that start (module docstring); ``info`` is None where no pair of
+    centres is that close, else ``{"pairs", "inertia", "start", "repaired", "kept"}``: the
+    inertias of ``km``, of the start and of the K-means run from it (None when not run)."""
     w = _weights(Z, weight)
     centres, labels = km.cluster_centers_, km.labels_
     pairs = cut_pairs(centres, rms_spreads(Z, labels, centres, w), ratio)
     if not len(pairs):
         return km, None
-    start = _start(Z, labels, centres, w, pairs)
+    start, inertia = _start(Z, labels, centres, w, pairs)
+    info = {"pairs": len(pairs), "inertia": float(km.inertia_), "start": inertia,
+            "repaired": None, "kept": False}
+    if inertia > (1.0 - min_gain) * km.inertia_:
+        return km, info
     again = KMeans(centres.shape[0], init=start, n_init=1, random_state=random_state,
                    algorithm=km.algorithm).fit(Z, sample_weight=weight)
-    kept = bool(again.inertia_ <= (1.0 - min_gain) * km.inertia_)
-    info = {"pairs": len(pairs), "inertia": float(km.inertia_),
-            "repaired": float(again.inertia_), "kept": kept}
-    return (again if kept else km), info
+    info.update(repaired=float(again.inertia_),
+                kept=bool(again.inertia_ <= (1.0 - min_gain) * km.inertia_))
+    return (again if info["kept"] else km), info
