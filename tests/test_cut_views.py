@@ -114,3 +114,6 @@ def test_phase1_with_more_clusters_than_blobs(n_clusters):
         assert "cut_views" not in details
     else:
         assert details["cut_views"]["pairs"] == 1 and not details["cut_views"]["kept"]
+        same, details = cluster_observations(X, FixedClusters(n_clusters), Euclidean(),
+                                             n_init=1, method="full", repair=False)
+        assert np.array_equal(same, symbols) and "cut_views" not in details

@@ -246,23 +246,24 @@ def _kmeans(ns, n_init, random_state, sample_weight=None):
                   random_state=random_state, algorithm="elkan")
 
 
-def _fitted(Z, ns, n_init, random_state, weight=None):
-    """``KMeans`` fitted on ``Z``; from :data:`MIN_CLUSTERS` clusters on with the views it cut in
-    two repaired (:func:`~topomap.core.phase1.repair.repair_cut_views`)."""
+def _fitted(Z, ns, n_init, random_state, repair, weight=None):
+    """``(KMeans fitted on Z, what the repair found)``; from :data:`MIN_CLUSTERS` clusters on,
+    when ``repair``, with the views it cut in two repaired
+    (:func:`~topomap.core.phase1.repair.repair_cut_views`)."""
     km = _kmeans(ns, n_init, random_state, weight).fit(Z, sample_weight=weight)
-    if ns < MIN_CLUSTERS:
+    if ns < MIN_CLUSTERS or not repair:
         return km, None
     return repair_cut_views(km, Z, weight, random_state)
 
 
-def _fit_full(Z, ns, n_init, random_state, **_):
-    km, info = _fitted(Z, ns, n_init, random_state)
+def _fit_full(Z, ns, n_init, random_state, repair=True, **_):
+    km, info = _fitted(Z, ns, n_init, random_state, repair)
     return km.labels_, info
 
 
-def _fit_distinct(Z, ns, n_init, random_state, distinct, **_):
+def _fit_distinct(Z, ns, n_init, random_state, distinct, repair=True, **_):
     first, inverse, counts = distinct
-    km, info = _fitted(Z[first], ns, n_init, random_state, counts.astype(np.float64))
+    km, info = _fitted(Z[first], ns, n_init, random_state, repair, counts.astype(np.float64))
     return km.labels_[inverse], info
 
 
@@ -271,10 +272,10 @@ def sample_rows(n_clusters: int, sample_size: int | None = None) -> int:
     return sample_size or max(_MIN_SAMPLE, 64 * n_clusters)
 
 
-def _fit_sample(Z, ns, n_init, random_state, sample_size=None, **_):
+def _fit_sample(Z, ns, n_init, random_state, sample_size=None, repair=True, **_):
     T, m = Z.shape[0], sample_rows(ns, sample_size)
     rows = np.sort(np.random.default_rng(random_state).choice(T, size=m, replace=False))
-    km, info = _fitted(Z[rows], ns, n_init, random_state)
+    km, info = _fitted(Z[rows], ns, n_init, random_state, repair)
     return km.predict(Z), info
 
 
@@ -300,7 +301,8 @@ def _run(method, Z, ns, **kw):
 
 def cluster_observations(X: np.ndarray, policy, metric, *, n_init: int = 10,
                          random_state: int = 0, method: str = "auto",
-                         sample_size: int | None = None) -> tuple[np.ndarray, dict]:
+                         sample_size: int | None = None,
+                         repair: bool = True) -> tuple[np.ndarray, dict]:
     """K-means symbols for the rows of ``X`` (GDS steps already removed).
 
     Returns ``(symbols, details)``: int64 symbols in ``[0, ns)`` numbered by first appearance in
@@ -308,7 +310,8 @@ def cluster_observations(X: np.ndarray, policy, metric, *, n_init: int = 10,
     shrink) and what the cluster-count policy reported plus ``"method"``, the phase-1 method that
     ran (``"auto"`` resolved; see :data:`METHODS`).  Raises a
     :class:`~topomap.core.checks.ParameterError` naming ``ns`` (the count the policy chose) when
-    more clusters are asked for than there are distinct observations.
+    more clusters are asked for than there are distinct observations.  ``repair=False`` leaves
+    views K-means cut in two as they are (:mod:`topomap.core.phase1.repair`).
     """
     if method not in METHODS:
         raise ParameterError("method", f"={method!r} is unknown; choose one of {', '.join(METHODS)}")
@@ -328,7 +331,7 @@ def cluster_observations(X: np.ndarray, policy, metric, *, n_init: int = 10,
     if method == "sample" and sample_rows(ns, sample_size) >= Z.shape[0]:
         method = "full"  # the sample would hold every row
     labels, cut = _run(method, Z, ns, n_init=n_init, random_state=random_state,
-                       distinct=distinct, sample_size=sample_size)
+                       distinct=distinct, sample_size=sample_size, repair=repair)
     if cut is not None:
         details = dict(details, cut_views=cut)
     labels = np.asarray(labels)  # scikit-learn's int32: renaming gives int64 without a copy
