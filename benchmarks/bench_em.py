@@ -3,10 +3,12 @@
     python benchmarks/bench_em.py                            # every world, T = 10,000 and 50,000
     python benchmarks/bench_em.py --worlds gridroom --sizes 10000 --seeds 0 --methods split em
     python benchmarks/bench_em.py --report                   # the table of the runs logged so far
+    python benchmarks/bench_em.py --worlds minigrid_empty16 --sizes 50000 --methods split+em
 
 The quantitative comparison with EM that the paper leaves to future work.  Every world is a
 ``topomap`` command (``WORLDS``: ``ns`` = the world's symbols, the state target = its places; the
-paper's office also at its own T = 2,000); for each walk length T and seed the data are those of
+paper's office also at its own T = 2,000; MiniGrid Empty-16x16, ``minigrid_empty16``, only when
+asked for with ``--worlds``); for each walk length T and seed the data are those of
 ``topomap <command> data.n_steps=<T> data.heldout_steps=10000 seed=<seed>`` (the training walk
 with the app's sensor noise, and a held-out walk of 10,000 steps), and three learners are fitted:
 
