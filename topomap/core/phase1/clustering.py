@@ -35,7 +35,11 @@ How K-means runs (``method`` of :func:`cluster_observations`, ``MapLearner(phase
 All methods run with single-threaded BLAS (see :func:`_run`).  From ``MIN_CLUSTERS`` (100)
 clusters on, ``KMeans`` is seeded by :class:`~topomap.core.phase1.seeding.PrunedPlusPlus` and
 iterated by Elkan's algorithm: scikit-learn's own k-means++ and Lloyd iterations with the
-distances the triangle inequality rules out left uncomputed.
+distances the triangle inequality rules out left uncomputed.  From that many clusters on, the
+``"full"``, ``"distinct"`` and ``"sample"`` fits are also checked for a view cut in two
+(:mod:`topomap.core.phase1.repair`): two centres closer than half their clusters' rms spread are
+joined and K-means runs again, kept only when its inertia falls by at least 1 %; what was found
+is ``details["cut_views"]`` (``MapLearner.cluster_choice_``).
 """
 
 from __future__ import annotations
@@ -49,6 +53,7 @@ from threadpoolctl import threadpool_limits
 from ..checks import ParameterError, check_count
 from ..progress import report
 from .distinct import distinct_rows
+from .repair import repair_cut_views
 from .seeding import MIN_CLUSTERS, PrunedPlusPlus
 
 __all__ = [
@@ -241,16 +246,25 @@ def _kmeans(ns, n_init, random_state, sample_weight=None):
                   random_state=random_state, algorithm="elkan")
 
 
-def _fit_full(Z, ns, n_init, random_state, **_):
-    return _kmeans(ns, n_init, random_state).fit_predict(Z)
+def _fitted(Z, ns, n_init, random_state, repair, weight=None):
+    """``(KMeans fitted on Z, what the repair found)``; from :data:`MIN_CLUSTERS` clusters on,
+    when ``repair``, with the views it cut in two repaired
+    (:func:`~topomap.core.phase1.repair.repair_cut_views`)."""
+    km = _kmeans(ns, n_init, random_state, weight).fit(Z, sample_weight=weight)
+    if ns < MIN_CLUSTERS or not repair:
+        return km, None
+    return repair_cut_views(km, Z, weight, random_state)
 
 
-def _fit_distinct(Z, ns, n_init, random_state, distinct, **_):
+def _fit_full(Z, ns, n_init, random_state, repair=True, **_):
+    km, info = _fitted(Z, ns, n_init, random_state, repair)
+    return km.labels_, info
+
+
+def _fit_distinct(Z, ns, n_init, random_state, distinct, repair=True, **_):
     first, inverse, counts = distinct
-    weight = counts.astype(np.float64)
-    km = _kmeans(ns, n_init, random_state, weight)
-    km.fit(Z[first], sample_weight=weight)
-    return km.labels_[inverse]
+    km, info = _fitted(Z[first], ns, n_init, random_state, repair, counts.astype(np.float64))
+    return km.labels_[inverse], info
 
 
 def sample_rows(n_clusters: int, sample_size: int | None = None) -> int:
@@ -258,16 +272,17 @@ def sample_rows(n_clusters: int, sample_size: int | None = None) -> int:
     return sample_size or max(_MIN_SAMPLE, 64 * n_clusters)
 
 
-def _fit_sample(Z, ns, n_init, random_state, sample_size=None, **_):
+def _fit_sample(Z, ns, n_init, random_state, sample_size=None, repair=True, **_):
     T, m = Z.shape[0], sample_rows(ns, sample_size)
     rows = np.sort(np.random.default_rng(random_state).choice(T, size=m, replace=False))
-    return _kmeans(ns, n_init, random_state).fit(Z[rows]).predict(Z)
+    km, info = _fitted(Z[rows], ns, n_init, random_state, repair)
+    return km.predict(Z), info
 
 
 def _fit_minibatch(Z, ns, n_init, random_state, **_):
     km = MiniBatchKMeans(n_clusters=ns, n_init=n_init, random_state=random_state,
                          batch_size=max(1024, 8 * ns))
-    return km.fit(Z).labels_
+    return km.fit(Z).labels_, None
 
 
 _FITTERS = {"full": _fit_full, "distinct": _fit_distinct, "sample": _fit_sample,
@@ -286,7 +301,8 @@ def _run(method, Z, ns, **kw):
 
 def cluster_observations(X: np.ndarray, policy, metric, *, n_init: int = 10,
                          random_state: int = 0, method: str = "auto",
-                         sample_size: int | None = None) -> tuple[np.ndarray, dict]:
+                         sample_size: int | None = None,
+                         repair: bool = True) -> tuple[np.ndarray, dict]:
     """K-means symbols for the rows of ``X`` (GDS steps already removed).
 
     Returns ``(symbols, details)``: int64 symbols in ``[0, ns)`` numbered by first appearance in
@@ -294,7 +310,8 @@ def cluster_observations(X: np.ndarray, policy, metric, *, n_init: int = 10,
     shrink) and what the cluster-count policy reported plus ``"method"``, the phase-1 method that
     ran (``"auto"`` resolved; see :data:`METHODS`).  Raises a
     :class:`~topomap.core.checks.ParameterError` naming ``ns`` (the count the policy chose) when
-    more clusters are asked for than there are distinct observations.
+    more clusters are asked for than there are distinct observations.  ``repair=False`` leaves
+    views K-means cut in two as they are (:mod:`topomap.core.phase1.repair`).
     """
     if method not in METHODS:
         raise ParameterError("method", f"={method!r} is unknown; choose one of {', '.join(METHODS)}")
@@ -313,8 +330,10 @@ def cluster_observations(X: np.ndarray, policy, metric, *, n_init: int = 10,
         distinct = distinct_rows(Z)
     if method == "sample" and sample_rows(ns, sample_size) >= Z.shape[0]:
         method = "full"  # the sample would hold every row
-    labels = _run(method, Z, ns, n_init=n_init, random_state=random_state, distinct=distinct,
-                  sample_size=sample_size)
+    labels, cut = _run(method, Z, ns, n_init=n_init, random_state=random_state,
+                       distinct=distinct, sample_size=sample_size, repair=repair)
+    if cut is not None:
+        details = dict(details, cut_views=cut)
     labels = np.asarray(labels)  # scikit-learn's int32: renaming gives int64 without a copy
     rename, _ = first_appearance_order(labels, ns)
     return rename[labels], dict(details, method=method)
