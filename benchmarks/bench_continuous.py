@@ -29,14 +29,14 @@ call: ``MapLearner(n_clusters, n_states, refine="em", random_state=0)``, motion=
 own Gaussian, decoded by the map), ``merged_runs`` (runs of one symbol merged into one step, split
 + EM on the runs, each row labelled with its run's state), ``fallback`` (the map the default
 falls back to: the view clusters, every state one pooled variance), ``folds3`` (the default
-with three held-out quarters, each recorded in its row's ``motion``), ``unscaled`` (the default
+with the mean over three held-out quarters, not two, each recorded in its row's ``motion``), ``unscaled`` (the default
 with the fallback's pooled variance not scaled down and no least gain of the check,
 ``fallback_variance=1, min_gain=0``: the version before both), ``no_vote`` (the default
-without the vote of three held-out quarters, ``votes=0``: the version before it), ``self_decoded`` (the places
-unchecked, each training row then labelled with the state the map itself decodes it into, so
-that a state stands where the map puts its steps, not where they were cut; a state the
-decoding never takes keeps the rows it was cut from). ``views`` is seeded with
-``random_state=0``. Scores
+without the vote of three held-out quarters, ``votes=0``: the version before it),
+``self_decoded`` (the places unchecked, each training row then labelled with the state the map
+itself decodes it into, so that a state stands where the map puts its steps, not where they were
+cut; a state the decoding never takes keeps the rows it was cut from). ``views`` is seeded
+with ``random_state=0``. Scores
 (:mod:`topomap.core.position_scores`): median and 90th-percentile error, wrong-region share;
 states; fit seconds; the peak RSS of the benchmark process so far (``rss_mib``: a bound on the
 route's own, see ``--timing`` for a fresh process). Every row is appended to ``--log`` (JSON lines)

@@ -18,13 +18,13 @@ map was learned on (a fold where no step joined one gives no reference).
 One held-out part is one draw of where the log happens to end; ``settings.folds`` parts are held
 out one after another from the end (each learned from the steps before it), and the places are
 kept only when their mean share over the folds is below the view clusters', at most
-``settings.margin`` times it and at least ``settings.min_gain`` below it, or when most of the last
-``settings.votes`` parts, each on its own, find the places' share ``settings.min_gain`` below
-the view clusters' (:func:`outvoted`; a third part, learned from the first quarter alone, is
-too weak to average in -- on Tanni's rat path its mean kept places that placed the new walk
-35 % farther off than the view clusters -- but not to vote); in doubt -- the two alike, neither misplacing more
-than a few steps, or the carried-on filter lost and no reference for either -- the view
-clusters stay.  The
+``settings.margin`` times it and at least ``settings.min_gain`` below it, or when most of the
+last ``settings.votes`` parts, each on its own, find the places' share ``settings.min_gain``
+below the view clusters' (:func:`outvoted`; a third part, learned from the first quarter
+alone, is too weak to average in -- on Tanni's rat path its mean kept places that placed the
+new walk 35 % farther off than the view clusters -- but not to vote); in doubt -- the two
+alike, neither misplacing more than a few steps, or the carried-on filter lost and no
+reference for either -- the view clusters stay.  The
 median distance of each (:func:`frame_error`) is recorded beside: it weighs the many steps both
 maps place within a cell, and fell back on every alcove layout where the places were better.
 """

@@ -51,8 +51,8 @@ class MotionSettings:
     shares of a hundredth or so are a handful of runs of one view either way), or when most of
     the last ``votes`` parts (the third learning from the first quarter alone), each on its
     own, give the places a share at least ``min_gain`` below the view clusters' (``votes=0``:
-    no vote).  Else the map's states are the view clusters.  ``holdout=0`` (or a held-out part under 100 steps) keeps the
-    places unchecked.
+    no vote).  Else the map's states are the view clusters.  ``holdout=0`` (or a held-out part
+    under 100 steps) keeps the places unchecked.
 
     ``n_init``: the k-means++ starts of the view clusters (scikit-learn's ``KMeans`` on every
     row, as :func:`topomap.core.position_scores.kmeans_view_scores`).  A map that falls back to
