@@ -29,10 +29,14 @@ call: ``MapLearner(n_clusters, n_states, refine="em", random_state=0)``, motion=
 own Gaussian, decoded by the map), ``merged_runs`` (runs of one symbol merged into one step, split
 + EM on the runs, each row labelled with its run's state), ``fallback`` (the map the default
 falls back to: the view clusters, every state one pooled variance), ``folds3`` (the default
-with three held-out quarters, each recorded in its row's ``motion``), ``unscaled`` (the default
+with the mean over three held-out quarters, not two, each recorded in its row's ``motion``), ``unscaled`` (the default
 with the fallback's pooled variance not scaled down and no least gain of the check,
-``fallback_variance=1, min_gain=0``: the version before both). ``views`` is seeded with
-``random_state=0``. Scores
+``fallback_variance=1, min_gain=0``: the version before both), ``no_vote`` (the default
+without the vote of three held-out quarters, ``votes=0``: the version before it),
+``self_decoded`` (the places unchecked, each training row then labelled with the state the map
+itself decodes it into, so that a state stands where the map puts its steps, not where they were
+cut; a state the decoding never takes keeps the rows it was cut from). ``views`` is seeded
+with ``random_state=0``. Scores
 (:mod:`topomap.core.position_scores`): median and 90th-percentile error, wrong-region share;
 states; fit seconds; the peak RSS of the benchmark process so far (``rss_mib``: a bound on the
 route's own, see ``--timing`` for a fresh process). Every row is appended to ``--log`` (JSON lines)
@@ -66,7 +70,8 @@ ROOMS = ("two_rooms", "four_rooms", "corridor", "open", "alcoves")
 #: floor plans kept out of the main table: layouts the default was not developed on
 UNSEEN = ("l_rooms", "pillars", "three_rooms", "grid6", "ring", "sizes")
 ROUTES = ("split", "em", "views", "ceiling", "positions", "shipped", "unchecked", "one_gate",
-          "no_odometry", "merged_runs", "fallback", "folds3", "unscaled")
+          "no_odometry", "merged_runs", "fallback", "folds3", "unscaled", "no_vote",
+          "self_decoded")
 #: the main sensor: 12 compass beams, max range 3 m, noise 0.02; random motion 0.16 m/s, 10 Hz
 BASE = {"beams": 12, "max_range": 3.0, "sigma": 0.02, "speed": 0.16, "dt": 0.1,
         "actions": "compass", "frame": "compass", "sensor": "range"}
@@ -172,12 +177,21 @@ def route(name, train, held, ns, S, regions, seed):
     if name in ("split", "em"):
         return _learner_row(*_fit(train, motion="discrete", refine="em" if name == "em" else None,
                                   **kw), train, held, regions)
-    if name in ("shipped", "unchecked", "one_gate", "folds3", "unscaled"):
+    if name in ("shipped", "unchecked", "one_gate", "folds3", "unscaled", "no_vote"):
         motion = {"shipped": MotionSettings(), "unchecked": MotionSettings(holdout=0),
                   "one_gate": MotionSettings(gates=(3.0,)),
                   "folds3": MotionSettings(folds=3),
-                  "unscaled": MotionSettings(fallback_variance=1.0, min_gain=0.0)}[name]
+                  "unscaled": MotionSettings(fallback_variance=1.0, min_gain=0.0),
+                  "no_vote": MotionSettings(votes=0)}[name]
         return _learner_row(*_fit(train, refine="em", motion=motion, **kw), train, held, regions)
+    if name == "self_decoded":
+        learner, seconds = _fit(train, refine="em", motion=MotionSettings(holdout=0), **kw)
+        labels = learner.map_.predict(train.observations, train.actions)
+        unused = np.bincount(labels, minlength=learner.map_.n_states) == 0
+        keep = unused[learner.labels_]  # a state the decoding never takes keeps its own rows
+        labels[keep] = learner.labels_[keep]
+        return {"states": learner.map_.n_states, "fit_s": round(seconds, 2),
+                **map_scores(learner.map_, labels, train, held, regions)}
     start = time.perf_counter()
     if name == "views":
         scores = kmeans_view_scores(S, train, held, regions, random_state=0)

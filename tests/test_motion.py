@@ -296,6 +296,34 @@ def test_the_check_counts_steps_placed_far_off_not_the_median_distance():
     assert keeps_places({"places": 0.10, "views": 0.125}, margin=0.9, min_gain=0.02)  # 0.025
 
 
+def test_most_of_three_quarters_each_alone_outvote_a_mean_of_two():
+    from topomap.core.motion.check import keeps_places, outvoted
+
+    def folds(*pairs):
+        return [{"misplaced": {"places": p, "views": v}} for p, v in pairs]
+
+    # the last quarter favours the view clusters, the two before it the places by 0.147 and
+    # 0.064: two of three each find the places 0.02 or more below, though the mean of the last
+    # two (0.3528 against 0.3708) is only 0.018 below
+    three = folds((0.5133, 0.4024), (0.1922, 0.3392), (0.5430, 0.6074))
+    assert outvoted(three, votes=3, min_gain=0.02)
+    assert not keeps_places({"places": 0.3528, "views": 0.3708}, margin=0.9, min_gain=0.02)
+    # one part by far (0.264) and one by 0.016, under the least gain: one vote of three
+    assert not outvoted(folds((0.8277, 0.712), (0.2084, 0.2248), (0.4451, 0.7089)), 3, 0.02)
+    assert outvoted(folds((0.8277, 0.712), (0.2084, 0.2248), (0.4451, 0.7089)), 3, 0.01)
+    assert not outvoted(three, votes=0, min_gain=0.02)        # no vote
+    assert not outvoted(three[:2], votes=3, min_gain=0.02)    # a part missing: no vote
+    assert not outvoted(three[:2], votes=2, min_gain=0.02)    # one of two is not most
+    # a default fit holds out three quarters, the mean read on the last two
+    Z, u, _ = _alike_halves()
+    check = MapLearner(n_clusters=4, n_states=8, random_state=0).fit(Z, u).motion_info_["check"]
+    assert [f["learned"] for f in check["folds"]] == [6000, 4000, 2000]
+    for name in ("places", "views"):
+        mean = np.mean([f["misplaced"][name] for f in check["folds"][:2]])
+        assert check["mean_misplaced"][name] == pytest.approx(mean, abs=1e-4)
+    assert "outvoted" in check
+
+
 def _same_partition(a, b) -> bool:
     pairs = np.unique(np.stack([a, b]), axis=1)
     return pairs.shape[1] == np.unique(a).size == np.unique(b).size
@@ -343,6 +371,7 @@ def test_discrete_worlds_keep_the_map_of_the_split():
     ({"fallback_variance": 2.0}, r"^motion\.fallback_variance must be a number in \(0, 1\]"),
     ({"fallback_variance": 0}, r"^motion\.fallback_variance must be a number in \(0, 1\]"),
     ({"min_gain": -0.1}, r"^motion\.min_gain must be a number in \[0, 1\)"),
+    ({"votes": -1}, r"^motion\.votes must be a non-negative integer"),
 ])
 def test_bad_motion_is_named(motion, message):
     Z, u, _ = _alike_halves(500)

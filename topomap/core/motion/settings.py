@@ -48,9 +48,11 @@ class MotionSettings:
     the end (the second learns from the steps before the last two, and decodes the first of
     them), and the places are kept only when their mean misplaced share over the folds is below
     the view clusters', at most ``margin`` times it and at least ``min_gain`` below it (two
-    shares of a hundredth or so are a handful of runs of one view either way).  Else the map's
-    states are the view clusters.  ``holdout=0`` (or a held-out part under 100 steps) keeps the
-    places unchecked.
+    shares of a hundredth or so are a handful of runs of one view either way), or when most of
+    the last ``votes`` parts (the third learning from the first quarter alone), each on its
+    own, give the places a share at least ``min_gain`` below the view clusters' (``votes=0``:
+    no vote).  Else the map's states are the view clusters.  ``holdout=0`` (or a held-out part
+    under 100 steps) keeps the places unchecked.
 
     ``n_init``: the k-means++ starts of the view clusters (scikit-learn's ``KMeans`` on every
     row, as :func:`topomap.core.position_scores.kmeans_view_scores`).  A map that falls back to
@@ -75,6 +77,7 @@ class MotionSettings:
     folds: int = 2
     fallback_variance: float = 0.01
     min_gain: float = 0.02
+    votes: int = 3
 
 
 def motion_settings(value) -> MotionSettings:
@@ -101,6 +104,7 @@ def motion_settings(value) -> MotionSettings:
     check_count(value.min_steps, "motion.min_steps")
     check_count(value.n_init, "motion.n_init")
     check_count(value.folds, "motion.folds")
+    check_count(value.votes, "motion.votes", minimum=0)
     gates = value.gates
     if not isinstance(gates, tuple) or not gates or not all(_positive(g) for g in gates):
         raise ParameterError("motion.gates", f"must be a non-empty list of positive numbers, "
