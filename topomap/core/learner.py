@@ -16,7 +16,7 @@ from .components import (DEPRECATED, fit_refinement, make_components, make_refin
                          refinement_label, warn_renamed, within_told_size)
 from .refining import bic_scores, heldout_scores, refined_from, resized, symbol_map
 from .online import OnlineState, Window
-from .online_pass import warm_start, warm_starts, wider_pass
+from .online_pass import PassStart, warm_start, warm_starts, wider_pass
 from .phase1.clustering import cluster_observations
 from .size import AutoStates, probe_sizes, split_holdout
 from .map.model import TopologicalMap
@@ -182,14 +182,13 @@ class MapLearner(MapMethods, BaseEstimator):
         return self._fit(data)
 
     def _fit(self, data: FitData, symbols: np.ndarray | None = None, motion: bool = True,
-             warm: tuple | None = None) -> Self:
+             warm: PassStart | None = None) -> Self:
         """Phase 1, the split, the map and the refinement on checked ``data``, forgetting what an
         earlier fit (or pass) learned.  ``symbols``: the K-means symbol of every non-GDS step,
         given instead of running K-means (a wider pass of :meth:`partial_fit` gives the
         codebook's); ``motion=False``: no places of a continuous log (wider passes); ``warm``:
-        ``(the last map's state of every step (-1: none), whether that map's refinement found no
-        misread symbols)``, which a built-in refinement starts from instead of the split
-        (:func:`~topomap.core.online_pass.warm_start`)."""
+        how a wider pass's refinement starts, and whether it refines at all
+        (:class:`~topomap.core.online_pass.PassStart`)."""
         clusters, metric, criterion, stopping = make_components(self)
         refinement = make_refinement(self.refine)
         places = motion_settings(self.motion) if motion else None
@@ -223,6 +222,8 @@ class MapLearner(MapMethods, BaseEstimator):
             data, splitter, info, models=(first.means[root], first.covariances[root]))
         self.timings_ = {"phase1": t1 - t0, "phase2": t2 - t1}
         continuous = places is not None and fit_places(self, data, places, metric)
+        if warm is not None and not warm.refines(data.u.size, splitter.n_states):
+            refinement = None  # too few steps per state: the pass keeps the split
         if refinement is not None and not continuous:
             if auto is not None and auto.criterion == "heldout" and self.refined_size == "told":
                 told = self._choose_refined_size(data, splitter, refinement, auto)

@@ -1,8 +1,12 @@
 """A wider pass of :meth:`MapLearner.partial_fit <topomap.MapLearner.partial_fit>` (the map
-re-learned from the window, :mod:`topomap.core.online`) and the warm start of its refinement:
-with ``refine="em"``, a pass on a window that has lost steps starts EM from the last map."""
+re-learned from the window, :mod:`topomap.core.online`) and how its refinement starts
+(:class:`PassStart`): with ``refine="em"``, a pass on a window that has lost steps starts EM from
+the last map, and once a map's refinement found no misread symbols the passes after it read them
+as exact; a pass on fewer than :data:`MIN_STEPS_PER_STATE` steps per state keeps the split."""
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 from sklearn.base import clone
@@ -12,24 +16,47 @@ from .online import OnlineState, lengths_of
 from .refine.methods import EMRefinement
 from .refine.rounds import CloneRefinement
 
-__all__ = ["wider_pass", "warm_starts", "warm_start", "warm_labelling"]
+__all__ = ["MIN_STEPS_PER_STATE", "PassStart", "wider_pass", "warm_starts", "warm_start",
+           "warm_labelling"]
+
+#: a wider pass refines its map only when the window holds at least this many steps per state of
+#: the split: EM's clones cannot be told apart by fewer visits, and on so short a walk (a map of
+#: a thousand states after a thousand steps) the refinement costs more than any later pass
+MIN_STEPS_PER_STATE = 2
+
+
+@dataclass(frozen=True)
+class PassStart:
+    """How a wider pass's refinement starts: ``old``, the last map's state of every step of the
+    window (-1: none), which EM starts from (None: afresh, as ``fit``); ``exact``, whether the
+    last map's refinement (``refine="em"``) found no misread symbols, so the pass reads them as
+    exact instead of making the soft check again."""
+
+    old: np.ndarray | None = None
+    exact: bool = False
+
+    @staticmethod
+    def refines(n_steps: int, n_states: int) -> bool:
+        """Whether a pass on ``n_steps`` steps refines a split of ``n_states`` states
+        (:data:`MIN_STEPS_PER_STATE`)."""
+        return n_steps >= MIN_STEPS_PER_STATE * n_states
 
 
 def wider_pass(learner, state: OnlineState, X_call) -> None:
     """A wider pass of ``learner`` (a :class:`~topomap.MapLearner`): learn the map from the
     window (its fit with the codebook's symbols, or with K-means while the window holds every
-    step seen; EM started from the last map's states once steps have left the window) and bind
-    ``state`` to it.  ``X_call``: the observations of the call."""
+    step seen; how its refinement starts: :class:`PassStart`) and bind ``state`` to it.
+    ``X_call``: the observations of the call."""
     Xw, uw, gw, sw, first = state.window.arrays()
     plain = gw < 0
     symbols, present = state.window_symbols(first, plain)
-    warm = None  # only a refinement that starts from the last map needs its labels
+    start = PassStart()  # only a refinement that starts from the last map needs its labels
     if warm_starts(learner.refine):
-        warm = state.warm_labels(getattr(learner, "map_", None), X_call.shape[0], first)
-    if warm is not None:  # with whether the last map's refinement found no misread symbols
-        warm = (warm, getattr(learner, "refine_info_", {}).get("soft") == "skipped")
+        start = PassStart(state.warm_labels(getattr(learner, "map_", None), X_call.shape[0],
+                                            first),
+                          getattr(learner, "refine_info_", {}).get("soft") == "skipped")
     learner._fit(check_fit_data(Xw, uw, gw, lengths_of(sw), state.n_actions, state.action_names,
-                                state.gds_names), symbols, motion=False, warm=warm)
+                                state.gds_names), symbols, motion=False, warm=start)
     if symbols is None:  # phase 1's K-means symbols of every step seen become the codebook
         state.learn_codebook(X_call, Xw, plain, learner.labels_phase1_[plain],
                              learner.n_clusters_, first)
@@ -43,20 +70,20 @@ def warm_starts(refine) -> bool:
     return refine == "em" if isinstance(refine, str) else isinstance(refine, EMRefinement)
 
 
-def warm_start(refinement, warm, sym):
-    """``(refinement to fit, init)`` of a pass's refinement: ``warm`` is None (a fresh start:
-    ``(refinement, None)``) or ``(old, skipped)``, the last map's state of every step and
-    whether its refinement found no misread symbols to correct.  A built-in refinement
-    (:class:`~topomap.core.refine.rounds.CloneRefinement`) then starts from
-    :func:`warm_labelling`; with ``evidence="auto"`` and ``skipped``, a copy of it with
-    ``evidence="hard"`` is fitted: the symbols come from the same sensor and codebook as the
-    last map's, so the soft rounds' check is not made again on every pass."""
+def warm_start(refinement, warm: PassStart | None, sym):
+    """``(refinement to fit, init)`` of a pass's refinement: ``warm`` is None (``fit``:
+    ``(refinement, None)``) or the pass's :class:`PassStart`.  A built-in refinement
+    (:class:`~topomap.core.refine.rounds.CloneRefinement`) starts from :func:`warm_labelling`
+    of ``warm.old`` when there is one (else afresh, ``init`` None); with ``evidence="auto"``
+    and ``warm.exact``, a copy of it with ``evidence="hard"`` is fitted: the symbols come from
+    the same sensor as the last map's, so the soft rounds' check is not made again on every
+    pass."""
     if warm is None or not isinstance(refinement, CloneRefinement):
         return refinement, None
-    old, skipped = warm
-    if skipped and refinement.evidence == "auto":
-        return clone(refinement).set_params(evidence="hard"), warm_labelling(old, sym)
-    return refinement, warm_labelling(old, sym)
+    init = None if warm.old is None else warm_labelling(warm.old, sym)
+    if warm.exact and refinement.evidence == "auto":
+        return clone(refinement).set_params(evidence="hard"), init
+    return refinement, init
 
 
 def warm_labelling(old, sym):
