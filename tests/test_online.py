@@ -292,9 +292,6 @@ def test_a_warm_start_skips_the_soft_check_only_after_a_map_that_needed_none():
     assert runner is not em and runner.evidence == "hard" and em.evidence == "auto"
     assert labels.tolist() == [1, 2, 2, 0] and state_symbol.tolist() == [0, 0, 1]
     assert online_pass.warm_start(em, online_pass.PassStart(old), sym)[0] is em
-    # a pass afresh (no old states) after such a map: the copy, started as fit starts
-    runner, init = online_pass.warm_start(em, online_pass.PassStart(None, exact=True), sym)
-    assert runner.evidence == "hard" and init is None
     soft = EMRefinement(evidence="soft")
     assert online_pass.warm_start(soft, online_pass.PassStart(old, True), sym)[0] is soft
     other = object()  # not a built-in refinement: no warm start
@@ -319,17 +316,36 @@ def test_a_pass_refines_only_with_two_steps_per_state(n_steps, refined):
     assert "refine" in MapLearner(4, 4, refine="em").fit(X, u, n_actions=1).map_.info
 
 
-def test_a_pass_afresh_reads_the_symbols_as_exact_after_a_map_that_needed_no_soft_check():
+def test_a_pass_afresh_makes_the_soft_check_as_fit_makes_it():
     # passes at 8 and 16 steps, both on every step seen: the first one's refinement finds no
-    # misread symbols (the cycle never surprises), so the second makes no soft check, and its
-    # map is still fit's
+    # misread symbols, yet the second (afresh, not from the last map) makes its own soft check,
+    # so its map is fit's, refine_info_ included
     X, u = cycle(16)
     learner = MapLearner(4, 4, refine="em", window=100, refit_every=8)
     learner.partial_fit(X[:8], u[:8], n_actions=1)
-    assert learner.refine_info_["soft"] == "skipped" and "soft_from" not in learner.refine_info_
+    assert learner.refine_info_["soft"] == "skipped"
     learner.partial_fit(X[8:], u[8:])
     assert learner.online_["n_passes"] == 2 and learner.online_["pass_from"] == 0
-    assert learner.refine_info_["soft_from"] == "the last map"
-    assert "warm_start" not in learner.refine_info_
     batch = MapLearner(4, 4, refine="em").fit(X, u, n_actions=1)
+    assert learner.refine_info_ == batch.refine_info_ and "soft_from" not in batch.refine_info_
     assert np.array_equal(learner.labels_, batch.labels_)
+
+
+def test_a_pass_from_the_last_map_makes_no_split_and_guards_against_the_map_it_starts_from():
+    # 4 cells in a cycle showing symbols 0, 0, 1, 1: the split tells the two cells of each
+    # symbol apart (2 splits).  Window 8: the pass at 16 steps has lost the first 8 and starts
+    # EM from the last map, whose 4 states each show one symbol, so it starts from 4 states (one
+    # per old state and symbol) and makes no split; the guard compares the refined map with them
+    cells = np.arange(16) % 4
+    X, u = np.eye(2)[cells // 2], np.zeros(16, dtype=np.int64)
+    learner = MapLearner(2, 4, refine="em", window=8, refit_every=8)
+    learner.partial_fit(X[:8], u[:8], n_actions=1)
+    assert len(learner.split_history_) == 2 and learner.map_split_.n_states == 4
+    learner.partial_fit(X[8:], u[8:])
+    assert learner.online_["pass_from"] == 8 and learner.refine_info_["warm_start"]
+    assert learner.split_history_ == [] and learner.stop_reason_ == "started from the last map"
+    assert learner.map_split_.n_states == 4
+    assert learner.map_split_.info["stop_reason"] == "started from the last map"
+    assert learner.refine_info_["kept"] == "refined"
+    assert sorted(learner.map_.info["refined_from"]) == [0, 1, 2, 3]
+    assert adjusted_rand_score(cells, learner.labels_) == 1.0

@@ -16,7 +16,7 @@ from .components import (DEPRECATED, fit_refinement, make_components, make_refin
                          refinement_label, warn_renamed, within_told_size)
 from .refining import bic_scores, heldout_scores, refined_from, resized, symbol_map
 from .online import OnlineState, Window
-from .online_pass import PassStart, warm_start, warm_starts, wider_pass
+from .online_pass import PassStart, start_map, warm_start, warm_starts, wider_pass
 from .phase1.clustering import cluster_observations
 from .size import AutoStates, probe_sizes, split_holdout
 from .map.model import TopologicalMap
@@ -201,8 +201,8 @@ class MapLearner(MapMethods, BaseEstimator):
         if auto is not None:
             stopping = TargetStates(self._choose_size(data, splitter, auto))
         t1 = time.perf_counter()
-        self.stop_reason_ = "no state can be split"
-        while (best := splitter.best()) is not None:
+        self.stop_reason_ = "no state can be split"  # a pass from the last map splits none
+        while (warm is None or warm.old is None) and (best := splitter.best()) is not None:
             if stopping.should_stop(splitter.n_states, best.score):
                 self.stop_reason_ = "stopping rule"
                 break
@@ -286,6 +286,8 @@ class MapLearner(MapMethods, BaseEstimator):
         ns = self.n_clusters_
         seq = SymbolSequence.build(self.labels_phase1_, data.u, data.lengths, data.n_actions, ns)
         runner, init = warm_start(refinement, warm, seq.sym)
+        if init is not None:  # EM starts from the last map's states, not from a split
+            self.labels_split_, self.map_split_ = start_map(self, data, init)
         with naming(self, "refine"):
             fit = fit_refinement(runner, seq, self._split_symbol(splitter), self.random_state,
                                  init)
@@ -305,13 +307,15 @@ class MapLearner(MapMethods, BaseEstimator):
             keep = scores["refined"] <= scores["split"]
             self.refine_info_.update(bic=scores, kept="refined" if keep else "split")
             if not keep:
+                self.labels_ = self.labels_split_
                 self.map_ = self.map_split_ = replace(
                     self.map_split_, info=dict(self.map_split_.info, **record))
                 return
         self.labels_ = fit.labels
         self.entropies_.append(dict(refined.entropies(), n_states=refined.n_states,
                                     iteration=len(self.split_history_) + 1, stage="refined"))
-        origin = refined_from(fit.labels, self.labels_split_, fit.n_states, splitter.n_states)
+        origin = refined_from(fit.labels, self.labels_split_, fit.n_states,
+                              self.map_split_.n_states)
         self.map_ = replace(refined, entropy_history=self.entropies_,
                             info=dict(refined.info, **record, refined_from=origin))
         self._emit("refine", labels=self.labels_, entropies=self.entropies_[-1], map=self.map_)

@@ -1,8 +1,8 @@
 """A wider pass of :meth:`MapLearner.partial_fit <topomap.MapLearner.partial_fit>` (the map
 re-learned from the window, :mod:`topomap.core.online`) and how its refinement starts
 (:class:`PassStart`): with ``refine="em"``, a pass on a window that has lost steps starts EM from
-the last map, and once a map's refinement found no misread symbols the passes after it read them
-as exact; a pass on fewer than :data:`MIN_STEPS_PER_STATE` steps per state keeps the split."""
+the last map instead of a split; a pass on fewer than :data:`MIN_STEPS_PER_STATE` steps per
+state keeps the split."""
 
 from __future__ import annotations
 
@@ -13,11 +13,12 @@ from sklearn.base import clone
 
 from .data.trajectory import check_fit_data
 from .online import OnlineState, lengths_of
+from .refining import symbol_map
 from .refine.methods import EMRefinement
 from .refine.rounds import CloneRefinement
 
 __all__ = ["MIN_STEPS_PER_STATE", "PassStart", "wider_pass", "warm_starts", "warm_start",
-           "warm_labelling"]
+           "warm_labelling", "start_map"]
 
 #: a wider pass refines its map only when the window holds at least this many steps per state of
 #: the split: EM's clones cannot be told apart by fewer visits, and on so short a walk (a map of
@@ -28,9 +29,9 @@ MIN_STEPS_PER_STATE = 2
 @dataclass(frozen=True)
 class PassStart:
     """How a wider pass's refinement starts: ``old``, the last map's state of every step of the
-    window (-1: none), which EM starts from (None: afresh, as ``fit``); ``exact``, whether the
-    last map's refinement (``refine="em"``) found no misread symbols, so the pass reads them as
-    exact instead of making the soft check again."""
+    window (-1: none), which EM starts from instead of a split (None: afresh, as ``fit``);
+    ``exact``, whether the last map's refinement (``refine="em"``) found no misread symbols, so
+    a pass from it reads them as exact instead of making the soft check again."""
 
     old: np.ndarray | None = None
     exact: bool = False
@@ -52,9 +53,9 @@ def wider_pass(learner, state: OnlineState, X_call) -> None:
     symbols, present = state.window_symbols(first, plain)
     start = PassStart()  # only a refinement that starts from the last map needs its labels
     if warm_starts(learner.refine):
-        start = PassStart(state.warm_labels(getattr(learner, "map_", None), X_call.shape[0],
-                                            first),
-                          getattr(learner, "refine_info_", {}).get("soft") == "skipped")
+        old = state.warm_labels(getattr(learner, "map_", None), X_call.shape[0], first)
+        if old is not None:  # afresh, the soft check is made as fit makes it
+            start = PassStart(old, getattr(learner, "refine_info_", {}).get("soft") == "skipped")
     learner._fit(check_fit_data(Xw, uw, gw, lengths_of(sw), state.n_actions, state.action_names,
                                 state.gds_names), symbols, motion=False, warm=start)
     if symbols is None:  # phase 1's K-means symbols of every step seen become the codebook
@@ -96,3 +97,17 @@ def warm_labelling(old, sym):
     n_ids = int(sym.max()) + 1
     pairs, labels = np.unique((old + 1) * n_ids + sym, return_inverse=True)
     return labels.ravel().astype(np.int64), pairs % n_ids
+
+
+def start_map(learner, data, init):
+    """``(labels, map)`` a pass from the last map refines (in place of the split it does not
+    make): the labelling ``init`` of :func:`warm_labelling` and its map on ``data``, the
+    reference of the refinement's guard (and of ``refined_from``)."""
+    labels, state_symbol = init
+    info = dict(learner.map_split_.info, stop_reason="started from the last map")
+    learner.stop_reason_ = info["stop_reason"]
+    return labels, symbol_map(data, slice(None), data.lengths, labels, state_symbol,
+                              learner.n_clusters_, covariance_type=learner.covariance_type,
+                              reg_covar=learner.reg_covar, action_names=data.action_names,
+                              gds_names=data.gds_names, split_history=learner.split_history_,
+                              info=info)
