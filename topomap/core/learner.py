@@ -202,7 +202,7 @@ class MapLearner(MapMethods, BaseEstimator):
             stopping = TargetStates(self._choose_size(data, splitter, auto))
         t1 = time.perf_counter()
         self.stop_reason_ = "no state can be split"  # a pass from the last map splits none
-        while (warm is None or warm.old is None) and (best := splitter.best()) is not None:
+        while (warm is None or warm.splits(auto)) and (best := splitter.best()) is not None:
             if stopping.should_stop(splitter.n_states, best.score):
                 self.stop_reason_ = "stopping rule"
                 break

@@ -1,8 +1,8 @@
 """A wider pass of :meth:`MapLearner.partial_fit <topomap.MapLearner.partial_fit>` (the map
 re-learned from the window, :mod:`topomap.core.online`) and how its refinement starts
 (:class:`PassStart`): with ``refine="em"``, a pass on a window that has lost steps starts EM from
-the last map instead of a split; a pass on fewer than :data:`MIN_STEPS_PER_STATE` steps per
-state keeps the split."""
+the last map instead of a split; a pass afresh on fewer than :data:`MIN_STEPS_PER_STATE` steps
+per state keeps the split."""
 
 from __future__ import annotations
 
@@ -20,8 +20,8 @@ from .refine.rounds import CloneRefinement
 __all__ = ["MIN_STEPS_PER_STATE", "PassStart", "wider_pass", "warm_starts", "warm_start",
            "warm_labelling", "start_map"]
 
-#: a wider pass refines its map only when the window holds at least this many steps per state of
-#: the split: EM's clones cannot be told apart by fewer visits, and on so short a walk (a map of
+#: a wider pass afresh refines its map only when the window holds at least this many steps per
+#: state of the split: EM's clones cannot be told apart by fewer visits, and on so short a walk (a map of
 #: a thousand states after a thousand steps) the refinement costs more than any later pass
 MIN_STEPS_PER_STATE = 2
 
@@ -36,11 +36,15 @@ class PassStart:
     old: np.ndarray | None = None
     exact: bool = False
 
-    @staticmethod
-    def refines(n_steps: int, n_states: int) -> bool:
-        """Whether a pass on ``n_steps`` steps refines a split of ``n_states`` states
-        (:data:`MIN_STEPS_PER_STATE`)."""
-        return n_steps >= MIN_STEPS_PER_STATE * n_states
+    def splits(self, auto) -> bool:
+        """Whether the pass makes the split: afresh, or with ``stop=auto`` (``auto`` its rule;
+        the size it chooses is probed on the split); from the last map, EM starts there."""
+        return self.old is None or auto is not None
+
+    def refines(self, n_steps: int, n_states: int) -> bool:
+        """Whether a pass on ``n_steps`` steps refines a split of ``n_states`` states: from the
+        last map always, afresh with at least :data:`MIN_STEPS_PER_STATE` steps per state."""
+        return self.old is not None or n_steps >= MIN_STEPS_PER_STATE * n_states
 
 
 def wider_pass(learner, state: OnlineState, X_call) -> None:
@@ -102,7 +106,8 @@ def warm_labelling(old, sym):
 def start_map(learner, data, init):
     """``(labels, map)`` a pass from the last map refines (in place of the split it does not
     make): the labelling ``init`` of :func:`warm_labelling` and its map on ``data``, the
-    reference of the refinement's guard (and of ``refined_from``)."""
+    reference of the refinement's guard (``refine_info_``'s ``bic`` and ``kept`` still call it
+    ``"split"``) and of ``refined_from``."""
     labels, state_symbol = init
     info = dict(learner.map_split_.info, stop_reason="started from the last map")
     learner.stop_reason_ = info["stop_reason"]
