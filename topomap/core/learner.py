@@ -115,7 +115,8 @@ class MapLearner(MapMethods, BaseEstimator):
         phase 2, before any refinement (not kept by :meth:`partial_fit`)
     map_ : TopologicalMap -- the final map (refined, with ``refine``)
     map_phase1_ : TopologicalMap -- the map before any split
-    map_split_ : TopologicalMap -- the map after splitting (``map_`` without ``refine``)
+    map_split_ : TopologicalMap -- the map after splitting (``map_`` without ``refine``; a
+        wider pass from the last map: the map its refinement started from)
     refine_info_ : dict -- the refinement's stages (with ``refine``)
     motion_info_ : dict -- what the places of a continuous log measured, the check's errors and
         which map was ``chosen`` (``"places"`` or ``"views"``; only on a continuous log)
@@ -187,8 +188,7 @@ class MapLearner(MapMethods, BaseEstimator):
         earlier fit (or pass) learned.  ``symbols``: the K-means symbol of every non-GDS step,
         given instead of running K-means (a wider pass of :meth:`partial_fit` gives the
         codebook's); ``motion=False``: no places of a continuous log (wider passes); ``warm``:
-        how a wider pass's refinement starts, and whether it refines at all
-        (:class:`~topomap.core.online_pass.PassStart`)."""
+        how a wider pass splits and refines (:class:`~topomap.core.online_pass.PassStart`)."""
         clusters, metric, criterion, stopping = make_components(self)
         refinement = make_refinement(self.refine)
         places = motion_settings(self.motion) if motion else None

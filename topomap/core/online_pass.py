@@ -21,8 +21,9 @@ __all__ = ["MIN_STEPS_PER_STATE", "PassStart", "wider_pass", "warm_starts", "war
            "warm_labelling", "start_map"]
 
 #: a wider pass afresh refines its map only when the window holds at least this many steps per
-#: state of the split: EM's clones cannot be told apart by fewer visits, and on so short a walk (a map of
-#: a thousand states after a thousand steps) the refinement costs more than any later pass
+#: state of the split: EM's clones cannot be told apart by fewer visits, and on so short a walk
+#: (a map of a thousand states after a thousand steps) the refinement costs more than any later
+#: pass
 MIN_STEPS_PER_STATE = 2
 
 
