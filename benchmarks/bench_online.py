@@ -4,6 +4,7 @@ steps an explorer needs before its map is right.
     python benchmarks/bench_online.py latency        # partial_fit per call and peak RSS, 1e3..1e6 steps
     python benchmarks/bench_online.py agreement      # online vs batch ARI on the README's worlds
     python benchmarks/bench_online.py explore        # steps to ARI 0.95: explorer=random vs active
+    python benchmarks/bench_online.py passes         # FourRooms refine=em: fit, the calls, fit again
     python benchmarks/bench_online.py report         # reprint the last results (and the figure)
 
 Options: ``--seeds 0 1 2`` (explore: ``31 32 33``), ``--max-steps 1e6`` (latency),
@@ -26,6 +27,12 @@ Options: ``--seeds 0 1 2`` (explore: ``31 32 33``), ``--max-steps 1e6`` (latency
   the ``fit`` and of all the ``partial_fit`` calls, timed one after the other in the same
   process, and their ratio (online / batch; the FourRooms ``refine=em`` row's is the one
   ``partial_fit`` is held to: at most 5x).
+* **passes**: the FourRooms ``refine=em`` row of **agreement** (seed 0; ``--seeds`` for
+  others) in one process: ``fit`` on the whole walk, the ``partial_fit`` calls (chunks of
+  1,000), ``fit`` again, each in CPU seconds (``time.process_time``: the comparison on a
+  machine shared with other work) and wall seconds; every wider pass's steps, seconds, the
+  parts of its fit (``timings_``) and the ARI of the steps seen so far.  The ratio is the calls
+  against the second ``fit`` (the first includes numba's compilation).
 * **explore**: ``topomap <world> explorer=random|active data.update_every=250
   learner.refit_every=500`` as the command line runs it: the map is updated every 250 steps and
   judged on a random walk of the whole world it never learned from (``heldout_ari``, see
@@ -165,6 +172,40 @@ def child_agreement(overrides, seed: int, chunk: int) -> dict:
             "seconds": [t_batch, t_online], "passes": online.online_["n_passes"]}
 
 
+def child_passes(seed: int, chunk: int) -> dict:
+    import numpy as np
+    from sklearn.base import clone
+    from sklearn.metrics import adjusted_rand_score
+
+    cfg, parts, learner = build([*AGREEMENT[-1], f"seed={seed}"])
+    traj = parts.data.train(parts, seed)
+    places, online = np.asarray(traj.places), clone(learner)
+
+    def timed(step):
+        c, w = time.process_time(), time.perf_counter()
+        step()
+        return [time.process_time() - c, time.perf_counter() - w]
+
+    first = timed(lambda: learner.fit_trajectory(traj))
+    passes, total = [], [0.0, 0.0]
+    for lo in range(0, len(traj), chunk):
+        gds = None if traj.gds is None else traj.gds[lo:lo + chunk]
+        cost = timed(lambda: online.partial_fit(traj.observations[lo:lo + chunk],
+                                                traj.actions[lo:lo + chunk], gds,
+                                                n_actions=traj.n_actions))
+        total = [total[0] + cost[0], total[1] + cost[1]]
+        if online.online_["last_work"]["pass"]:
+            seen = online.online_["n_steps"]
+            passes.append({"steps": seen, "cpu": cost[0], "wall": cost[1],
+                           "timings": dict(online.timings_), "warm": "warm_start" in getattr(
+                               online, "refine_info_", {}),
+                           "ari": adjusted_rand_score(places[:seen], online.labels_[:seen])})
+    again = timed(lambda: clone(learner).fit_trajectory(traj))
+    return {"fit": first, "calls": total, "fit_again": again, "passes": passes,
+            "batch": adjusted_rand_score(places, learner.labels_),
+            "online": adjusted_rand_score(places, online.labels_)}
+
+
 class PlaceAware:
     """A reference, not a robot's explorer: it knows the true place (it replays the world's
     start from a copy of the walk's random stream and follows the world's table of successors)
@@ -225,7 +266,7 @@ def child_explore(overrides, explorer: str, seed: int, steps: int) -> dict:
 def child(argv) -> None:
     kind, args = argv[0], json.loads(argv[1])
     rec = {"latency": child_latency, "agreement": child_agreement,
-           "explore": child_explore}[kind](**args)
+           "explore": child_explore, "passes": child_passes}[kind](**args)
     rec["peak_rss_mib"] = peak_rss_mib()
     print(json.dumps(rec))
 
@@ -395,8 +436,28 @@ def figure_explore(rows) -> None:
     print(f"figure: {FIGURE}")
 
 
+def run_passes(args) -> list:
+    return [spawn("passes", seed=s, chunk=1000) for s in args.seeds[:1]]
+
+
+def report_passes(runs) -> None:
+    for r in runs:
+        if "error" in r:
+            print("failed:", r["error"])
+            continue
+        for p in r["passes"]:
+            parts = " ".join(f"{k} {v:.2f}" for k, v in p["timings"].items())
+            print(f"  pass at {p['steps']:>6,} steps: {p['cpu']:5.2f} s CPU ({p['wall']:5.2f} "
+                  f"wall; {parts}){' from the last map' if p['warm'] else ''}, ARI {p['ari']:.3f}")
+        (cc, cw), (fc, fw) = r["calls"], r["fit_again"]
+        print(f"fit {r['fit'][0]:.1f} / {fc:.1f} s CPU ({r['fit'][1]:.1f} / {fw:.1f} wall), calls "
+              f"{cc:.1f} s CPU ({cw:.1f} wall), {len(r['passes'])} passes: online / batch "
+              f"{cc / fc:.2f}x CPU ({cw / fw:.2f}x wall); ARI online {r['online']:.3f}, "
+              f"batch {r['batch']:.3f}")
+
+
 PARTS = {"latency": (run_latency, report_latency), "agreement": (run_agreement, report_agreement),
-         "explore": (run_explore, report_explore)}
+         "explore": (run_explore, report_explore), "passes": (run_passes, report_passes)}
 
 
 def main() -> None:

@@ -285,12 +285,67 @@ def test_a_warm_start_skips_the_soft_check_only_after_a_map_that_needed_none():
 
     em, old, sym = EMRefinement(), np.array([0, 1, 1, -1]), np.array([0, 1, 1, 0])
     assert online_pass.warm_start(em, None, sym) == (em, None)
-    runner, (labels, state_symbol) = online_pass.warm_start(em, (old, True), sym)
+    assert online_pass.warm_start(em, online_pass.PassStart(), sym) == (em, None)
+    runner, (labels, state_symbol) = online_pass.warm_start(
+        em, online_pass.PassStart(old, exact=True), sym)
     # the last map's refinement skipped the soft rounds: a copy reading the symbols as exact
     assert runner is not em and runner.evidence == "hard" and em.evidence == "auto"
     assert labels.tolist() == [1, 2, 2, 0] and state_symbol.tolist() == [0, 0, 1]
-    assert online_pass.warm_start(em, (old, False), sym)[0] is em
+    assert online_pass.warm_start(em, online_pass.PassStart(old), sym)[0] is em
     soft = EMRefinement(evidence="soft")
-    assert online_pass.warm_start(soft, (old, True), sym)[0] is soft
+    assert online_pass.warm_start(soft, online_pass.PassStart(old, True), sym)[0] is soft
     other = object()  # not a built-in refinement: no warm start
-    assert online_pass.warm_start(other, (old, True), sym) == (other, None)
+    assert online_pass.warm_start(other, online_pass.PassStart(old, True), sym) == (other, None)
+
+
+def cycle(n_steps):
+    """A walk round 4 cells showing 4 symbols, one action: 4 states, no aliasing."""
+    cells = np.arange(n_steps) % 4
+    return np.eye(4)[cells], np.zeros(n_steps, dtype=np.int64)
+
+
+@pytest.mark.parametrize("n_steps, refined", [(7, False), (8, True)])
+def test_a_pass_refines_only_with_two_steps_per_state(n_steps, refined):
+    # the split has 4 states (4 symbols, nothing aliased): 7 steps are fewer than 2 per state,
+    # so the pass keeps the split; 8 are exactly 2 per state, so it refines as fit does
+    X, u = cycle(n_steps)
+    learner = MapLearner(4, 4, refine="em").partial_fit(X, u, n_actions=1)
+    assert learner.map_.n_states == 4
+    assert hasattr(learner, "refine_info_") == refined
+    assert ("refine" in learner.map_.info) == refined
+    assert "refine" in MapLearner(4, 4, refine="em").fit(X, u, n_actions=1).map_.info
+
+
+def test_a_pass_afresh_makes_the_soft_check_as_fit_makes_it():
+    # passes at 8 and 16 steps, both on every step seen: the first one's refinement finds no
+    # misread symbols, yet the second (afresh, not from the last map) makes its own soft check,
+    # so its map is fit's, refine_info_ included
+    X, u = cycle(16)
+    learner = MapLearner(4, 4, refine="em", window=100, refit_every=8)
+    learner.partial_fit(X[:8], u[:8], n_actions=1)
+    assert learner.refine_info_["soft"] == "skipped"
+    learner.partial_fit(X[8:], u[8:])
+    assert learner.online_["n_passes"] == 2 and learner.online_["pass_from"] == 0
+    batch = MapLearner(4, 4, refine="em").fit(X, u, n_actions=1)
+    assert learner.refine_info_ == batch.refine_info_ and "soft_from" not in batch.refine_info_
+    assert np.array_equal(learner.labels_, batch.labels_)
+
+
+def test_a_pass_from_the_last_map_makes_no_split_and_guards_against_the_map_it_starts_from():
+    # 4 cells in a cycle showing symbols 0, 0, 1, 1: the split tells the two cells of each
+    # symbol apart (2 splits).  Window 8: the pass at 16 steps has lost the first 8 and starts
+    # EM from the last map, whose 4 states each show one symbol, so it starts from 4 states (one
+    # per old state and symbol) and makes no split; the guard compares the refined map with them
+    cells = np.arange(16) % 4
+    X, u = np.eye(2)[cells // 2], np.zeros(16, dtype=np.int64)
+    learner = MapLearner(2, 4, refine="em", window=8, refit_every=8)
+    learner.partial_fit(X[:8], u[:8], n_actions=1)
+    assert len(learner.split_history_) == 2 and learner.map_split_.n_states == 4
+    learner.partial_fit(X[8:], u[8:])
+    assert learner.online_["pass_from"] == 8 and learner.refine_info_["warm_start"]
+    assert learner.split_history_ == [] and learner.stop_reason_ == "started from the last map"
+    assert learner.map_split_.n_states == 4
+    assert learner.map_split_.info["stop_reason"] == "started from the last map"
+    assert learner.refine_info_["kept"] == "refined"
+    assert sorted(learner.map_.info["refined_from"]) == [0, 1, 2, 3]
+    assert adjusted_rand_score(cells, learner.labels_) == 1.0

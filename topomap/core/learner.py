@@ -16,7 +16,7 @@ from .components import (DEPRECATED, fit_refinement, make_components, make_refin
                          refinement_label, warn_renamed, within_told_size)
 from .refining import bic_scores, heldout_scores, refined_from, resized, symbol_map
 from .online import OnlineState, Window
-from .online_pass import warm_start, warm_starts, wider_pass
+from .online_pass import PassStart, start_map, warm_start, warm_starts, wider_pass
 from .phase1.clustering import cluster_observations
 from .size import AutoStates, probe_sizes, split_holdout
 from .map.model import TopologicalMap
@@ -115,7 +115,8 @@ class MapLearner(MapMethods, BaseEstimator):
         phase 2, before any refinement (not kept by :meth:`partial_fit`)
     map_ : TopologicalMap -- the final map (refined, with ``refine``)
     map_phase1_ : TopologicalMap -- the map before any split
-    map_split_ : TopologicalMap -- the map after splitting (``map_`` without ``refine``)
+    map_split_ : TopologicalMap -- the map after splitting (``map_`` without ``refine``; a
+        wider pass from the last map: the map its refinement started from)
     refine_info_ : dict -- the refinement's stages (with ``refine``)
     motion_info_ : dict -- what the places of a continuous log measured, the check's errors and
         which map was ``chosen`` (``"places"`` or ``"views"``; only on a continuous log)
@@ -182,14 +183,12 @@ class MapLearner(MapMethods, BaseEstimator):
         return self._fit(data)
 
     def _fit(self, data: FitData, symbols: np.ndarray | None = None, motion: bool = True,
-             warm: tuple | None = None) -> Self:
+             warm: PassStart | None = None) -> Self:
         """Phase 1, the split, the map and the refinement on checked ``data``, forgetting what an
         earlier fit (or pass) learned.  ``symbols``: the K-means symbol of every non-GDS step,
         given instead of running K-means (a wider pass of :meth:`partial_fit` gives the
         codebook's); ``motion=False``: no places of a continuous log (wider passes); ``warm``:
-        ``(the last map's state of every step (-1: none), whether that map's refinement found no
-        misread symbols)``, which a built-in refinement starts from instead of the split
-        (:func:`~topomap.core.online_pass.warm_start`)."""
+        how a wider pass splits and refines (:class:`~topomap.core.online_pass.PassStart`)."""
         clusters, metric, criterion, stopping = make_components(self)
         refinement = make_refinement(self.refine)
         places = motion_settings(self.motion) if motion else None
@@ -202,8 +201,8 @@ class MapLearner(MapMethods, BaseEstimator):
         if auto is not None:
             stopping = TargetStates(self._choose_size(data, splitter, auto))
         t1 = time.perf_counter()
-        self.stop_reason_ = "no state can be split"
-        while (best := splitter.best()) is not None:
+        self.stop_reason_ = "no state can be split"  # a pass from the last map splits none
+        while (warm is None or warm.splits(auto)) and (best := splitter.best()) is not None:
             if stopping.should_stop(splitter.n_states, best.score):
                 self.stop_reason_ = "stopping rule"
                 break
@@ -223,6 +222,8 @@ class MapLearner(MapMethods, BaseEstimator):
             data, splitter, info, models=(first.means[root], first.covariances[root]))
         self.timings_ = {"phase1": t1 - t0, "phase2": t2 - t1}
         continuous = places is not None and fit_places(self, data, places, metric)
+        if warm is not None and not warm.refines(data.u.size, splitter.n_states):
+            refinement = None  # too few steps per state: the pass keeps the split
         if refinement is not None and not continuous:
             if auto is not None and auto.criterion == "heldout" and self.refined_size == "told":
                 told = self._choose_refined_size(data, splitter, refinement, auto)
@@ -285,6 +286,8 @@ class MapLearner(MapMethods, BaseEstimator):
         ns = self.n_clusters_
         seq = SymbolSequence.build(self.labels_phase1_, data.u, data.lengths, data.n_actions, ns)
         runner, init = warm_start(refinement, warm, seq.sym)
+        if init is not None:  # EM starts from the last map's states, not from a split
+            self.labels_split_, self.map_split_ = start_map(self, data, init)
         with naming(self, "refine"):
             fit = fit_refinement(runner, seq, self._split_symbol(splitter), self.random_state,
                                  init)
@@ -304,13 +307,15 @@ class MapLearner(MapMethods, BaseEstimator):
             keep = scores["refined"] <= scores["split"]
             self.refine_info_.update(bic=scores, kept="refined" if keep else "split")
             if not keep:
+                self.labels_ = self.labels_split_
                 self.map_ = self.map_split_ = replace(
                     self.map_split_, info=dict(self.map_split_.info, **record))
                 return
         self.labels_ = fit.labels
         self.entropies_.append(dict(refined.entropies(), n_states=refined.n_states,
                                     iteration=len(self.split_history_) + 1, stage="refined"))
-        origin = refined_from(fit.labels, self.labels_split_, fit.n_states, splitter.n_states)
+        origin = refined_from(fit.labels, self.labels_split_, fit.n_states,
+                              self.map_split_.n_states)
         self.map_ = replace(refined, entropy_history=self.entropies_,
                             info=dict(refined.info, **record, refined_from=origin))
         self._emit("refine", labels=self.labels_, entropies=self.entropies_[-1], map=self.map_)

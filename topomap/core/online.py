@@ -24,9 +24,11 @@ seen before it:
   has.
 * **A warm start** (:mod:`topomap.core.online_pass`).  With ``refine="em"``, a pass on a window
   that has lost steps starts EM from the last map (the states its steps hold, the call's new
-  steps decoded with it first) instead of from the split, and runs a few short rounds on all
-  steps: most of EM's work is done already.  While the window holds every step, K-means runs
-  again and its symbols change, so those passes start afresh, as ``fit`` does.
+  steps decoded with it first) instead of from the split, which it does not make, and runs a
+  few short rounds on all steps: most of EM's work is done already.  While the window holds
+  every step, K-means runs again and its symbols change, so those passes start afresh, as
+  ``fit`` does.  A pass afresh on fewer than two steps per state of its split keeps the
+  split (any refinement).
 
 **Labels.** Every step's label is kept in the :class:`StepRecord` (``labels_`` is a view of it),
 always a state of the current map (or -1): a chunk's steps get the states they are decoded to; a
