@@ -49,7 +49,10 @@ class MotionSettings:
     them), and the places are kept only when their mean misplaced share over the folds is below
     the view clusters', at most ``margin`` times it and at least ``min_gain`` below it (two
     shares of a hundredth or so are a handful of runs of one view either way).  Else the map's
-    states are the view clusters.  ``holdout=0`` (or a held-out part under 100 steps) keeps the
+    states are the view clusters; they are also, unchecked, where the middle gate's filter
+    kept fewer than ``min_copies`` copies per view cluster
+    (:func:`topomap.core.motion.check.tells_apart`: the odometry told no sighting of a view
+    from another, and the places could only follow its drift).  ``holdout=0`` (or a held-out part under 100 steps) keeps the
     places unchecked.
 
     ``n_init``: the k-means++ starts of the view clusters (scikit-learn's ``KMeans`` on every
@@ -75,6 +78,7 @@ class MotionSettings:
     folds: int = 2
     fallback_variance: float = 0.01
     min_gain: float = 0.02
+    min_copies: float = 1.1
 
 
 def motion_settings(value) -> MotionSettings:
@@ -105,7 +109,7 @@ def motion_settings(value) -> MotionSettings:
     if not isinstance(gates, tuple) or not gates or not all(_positive(g) for g in gates):
         raise ParameterError("motion.gates", f"must be a non-empty list of positive numbers, "
                                              f"got {gates!r}")
-    for name in ("min_run", "weight", "pull", "max_return", "far"):
+    for name in ("min_run", "weight", "pull", "max_return", "far", "min_copies"):
         if not _positive(getattr(value, name)):
             raise ParameterError(f"motion.{name}", f"must be a positive number, "
                                                    f"got {getattr(value, name)!r}")
