@@ -203,15 +203,16 @@ def test_the_check_falls_back_to_the_views_where_they_place_steps_alone():
     learner = MapLearner(n_clusters=16, n_states=32, random_state=0).fit(Z, u)
     info = learner.motion_info_
     assert info["odometry"] and info["chosen"] == "views"
-    # the filter keeps one copy per view cluster but for a few drift resets: told nothing apart
-    assert info["copies"][1] < 1.1 * info["view_clusters"]
-    assert info["check"] == "the middle gate kept about one copy per view cluster"
-    # the held-out check, asked all the same, finds no gain either
-    checked = MapLearner(n_clusters=16, n_states=32, random_state=0,
-                         motion=MotionSettings(min_copies=0.5)).fit(Z, u).motion_info_
-    assert checked["chosen"] == "views"
-    misplaced = checked["check"]["mean_misplaced"]  # over the two held-out quarters
+    misplaced = info["check"]["mean_misplaced"]  # over the two held-out quarters
     assert misplaced["places"] > 0.9 * misplaced["views"]
+    # the filter keeps one copy per view cluster but for a few drift resets (35 for 32): asked
+    # for more than 1.5 per cluster, the check is not run at all
+    assert info["view_clusters"] < info["copies"][1] < 1.5 * info["view_clusters"]
+    unchecked_views = MapLearner(n_clusters=16, n_states=32, random_state=0,
+                                 motion=MotionSettings(min_copies=1.5)).fit(Z, u)
+    assert unchecked_views.motion_info_["check"] == "the middle gate kept one copy per view " \
+                                                   "cluster"
+    np.testing.assert_array_equal(unchecked_views.labels_, learner.labels_)
     # the states are then the view clusters: K-means on the views with as many clusters
     unchecked = MapLearner(n_clusters=16, n_states=32, random_state=0,
                            motion=MotionSettings(holdout=0)).fit(Z, u)
@@ -233,15 +234,14 @@ def test_the_places_are_not_checked_where_the_middle_gate_told_no_view_apart():
     from topomap.core.motion.check import tells_apart
 
     s = MotionSettings()  # gates 2.5, 3.0, 3.5: the middle one, 3.0, is the check's frame
-    assert s.min_copies == 1.1
-    # 64 view clusters: at least 1.1 x 64 = 70.4 copies of the middle gate, whatever the others
-    assert not tells_apart(s, {"view_clusters": 64, "copies": [308, 64, 64]})
-    assert not tells_apart(s, {"view_clusters": 64, "copies": [308, 70, 308]})
-    assert tells_apart(s, {"view_clusters": 64, "copies": [64, 71, 64]})
+    assert s.min_copies == 1.0
+    # 64 view clusters: more than 64 copies of the middle gate, whatever the others
+    assert not tells_apart(s, {"view_clusters": 64, "copies": [308, 64, 308]})
+    assert tells_apart(s, {"view_clusters": 64, "copies": [64, 65, 64]})
     assert tells_apart(MotionSettings(gates=(3.0,), min_copies=2.0),
-                       {"view_clusters": 8, "copies": [16]})
+                       {"view_clusters": 8, "copies": [17]})
     assert not tells_apart(MotionSettings(gates=(3.0,), min_copies=2.0),
-                           {"view_clusters": 8, "copies": [15]})
+                           {"view_clusters": 8, "copies": [16]})
 
 
 def test_view_clusters_are_numbered_by_first_appearance():

@@ -79,13 +79,13 @@ def keeps_places(misplaced: dict, margin: float, min_gain: float = 0.0) -> bool:
 
 def tells_apart(settings: MotionSettings, info: dict) -> bool:
     """Whether the odometry of a log told sightings of one view apart: its middle gate's
-    filter (the check's frame) kept at least ``settings.min_copies`` times as many copies as
-    there are view clusters (``info`` of :func:`cut_places`).  Where it kept about one copy per
-    view cluster, no view is seen in two places at that gate, and the places can beat the view
+    filter (the check's frame) kept more than ``settings.min_copies`` times as many copies as
+    there are view clusters (``info`` of :func:`cut_places`).  Where it kept one copy per view
+    cluster, no view was seen in two places at that gate, and the places can beat the view
     clusters in the check only by following the frame's own drift (poor odometry: six beams
     between pillars)."""
     copies = info["copies"][len(settings.gates) // 2]
-    return copies >= settings.min_copies * info["view_clusters"]
+    return copies > settings.min_copies * info["view_clusters"]
 
 
 def _state_means(labels, frame) -> np.ndarray:
@@ -134,7 +134,7 @@ def choose_places(settings: MotionSettings, X, Z, u, lengths, n_states: int, n_a
         return whole.places, dict(info, chosen="places")
     if not tells_apart(settings, info):
         return whole.views, dict(info, chosen="views",
-                                  check="the middle gate kept about one copy per view cluster")
+                                  check="the middle gate kept one copy per view cluster")
     step = int(round(T * settings.holdout))
     folds = []
     for i in range(settings.folds):

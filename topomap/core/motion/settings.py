@@ -50,7 +50,7 @@ class MotionSettings:
     the view clusters', at most ``margin`` times it and at least ``min_gain`` below it (two
     shares of a hundredth or so are a handful of runs of one view either way).  Else the map's
     states are the view clusters; they are also, unchecked, where the middle gate's filter
-    kept fewer than ``min_copies`` copies per view cluster
+    kept no more than ``min_copies`` copies per view cluster
     (:func:`topomap.core.motion.check.tells_apart`: the odometry told no sighting of a view
     from another, and the places could only follow its drift).  ``holdout=0`` (or a held-out part under 100 steps) keeps the
     places unchecked.
@@ -78,7 +78,7 @@ class MotionSettings:
     folds: int = 2
     fallback_variance: float = 0.01
     min_gain: float = 0.02
-    min_copies: float = 1.1
+    min_copies: float = 1.0
 
 
 def motion_settings(value) -> MotionSettings:
