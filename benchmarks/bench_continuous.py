@@ -79,7 +79,7 @@ BASE = {"beams": 12, "max_range": 3.0, "sigma": 0.02, "speed": 0.16, "dt": 0.1,
 SETTINGS = [{"beams": 8, "max_range": 2.0}, {"beams": 16, "sigma": 0.03}, {"sigma": 0.01},
             {"speed": 0.08}, {"speed": 0.12, "max_range": 2.0}, {"dt": 0.05, "beams": 8},
             {"actions": "turns"}, {"frame": "egocentric"}, {"sensor": "bvc"}, {"sigma": 0.05},
-            {"dt": 0.025}, {"dt": 0.05}, {"dt": 0.02}]
+            {"dt": 0.025}, {"dt": 0.05}, {"dt": 0.02}, {"beams": 6}]
 
 
 def setting_name(s: dict) -> str:

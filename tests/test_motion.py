@@ -125,6 +125,8 @@ def test_continuous_log_gets_places_that_tell_alike_halves_apart():
     assert learner.labels_.shape == (Z.shape[0],) and learner.map_.n_states == 8
     assert _mixed_share(learner.labels_, x) < 0.02
     assert learner.motion_info_["chosen"] == "places"  # the held-out check keeps them
+    # every view is seen in both halves: the middle gate keeps two copies of each
+    assert learner.motion_info_["copies"][1] >= 2 * learner.motion_info_["view_clusters"]
     # the views alone (the paper's split) cannot: they fold the halves onto each other
     views = MapLearner(n_clusters=4, n_states=8, motion="discrete", random_state=0).fit(Z, u)
     assert not hasattr(views, "motion_info_")
@@ -203,6 +205,14 @@ def test_the_check_falls_back_to_the_views_where_they_place_steps_alone():
     assert info["odometry"] and info["chosen"] == "views"
     misplaced = info["check"]["mean_misplaced"]  # over the two held-out quarters
     assert misplaced["places"] > 0.9 * misplaced["views"]
+    # the filter keeps one copy per view cluster but for a few drift resets (35 for 32): asked
+    # for more than 1.5 per cluster, the check is not run at all
+    assert info["view_clusters"] < info["copies"][1] < 1.5 * info["view_clusters"]
+    unchecked_views = MapLearner(n_clusters=16, n_states=32, random_state=0,
+                                 motion=MotionSettings(min_copies=1.5)).fit(Z, u)
+    assert unchecked_views.motion_info_["check"] == "the middle gate kept one copy per view " \
+                                                   "cluster"
+    np.testing.assert_array_equal(unchecked_views.labels_, learner.labels_)
     # the states are then the view clusters: K-means on the views with as many clusters
     unchecked = MapLearner(n_clusters=16, n_states=32, random_state=0,
                            motion=MotionSettings(holdout=0)).fit(Z, u)
@@ -218,6 +228,20 @@ def test_the_check_falls_back_to_the_views_where_they_place_steps_alone():
     m = learner.map_
     spread = np.mean((Z - m.means[learner.labels_]) ** 2)
     np.testing.assert_allclose(cov[0, 0], 0.01 * (spread + learner.reg_covar))
+
+
+def test_the_places_are_not_checked_where_the_middle_gate_told_no_view_apart():
+    from topomap.core.motion.check import tells_apart
+
+    s = MotionSettings()  # gates 2.5, 3.0, 3.5: the middle one, 3.0, is the check's frame
+    assert s.min_copies == 1.0
+    # 64 view clusters: more than 64 copies of the middle gate, whatever the others
+    assert not tells_apart(s, {"view_clusters": 64, "copies": [308, 64, 308]})
+    assert tells_apart(s, {"view_clusters": 64, "copies": [64, 65, 64]})
+    assert tells_apart(MotionSettings(gates=(3.0,), min_copies=2.0),
+                       {"view_clusters": 8, "copies": [17]})
+    assert not tells_apart(MotionSettings(gates=(3.0,), min_copies=2.0),
+                           {"view_clusters": 8, "copies": [16]})
 
 
 def test_view_clusters_are_numbered_by_first_appearance():
@@ -372,6 +396,7 @@ def test_discrete_worlds_keep_the_map_of_the_split():
     ({"fallback_variance": 0}, r"^motion\.fallback_variance must be a number in \(0, 1\]"),
     ({"min_gain": -0.1}, r"^motion\.min_gain must be a number in \[0, 1\)"),
     ({"votes": -1}, r"^motion\.votes must be a non-negative integer"),
+    ({"min_copies": 0}, r"^motion\.min_copies must be a positive number"),
 ])
 def test_bad_motion_is_named(motion, message):
     Z, u, _ = _alike_halves(500)

@@ -40,7 +40,7 @@ from .places import Places, cut_places
 from .settings import MotionSettings
 
 __all__ = ["held_out_frame", "frame_error", "misplaced_share", "keeps_places", "outvoted",
-           "choose_places"]
+           "tells_apart", "choose_places"]
 
 
 def held_out_frame(settings: MotionSettings, part: Places, Z, u, lengths, cut: int):
@@ -91,6 +91,17 @@ def outvoted(folds: list, votes: int, min_gain: float) -> bool:
     return 2 * wins > votes
 
 
+def tells_apart(settings: MotionSettings, info: dict) -> bool:
+    """Whether the odometry of a log told sightings of one view apart: its middle gate's
+    filter (the check's frame) kept more than ``settings.min_copies`` times as many copies as
+    there are view clusters (``info`` of :func:`cut_places`).  Where it kept one copy per view
+    cluster, no view was seen in two places at that gate, and the places can beat the view
+    clusters in the check only by following the frame's own drift (poor odometry: six beams
+    between pillars)."""
+    copies = info["copies"][len(settings.gates) // 2]
+    return copies > settings.min_copies * info["view_clusters"]
+
+
 def _state_means(labels, frame) -> np.ndarray:
     counts = np.maximum(np.bincount(labels), 1)[:, None]
     return np.column_stack([np.bincount(labels, weights=frame[:, j]) for j in range(2)]) / counts
@@ -135,6 +146,9 @@ def choose_places(settings: MotionSettings, X, Z, u, lengths, n_states: int, n_a
     T = len(u)
     if settings.holdout == 0 or T * min(settings.holdout, 1 - settings.holdout) < 100:
         return whole.places, dict(info, chosen="places")
+    if not tells_apart(settings, info):
+        return whole.views, dict(info, chosen="views",
+                                  check="the middle gate kept one copy per view cluster")
     step = int(round(T * settings.holdout))
     folds = []
     for i in range(max(settings.folds, settings.votes)):

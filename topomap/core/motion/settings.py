@@ -51,8 +51,11 @@ class MotionSettings:
     shares of a hundredth or so are a handful of runs of one view either way), or when most of
     the last ``votes`` parts (the third learning from the first quarter alone), each on its
     own, give the places a share at least ``min_gain`` below the view clusters' (``votes=0``:
-    no vote).  Else the map's states are the view clusters.  ``holdout=0`` (or a held-out part
-    under 100 steps) keeps the places unchecked.
+    no vote).  Else the map's states are the view clusters; they are also, unchecked, where the
+    middle gate's filter kept no more than ``min_copies`` copies per view cluster
+    (:func:`topomap.core.motion.check.tells_apart`: the odometry told no sighting of a view
+    from another, and the places could only follow its drift).  ``holdout=0`` (or a held-out
+    part under 100 steps) keeps the places unchecked.
 
     ``n_init``: the k-means++ starts of the view clusters (scikit-learn's ``KMeans`` on every
     row, as :func:`topomap.core.position_scores.kmeans_view_scores`).  A map that falls back to
@@ -78,6 +81,7 @@ class MotionSettings:
     fallback_variance: float = 0.01
     min_gain: float = 0.02
     votes: int = 3
+    min_copies: float = 1.0
 
 
 def motion_settings(value) -> MotionSettings:
@@ -109,7 +113,7 @@ def motion_settings(value) -> MotionSettings:
     if not isinstance(gates, tuple) or not gates or not all(_positive(g) for g in gates):
         raise ParameterError("motion.gates", f"must be a non-empty list of positive numbers, "
                                              f"got {gates!r}")
-    for name in ("min_run", "weight", "pull", "max_return", "far"):
+    for name in ("min_run", "weight", "pull", "max_return", "far", "min_copies"):
         if not _positive(getattr(value, name)):
             raise ParameterError(f"motion.{name}", f"must be a positive number, "
                                                    f"got {getattr(value, name)!r}")
