@@ -136,7 +136,7 @@ def test_continuous_log_gets_places_that_tell_alike_halves_apart():
     assert learner.predict(Zt, ut).shape == (2000,)
 
 
-def test_the_check_holds_out_successive_quarters_and_keeps_the_places_on_their_mean():
+def test_the_check_holds_out_successive_quarters_and_keeps_the_places_on_their_share():
     from topomap.core.motion.check import keeps_places
 
     Z, u, _ = _alike_halves()  # 8,000 steps: quarters of 2,000
@@ -148,8 +148,12 @@ def test_the_check_holds_out_successive_quarters_and_keeps_the_places_on_their_m
     assert [f["learned"] for f in check["folds"]] == [6000, 4000, 2000]
     assert [f["held_out"] for f in check["folds"]] == [2000, 2000, 2000]
     for name in ("places", "views"):
-        mean = np.mean([f["misplaced"][name] for f in check["folds"]])
-        assert check["mean_misplaced"][name] == pytest.approx(mean, abs=1e-4)
+        for f in check["folds"]:  # a share of the steps with a reference, counted
+            assert f["misplaced_steps"][name] == pytest.approx(
+                f["misplaced"][name] * f["referenced"], abs=1e-4 * f["referenced"])
+        pooled = (sum(f["misplaced_steps"][name] for f in check["folds"])
+                  / sum(f["referenced"] for f in check["folds"]))
+        assert check["mean_misplaced"][name] == pytest.approx(pooled, abs=1e-4)
     assert keeps_places(check["mean_misplaced"], 0.9)
     assert learner.motion_info_["chosen"] == "places"
 
@@ -320,6 +324,25 @@ def test_the_check_counts_steps_placed_far_off_not_the_median_distance():
     assert keeps_places({"places": 0.10, "views": 0.125}, margin=0.9, min_gain=0.02)  # 0.025
 
 
+def test_the_check_counts_every_held_out_step_with_a_reference_once():
+    from topomap.core.motion.check import keeps_places, pooled_shares
+
+    # the last quarter: 1,000 steps with a reference, places misplace 200, view clusters 400;
+    # the one before: only 100 steps joined an earlier copy, places misplace 50, views none.
+    # A mean of the two shares (0.35 against 0.20) would give the places up on the quarter
+    # with a tenth of the steps; counted once each, 250 / 1,100 against 400 / 1,100
+    folds = [{"referenced": 1000, "misplaced_steps": {"places": 200, "views": 400}},
+             {"referenced": 100, "misplaced_steps": {"places": 50, "views": 0}}]
+    shares = pooled_shares(folds)
+    assert shares == {"places": round(250 / 1100, 4), "views": round(400 / 1100, 4)}
+    assert keeps_places(shares, margin=0.9, min_gain=0.02)
+    assert not keeps_places({"places": 0.35, "views": 0.20}, margin=0.9, min_gain=0.02)
+    # folds alike in their steps with a reference: the mean of their shares
+    even = [{"referenced": 400, "misplaced_steps": {"places": 40, "views": 100}},
+            {"referenced": 400, "misplaced_steps": {"places": 120, "views": 100}}]
+    assert pooled_shares(even) == {"places": 0.2, "views": 0.25}
+
+
 def test_most_of_three_quarters_each_alone_outvote_a_mean_of_two():
     from topomap.core.motion.check import keeps_places, outvoted
 
@@ -343,8 +366,9 @@ def test_most_of_three_quarters_each_alone_outvote_a_mean_of_two():
     check = MapLearner(n_clusters=4, n_states=8, random_state=0).fit(Z, u).motion_info_["check"]
     assert [f["learned"] for f in check["folds"]] == [6000, 4000, 2000]
     for name in ("places", "views"):
-        mean = np.mean([f["misplaced"][name] for f in check["folds"][:2]])
-        assert check["mean_misplaced"][name] == pytest.approx(mean, abs=1e-4)
+        pooled = (sum(f["misplaced_steps"][name] for f in check["folds"][:2])
+                  / sum(f["referenced"] for f in check["folds"][:2]))
+        assert check["mean_misplaced"][name] == pytest.approx(pooled, abs=1e-4)
     assert "outvoted" in check
 
 

@@ -17,7 +17,8 @@ goes where its start had not been, the filter makes new copies there, whose posi
 map was learned on (a fold where no step joined one gives no reference).
 One held-out part is one draw of where the log happens to end; ``settings.folds`` parts are held
 out one after another from the end (each learned from the steps before it), and the places are
-kept only when their mean share over the folds is below the view clusters', at most
+kept only when their share over the folds' held-out steps with a reference (:func:`pooled_shares`:
+each such step counted once) is below the view clusters', at most
 ``settings.margin`` times it and at least ``settings.min_gain`` below it, or when most of the
 last ``settings.votes`` parts, each on its own, find the places' share ``settings.min_gain``
 below the view clusters' (:func:`outvoted`; a third part, learned from the first quarter
@@ -40,7 +41,7 @@ from .places import Places, cut_places
 from .settings import MotionSettings
 
 __all__ = ["held_out_frame", "frame_error", "misplaced_share", "keeps_places", "outvoted",
-           "tells_apart", "choose_places"]
+           "pooled_shares", "tells_apart", "choose_places"]
 
 
 def held_out_frame(settings: MotionSettings, part: Places, Z, u, lengths, cut: int):
@@ -102,6 +103,16 @@ def tells_apart(settings: MotionSettings, info: dict) -> bool:
     return copies > settings.min_copies * info["view_clusters"]
 
 
+def pooled_shares(folds: list) -> dict:
+    """The misplaced shares of places and view clusters over all the held-out steps with a
+    reference of ``folds`` (each a dict with ``misplaced_steps`` and ``referenced``): every such
+    step counts once, so a fold where few held-out steps joined an earlier copy -- the log's
+    end going where its start had not been -- weighs as little as the steps it could score."""
+    referenced = sum(f["referenced"] for f in folds)
+    return {name: round(sum(f["misplaced_steps"][name] for f in folds) / referenced, 4)
+            for name in ("places", "views")}
+
+
 def _state_means(labels, frame) -> np.ndarray:
     counts = np.maximum(np.bincount(labels), 1)[:, None]
     return np.column_stack([np.bincount(labels, weights=frame[:, j]) for j in range(2)]) / counts
@@ -122,15 +133,17 @@ def _fold(settings: MotionSettings, X, Z, u, lengths, end: int, held: int, build
     frame, joined = held_out_frame(settings, part, Z, u, lengths, cut)
     if not joined.any():
         return None
-    errors, misplaced = {}, {}
+    errors, misplaced, steps = {}, {}, {}
     for name, labels in (("places", part.places), ("views", part.views)):
         decoded = build(X[:cut], u[:cut], labels, head, pooled=name == "views").predict(
             X[cut:], u[cut:], lengths=tail)
         placed = _state_means(labels, part.frame)[decoded]
         errors[name] = round(frame_error(placed, frame), 4)
-        misplaced[name] = round(misplaced_share(placed[joined], frame[joined], settings.far), 4)
+        share = misplaced_share(placed[joined], frame[joined], settings.far)
+        misplaced[name], steps[name] = round(share, 4), int(round(share * joined.sum()))
     return {"learned": cut, "held_out": end - cut, "anchored": round(float(joined.mean()), 4),
-            **errors, "misplaced": misplaced}
+            "referenced": int(joined.sum()), **errors, "misplaced": misplaced,
+            "misplaced_steps": steps}
 
 
 def choose_places(settings: MotionSettings, X, Z, u, lengths, n_states: int, n_actions: int,
@@ -162,9 +175,7 @@ def choose_places(settings: MotionSettings, X, Z, u, lengths, n_states: int, n_a
     if not folds:
         return whole.views, dict(info, chosen="views",
                                   check="no held-out part with odometry and a reference")
-    misplaced = {name: round(float(np.mean([f["misplaced"][name] for f in
-                                             folds[:settings.folds]])), 4)
-                 for name in ("places", "views")}
+    misplaced = pooled_shares(folds[:settings.folds])
     by_mean = keeps_places(misplaced, settings.margin, settings.min_gain)
     by_vote = outvoted(folds, settings.votes, settings.min_gain)
     chosen = "places" if by_mean or by_vote else "views"

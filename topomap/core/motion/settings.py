@@ -46,8 +46,8 @@ class MotionSettings:
     position the filter carries on (counted over the held-out steps that joined a copy made
     before them).  ``folds`` such parts are held out, one after another from
     the end (the second learns from the steps before the last two, and decodes the first of
-    them), and the places are kept only when their mean misplaced share over the folds is below
-    the view clusters', at most ``margin`` times it and at least ``min_gain`` below it (two
+    them), and the places are kept only when their misplaced share over the folds' held-out
+    steps with a reference (each counted once) is below the view clusters', at most ``margin`` times it and at least ``min_gain`` below it (two
     shares of a hundredth or so are a handful of runs of one view either way), or when most of
     the last ``votes`` parts (the third learning from the first quarter alone), each on its
     own, give the places a share at least ``min_gain`` below the view clusters' (``votes=0``:
