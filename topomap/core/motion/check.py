@@ -40,8 +40,8 @@ from .odometry import odometric_positions, reckoned_steps
 from .places import Places, cut_places
 from .settings import MotionSettings
 
-__all__ = ["held_out_frame", "frame_error", "misplaced_share", "keeps_places", "outvoted",
-           "pooled_shares", "tells_apart", "choose_places"]
+__all__ = ["held_out_frame", "frame_error", "misplaced_steps", "misplaced_share", "keeps_places",
+           "outvoted", "pooled_shares", "tells_apart", "choose_places"]
 
 
 def held_out_frame(settings: MotionSettings, part: Places, Z, u, lengths, cut: int):
@@ -67,9 +67,14 @@ def frame_error(placed, frame) -> float:
     return float(np.median(np.linalg.norm(placed - frame, axis=1)))
 
 
+def misplaced_steps(placed, frame, far: float) -> int:
+    """How many rows of ``placed`` stand more than ``far`` from those of ``frame``."""
+    return int(np.count_nonzero(np.linalg.norm(placed - frame, axis=1) > far))
+
+
 def misplaced_share(placed, frame, far: float) -> float:
     """The share of the rows of ``placed`` more than ``far`` from those of ``frame``."""
-    return float(np.mean(np.linalg.norm(placed - frame, axis=1) > far))
+    return misplaced_steps(placed, frame, far) / len(placed)
 
 
 def keeps_places(misplaced: dict, margin: float, min_gain: float = 0.0) -> bool:
@@ -133,16 +138,16 @@ def _fold(settings: MotionSettings, X, Z, u, lengths, end: int, held: int, build
     frame, joined = held_out_frame(settings, part, Z, u, lengths, cut)
     if not joined.any():
         return None
-    errors, misplaced, steps = {}, {}, {}
+    errors, misplaced, steps, referenced = {}, {}, {}, int(joined.sum())
     for name, labels in (("places", part.places), ("views", part.views)):
         decoded = build(X[:cut], u[:cut], labels, head, pooled=name == "views").predict(
             X[cut:], u[cut:], lengths=tail)
         placed = _state_means(labels, part.frame)[decoded]
         errors[name] = round(frame_error(placed, frame), 4)
-        share = misplaced_share(placed[joined], frame[joined], settings.far)
-        misplaced[name], steps[name] = round(share, 4), int(round(share * joined.sum()))
+        steps[name] = misplaced_steps(placed[joined], frame[joined], settings.far)
+        misplaced[name] = round(steps[name] / referenced, 4)
     return {"learned": cut, "held_out": end - cut, "anchored": round(float(joined.mean()), 4),
-            "referenced": int(joined.sum()), **errors, "misplaced": misplaced,
+            "referenced": referenced, **errors, "misplaced": misplaced,
             "misplaced_steps": steps}
 
 

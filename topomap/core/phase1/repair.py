@@ -19,6 +19,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
+from scipy.spatial.distance import pdist, squareform
 from sklearn.cluster import KMeans
 
 __all__ = ["CUT_RATIO", "MIN_GAIN", "rms_spreads", "cut_pairs", "repair_cut_views"]
@@ -38,7 +39,7 @@ def rms_spreads(Z, labels, centres, weight=None) -> np.ndarray:
     """(k,) the rms distance of each cluster's rows to its centre (weighted; 0 when empty)."""
     w = _weights(Z, weight)
     k = centres.shape[0]
-    sq = np.einsum("ij,ij->i", Z - centres[labels], Z - centres[labels])
+    sq = _sq(Z, centres[labels])
     total = np.bincount(labels, weights=w * sq, minlength=k)
     mass = np.bincount(labels, weights=w, minlength=k)
     return np.sqrt(np.divide(total, mass, out=np.zeros(k), where=mass > 0))
@@ -47,8 +48,7 @@ def rms_spreads(Z, labels, centres, weight=None) -> np.ndarray:
 def cut_pairs(centres, spreads, ratio: float = CUT_RATIO) -> np.ndarray:
     """(P, 2) the pairs ``i < j`` of clusters whose centres are closer than ``ratio`` times the
     smaller of their two spreads."""
-    diff = centres[:, None, :] - centres[None, :, :]
-    dist = np.sqrt(np.einsum("ijd,ijd->ij", diff, diff))
+    dist = squareform(pdist(centres))  # no (k, k, D) differences: k is 100 or more here
     limit = ratio * np.minimum(spreads[:, None], spreads[None, :])
     i, j = np.nonzero(np.triu(dist < limit, k=1))
     return np.stack([i, j], axis=1)
