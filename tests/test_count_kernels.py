@@ -110,3 +110,29 @@ def test_diagonal_models_in_two_passes_are_the_separate_sums():
     cov_ref = model_squares(X, model, means_ref, lookup) / np.maximum(n_ref, 1)[:, None] + reg
     for a, b in ((n, n_ref), (means, means_ref), (cov, cov_ref)):
         assert np.array_equal(a.view(np.int64), b.view(np.int64))
+
+
+def test_split_codes_read_the_new_state_as_the_old_one_before():
+    from topomap.core.split.kernels import split_codes
+
+    # A = 2; state 1 split, steps 2 and 3 moved to the new state 3
+    x, u, A = np.array([0, 1, 3, 3, 2]), np.array([1, 0, 1, 0, 1]), 2
+    before, after = split_codes(x, u, np.array([2, 3]), A, np.int64(32), True, 1, 3)
+    # t = 2: key x1*2+u1 = 2, column x3*2+u2 = 7 (before: 1*2+1 = 3); t = 3: key 7 (3), col 4
+    assert after.tolist() == [(2 << 32) | 7, (7 << 32) | 4]
+    assert before.tolist() == [(2 << 32) | 3, (3 << 32) | 4]
+    before, after = split_codes(x, u, np.array([1, 3]), A, np.int64(32), False, 1, 3)
+    # t = 1: key 2, next 3 (before 1); t = 3: key 3*2+0 = 6 (before 2), next 2
+    assert after.tolist() == [(2 << 32) | 3, (6 << 32) | 2]
+    assert before.tolist() == [(2 << 32) | 1, (2 << 32) | 2]
+
+
+def test_split_table_cuts_by_key():
+    from topomap.core.split.kernels import split_table
+
+    codes = np.array([(0 << 32) | 5, (1 << 32) | 2, (1 << 32) | 4, (3 << 32) | 1])
+    counts = np.array([1, 2, 3, 4])
+    chosen = np.array([False, True, False, False])
+    (kc, kn), (wc, wn) = split_table(codes, counts, chosen, np.int64(32))
+    assert kc.tolist() == [5, (3 << 32) | 1] and kn.tolist() == [1, 4]
+    assert wc.tolist() == [(1 << 32) | 2, (1 << 32) | 4] and wn.tolist() == [2, 3]

@@ -124,3 +124,25 @@ def test_the_engine_splits_exactly_as_the_numpy_code(seed, episodes):
         assert bits(ent["H_u"]) == bits(conditional_entropy(ac))
         assert bits(ent["H_x"]) == bits(conditional_entropy(tc.reshape(-1, splitter.n_states)))
     assert len(expected) == 12
+
+
+@pytest.mark.parametrize("seed, episodes", [(5, 1), (6, 9)])
+def test_the_tables_kept_through_splits_are_the_tables_built_afresh(seed, episodes):
+    # after each split the engine cuts the split state's table in two and moves the instances
+    # next to the moved steps; every state's table must be the one its steps give from scratch
+    from topomap.core.split.kernels import instance_table, transition_table
+
+    labels, u, lengths, S, A = random_walk(seed, 1200, episodes=episodes)
+    has_prev, has_next = episode_masks(len(u), lengths)
+    splitter = Splitter(labels, u, A, has_prev, has_next, symbol=list(range(S)), gds=[-1] * S,
+                        obs_entropy=np.zeros(S), criterion=EntropyCriterion())
+    engine = splitter.engine
+    for _ in range(10):
+        splitter.apply(splitter.best())
+        size = (splitter.n_states + 1) * A
+        for s in range(splitter.n_states):
+            fresh = instance_table(engine.labels, engine.u, engine.members[s], engine.centre, A,
+                                   size)
+            assert [a.tolist() for a in engine.tables[s]] == [a.tolist() for a in fresh]
+        fresh = transition_table(engine.labels, engine.u, has_next, splitter.n_states, A)
+        assert [a.tolist() for a in engine.transitions] == [a.tolist() for a in fresh]

@@ -33,8 +33,8 @@ import numpy as np
 from numba import njit
 
 from .kernels import (action_table, follow_keys, instance_table, merge_groups_kernel,
-                      merge_tallies, next_to, pair_codes, states_near, tally_codes,
-                      transition_table)
+                      merge_tallies, next_to, split_codes, split_table, states_near,
+                      tally_codes, transition_table)
 from ..stats import conditional_entropy, sparse_conditional_entropy, xlogx
 
 __all__ = ["merge_groups", "Proposal", "SplitEngine", "Splitter"]
@@ -176,12 +176,6 @@ class SplitEngine:
                                             self.S, self.A)
 
     # ------------------------------------------------------------------ codes
-    def _instance_codes(self, c):
-        return pair_codes(self.labels, self.u, c, self.A, _SHIFT, True)
-
-    def _transition_codes(self, t):
-        return pair_codes(self.labels, self.u, t, self.A, _SHIFT, False)
-
     def _instance_table(self, steps):
         return instance_table(self.labels, self.u, steps, self.centre, self.A,
                               (self.S + 1) * self.A)
@@ -225,6 +219,11 @@ class SplitEngine:
           ``(u[t], x[t+1])`` is relatively more frequent (ties, unseen columns, one-step episodes: the
           old id).
         """
+        return self._moving(p)[0]
+
+    def _moving(self, p: Proposal):
+        """:meth:`moving_steps` and the mask over the keys that go (every instance centre of the
+        state goes with its key)."""
         x, u, A = self.labels, self.u, self.A
         side = p.side
         if p.counts[side].sum() > p.counts[~side].sum():
@@ -241,29 +240,39 @@ class SplitEngine:
             col = x[starts + 1] * A + u[starts]
             pos = np.minimum(np.searchsorted(p.cols, col), p.cols.size - 1)
             goes[is_start] = (p.cols[pos] == col) & (freq[1, pos] > freq[0, pos])
-        return goes
+        return goes, chosen
 
-    def _touched(self, moved, q):
-        """Instance centres outside ``q`` and transition starts next to the moved steps."""
-        return next_to(moved, self.has_prev, self.has_next, self.centre, self.labels, q)
+    def _codes(self, steps, centred, q, new):
+        """Instance (``centred``) or transition codes of ``steps`` before and after a split of
+        ``q`` whose moved steps are already labelled ``new``."""
+        return split_codes(self.labels, self.u, steps, self.A, _SHIFT, centred, q, new)
 
     def split(self, p: Proposal, new: int) -> np.ndarray:
         """Split ``p.state``: its moving steps become state ``new`` (= the current state count).
-        Returns the moved steps (sorted)."""
+        Returns the moved steps (sorted).
+
+        Only the steps next to the moved ones are looked at again: the instances and transitions
+        they centre or start move from their codes before to their codes after; the split state's
+        table is cut in two by the keys that go (an instance centre goes with its key), with the
+        instances inside it next to a moved step moved the same way."""
         q = p.state
-        goes = self.moving_steps(p)
+        goes, chosen = self._moving(p)
         steps = self.members[q]
         moved = steps[goes]
-        centres, starts = self._touched(moved, q)
-        old_inst, old_trans = self._instance_codes(centres), self._transition_codes(starts)
+        outside, inside, starts = next_to(moved, self.has_prev, self.has_next, self.centre,
+                                          self.labels, q)
         self.labels[moved] = new
-        self._update_instances(centres, old_inst, self._instance_codes(centres))
-        self.transitions = _merge_delta(self.transitions, old_trans,
-                                        self._transition_codes(starts), (self.S + 1) * self.A)
+        size = (self.S + 1) * self.A
+        self._update_instances(outside, *self._codes(outside, True, q, new))
+        self.transitions = _merge_delta(self.transitions, *self._codes(starts, False, q, new),
+                                        size)
         self.members[q] = steps[~goes]
         self.members.append(moved)
-        self.tables[q] = self._instance_table(self.members[q])
-        self.tables.append(self._instance_table(moved))
+        halves = split_table(*self.tables[q], chosen, _SHIFT)
+        old, now = self._codes(inside, True, q, new)
+        went = self.labels[inside] == new
+        self.tables[q] = _merge_delta(halves[0], old[~went], now[~went], size)
+        self.tables.append(_merge_delta(halves[1], old[went], now[went], size))
         self._update_counts(q, moved)
         return moved
 

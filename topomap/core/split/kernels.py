@@ -10,7 +10,7 @@ from ..sums import pairwise_sum
 
 __all__ = ["merge_groups_kernel", "transition_table", "action_table", "merge_tallies",
            "tally_codes", "pair_codes", "instance_table", "sorted_union", "follow_keys", "next_to",
-           "states_near"]
+           "split_codes", "split_table", "states_near"]
 
 @njit(cache=True)
 def _round(x, scale):
@@ -337,19 +337,64 @@ def _shifted(moved, has, shift):
 
 @njit(cache=True)
 def next_to(moved, has_prev, has_next, centre, x, q):
-    """The steps a move of the sorted steps ``moved`` out of state ``q`` touches: the instance
-    centres next to them that lie outside ``q``, and the transition starts next to or at them
-    (both sorted)."""
+    """The steps a move of the sorted steps ``moved`` out of state ``q`` touches (labels ``x``
+    from before the move): the instance centres next to them that lie outside ``q``, those that
+    lie in ``q``, and the transition starts next to or at them (all three sorted)."""
     before, after = _shifted(moved, has_prev, -1), _shifted(moved, has_next, 1)
     c = sorted_union(before, after)
-    keep = np.zeros(c.size, dtype=np.bool_)
+    outside = np.zeros(c.size, dtype=np.bool_)
+    inside = np.zeros(c.size, dtype=np.bool_)
     for i in range(c.size):
-        keep[i] = centre[c[i]] and x[c[i]] != q
+        if centre[c[i]]:
+            outside[i] = x[c[i]] != q
+            inside[i] = x[c[i]] == q
     t = sorted_union(_shifted(moved, has_next, 0), before)
     starts = np.zeros(t.size, dtype=np.bool_)
     for i in range(t.size):
         starts[i] = has_next[t[i]]
-    return c[keep], t[starts]
+    return c[outside], c[inside], t[starts]
+
+
+@njit(cache=True)
+def split_codes(x, u, steps, A, shift, centred, q, new):
+    """:func:`pair_codes` of the steps after a split of ``q`` (labels ``x`` already moved to
+    ``new``) and before it (``new`` read as ``q``), in one pass: ``(before, after)``."""
+    before, after = np.empty(steps.size, dtype=np.int64), np.empty(steps.size, dtype=np.int64)
+    for i in range(steps.size):
+        t = steps[i]
+        if centred:
+            a, b, ua = x[t - 1], x[t + 1], u[t - 1]
+            after[i] = ((a * A + ua) << shift) | (b * A + u[t])
+            a, b = q if a == new else a, q if b == new else b
+            before[i] = ((a * A + ua) << shift) | (b * A + u[t])
+        else:
+            a, b = x[t], x[t + 1]
+            after[i] = ((a * A + u[t]) << shift) | b
+            a, b = q if a == new else a, q if b == new else b
+            before[i] = ((a * A + u[t]) << shift) | b
+    return before, after
+
+
+@njit(cache=True)
+def split_table(codes, counts, chosen, shift):
+    """A sorted table ``(codes, counts)`` cut in two by its keys (``code >> shift``): the
+    entries whose key is not ``chosen`` (a mask over the keys), then those whose key is."""
+    n_in = 0
+    for i in range(codes.size):
+        if chosen[codes[i] >> shift]:
+            n_in += 1
+    kept_codes, kept_counts = np.empty(codes.size - n_in, dtype=np.int64), np.empty(
+        codes.size - n_in, dtype=np.int64)
+    went_codes, went_counts = np.empty(n_in, dtype=np.int64), np.empty(n_in, dtype=np.int64)
+    i_kept = i_went = 0
+    for i in range(codes.size):
+        if chosen[codes[i] >> shift]:
+            went_codes[i_went], went_counts[i_went] = codes[i], counts[i]
+            i_went += 1
+        else:
+            kept_codes[i_kept], kept_counts[i_kept] = codes[i], counts[i]
+            i_kept += 1
+    return (kept_codes, kept_counts), (went_codes, went_counts)
 
 
 @njit(cache=True)
