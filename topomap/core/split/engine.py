@@ -33,7 +33,7 @@ import numpy as np
 from numba import njit
 
 from .kernels import (action_table, follow_keys, instance_table, merge_groups_kernel,
-                      merge_tallies, next_to, split_codes, split_table, states_near,
+                      merge_tallies, next_to, split_codes, split_table,
                       tally_codes, transition_table)
 from ..stats import conditional_entropy, sparse_conditional_entropy, xlogx
 
@@ -156,7 +156,8 @@ class SplitEngine:
     ``has_prev`` / ``has_next`` from :func:`topomap.core.stats.episode_masks`.
     Attributes: ``labels`` (T,) int64, ``members[s]`` sorted steps of state ``s`` (int32
     below 2**31 steps),
-    ``state_counts`` (S,), ``action_counts`` (S, A).
+    ``state_counts`` (S,), ``action_counts`` (S, A), ``near`` (S,) the states next to the last
+    split's moved steps.
     """
 
     def __init__(self, labels, actions, n_states, n_actions, has_prev, has_next):
@@ -174,6 +175,7 @@ class SplitEngine:
         self.action_counts = action_table(self.labels, self.u, self.S, self.A)
         self.transitions = transition_table(self.labels, self.u, np.asarray(has_next, dtype=bool),
                                             self.S, self.A)
+        self.near = np.zeros(self.S, dtype=bool)  # the states next to the last split's steps
 
     # ------------------------------------------------------------------ codes
     def _instance_table(self, steps):
@@ -231,9 +233,8 @@ class SplitEngine:
         steps = self.members[p.state]
         chosen = np.zeros(self.S * A, dtype=bool)
         chosen[p.keys[side]] = True
-        goes = follow_keys(x, u, steps, self.has_prev, A, chosen)
-        is_start = ~self.has_prev[steps] & self.has_next[steps]
-        if is_start.any():
+        goes, is_start = follow_keys(x, u, steps, self.has_prev, self.has_next, A, chosen)
+        if is_start.size:
             starts = steps[is_start]
             halves = np.stack([p.counts[~side].sum(axis=0), p.counts[side].sum(axis=0)])
             freq = halves / np.maximum(halves.sum(axis=1, keepdims=True), 1)
@@ -251,7 +252,9 @@ class SplitEngine:
         """Split ``p.state``: its moving steps become state ``new`` (= the current state count).
         Returns the moved steps (sorted).
 
-        Only the steps next to the moved ones are looked at again: the instances and transitions
+        ``near`` is then the mask over the states (the new one included) of those holding a step
+        next to a moved one, apart from the split state and the new one.  Only the steps next to
+        the moved ones are looked at again: the instances and transitions
         they centre or start move from their codes before to their codes after; the split state's
         table is cut in two by the keys that go (an instance centre goes with its key), with the
         instances inside it next to a moved step moved the same way."""
@@ -259,8 +262,8 @@ class SplitEngine:
         goes, chosen = self._moving(p)
         steps = self.members[q]
         moved = steps[goes]
-        outside, inside, starts = next_to(moved, self.has_prev, self.has_next, self.centre,
-                                          self.labels, q)
+        outside, inside, starts, self.near = next_to(moved, self.has_prev, self.has_next,
+                                                     self.centre, self.labels, q, self.S + 1)
         self.labels[moved] = new
         size = (self.S + 1) * self.A
         self._update_instances(outside, *self._codes(outside, True, q, new))
@@ -358,8 +361,7 @@ class Splitter:
         self.parent.append(q)
         self.obs_entropy = np.append(self.obs_entropy, self.obs_entropy[q])
         # a state's instances change only where a neighbouring step moved q -> new
-        touched = states_near(moved, self.has_prev, self.has_next, self.labels, self.n_states)
-        self._dirty = set(np.flatnonzero(touched).tolist()) | {q, new}
+        self._dirty = set(np.flatnonzero(self.engine.near).tolist()) | {q, new}
         if self.recompute_all:
             self._dirty = set(range(self.n_states))
         return {

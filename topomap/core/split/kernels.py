@@ -10,7 +10,7 @@ from ..sums import pairwise_sum
 
 __all__ = ["merge_groups_kernel", "transition_table", "action_table", "merge_tallies",
            "tally_codes", "pair_codes", "instance_table", "sorted_union", "follow_keys", "next_to",
-           "split_codes", "split_table", "states_near"]
+           "split_codes", "split_table"]
 
 @njit(cache=True)
 def _round(x, scale):
@@ -313,15 +313,21 @@ def sorted_union(a, b):
 
 
 @njit(cache=True)
-def follow_keys(x, u, steps, has_prev, A, chosen):
-    """Mask over ``steps``: those with a predecessor whose key ``x[t-1] * A + u[t-1]`` is
-    ``chosen`` (a mask over the keys)."""
+def follow_keys(x, u, steps, has_prev, has_next, A, chosen):
+    """``(goes, starts)``: a mask over ``steps``, those with a predecessor whose key ``x[t-1] *
+    A + u[t-1]`` is ``chosen`` (a mask over the keys), and the positions in ``steps`` of the
+    first steps of episodes that have a next step."""
     goes = np.zeros(steps.size, dtype=np.bool_)
+    starts = np.empty(steps.size, dtype=np.int64)
+    n = 0
     for i in range(steps.size):
         t = steps[i]
         if has_prev[t]:
             goes[i] = chosen[x[t - 1] * A + u[t - 1]]
-    return goes
+        elif has_next[t]:
+            starts[n] = i
+            n += 1
+    return goes, starts[:n]
 
 
 @njit(cache=True)
@@ -336,23 +342,27 @@ def _shifted(moved, has, shift):
 
 
 @njit(cache=True)
-def next_to(moved, has_prev, has_next, centre, x, q):
+def next_to(moved, has_prev, has_next, centre, x, q, S):
     """The steps a move of the sorted steps ``moved`` out of state ``q`` touches (labels ``x``
     from before the move): the instance centres next to them that lie outside ``q``, those that
-    lie in ``q``, and the transition starts next to or at them (all three sorted)."""
+    lie in ``q``, the transition starts next to or at them (all three sorted), and a mask over
+    the ``S`` states holding a step next to a moved one."""
     before, after = _shifted(moved, has_prev, -1), _shifted(moved, has_next, 1)
     c = sorted_union(before, after)
     outside = np.zeros(c.size, dtype=np.bool_)
     inside = np.zeros(c.size, dtype=np.bool_)
+    near = np.zeros(S, dtype=np.bool_)
     for i in range(c.size):
+        s = x[c[i]]
+        near[s] = True
         if centre[c[i]]:
-            outside[i] = x[c[i]] != q
-            inside[i] = x[c[i]] == q
+            outside[i] = s != q
+            inside[i] = s == q
     t = sorted_union(_shifted(moved, has_next, 0), before)
     starts = np.zeros(t.size, dtype=np.bool_)
     for i in range(t.size):
         starts[i] = has_next[t[i]]
-    return c[outside], c[inside], t[starts]
+    return c[outside], c[inside], t[starts], near
 
 
 @njit(cache=True)
@@ -395,16 +405,3 @@ def split_table(codes, counts, chosen, shift):
             kept_codes[i_kept], kept_counts[i_kept] = codes[i], counts[i]
             i_kept += 1
     return (kept_codes, kept_counts), (went_codes, went_counts)
-
-
-@njit(cache=True)
-def states_near(moved, has_prev, has_next, x, S):
-    """Mask over the ``S`` states: those holding a step of ``moved`` or a neighbour of one."""
-    near = np.zeros(S, dtype=np.bool_)
-    for t in moved:
-        near[x[t]] = True
-        if has_prev[t]:
-            near[x[t - 1]] = True
-        if has_next[t]:
-            near[x[t + 1]] = True
-    return near
