@@ -112,19 +112,30 @@ def test_diagonal_models_in_two_passes_are_the_separate_sums():
         assert np.array_equal(a.view(np.int64), b.view(np.int64))
 
 
-def test_split_codes_read_the_new_state_as_the_old_one_before():
-    from topomap.core.split.kernels import split_codes
+def test_touched_codes_around_the_moved_steps_by_hand():
+    from topomap.core.split.kernels import touched_codes
 
-    # A = 2; state 1 split, steps 2 and 3 moved to the new state 3
+    # A = 2, one episode; state 1 split, steps 2 and 3 moved to the new state 3
     x, u, A = np.array([0, 1, 3, 3, 2]), np.array([1, 0, 1, 0, 1]), 2
-    before, after = split_codes(x, u, np.array([2, 3]), A, np.int64(32), True, 1, 3)
-    # t = 2: key x1*2+u1 = 2, column x3*2+u2 = 7 (before: 1*2+1 = 3); t = 3: key 7 (3), col 4
-    assert after.tolist() == [(2 << 32) | 7, (7 << 32) | 4]
-    assert before.tolist() == [(2 << 32) | 3, (3 << 32) | 4]
-    before, after = split_codes(x, u, np.array([1, 3]), A, np.int64(32), False, 1, 3)
-    # t = 1: key 2, next 3 (before 1); t = 3: key 3*2+0 = 6 (before 2), next 2
-    assert after.tolist() == [(2 << 32) | 3, (6 << 32) | 2]
-    assert before.tolist() == [(2 << 32) | 1, (2 << 32) | 2]
+    has_prev, has_next = np.arange(5) > 0, np.arange(5) < 4
+    out, ins, starts, near = touched_codes(np.array([2, 3]), has_prev, has_next,
+                                           has_prev & has_next, x, u, A, np.int64(32), 1, 3)
+    assert out.shape == (4, 0)  # every centre next to them (1, 2, 3) was in state 1
+    # t = 1: key 0*2+1, column x2*2+u1 = 6 (2 before); t = 2: key 2, column 7 (3); t = 3: key
+    # 3*2+1 = 7 (3), column 4; step 4 is no centre
+    assert ins.tolist() == [[(1 << 32) | 2, (2 << 32) | 3, (3 << 32) | 4],
+                            [(1 << 32) | 6, (2 << 32) | 7, (7 << 32) | 4], [0, 1, 1]]
+    # transitions from t = 1 (key 2, to 3, 1 before), 2 (key 7 / 3, to 3 / 1), 3 (key 6 / 2, to 2)
+    assert starts.tolist() == [[(2 << 32) | 1, (3 << 32) | 1, (2 << 32) | 2],
+                               [(2 << 32) | 3, (7 << 32) | 3, (6 << 32) | 2]]
+    assert near.tolist() == [False, True, True, True]
+    # step 1 moved out of state 1; the centre at t = 2 lies in state 0
+    x = np.array([0, 3, 0, 1, 2])
+    out, ins, starts, near = touched_codes(np.array([1]), has_prev, has_next,
+                                           has_prev & has_next, x, u, A, np.int64(32), 1, 3)
+    # t = 2: key x1*2+u1 = 6 (2 before), column x3*2+u2 = 3
+    assert out.tolist() == [[2], [0], [(2 << 32) | 3], [(6 << 32) | 3]] and ins.shape == (3, 0)
+    assert near.tolist() == [True, False, False, False]
 
 
 def test_split_table_cuts_by_key():

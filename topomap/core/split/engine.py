@@ -33,8 +33,7 @@ import numpy as np
 from numba import njit
 
 from .kernels import (action_table, follow_keys, instance_table, merge_groups_kernel,
-                      merge_tallies, next_to, split_codes, split_table,
-                      tally_codes, transition_table)
+                      merge_tallies, split_table, tally_codes, touched_codes, transition_table)
 from ..stats import conditional_entropy, sparse_conditional_entropy, xlogx
 
 __all__ = ["merge_groups", "Proposal", "SplitEngine", "Splitter"]
@@ -243,46 +242,41 @@ class SplitEngine:
             goes[is_start] = (p.cols[pos] == col) & (freq[1, pos] > freq[0, pos])
         return goes, chosen
 
-    def _codes(self, steps, centred, q, new):
-        """Instance (``centred``) or transition codes of ``steps`` before and after a split of
-        ``q`` whose moved steps are already labelled ``new``."""
-        return split_codes(self.labels, self.u, steps, self.A, _SHIFT, centred, q, new)
-
     def split(self, p: Proposal, new: int) -> np.ndarray:
         """Split ``p.state``: its moving steps become state ``new`` (= the current state count).
-        Returns the moved steps (sorted).
+        Returns the moved steps (sorted); ``near`` is then the mask over the states (the new one
+        included) of those holding a step next to a moved one, apart from the split state and
+        the new one.
 
-        ``near`` is then the mask over the states (the new one included) of those holding a step
-        next to a moved one, apart from the split state and the new one.  Only the steps next to
-        the moved ones are looked at again: the instances and transitions
-        they centre or start move from their codes before to their codes after; the split state's
+        Only the steps next to the moved ones are looked at again
+        (:func:`~topomap.core.split.kernels.touched_codes`): the instances and transitions they
+        centre or start move from their codes before to their codes after; the split state's
         table is cut in two by the keys that go (an instance centre goes with its key), with the
         instances inside it next to a moved step moved the same way."""
         q = p.state
         goes, chosen = self._moving(p)
         steps = self.members[q]
         moved = steps[goes]
-        outside, inside, starts, self.near = next_to(moved, self.has_prev, self.has_next,
-                                                     self.centre, self.labels, q, self.S + 1)
         self.labels[moved] = new
+        outside, inside, starts, self.near = touched_codes(
+            moved, self.has_prev, self.has_next, self.centre, self.labels, self.u, self.A, _SHIFT,
+            q, new)
         size = (self.S + 1) * self.A
-        self._update_instances(outside, *self._codes(outside, True, q, new))
-        self.transitions = _merge_delta(self.transitions, *self._codes(starts, False, q, new),
-                                        size)
+        self._update_instances(*outside[1:])
+        self.transitions = _merge_delta(self.transitions, starts[0], starts[1], size)
         self.members[q] = steps[~goes]
         self.members.append(moved)
         halves = split_table(*self.tables[q], chosen, _SHIFT)
-        old, now = self._codes(inside, True, q, new)
-        went = self.labels[inside] == new
-        self.tables[q] = _merge_delta(halves[0], old[~went], now[~went], size)
-        self.tables.append(_merge_delta(halves[1], old[went], now[went], size))
+        went = inside[2] == 1
+        self.tables[q] = _merge_delta(halves[0], inside[0][~went], inside[1][~went], size)
+        self.tables.append(_merge_delta(halves[1], inside[0][went], inside[1][went], size))
         self._update_counts(q, moved)
         return moved
 
-    def _update_instances(self, centres, old, new):
-        """Move the instances at ``centres`` (all outside the split state) from ``old`` codes to
-        ``new`` codes in their states' tables."""
-        order, bounds = group_steps(self.labels[centres], self.S + 1)
+    def _update_instances(self, states, old, new):
+        """Move instances (all outside the split state) from ``old`` codes to ``new`` codes in
+        the tables of their ``states``."""
+        order, bounds = group_steps(states, self.S + 1)
         for s in np.flatnonzero(np.diff(bounds)):
             pick = order[bounds[s]:bounds[s + 1]]
             self.tables[s] = _merge_delta(self.tables[s], old[pick], new[pick],

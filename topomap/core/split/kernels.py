@@ -9,8 +9,8 @@ from numba import njit
 from ..sums import pairwise_sum
 
 __all__ = ["merge_groups_kernel", "transition_table", "action_table", "merge_tallies",
-           "tally_codes", "pair_codes", "instance_table", "sorted_union", "follow_keys", "next_to",
-           "split_codes", "split_table"]
+           "tally_codes", "pair_codes", "instance_table", "sorted_union", "follow_keys",
+           "touched_codes", "split_table"]
 
 @njit(cache=True)
 def _round(x, scale):
@@ -342,47 +342,57 @@ def _shifted(moved, has, shift):
 
 
 @njit(cache=True)
-def next_to(moved, has_prev, has_next, centre, x, q, S):
-    """The steps a move of the sorted steps ``moved`` out of state ``q`` touches (labels ``x``
-    from before the move): the instance centres next to them that lie outside ``q``, those that
-    lie in ``q``, the transition starts next to or at them (all three sorted), and a mask over
-    the ``S`` states holding a step next to a moved one."""
-    before, after = _shifted(moved, has_prev, -1), _shifted(moved, has_next, 1)
-    c = sorted_union(before, after)
-    outside = np.zeros(c.size, dtype=np.bool_)
-    inside = np.zeros(c.size, dtype=np.bool_)
-    near = np.zeros(S, dtype=np.bool_)
-    for i in range(c.size):
-        s = x[c[i]]
-        near[s] = True
-        if centre[c[i]]:
-            outside[i] = s != q
-            inside[i] = s == q
-    t = sorted_union(_shifted(moved, has_next, 0), before)
-    starts = np.zeros(t.size, dtype=np.bool_)
-    for i in range(t.size):
-        starts[i] = has_next[t[i]]
-    return c[outside], c[inside], t[starts], near
+def _code_pair(x, u, t, A, shift, centred, q, new):
+    """The instance (``centred``) or transition code at step ``t`` before a split of ``q`` (the
+    label ``new`` read as ``q``) and after it (labels ``x`` as they are)."""
+    if centred:
+        a, b, ua, ub = x[t - 1], x[t + 1], u[t - 1], u[t]
+        after = ((a * A + ua) << shift) | (b * A + ub)
+        a, b = q if a == new else a, q if b == new else b
+        return ((a * A + ua) << shift) | (b * A + ub), after
+    a, b = x[t], x[t + 1]
+    after = ((a * A + u[t]) << shift) | b
+    a, b = q if a == new else a, q if b == new else b
+    return ((a * A + u[t]) << shift) | b, after
 
 
 @njit(cache=True)
-def split_codes(x, u, steps, A, shift, centred, q, new):
-    """:func:`pair_codes` of the steps after a split of ``q`` (labels ``x`` already moved to
-    ``new``) and before it (``new`` read as ``q``), in one pass: ``(before, after)``."""
-    before, after = np.empty(steps.size, dtype=np.int64), np.empty(steps.size, dtype=np.int64)
-    for i in range(steps.size):
-        t = steps[i]
-        if centred:
-            a, b, ua = x[t - 1], x[t + 1], u[t - 1]
-            after[i] = ((a * A + ua) << shift) | (b * A + u[t])
-            a, b = q if a == new else a, q if b == new else b
-            before[i] = ((a * A + ua) << shift) | (b * A + u[t])
+def touched_codes(moved, has_prev, has_next, centre, x, u, A, shift, q, new):
+    """What a split of ``q`` changed around the sorted steps ``moved`` (labels ``x`` already
+    moved to ``new``), in one pass over their neighbours.
+
+    Returns ``(outside, inside, starts, near)``: ``outside`` rows the instance centres next to a
+    moved step that lie outside ``q`` and ``new``, their states, codes before and after;
+    ``inside`` rows the codes before and after of those inside, and 1 where the centre is in
+    ``new``; ``starts`` rows the codes before and after of the transitions starting next to or at
+    a moved step (all in step order); ``near`` a mask over the states holding a step next to a
+    moved one (``q`` and ``new`` may be missing).
+    """
+    before = _shifted(moved, has_prev, -1)
+    c = sorted_union(before, _shifted(moved, has_next, 1))
+    near = np.zeros(new + 1, dtype=np.bool_)
+    out, ins = np.empty((4, c.size), dtype=np.int64), np.empty((3, c.size), dtype=np.int64)
+    n_out = n_in = 0
+    for t in c:
+        s = x[t]
+        near[s] = True
+        if not centre[t]:
+            continue
+        b, a = _code_pair(x, u, t, A, shift, True, q, new)
+        if s == q or s == new:
+            ins[0, n_in], ins[1, n_in], ins[2, n_in] = b, a, s == new
+            n_in += 1
         else:
-            a, b = x[t], x[t + 1]
-            after[i] = ((a * A + u[t]) << shift) | b
-            a, b = q if a == new else a, q if b == new else b
-            before[i] = ((a * A + u[t]) << shift) | b
-    return before, after
+            out[0, n_out], out[1, n_out], out[2, n_out], out[3, n_out] = t, s, b, a
+            n_out += 1
+    starts = sorted_union(_shifted(moved, has_next, 0), before)
+    trans = np.empty((2, starts.size), dtype=np.int64)
+    n = 0
+    for t in starts:
+        if has_next[t]:
+            trans[0, n], trans[1, n] = _code_pair(x, u, t, A, shift, False, q, new)
+            n += 1
+    return out[:, :n_out].copy(), ins[:, :n_in].copy(), trans[:, :n].copy(), near
 
 
 @njit(cache=True)
