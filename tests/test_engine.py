@@ -146,3 +146,26 @@ def test_the_tables_kept_through_splits_are_the_tables_built_afresh(seed, episod
             assert [a.tolist() for a in engine.tables[s]] == [a.tolist() for a in fresh]
         fresh = transition_table(engine.labels, engine.u, has_next, splitter.n_states, A)
         assert [a.tolist() for a in engine.transitions] == [a.tolist() for a in fresh]
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_the_compiled_gain_is_the_numpy_gain_bit_for_bit(seed):
+    from topomap.core.split.engine import entropy_gain
+
+    rng = np.random.default_rng(seed)
+    G, C = int(rng.integers(2, 12)), int(rng.integers(1, 400))
+    counts = rng.integers(0, 10 ** int(rng.integers(1, 6)), (G, C)) * (rng.random((G, C)) < 0.3)
+    side = rng.random(G) < 0.5
+    halves = np.stack([counts[~side].sum(axis=0), counts[side].sum(axis=0)])
+    expected = (weighted_entropy(halves.sum(axis=0))[0]
+                - weighted_entropy(halves).sum()) / counts.sum()
+    assert bits(entropy_gain(counts, side)) == bits(expected)
+
+
+def test_the_gain_by_hand():
+    from topomap.core.split.engine import entropy_gain
+
+    # two rows that never share a column: H(I) = 1 bit, each half 0 bits
+    assert entropy_gain(np.array([[3, 0], [0, 3]]), np.array([False, True])) == 1.0
+    # both rows in the same half: nothing gained
+    assert entropy_gain(np.array([[3, 0], [0, 3]]), np.array([False, False])) == 0.0
