@@ -147,3 +147,14 @@ def test_split_table_cuts_by_key():
     (kc, kn), (wc, wn) = split_table(codes, counts, chosen, np.int64(32))
     assert kc.tolist() == [5, (3 << 32) | 1] and kn.tolist() == [1, 4]
     assert wc.tolist() == [(1 << 32) | 2, (1 << 32) | 4] and wn.tolist() == [2, 3]
+
+
+def test_count_matrix_by_hand():
+    from topomap.core.split.merge_kernels import count_matrix_kernel
+
+    # codes (key, column): (1, 4) x2, (1, 7) x1, (3, 4) x5
+    codes = np.array([(1 << 32) | 4, (1 << 32) | 7, (3 << 32) | 4])
+    for size in (8, 1000):  # by a presence mask; by sorting when the codes are few
+        matrix, keys, cols = count_matrix_kernel(codes, np.array([2, 1, 5]), size)
+        assert keys.tolist() == [1, 3] and cols.tolist() == [4, 7]
+        assert matrix.tolist() == [[2, 1], [5, 0]]

@@ -32,8 +32,9 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from .kernels import (action_table, follow_keys, gain_kernel, instance_table, merge_groups_kernel,
-                      merge_tallies, split_table, tally_codes, touched_codes, transition_table)
+from .kernels import (action_table, follow_keys, instance_table, merge_tallies, split_table,
+                      tally_codes, touched_codes, transition_table)
+from .merge_kernels import count_matrix_kernel, gain_kernel, merge_groups_kernel
 from ..stats import conditional_entropy, sparse_conditional_entropy, xlogx
 
 __all__ = ["merge_groups", "entropy_gain", "Proposal", "SplitEngine", "Splitter"]
@@ -42,7 +43,6 @@ __all__ = ["merge_groups", "entropy_gain", "Proposal", "SplitEngine", "Splitter"
 #: are exact in floating point too and are broken by index order, not by rounding noise
 _TIE_DECIMALS = 9
 _SHIFT = np.int64(32)
-_MASK = np.int64((1 << 32) - 1)
 
 
 class _XlogxTable:
@@ -67,7 +67,7 @@ _TABLE = _XlogxTable()
 def merge_groups(counts: np.ndarray) -> np.ndarray:
     """Agglomerate the rows of an integer count matrix into two clusters, each time merging the
     pair whose union increases the weighted entropy ``n H`` least (costs rounded to 1e-9 bits;
-    ties: smallest indices).  Compiled (:func:`topomap.core.split.kernels.merge_groups_kernel`).
+    ties: smallest indices).  Compiled (:func:`topomap.core.split.merge_kernels.merge_groups_kernel`).
 
     Returns a boolean array: False for the rows in the cluster holding row 0, True for the others.
     """
@@ -84,7 +84,7 @@ def entropy_gain(counts: np.ndarray, side: np.ndarray) -> float:
     """``(W(I) - W(I') - W(I'')) / |I|`` for the rows of an integer count matrix cut into
     ``side`` False (``I'``) and True (``I''``), ``W`` the weighted entropy ``n H`` of the summed
     rows: the same float as :func:`topomap.core.stats.weighted_entropy` over the two halves'
-    sums gives (compiled, :func:`topomap.core.split.kernels.gain_kernel`).  Not clipped at 0."""
+    sums gives (compiled, :func:`topomap.core.split.merge_kernels.gain_kernel`).  Not clipped at 0."""
     work = np.ascontiguousarray(counts, dtype=np.int64)
     if work.sum() == 0:
         return float("nan")  # 0 / 0, as numpy gives it
@@ -141,18 +141,6 @@ def members_of(labels, n_states, like):
     return out
 
 
-def _compact(values, size):
-    """The sorted distinct entries of ``values`` (ints in ``[0, size)``) and each entry's rank
-    among them: by a presence mask in O(len(values) + size), or by sorting when ``values`` is
-    short next to ``size`` (many states)."""
-    if 16 * values.size < size:
-        return np.unique(values, return_inverse=True)
-    present = np.zeros(size, dtype=bool)
-    present[values] = True
-    rank = np.cumsum(present) - 1
-    return np.flatnonzero(present), rank[values]
-
-
 def _merge_delta(table, old, new, size):
     """The sorted sparse table ``(codes, counts)`` with one count moved from each code of
     ``old`` to the code of ``new`` at the same place (codes' keys and columns below ``size``);
@@ -197,12 +185,7 @@ class SplitEngine:
     def count_matrix(self, q: int):
         """``(counts, keys, cols)`` of state ``q``: the (groups x columns) count matrix of its
         instances, with its sorted group keys and columns."""
-        codes, n = self.tables[q]
-        keys, g = _compact(codes >> _SHIFT, self.S * self.A)
-        cols, c = _compact(codes & _MASK, self.S * self.A)
-        counts = np.zeros((keys.size, cols.size), dtype=np.int64)
-        counts[g, c] = n
-        return counts, keys, cols
+        return count_matrix_kernel(*self.tables[q], self.S * self.A)
 
     def propose(self, q: int, criterion) -> Proposal | None:
         """Ask ``criterion`` for the best split of state ``q``; None if it cannot be split."""
