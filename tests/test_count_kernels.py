@@ -110,3 +110,51 @@ def test_diagonal_models_in_two_passes_are_the_separate_sums():
     cov_ref = model_squares(X, model, means_ref, lookup) / np.maximum(n_ref, 1)[:, None] + reg
     for a, b in ((n, n_ref), (means, means_ref), (cov, cov_ref)):
         assert np.array_equal(a.view(np.int64), b.view(np.int64))
+
+
+def test_touched_codes_around_the_moved_steps_by_hand():
+    from topomap.core.split.kernels import touched_codes
+
+    # A = 2, one episode; state 1 split, steps 2 and 3 moved to the new state 3
+    x, u, A = np.array([0, 1, 3, 3, 2]), np.array([1, 0, 1, 0, 1]), 2
+    has_prev, has_next = np.arange(5) > 0, np.arange(5) < 4
+    out, ins, starts, near = touched_codes(np.array([2, 3]), has_prev, has_next,
+                                           has_prev & has_next, x, u, A, np.int64(32), 1, 3)
+    assert out.shape == (4, 0)  # every centre next to them (1, 2, 3) was in state 1
+    # t = 1: key 0*2+1, column x2*2+u1 = 6 (2 before); t = 2: key 2, column 7 (3); t = 3: key
+    # 3*2+1 = 7 (3), column 4; step 4 is no centre
+    assert ins.tolist() == [[(1 << 32) | 2, (2 << 32) | 3, (3 << 32) | 4],
+                            [(1 << 32) | 6, (2 << 32) | 7, (7 << 32) | 4], [0, 1, 1]]
+    # transitions from t = 1 (key 2, to 3, 1 before), 2 (key 7 / 3, to 3 / 1), 3 (key 6 / 2, to 2)
+    assert starts.tolist() == [[(2 << 32) | 1, (3 << 32) | 1, (2 << 32) | 2],
+                               [(2 << 32) | 3, (7 << 32) | 3, (6 << 32) | 2]]
+    assert near.tolist() == [False, True, True, True]
+    # step 1 moved out of state 1; the centre at t = 2 lies in state 0
+    x = np.array([0, 3, 0, 1, 2])
+    out, ins, starts, near = touched_codes(np.array([1]), has_prev, has_next,
+                                           has_prev & has_next, x, u, A, np.int64(32), 1, 3)
+    # t = 2: key x1*2+u1 = 6 (2 before), column x3*2+u2 = 3
+    assert out.tolist() == [[2], [0], [(2 << 32) | 3], [(6 << 32) | 3]] and ins.shape == (3, 0)
+    assert near.tolist() == [True, False, False, False]
+
+
+def test_split_table_cuts_by_key():
+    from topomap.core.split.kernels import split_table
+
+    codes = np.array([(0 << 32) | 5, (1 << 32) | 2, (1 << 32) | 4, (3 << 32) | 1])
+    counts = np.array([1, 2, 3, 4])
+    chosen = np.array([False, True, False, False])
+    (kc, kn), (wc, wn) = split_table(codes, counts, chosen, np.int64(32))
+    assert kc.tolist() == [5, (3 << 32) | 1] and kn.tolist() == [1, 4]
+    assert wc.tolist() == [(1 << 32) | 2, (1 << 32) | 4] and wn.tolist() == [2, 3]
+
+
+def test_count_matrix_by_hand():
+    from topomap.core.split.merge_kernels import count_matrix_kernel
+
+    # codes (key, column): (1, 4) x2, (1, 7) x1, (3, 4) x5
+    codes = np.array([(1 << 32) | 4, (1 << 32) | 7, (3 << 32) | 4])
+    for size in (8, 1000):  # by a presence mask; by sorting when the codes are few
+        matrix, keys, cols = count_matrix_kernel(codes, np.array([2, 1, 5]), size)
+        assert keys.tolist() == [1, 3] and cols.tolist() == [4, 7]
+        assert matrix.tolist() == [[2, 1], [5, 0]]

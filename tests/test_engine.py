@@ -124,3 +124,48 @@ def test_the_engine_splits_exactly_as_the_numpy_code(seed, episodes):
         assert bits(ent["H_u"]) == bits(conditional_entropy(ac))
         assert bits(ent["H_x"]) == bits(conditional_entropy(tc.reshape(-1, splitter.n_states)))
     assert len(expected) == 12
+
+
+@pytest.mark.parametrize("seed, episodes", [(5, 1), (6, 9)])
+def test_the_tables_kept_through_splits_are_the_tables_built_afresh(seed, episodes):
+    # after each split the engine cuts the split state's table in two and moves the instances
+    # next to the moved steps; every state's table must be the one its steps give from scratch
+    from topomap.core.split.kernels import instance_table, transition_table
+
+    labels, u, lengths, S, A = random_walk(seed, 1200, episodes=episodes)
+    has_prev, has_next = episode_masks(len(u), lengths)
+    splitter = Splitter(labels, u, A, has_prev, has_next, symbol=list(range(S)), gds=[-1] * S,
+                        obs_entropy=np.zeros(S), criterion=EntropyCriterion())
+    engine = splitter.engine
+    for _ in range(10):
+        splitter.apply(splitter.best())
+        size = (splitter.n_states + 1) * A
+        for s in range(splitter.n_states):
+            fresh = instance_table(engine.labels, engine.u, engine.members[s], engine.centre, A,
+                                   size)
+            assert [a.tolist() for a in engine.tables[s]] == [a.tolist() for a in fresh]
+        fresh = transition_table(engine.labels, engine.u, has_next, splitter.n_states, A)
+        assert [a.tolist() for a in engine.transitions] == [a.tolist() for a in fresh]
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_the_compiled_gain_is_the_numpy_gain_bit_for_bit(seed):
+    from topomap.core.split.engine import entropy_gain
+
+    rng = np.random.default_rng(seed)
+    G, C = int(rng.integers(2, 12)), int(rng.integers(1, 400))
+    counts = rng.integers(0, 10 ** int(rng.integers(1, 6)), (G, C)) * (rng.random((G, C)) < 0.3)
+    side = rng.random(G) < 0.5
+    halves = np.stack([counts[~side].sum(axis=0), counts[side].sum(axis=0)])
+    expected = (weighted_entropy(halves.sum(axis=0))[0]
+                - weighted_entropy(halves).sum()) / counts.sum()
+    assert bits(entropy_gain(counts, side)) == bits(expected)
+
+
+def test_the_gain_by_hand():
+    from topomap.core.split.engine import entropy_gain
+
+    # two rows that never share a column: H(I) = 1 bit, each half 0 bits
+    assert entropy_gain(np.array([[3, 0], [0, 3]]), np.array([False, True])) == 1.0
+    # both rows in the same half: nothing gained
+    assert entropy_gain(np.array([[3, 0], [0, 3]]), np.array([False, False])) == 0.0

@@ -11,8 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..stats import weighted_entropy
-from .engine import merge_groups
+from .engine import entropy_gain, merge_groups
 
 __all__ = ["EntropyCriterion", "CRITERIA"]
 
@@ -34,9 +33,7 @@ class EntropyCriterion:
         if counts.shape[0] < 2:
             return None
         side = merge_groups(counts)
-        halves = np.stack([counts[~side].sum(axis=0), counts[side].sum(axis=0)])
-        gain = (weighted_entropy(halves.sum(axis=0))[0] - weighted_entropy(halves).sum()) / counts.sum()
-        return side, float(max(gain, 0.0))
+        return side, float(max(entropy_gain(counts, side), 0.0))
 
     def __repr__(self) -> str:
         return "EntropyCriterion()"

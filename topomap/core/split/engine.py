@@ -32,18 +32,17 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from .kernels import (action_table, follow_keys, instance_table, merge_groups_kernel,
-                      merge_tallies, next_to, pair_codes, states_near, tally_codes,
-                      transition_table)
+from .kernels import (action_table, follow_keys, instance_table, merge_tallies, split_table,
+                      tally_codes, touched_codes, transition_table)
+from .merge_kernels import count_matrix_kernel, gain_kernel, merge_groups_kernel
 from ..stats import conditional_entropy, sparse_conditional_entropy, xlogx
 
-__all__ = ["merge_groups", "Proposal", "SplitEngine", "Splitter"]
+__all__ = ["merge_groups", "entropy_gain", "Proposal", "SplitEngine", "Splitter"]
 
 #: merge costs are rounded to this many decimals so that ties that are exact in real arithmetic
 #: are exact in floating point too and are broken by index order, not by rounding noise
 _TIE_DECIMALS = 9
 _SHIFT = np.int64(32)
-_MASK = np.int64((1 << 32) - 1)
 
 
 class _XlogxTable:
@@ -68,7 +67,7 @@ _TABLE = _XlogxTable()
 def merge_groups(counts: np.ndarray) -> np.ndarray:
     """Agglomerate the rows of an integer count matrix into two clusters, each time merging the
     pair whose union increases the weighted entropy ``n H`` least (costs rounded to 1e-9 bits;
-    ties: smallest indices).  Compiled (:func:`topomap.core.split.kernels.merge_groups_kernel`).
+    ties: smallest indices).  Compiled (:func:`topomap.core.split.merge_kernels.merge_groups_kernel`).
 
     Returns a boolean array: False for the rows in the cluster holding row 0, True for the others.
     """
@@ -79,6 +78,18 @@ def merge_groups(counts: np.ndarray) -> np.ndarray:
         return np.zeros(work.shape[0], dtype=bool)
     table = _TABLE.upto(2 * int(work.sum()))  # 2x: a row is also paired with itself
     return merge_groups_kernel(work, table, _TIE_DECIMALS)
+
+
+def entropy_gain(counts: np.ndarray, side: np.ndarray) -> float:
+    """``(W(I) - W(I') - W(I'')) / |I|`` for the rows of an integer count matrix cut into
+    ``side`` False (``I'``) and True (``I''``), ``W`` the weighted entropy ``n H`` of the summed
+    rows: the same float as :func:`topomap.core.stats.weighted_entropy` over the two halves'
+    sums gives (compiled, :func:`topomap.core.split.merge_kernels.gain_kernel`).  Not clipped at 0."""
+    work = np.ascontiguousarray(counts, dtype=np.int64)
+    if work.sum() == 0:
+        return float("nan")  # 0 / 0, as numpy gives it
+    table = _TABLE.upto(int(work.sum()))
+    return gain_kernel(work, np.ascontiguousarray(side, dtype=np.bool_), table)
 
 
 @dataclass
@@ -130,18 +141,6 @@ def members_of(labels, n_states, like):
     return out
 
 
-def _compact(values, size):
-    """The sorted distinct entries of ``values`` (ints in ``[0, size)``) and each entry's rank
-    among them: by a presence mask in O(len(values) + size), or by sorting when ``values`` is
-    short next to ``size`` (many states)."""
-    if 16 * values.size < size:
-        return np.unique(values, return_inverse=True)
-    present = np.zeros(size, dtype=bool)
-    present[values] = True
-    rank = np.cumsum(present) - 1
-    return np.flatnonzero(present), rank[values]
-
-
 def _merge_delta(table, old, new, size):
     """The sorted sparse table ``(codes, counts)`` with one count moved from each code of
     ``old`` to the code of ``new`` at the same place (codes' keys and columns below ``size``);
@@ -156,7 +155,8 @@ class SplitEngine:
     ``has_prev`` / ``has_next`` from :func:`topomap.core.stats.episode_masks`.
     Attributes: ``labels`` (T,) int64, ``members[s]`` sorted steps of state ``s`` (int32
     below 2**31 steps),
-    ``state_counts`` (S,), ``action_counts`` (S, A).
+    ``state_counts`` (S,), ``action_counts`` (S, A), ``near`` (S,) the states next to the last
+    split's moved steps.
     """
 
     def __init__(self, labels, actions, n_states, n_actions, has_prev, has_next):
@@ -174,14 +174,9 @@ class SplitEngine:
         self.action_counts = action_table(self.labels, self.u, self.S, self.A)
         self.transitions = transition_table(self.labels, self.u, np.asarray(has_next, dtype=bool),
                                             self.S, self.A)
+        self.near = np.zeros(self.S, dtype=bool)  # the states next to the last split's steps
 
     # ------------------------------------------------------------------ codes
-    def _instance_codes(self, c):
-        return pair_codes(self.labels, self.u, c, self.A, _SHIFT, True)
-
-    def _transition_codes(self, t):
-        return pair_codes(self.labels, self.u, t, self.A, _SHIFT, False)
-
     def _instance_table(self, steps):
         return instance_table(self.labels, self.u, steps, self.centre, self.A,
                               (self.S + 1) * self.A)
@@ -190,12 +185,7 @@ class SplitEngine:
     def count_matrix(self, q: int):
         """``(counts, keys, cols)`` of state ``q``: the (groups x columns) count matrix of its
         instances, with its sorted group keys and columns."""
-        codes, n = self.tables[q]
-        keys, g = _compact(codes >> _SHIFT, self.S * self.A)
-        cols, c = _compact(codes & _MASK, self.S * self.A)
-        counts = np.zeros((keys.size, cols.size), dtype=np.int64)
-        counts[g, c] = n
-        return counts, keys, cols
+        return count_matrix_kernel(*self.tables[q], self.S * self.A)
 
     def propose(self, q: int, criterion) -> Proposal | None:
         """Ask ``criterion`` for the best split of state ``q``; None if it cannot be split."""
@@ -225,6 +215,11 @@ class SplitEngine:
           ``(u[t], x[t+1])`` is relatively more frequent (ties, unseen columns, one-step episodes: the
           old id).
         """
+        return self._moving(p)[0]
+
+    def _moving(self, p: Proposal):
+        """:meth:`moving_steps` and the mask over the keys that go (every instance centre of the
+        state goes with its key)."""
         x, u, A = self.labels, self.u, self.A
         side = p.side
         if p.counts[side].sum() > p.counts[~side].sum():
@@ -232,45 +227,51 @@ class SplitEngine:
         steps = self.members[p.state]
         chosen = np.zeros(self.S * A, dtype=bool)
         chosen[p.keys[side]] = True
-        goes = follow_keys(x, u, steps, self.has_prev, A, chosen)
-        is_start = ~self.has_prev[steps] & self.has_next[steps]
-        if is_start.any():
+        goes, is_start = follow_keys(x, u, steps, self.has_prev, self.has_next, A, chosen)
+        if is_start.size:
             starts = steps[is_start]
             halves = np.stack([p.counts[~side].sum(axis=0), p.counts[side].sum(axis=0)])
             freq = halves / np.maximum(halves.sum(axis=1, keepdims=True), 1)
             col = x[starts + 1] * A + u[starts]
             pos = np.minimum(np.searchsorted(p.cols, col), p.cols.size - 1)
             goes[is_start] = (p.cols[pos] == col) & (freq[1, pos] > freq[0, pos])
-        return goes
-
-    def _touched(self, moved, q):
-        """Instance centres outside ``q`` and transition starts next to the moved steps."""
-        return next_to(moved, self.has_prev, self.has_next, self.centre, self.labels, q)
+        return goes, chosen
 
     def split(self, p: Proposal, new: int) -> np.ndarray:
         """Split ``p.state``: its moving steps become state ``new`` (= the current state count).
-        Returns the moved steps (sorted)."""
+        Returns the moved steps (sorted); ``near`` is then the mask over the states (the new one
+        included) of those holding a step next to a moved one, apart from the split state and
+        the new one.
+
+        Only the steps next to the moved ones are looked at again
+        (:func:`~topomap.core.split.kernels.touched_codes`): the instances and transitions they
+        centre or start move from their codes before to their codes after; the split state's
+        table is cut in two by the keys that go (an instance centre goes with its key), with the
+        instances inside it next to a moved step moved the same way."""
         q = p.state
-        goes = self.moving_steps(p)
+        goes, chosen = self._moving(p)
         steps = self.members[q]
         moved = steps[goes]
-        centres, starts = self._touched(moved, q)
-        old_inst, old_trans = self._instance_codes(centres), self._transition_codes(starts)
         self.labels[moved] = new
-        self._update_instances(centres, old_inst, self._instance_codes(centres))
-        self.transitions = _merge_delta(self.transitions, old_trans,
-                                        self._transition_codes(starts), (self.S + 1) * self.A)
+        outside, inside, starts, self.near = touched_codes(
+            moved, self.has_prev, self.has_next, self.centre, self.labels, self.u, self.A, _SHIFT,
+            q, new)
+        size = (self.S + 1) * self.A
+        self._update_instances(*outside[1:])
+        self.transitions = _merge_delta(self.transitions, starts[0], starts[1], size)
         self.members[q] = steps[~goes]
         self.members.append(moved)
-        self.tables[q] = self._instance_table(self.members[q])
-        self.tables.append(self._instance_table(moved))
+        halves = split_table(*self.tables[q], chosen, _SHIFT)
+        went = inside[2] == 1
+        self.tables[q] = _merge_delta(halves[0], inside[0][~went], inside[1][~went], size)
+        self.tables.append(_merge_delta(halves[1], inside[0][went], inside[1][went], size))
         self._update_counts(q, moved)
         return moved
 
-    def _update_instances(self, centres, old, new):
-        """Move the instances at ``centres`` (all outside the split state) from ``old`` codes to
-        ``new`` codes in their states' tables."""
-        order, bounds = group_steps(self.labels[centres], self.S + 1)
+    def _update_instances(self, states, old, new):
+        """Move instances (all outside the split state) from ``old`` codes to ``new`` codes in
+        the tables of their ``states``."""
+        order, bounds = group_steps(states, self.S + 1)
         for s in np.flatnonzero(np.diff(bounds)):
             pick = order[bounds[s]:bounds[s + 1]]
             self.tables[s] = _merge_delta(self.tables[s], old[pick], new[pick],
@@ -349,8 +350,7 @@ class Splitter:
         self.parent.append(q)
         self.obs_entropy = np.append(self.obs_entropy, self.obs_entropy[q])
         # a state's instances change only where a neighbouring step moved q -> new
-        touched = states_near(moved, self.has_prev, self.has_next, self.labels, self.n_states)
-        self._dirty = set(np.flatnonzero(touched).tolist()) | {q, new}
+        self._dirty = set(np.flatnonzero(self.engine.near).tolist()) | {q, new}
         if self.recompute_all:
             self._dirty = set(range(self.n_states))
         return {

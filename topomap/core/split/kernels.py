@@ -1,143 +1,13 @@
-"""Compiled bookkeeping of the split: the bottom-up merge of count rows (bit for bit as numpy),
-the instance and transition tables, tallies of their updates, the steps a split moves or touches."""
+"""Compiled bookkeeping of the split: the instance and transition tables, tallies of their
+updates, the steps a split moves or touches (the merge and the gain: :mod:`.merge_kernels`)."""
 
 from __future__ import annotations
 
 import numpy as np
 from numba import njit
 
-from ..sums import pairwise_sum
-
-__all__ = ["merge_groups_kernel", "transition_table", "action_table", "merge_tallies",
-           "tally_codes", "pair_codes", "instance_table", "sorted_union", "follow_keys", "next_to",
-           "states_near"]
-
-@njit(cache=True)
-def _round(x, scale):
-    """``np.round(x, decimals)`` for ``scale = 10.0 ** decimals``."""
-    return np.rint(x * scale) / scale
-
-
-@njit(cache=True)
-def _merged_sum(work, table, a, b, buf):
-    """``table[work[a] + work[b]].sum()`` in numpy's order."""
-    K = work.shape[1]
-    for k in range(K):
-        buf[k] = table[work[a, k] + work[b, k]]
-    return 0.0 + pairwise_sum(buf, 0, K)
-
-
-@njit(cache=True)
-def _row_weight(work, table, n, a, buf):
-    """``W[a] = table[n[a]] - table[work[a]].sum()``."""
-    K = work.shape[1]
-    for k in range(K):
-        buf[k] = table[work[a, k]]
-    return table[n[a]] - (0.0 + pairwise_sum(buf, 0, K))
-
-
-@njit(cache=True)
-def _initial_costs(work, table, n, W, scale, buf):
-    """Upper triangle ``cost[a, b] = round(table[n_a + n_b] - s_ab - W_a - W_b)``, inf elsewhere."""
-    G = work.shape[0]
-    cost = np.full((G, G), np.inf)
-    for a in range(G):
-        for b in range(a + 1, G):
-            s = _merged_sum(work, table, a, b, buf)
-            cost[a, b] = _round(table[n[a] + n[b]] - s - W[a] - W[b], scale)
-    return cost
-
-
-@njit(cache=True)
-def _row_min(cost, i, rmin, rarg):
-    """First smallest entry of row ``i`` right of the diagonal (-1 when all are inf)."""
-    rmin[i], rarg[i] = np.inf, -1
-    for j in range(i + 1, cost.shape[0]):
-        if cost[i, j] < rmin[i]:
-            rmin[i], rarg[i] = cost[i, j], j
-
-
-@njit(cache=True)
-def _argmin(rmin, rarg):
-    """Row-major index of the first smallest cost (``np.argmin`` of the flattened matrix): the
-    first row holding the smallest row minimum, at that row's first minimum."""
-    best, ba, bb = np.inf, 0, 0
-    for a in range(rmin.size):
-        if rmin[a] < best:
-            best, ba, bb = rmin[a], a, rarg[a]
-    return ba, bb
-
-
-@njit(cache=True)
-def _refresh_minima(cost, rmin, rarg, a, b):
-    """Row minima after merging ``b`` into ``a``: row ``b`` and column ``b`` are now inf, row
-    ``a`` and column ``a`` hold new costs; other entries are unchanged."""
-    rmin[b], rarg[b] = np.inf, -1
-    _row_min(cost, a, rmin, rarg)
-    for i in range(b):
-        if i == a:
-            continue
-        if rarg[i] == b or rarg[i] == a:
-            _row_min(cost, i, rmin, rarg)
-        elif i < a and (cost[i, a] < rmin[i] or (cost[i, a] == rmin[i] and a < rarg[i])):
-            rmin[i], rarg[i] = cost[i, a], a
-
-
-@njit(cache=True)
-def _merge_pair(work, table, n, W, owner, cost, a, b, scale, buf):
-    """Merge row ``b`` into row ``a`` and refresh row/column ``a`` of the cost matrix."""
-    G = work.shape[0]
-    work[a] += work[b]
-    work[b] = 0
-    n[a] += n[b]
-    n[b] = 0
-    W[a] = _row_weight(work, table, n, a, buf)
-    for g in range(G):
-        if owner[g] == b:
-            owner[g] = a
-    cost[b, :] = np.inf
-    cost[:, b] = np.inf
-    for j in range(G):
-        if j == a:
-            continue
-        if owner[j] != j:
-            value = np.inf
-        else:
-            s = _merged_sum(work, table, a, j, buf)
-            value = _round(table[n[a] + n[j]] - s - W[a] - W[j], scale)
-        if j > a:
-            cost[a, j] = value
-        else:
-            cost[j, a] = value
-
-
-@njit(cache=True)
-def merge_groups_kernel(counts, table, decimals):
-    """Bottom-up merge of the rows of ``counts`` (int64, G >= 2) into two clusters.
-
-    ``table[c]`` must be numpy's ``c * log2(max(c, 1))`` for every ``c <= 2 * counts.sum()``.
-    Returns True for the rows not in the cluster of row 0.
-    """
-    work = counts.copy()
-    G, K = work.shape
-    buf = np.empty(K)
-    scale = 10.0 ** decimals
-    n = np.empty(G, dtype=np.int64)
-    W = np.empty(G)
-    for a in range(G):
-        n[a] = work[a].sum()
-    for a in range(G):
-        W[a] = _row_weight(work, table, n, a, buf)
-    cost = _initial_costs(work, table, n, W, scale, buf)
-    rmin, rarg = np.empty(G), np.empty(G, dtype=np.int64)
-    for i in range(G):
-        _row_min(cost, i, rmin, rarg)
-    owner = np.arange(G)
-    for _ in range(G - 2):
-        a, b = _argmin(rmin, rarg)
-        _merge_pair(work, table, n, W, owner, cost, a, b, scale, buf)
-        _refresh_minima(cost, rmin, rarg, a, b)
-    return owner != owner[0]
+__all__ = ["transition_table", "action_table", "merge_tallies", "tally_codes", "pair_codes",
+           "instance_table", "sorted_union", "follow_keys", "touched_codes", "split_table"]
 
 
 @njit(cache=True)
@@ -313,15 +183,21 @@ def sorted_union(a, b):
 
 
 @njit(cache=True)
-def follow_keys(x, u, steps, has_prev, A, chosen):
-    """Mask over ``steps``: those with a predecessor whose key ``x[t-1] * A + u[t-1]`` is
-    ``chosen`` (a mask over the keys)."""
+def follow_keys(x, u, steps, has_prev, has_next, A, chosen):
+    """``(goes, starts)``: a mask over ``steps``, those with a predecessor whose key ``x[t-1] *
+    A + u[t-1]`` is ``chosen`` (a mask over the keys), and the positions in ``steps`` of the
+    first steps of episodes that have a next step."""
     goes = np.zeros(steps.size, dtype=np.bool_)
+    starts = np.empty(steps.size, dtype=np.int64)
+    n = 0
     for i in range(steps.size):
         t = steps[i]
         if has_prev[t]:
             goes[i] = chosen[x[t - 1] * A + u[t - 1]]
-    return goes
+        elif has_next[t]:
+            starts[n] = i
+            n += 1
+    return goes, starts[:n]
 
 
 @njit(cache=True)
@@ -336,30 +212,76 @@ def _shifted(moved, has, shift):
 
 
 @njit(cache=True)
-def next_to(moved, has_prev, has_next, centre, x, q):
-    """The steps a move of the sorted steps ``moved`` out of state ``q`` touches: the instance
-    centres next to them that lie outside ``q``, and the transition starts next to or at them
-    (both sorted)."""
-    before, after = _shifted(moved, has_prev, -1), _shifted(moved, has_next, 1)
-    c = sorted_union(before, after)
-    keep = np.zeros(c.size, dtype=np.bool_)
-    for i in range(c.size):
-        keep[i] = centre[c[i]] and x[c[i]] != q
-    t = sorted_union(_shifted(moved, has_next, 0), before)
-    starts = np.zeros(t.size, dtype=np.bool_)
-    for i in range(t.size):
-        starts[i] = has_next[t[i]]
-    return c[keep], t[starts]
+def _code_pair(x, u, t, A, shift, centred, q, new):
+    """The instance (``centred``) or transition code at step ``t`` before a split of ``q`` (the
+    label ``new`` read as ``q``) and after it (labels ``x`` as they are)."""
+    if centred:
+        a, b, ua, ub = x[t - 1], x[t + 1], u[t - 1], u[t]
+        after = ((a * A + ua) << shift) | (b * A + ub)
+        a, b = q if a == new else a, q if b == new else b
+        return ((a * A + ua) << shift) | (b * A + ub), after
+    a, b = x[t], x[t + 1]
+    after = ((a * A + u[t]) << shift) | b
+    a, b = q if a == new else a, q if b == new else b
+    return ((a * A + u[t]) << shift) | b, after
 
 
 @njit(cache=True)
-def states_near(moved, has_prev, has_next, x, S):
-    """Mask over the ``S`` states: those holding a step of ``moved`` or a neighbour of one."""
-    near = np.zeros(S, dtype=np.bool_)
-    for t in moved:
-        near[x[t]] = True
-        if has_prev[t]:
-            near[x[t - 1]] = True
+def touched_codes(moved, has_prev, has_next, centre, x, u, A, shift, q, new):
+    """What a split of ``q`` changed around the sorted steps ``moved`` (labels ``x`` already
+    moved to ``new``), in one pass over their neighbours.
+
+    Returns ``(outside, inside, starts, near)``: ``outside`` rows the instance centres next to a
+    moved step that lie outside ``q`` and ``new``, their states, codes before and after;
+    ``inside`` rows the codes before and after of those inside, and 1 where the centre is in
+    ``new``; ``starts`` rows the codes before and after of the transitions starting next to or at
+    a moved step (all in step order); ``near`` a mask over the states holding a step next to a
+    moved one (``q`` and ``new`` may be missing).
+    """
+    before = _shifted(moved, has_prev, -1)
+    c = sorted_union(before, _shifted(moved, has_next, 1))
+    near = np.zeros(new + 1, dtype=np.bool_)
+    out, ins = np.empty((4, c.size), dtype=np.int64), np.empty((3, c.size), dtype=np.int64)
+    n_out = n_in = 0
+    for t in c:
+        s = x[t]
+        near[s] = True
+        if not centre[t]:
+            continue
+        b, a = _code_pair(x, u, t, A, shift, True, q, new)
+        if s == q or s == new:
+            ins[0, n_in], ins[1, n_in], ins[2, n_in] = b, a, s == new
+            n_in += 1
+        else:
+            out[0, n_out], out[1, n_out], out[2, n_out], out[3, n_out] = t, s, b, a
+            n_out += 1
+    starts = sorted_union(_shifted(moved, has_next, 0), before)
+    trans = np.empty((2, starts.size), dtype=np.int64)
+    n = 0
+    for t in starts:
         if has_next[t]:
-            near[x[t + 1]] = True
-    return near
+            trans[0, n], trans[1, n] = _code_pair(x, u, t, A, shift, False, q, new)
+            n += 1
+    return out[:, :n_out].copy(), ins[:, :n_in].copy(), trans[:, :n].copy(), near
+
+
+@njit(cache=True)
+def split_table(codes, counts, chosen, shift):
+    """A sorted table ``(codes, counts)`` cut in two by its keys (``code >> shift``): the
+    entries whose key is not ``chosen`` (a mask over the keys), then those whose key is."""
+    n_in = 0
+    for i in range(codes.size):
+        if chosen[codes[i] >> shift]:
+            n_in += 1
+    kept_codes, kept_counts = np.empty(codes.size - n_in, dtype=np.int64), np.empty(
+        codes.size - n_in, dtype=np.int64)
+    went_codes, went_counts = np.empty(n_in, dtype=np.int64), np.empty(n_in, dtype=np.int64)
+    i_kept = i_went = 0
+    for i in range(codes.size):
+        if chosen[codes[i] >> shift]:
+            went_codes[i_went], went_counts[i_went] = codes[i], counts[i]
+            i_went += 1
+        else:
+            kept_codes[i_kept], kept_counts[i_kept] = codes[i], counts[i]
+            i_kept += 1
+    return (kept_codes, kept_counts), (went_codes, went_counts)
