@@ -192,27 +192,64 @@ def test_soft_rounds_stop_once_the_reread_symbols_settle(monkeypatch, settle):
     sym, u, lengths, place, _ = _ring_walk()
     seq = _seq(sym, u, lengths)
     reads, hard_rounds = [], []
-    soft_round_of, hard_round_of = rounds.soft_round, EMRefinement._hard_round
+    soft_round_of, hard_round_of = rounds.soft_round, EMRefinement._first_hard_round
 
     def recorded_soft(*args, **kwargs):
         fit = soft_round_of(*args, **kwargs)
         reads.append(fit.sym)
         return fit
 
-    def counted_hard(self, *args):
-        hard_rounds.append(args[0].sym)
-        return hard_round_of(self, *args)
+    def counted_hard(self, *args, cycle=False):
+        if cycle:
+            hard_rounds.append(args[0].sym)
+        return hard_round_of(self, *args, cycle=cycle)
 
     monkeypatch.setattr(rounds, "soft_round", recorded_soft)
-    monkeypatch.setattr(EMRefinement, "_hard_round", counted_hard)
+    monkeypatch.setattr(EMRefinement, "_first_hard_round", counted_hard)
     monkeypatch.setattr(rounds, "SETTLE_REREAD", settle)
     fit = EMRefinement().fit(seq, RING, 0)
     np.testing.assert_array_equal(reads[0], RING[place])
     np.testing.assert_array_equal(reads[1], RING[place])
     assert [r["reread"] for r in fit.info_["soft_rounds"] if "reread" in r][0] == 0.0
     assert len(hard_rounds) == (1 if settle > 0 else 2)
+    assert not any("hard_cut" in r for r in fit.info_["soft_rounds"])
     np.testing.assert_array_equal(hard_rounds[0], RING[place])
     assert fit.n_states_ == RING.size and same_partition(fit.labels_, place)
+
+
+@pytest.mark.parametrize("cut", [True, False])
+def test_a_hard_round_on_symbols_still_misread_is_cut_short(monkeypatch, cut):
+    """A soft round that corrects nothing (its symbols forced back to the ones read) leaves
+    the ring's misreads: the hard round on its symbols is the first hard round again, whose
+    stage-2 labelling shows them (``test_a_hard_round_cut_short_finishes_as_the_whole_round``),
+    so it stops there too (``hard_cut``); with the cut off (``CUT_SURPRISE`` infinite) it runs
+    its rounds on all steps.  Exact corrected symbols never cut it (``hard_cut`` absent in
+    ``test_soft_rounds_stop_once_the_reread_symbols_settle``'s fit)."""
+    sym, u, lengths, _, _ = _ring_walk()
+    seq = _seq(sym, u, lengths)
+    soft_round_of, cycle_rounds = rounds.soft_round, []
+    hard_round_of = EMRefinement._first_hard_round
+
+    def nothing_corrected(*args, **kwargs):
+        fit = soft_round_of(*args, **kwargs)
+        fit.sym = seq.sym.copy()
+        return fit
+
+    def recorded_hard(self, *args, cycle=False):
+        fit = hard_round_of(self, *args, cycle=cycle)
+        if cycle:
+            cycle_rounds.append(fit.info)
+        return fit
+
+    monkeypatch.setattr(rounds, "soft_round", nothing_corrected)
+    monkeypatch.setattr(EMRefinement, "_first_hard_round", recorded_hard)
+    if not cut:
+        monkeypatch.setattr(methods, "CUT_SURPRISE", float("inf"))
+    fit = EMRefinement(soft={"rounds": 1}).fit(seq, RING, 0)
+    assert len(cycle_rounds) == 1
+    assert cycle_rounds[0].get("cut", False) is cut
+    assert (cycle_rounds[0]["rounds_on_all_steps"] == 0) is cut
+    assert fit.info_["soft_rounds"][0].get("hard_cut", False) is cut
 
 
 def test_reread_share_counts_the_changed_symbols():

@@ -110,8 +110,10 @@ class CloneRefinement(BaseEstimator):
         raise NotImplementedError
 
     def _first_hard_round(self, seq: SymbolSequence, split_state_symbol, random_state: int,
-                          init=None):
-        """The hard round the soft rounds start from (default: :meth:`_hard_round`)."""
+                          init=None, *, cycle: bool = False):
+        """A hard round a soft round starts from: the first, or (``cycle``) one on the
+        corrected symbols of the cycles (default: :meth:`_hard_round`; a subclass may cut it
+        short where its labelling still shows misreads, setting the fit's ``resume``)."""
         return self._hard_round(seq, split_state_symbol, random_state, init)
 
     def _soft_rounds(self, seq: SymbolSequence, hard_fit: CloneFit, n_reference, random_state):
@@ -119,7 +121,9 @@ class CloneRefinement(BaseEstimator):
 
         1. ``soft.rounds`` times: twin states merged, small states dropped, a soft round (over
            the states found plus ``soft.spare`` clones per symbol), every step's symbol replaced
-           by the symbol of its decoded clone, and a hard round on the corrected symbols; until a
+           by the symbol of its decoded clone, and a hard round on the corrected symbols (cut
+           short like the first where misreads still show: ``hard_cut`` in the soft round's
+           record; the next soft round corrects what is left); until a
            hard round gives back the labelling it started from, or a soft round after the first
            re-reads all but fewer than ``SETTLE_REREAD`` x ``soft.detect`` of the steps as the
            symbols the last hard round learned on (``reread`` in its record: a hard round on
@@ -157,11 +161,14 @@ class CloneRefinement(BaseEstimator):
                     break  # the next hard round would read (nearly) the symbols the last one did
             split_symbol = np.where(soft.state_symbol < seq.n_symbols, soft.state_symbol, -1)
             read = soft.sym
-            hard = self._hard_round(replace(seq, sym=read), split_symbol, random_state)
+            hard = self._first_hard_round(replace(seq, sym=read), split_symbol, random_state,
+                                          cycle=True)
             settled = (hard.n_states == state_symbol.size
                        and same_partition(hard.labels, labels))
             labels, state_symbol = hard.labels, hard.state_symbol
             rounds[-1]["hard_states"] = int(state_symbol.size)
+            if hard.resume is not None:  # cut short: the next soft round corrects what is left
+                rounds[-1]["hard_cut"] = True
             if settled:
                 break
         soft = _last_soft_round(seq, labels, state_symbol, conf, s, rng, n_ref)
