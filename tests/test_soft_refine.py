@@ -252,6 +252,35 @@ def test_a_hard_round_on_symbols_still_misread_is_cut_short(monkeypatch, cut):
     assert fit.info_["soft_rounds"][0].get("hard_cut", False) is cut
 
 
+@pytest.mark.parametrize("explained", [True, False])
+def test_the_map_is_tried_first_after_a_hard_round_that_explains_its_symbols(monkeypatch,
+                                                                             explained):
+    """On the ring with misreads the first soft round corrects every misread, so the hard round
+    on its symbols maps the ring's places and predicts every next symbol: the last soft round
+    (no spare clones: one clone per place) is tried at once, re-reads every symbol as it is and
+    gives the map -- one soft round with spare clones in all.  Without that (the hard round
+    said not to explain its symbols) a second soft round with spare clones runs first."""
+    sym, u, lengths, place, _ = _ring_walk()
+    seq = _seq(sym, u, lengths)
+    spare_rounds, spare_of = [], rounds._spare_soft_round
+    cycle_of = EMRefinement._cycle_hard_round
+
+    def counted_spare(*args):
+        spare_rounds.append(args[0])
+        return spare_of(*args)
+
+    monkeypatch.setattr(rounds, "_spare_soft_round", counted_spare)
+    if not explained:
+        monkeypatch.setattr(EMRefinement, "_cycle_hard_round",
+                            lambda self, *args: (cycle_of(self, *args)[0], False))
+    fit = EMRefinement().fit(seq, RING, 0)
+    last = fit.info_["soft_rounds"][-1]
+    assert len(spare_rounds) == (1 if explained else 2)
+    assert last["clones"] == RING.size and "hard_states" not in last
+    assert ("reread" in last) is explained and last.get("reread", 0.0) == 0.0
+    assert fit.n_states_ == RING.size and same_partition(fit.labels_, place)
+
+
 def test_reread_share_counts_the_changed_symbols():
     assert rounds.reread_share([0, 1, 2, 2], [0, 1, 1, 0]) == 0.5
     assert rounds.reread_share([3], [3]) == 0.0
