@@ -192,26 +192,92 @@ def test_soft_rounds_stop_once_the_reread_symbols_settle(monkeypatch, settle):
     sym, u, lengths, place, _ = _ring_walk()
     seq = _seq(sym, u, lengths)
     reads, hard_rounds = [], []
-    soft_round_of, hard_round_of = rounds.soft_round, EMRefinement._hard_round
+    soft_round_of, hard_round_of = rounds.soft_round, EMRefinement._first_hard_round
 
     def recorded_soft(*args, **kwargs):
         fit = soft_round_of(*args, **kwargs)
         reads.append(fit.sym)
         return fit
 
-    def counted_hard(self, *args):
-        hard_rounds.append(args[0].sym)
-        return hard_round_of(self, *args)
+    def counted_hard(self, *args, cycle=False):
+        if cycle:
+            hard_rounds.append(args[0].sym)
+        return hard_round_of(self, *args, cycle=cycle)
 
     monkeypatch.setattr(rounds, "soft_round", recorded_soft)
-    monkeypatch.setattr(EMRefinement, "_hard_round", counted_hard)
+    monkeypatch.setattr(EMRefinement, "_first_hard_round", counted_hard)
     monkeypatch.setattr(rounds, "SETTLE_REREAD", settle)
     fit = EMRefinement().fit(seq, RING, 0)
     np.testing.assert_array_equal(reads[0], RING[place])
     np.testing.assert_array_equal(reads[1], RING[place])
     assert [r["reread"] for r in fit.info_["soft_rounds"] if "reread" in r][0] == 0.0
     assert len(hard_rounds) == (1 if settle > 0 else 2)
+    assert not any("hard_cut" in r for r in fit.info_["soft_rounds"])
     np.testing.assert_array_equal(hard_rounds[0], RING[place])
+    assert fit.n_states_ == RING.size and same_partition(fit.labels_, place)
+
+
+@pytest.mark.parametrize("cut", [True, False])
+def test_a_hard_round_on_symbols_still_misread_is_cut_short(monkeypatch, cut):
+    """A soft round that corrects nothing (its symbols forced back to the ones read) leaves
+    the ring's misreads: the hard round on its symbols is the first hard round again, whose
+    stage-2 labelling shows them (``test_a_hard_round_cut_short_finishes_as_the_whole_round``),
+    so it stops there too (``hard_cut``); with the cut off (``CUT_SURPRISE`` infinite) it runs
+    its rounds on all steps.  Exact corrected symbols never cut it (``hard_cut`` absent in
+    ``test_soft_rounds_stop_once_the_reread_symbols_settle``'s fit)."""
+    sym, u, lengths, _, _ = _ring_walk()
+    seq = _seq(sym, u, lengths)
+    soft_round_of, cycle_rounds = rounds.soft_round, []
+    hard_round_of = EMRefinement._first_hard_round
+
+    def nothing_corrected(*args, **kwargs):
+        fit = soft_round_of(*args, **kwargs)
+        fit.sym = seq.sym.copy()
+        return fit
+
+    def recorded_hard(self, *args, cycle=False):
+        fit = hard_round_of(self, *args, cycle=cycle)
+        if cycle:
+            cycle_rounds.append(fit.info)
+        return fit
+
+    monkeypatch.setattr(rounds, "soft_round", nothing_corrected)
+    monkeypatch.setattr(EMRefinement, "_first_hard_round", recorded_hard)
+    if not cut:
+        monkeypatch.setattr(methods, "CUT_SURPRISE", float("inf"))
+    fit = EMRefinement(soft={"rounds": 1}).fit(seq, RING, 0)
+    assert len(cycle_rounds) == 1
+    assert cycle_rounds[0].get("cut", False) is cut
+    assert (cycle_rounds[0]["rounds_on_all_steps"] == 0) is cut
+    assert fit.info_["soft_rounds"][0].get("hard_cut", False) is cut
+
+
+@pytest.mark.parametrize("explained", [True, False])
+def test_the_map_is_tried_first_after_a_hard_round_that_explains_its_symbols(monkeypatch,
+                                                                             explained):
+    """On the ring with misreads the first soft round corrects every misread, so the hard round
+    on its symbols maps the ring's places and predicts every next symbol: the last soft round
+    (no spare clones: one clone per place) is tried at once, re-reads every symbol as it is and
+    gives the map -- one soft round with spare clones in all.  Without that (the hard round
+    said not to explain its symbols) a second soft round with spare clones runs first."""
+    sym, u, lengths, place, _ = _ring_walk()
+    seq = _seq(sym, u, lengths)
+    spare_rounds, spare_of = [], rounds._spare_soft_round
+    cycle_of = EMRefinement._cycle_hard_round
+
+    def counted_spare(*args):
+        spare_rounds.append(args[0])
+        return spare_of(*args)
+
+    monkeypatch.setattr(rounds, "_spare_soft_round", counted_spare)
+    if not explained:
+        monkeypatch.setattr(EMRefinement, "_cycle_hard_round",
+                            lambda self, *args: (cycle_of(self, *args)[0], False))
+    fit = EMRefinement().fit(seq, RING, 0)
+    last = fit.info_["soft_rounds"][-1]
+    assert len(spare_rounds) == (1 if explained else 2)
+    assert last["clones"] == RING.size and "hard_states" not in last
+    assert ("reread" in last) is explained and last.get("reread", 0.0) == 0.0
     assert fit.n_states_ == RING.size and same_partition(fit.labels_, place)
 
 

@@ -150,13 +150,15 @@ class EMRefinement(CloneRefinement):
         return _finish(self._stages(seq, split_state_symbol, random_state, init))
 
     def _first_hard_round(self, seq: SymbolSequence, split_state_symbol, random_state: int,
-                          init=None):
+                          init=None, *, cycle: bool = False):
         """:meth:`_hard_round`, cut short before stage 3 when the labelling of all steps stage 2
         gives already shows misreads: its successor surprise
         (:func:`~topomap.core.refine.soft.successor_surprise`) at least ``CUT_SURPRISE`` x
-        ``soft.detect`` (with ``evidence="soft"``: always).  Stage 3's rounds would not settle
-        on misread symbols; the soft rounds start from that labelling instead, and the fit's
-        ``resume`` finishes the round should the first soft round find no misreads.  A round
+        ``soft.detect`` (with ``evidence="soft"``, the first round always).  Stage 3's rounds
+        would not settle on misread symbols; the soft rounds start from that labelling instead,
+        and the fit's ``resume`` finishes the round should the first soft round find no
+        misreads.  The hard rounds on a soft round's corrected symbols (``cycle``) are cut by
+        the same test: where the soft round left misreads, the next one corrects them.  A round
         from ``init`` is never cut."""
         if init is not None:  # its rounds are few and short: nothing to gain by a cut
             return self._hard_round(seq, split_state_symbol, random_state, init)
@@ -164,7 +166,7 @@ class EMRefinement(CloneRefinement):
         stages = self._stages(seq, split_state_symbol, random_state)
         labels, state_symbol, info = next(stages)
         surprise = successor_surprise(seq, labels)
-        if self.evidence == "soft" or surprise >= CUT_SURPRISE * s.detect:
+        if (self.evidence == "soft" and not cycle) or surprise >= CUT_SURPRISE * s.detect:
             return CloneFit(labels, state_symbol, {**info, "rounds_on_all_steps": 0, "cut": True},
                             resume=lambda: _finish(stages))
         return _finish(stages)

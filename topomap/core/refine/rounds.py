@@ -110,8 +110,10 @@ class CloneRefinement(BaseEstimator):
         raise NotImplementedError
 
     def _first_hard_round(self, seq: SymbolSequence, split_state_symbol, random_state: int,
-                          init=None):
-        """The hard round the soft rounds start from (default: :meth:`_hard_round`)."""
+                          init=None, *, cycle: bool = False):
+        """A hard round a soft round starts from: the first, or (``cycle``) one on the
+        corrected symbols of the cycles (default: :meth:`_hard_round`; a subclass may cut it
+        short where its labelling still shows misreads, setting the fit's ``resume``)."""
         return self._hard_round(seq, split_state_symbol, random_state, init)
 
     def _soft_rounds(self, seq: SymbolSequence, hard_fit: CloneFit, n_reference, random_state):
@@ -119,12 +121,13 @@ class CloneRefinement(BaseEstimator):
 
         1. ``soft.rounds`` times: twin states merged, small states dropped, a soft round (over
            the states found plus ``soft.spare`` clones per symbol), every step's symbol replaced
-           by the symbol of its decoded clone, and a hard round on the corrected symbols; until a
-           hard round gives back the labelling it started from, or a soft round after the first
-           re-reads all but fewer than ``SETTLE_REREAD`` x ``soft.detect`` of the steps as the
-           symbols the last hard round learned on (``reread`` in its record: a hard round on
-           them would repeat that one);
-        2. a last soft round without spare clones gives the map.
+           by the symbol of its decoded clone, and a hard round on the corrected symbols
+           (:meth:`_cycle_hard_round`); until a hard round gives back the labelling it started
+           from, or a soft round after the first re-reads all but fewer than ``SETTLE_REREAD`` x
+           ``soft.detect`` of the steps as the symbols the last hard round learned on
+           (``reread`` in its record: a hard round on them would repeat that one);
+        2. a last soft round without spare clones gives the map (tried first after a hard round
+           that explains its symbols: :func:`_settled_map`).
 
         With ``evidence="auto"``, the hard round is kept without a soft round when its labelling
         predicts the next symbol of all but a ``soft.detect`` share of its transitions
@@ -142,8 +145,12 @@ class CloneRefinement(BaseEstimator):
         rng = np.random.default_rng(random_state)
         labels, state_symbol = hard_fit.labels, hard_fit.state_symbol
         n_ref = state_symbol.size if n_reference is None else int(n_reference)
-        conf, rounds, read = None, [], seq.sym
+        conf, rounds, read, explained = None, [], seq.sym, False
         for r in range(s.rounds):
+            last = explained and _settled_map(seq, labels, state_symbol, conf, s, rng, n_ref,
+                                              read)
+            if last:  # the last hard round explained its symbols, and they are re-read
+                return _soft_fit(hard_fit, surprise, [*rounds, last.info], last)
             soft, labels, state_symbol = _spare_soft_round(seq, labels, state_symbol, conf, s,
                                                            rng, n_ref, r == 0)
             conf = soft.conf
@@ -155,20 +162,29 @@ class CloneRefinement(BaseEstimator):
                 rounds[-1]["reread"] = reread_share(soft.sym, read)
                 if rounds[-1]["reread"] < SETTLE_REREAD * s.detect:
                     break  # the next hard round would read (nearly) the symbols the last one did
-            split_symbol = np.where(soft.state_symbol < seq.n_symbols, soft.state_symbol, -1)
             read = soft.sym
-            hard = self._hard_round(replace(seq, sym=read), split_symbol, random_state)
+            hard, explained = self._cycle_hard_round(seq, soft, random_state, s.detect)
             settled = (hard.n_states == state_symbol.size
                        and same_partition(hard.labels, labels))
             labels, state_symbol = hard.labels, hard.state_symbol
-            rounds[-1]["hard_states"] = int(state_symbol.size)
+            rounds[-1].update(hard_states=int(state_symbol.size),
+                              **({"hard_cut": True} if hard.resume is not None else {}))
             if settled:
                 break
         soft = _last_soft_round(seq, labels, state_symbol, conf, s, rng, n_ref)
         rounds.append(soft.info)
-        return CloneFit(soft.labels, soft.state_symbol,
-                        {**hard_fit.info, "soft": "on", "surprise": surprise,
-                         "soft_rounds": rounds})
+        return _soft_fit(hard_fit, surprise, rounds, soft)
+
+    def _cycle_hard_round(self, seq: SymbolSequence, soft, random_state: int, detect: float):
+        """The hard round on the symbols the soft round ``soft`` corrected (cut short like the
+        first where misreads still show: the next soft round corrects what is left), and
+        whether it explains them: not cut, and its labelling predicts the next symbol of all
+        but a ``detect`` share of its transitions (the next soft round is then tried without
+        spare clones first: if it re-reads the symbols as they are, it is the map)."""
+        split_symbol = np.where(soft.state_symbol < seq.n_symbols, soft.state_symbol, -1)
+        read = replace(seq, sym=soft.sym)
+        hard = self._first_hard_round(read, split_symbol, random_state, cycle=True)
+        return hard, hard.resume is None and successor_surprise(read, hard.labels) < detect
 
     def _provenance_soft(self) -> str:
         """``soft=SoftSettings(...)`` naming the soft settings changed from their defaults ("" for
@@ -195,6 +211,22 @@ def _skipped(hard_fit: CloneFit, surprise: float, rounds) -> CloneFit:
     return CloneFit(hard_fit.labels, hard_fit.state_symbol,
                     {**hard_fit.info, "soft": "skipped", "surprise": surprise,
                      "soft_rounds": rounds})
+
+
+def _soft_fit(hard_fit: CloneFit, surprise: float, rounds, soft) -> CloneFit:
+    """The map of the soft round ``soft``, the last of ``rounds``."""
+    return CloneFit(soft.labels, soft.state_symbol,
+                    {**hard_fit.info, "soft": "on", "surprise": surprise, "soft_rounds": rounds})
+
+
+def _settled_map(seq, labels, state_symbol, conf, s, rng, n_ref, read):
+    """The last soft round (:func:`_last_soft_round`) if it re-reads all but fewer than
+    ``SETTLE_REREAD`` x ``soft.detect`` of the steps as ``read``, the symbols the last hard round
+    learned on (``reread`` in its record): it is the map; None otherwise (the cycles go on as if
+    it had not run: it draws nothing from ``rng``)."""
+    last = _last_soft_round(seq, labels, state_symbol, conf, s, rng, n_ref)
+    last.info["reread"] = reread_share(last.sym, read)
+    return last if last.info["reread"] < SETTLE_REREAD * s.detect else None
 
 
 def _spare_soft_round(seq, labels, state_symbol, conf, s, rng, n_ref, first: bool):
