@@ -51,12 +51,14 @@ class MotionSettings:
     shares of a hundredth or so are a handful of runs of one view either way), or when most of
     the last ``votes`` parts (the third learning from the first quarter alone), each on its
     own, give the places a share at least ``min_gain`` below the view clusters' (``votes=0``:
-    no vote).  The pooled share must also beat the view clusters' by ``confidence`` times its
-    own sampling noise (:func:`topomap.core.motion.check.gain_noise`: the spread of the gain over
-    stretches of ``block_runs`` mean runs of one view cluster; neighbouring steps are not
-    independent draws; ``confidence=0``: no such bar).  Else the map's states are the view clusters; they are also, unchecked, where the
-    middle gate's filter kept no more than ``min_copies`` copies per view cluster
-    (:func:`topomap.core.motion.check.tells_apart`: the odometry told no sighting of a view
+    no vote).  ``confidence`` > 0 also asks the pooled share to beat the view clusters' by that
+    many times its own sampling noise (:func:`topomap.core.motion.check.gain_noise`: the spread
+    of the gain over stretches of ``block_runs`` mean runs of one view cluster, since
+    neighbouring steps are not independent draws); the check records gain and noise either way
+    (off by default: on ``topomap experiment=arena_two_rooms`` a bar of 1 gives up places at
+    half the views' error, docs/benchmarks.md).  Else the map's states are the view clusters;
+    they are also, unchecked, where the middle gate's filter kept no more than ``min_copies``
+    copies per view cluster (:func:`topomap.core.motion.check.tells_apart`: the odometry told no sighting of a view
     from another, and the places could only follow its drift).  ``holdout=0`` (or a held-out
     part under 100 steps) keeps the places unchecked.
 
@@ -85,7 +87,7 @@ class MotionSettings:
     min_gain: float = 0.02
     votes: int = 3
     min_copies: float = 1.0
-    confidence: float = 2.0
+    confidence: float = 0.0
     block_runs: float = 50.0
 
 
