@@ -58,9 +58,9 @@ class MotionSettings:
     (off by default: on ``topomap experiment=arena_two_rooms`` a bar of 1 gives up places at
     half the views' error, docs/benchmarks.md).  Else the map's states are the view clusters;
     they are also, unchecked, where the middle gate's filter kept no more than ``min_copies``
-    copies per view cluster (:func:`topomap.core.motion.check.tells_apart`: the odometry told no sighting of a view
-    from another, and the places could only follow its drift).  ``holdout=0`` (or a held-out
-    part under 100 steps) keeps the places unchecked.
+    copies per view cluster (:func:`topomap.core.motion.check.tells_apart`: the odometry told
+    no sighting of a view from another, and the places could only follow its drift).
+    ``holdout=0`` (or a held-out part under 100 steps) keeps the places unchecked.
 
     ``n_init``: the k-means++ starts of the view clusters (scikit-learn's ``KMeans`` on every
     row, as :func:`topomap.core.position_scores.kmeans_view_scores`).  A map that falls back to
