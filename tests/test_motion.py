@@ -374,6 +374,19 @@ def test_a_gain_won_in_one_stretch_of_the_walk_is_noise():
     assert gain_noise([{"blocks": []}]) == (0.0, float("inf"))
 
 
+def test_the_bar_of_the_noise_is_off_at_zero_confidence():
+    from topomap.core.motion.check import clears_noise
+
+    # the preset two_rooms walk: a gain of 0.054 against a noise of 0.061
+    assert clears_noise(0.054, 0.061, 0.0)
+    assert not clears_noise(0.054, 0.061, 1.0)
+    assert clears_noise(0.054, 0.061, 0.85)          # 0.054 > 0.05185
+    assert not clears_noise(0.1, 0.05, 2.0)           # exactly twice: not more
+    # one stretch: the noise unknown (infinite) -- no bar passes it, and none is asked at 0
+    assert clears_noise(0.1, float("inf"), 0.0)
+    assert not clears_noise(0.1, float("inf"), 2.0)
+
+
 def test_most_of_three_quarters_each_alone_outvote_a_mean_of_two():
     from topomap.core.motion.check import keeps_places, outvoted
 

@@ -41,8 +41,8 @@ from .places import Places, cut_places
 from .settings import MotionSettings
 
 __all__ = ["held_out_frame", "frame_error", "misplaced_steps", "misplaced_share", "keeps_places",
-           "outvoted", "pooled_shares", "gain_blocks", "gain_noise", "tells_apart",
-           "choose_places"]
+           "outvoted", "pooled_shares", "gain_blocks", "gain_noise", "clears_noise",
+           "tells_apart", "choose_places"]
 
 
 def held_out_frame(settings: MotionSettings, part: Places, Z, u, lengths, cut: int):
@@ -146,6 +146,12 @@ def gain_noise(folds: list) -> tuple[float, float]:
     return float(gain), float(np.sqrt(spread) / n)
 
 
+def clears_noise(gain: float, noise: float, confidence: float) -> bool:
+    """Whether ``gain`` is more than ``confidence`` times ``noise`` (``confidence`` 0: no bar,
+    even where one stretch left the noise unknown)."""
+    return confidence == 0 or gain > confidence * noise
+
+
 def _state_means(labels, frame) -> np.ndarray:
     counts = np.maximum(np.bincount(labels), 1)[:, None]
     return np.column_stack([np.bincount(labels, weights=frame[:, j]) for j in range(2)]) / counts
@@ -212,8 +218,8 @@ def choose_places(settings: MotionSettings, X, Z, u, lengths, n_states: int, n_a
                                   check="no held-out part with odometry and a reference")
     misplaced = pooled_shares(folds[:settings.folds])
     gain, noise = gain_noise(folds[:settings.folds])
-    by_mean = keeps_places(misplaced, settings.margin, settings.min_gain) and (
-        settings.confidence == 0 or gain > settings.confidence * noise)
+    by_mean = keeps_places(misplaced, settings.margin, settings.min_gain) and clears_noise(
+        gain, noise, settings.confidence)
     by_vote = outvoted(folds, settings.votes, settings.min_gain)
     chosen = "places" if by_mean or by_vote else "views"
     info.update(chosen=chosen, check=dict(folds[0], folds=folds, mean_misplaced=misplaced,
