@@ -158,7 +158,7 @@ def _state_means(labels, frame) -> np.ndarray:
 
 
 def _fold(settings: MotionSettings, X, Z, u, lengths, end: int, held: int, build,
-          n_states: int, n_actions: int, block: int, **kmeans) -> dict | None:
+          n_states: int, n_actions: int, *, block: int, **kmeans) -> dict | None:
     """The check on the steps before ``end``: places and view clusters learned on the steps
     before ``end - held``, decoding the ``held`` steps after them; None when the first part
     gives no odometry."""
@@ -209,7 +209,7 @@ def choose_places(settings: MotionSettings, X, Z, u, lengths, n_states: int, n_a
         if T - (i + 1) * step < 100:
             break
         fold = _fold(settings, X, Z, u, lengths, T - i * step, step, build, n_states,
-                     n_actions, block, **kmeans)
+                     n_actions, block=block, **kmeans)
         if fold is None:
             break
         folds.append(fold)
