@@ -33,6 +33,8 @@ with the mean over three held-out quarters, not two, each recorded in its row's 
 with the fallback's pooled variance not scaled down and no least gain of the check,
 ``fallback_variance=1, min_gain=0``: the version before both), ``no_vote`` (the default
 without the vote of three held-out quarters, ``votes=0``: the version before it),
+``confidence2`` (the default with the pooled share's gain asked to beat twice its own noise,
+``confidence=2``),
 ``self_decoded`` (the places unchecked, each training row then labelled with the state the map
 itself decodes it into, so that a state stands where the map puts its steps, not where they were
 cut; a state the decoding never takes keeps the rows it was cut from). ``views`` is seeded
@@ -71,7 +73,7 @@ ROOMS = ("two_rooms", "four_rooms", "corridor", "open", "alcoves")
 UNSEEN = ("l_rooms", "pillars", "three_rooms", "grid6", "ring", "sizes")
 ROUTES = ("split", "em", "views", "ceiling", "positions", "shipped", "unchecked", "one_gate",
           "no_odometry", "merged_runs", "fallback", "folds3", "unscaled", "no_vote",
-          "self_decoded")
+          "confidence2", "self_decoded")
 #: the main sensor: 12 compass beams, max range 3 m, noise 0.02; random motion 0.16 m/s, 10 Hz
 BASE = {"beams": 12, "max_range": 3.0, "sigma": 0.02, "speed": 0.16, "dt": 0.1,
         "actions": "compass", "frame": "compass", "sensor": "range"}
@@ -177,12 +179,14 @@ def route(name, train, held, ns, S, regions, seed):
     if name in ("split", "em"):
         return _learner_row(*_fit(train, motion="discrete", refine="em" if name == "em" else None,
                                   **kw), train, held, regions)
-    if name in ("shipped", "unchecked", "one_gate", "folds3", "unscaled", "no_vote"):
+    if name in ("shipped", "unchecked", "one_gate", "folds3", "unscaled", "no_vote",
+                "confidence2"):
         motion = {"shipped": MotionSettings(), "unchecked": MotionSettings(holdout=0),
                   "one_gate": MotionSettings(gates=(3.0,)),
                   "folds3": MotionSettings(folds=3),
                   "unscaled": MotionSettings(fallback_variance=1.0, min_gain=0.0),
-                  "no_vote": MotionSettings(votes=0)}[name]
+                  "no_vote": MotionSettings(votes=0),
+                  "confidence2": MotionSettings(confidence=2.0)}[name]
         return _learner_row(*_fit(train, refine="em", motion=motion, **kw), train, held, regions)
     if name == "self_decoded":
         learner, seconds = _fit(train, refine="em", motion=MotionSettings(holdout=0), **kw)

@@ -343,6 +343,50 @@ def test_the_check_counts_every_held_out_step_with_a_reference_once():
     assert pooled_shares(even) == {"places": 0.2, "views": 0.25}
 
 
+def test_the_held_out_steps_are_cut_into_stretches_of_their_gain():
+    from topomap.core.motion.check import gain_blocks
+
+    # steps misplaced by the places 1 0 0 0 1, by the view clusters 1 1 1 0 0: the view
+    # clusters misplace 0 1 1 0 -1 more; stretches of 2 steps, the last one of 1
+    assert gain_blocks([1, 0, 0, 0, 1], [1, 1, 1, 0, 0], 2) == [[2, 1], [2, 1], [1, -1]]
+    assert gain_blocks([True, False], [False, False], 5) == [[2, -1]]
+
+
+def test_a_gain_won_in_one_stretch_of_the_walk_is_noise():
+    from topomap.core.motion.check import gain_noise
+
+    # 400 held-out steps in two parts of two stretches of 100: the view clusters misplace 40
+    # more, a gain of 0.1 -- all of it in one stretch: deviations 30, -10, -10, -10 from 10
+    # each; 1,200 x 4 / 3 = 1,600, sqrt 40, over 400 steps: a noise of 0.1, the gain only
+    # once its noise
+    lumped = [{"blocks": [[100, 40], [100, 0]]}, {"blocks": [[100, 0], [100, 0]]}]
+    assert gain_noise(lumped) == pytest.approx((0.1, 0.1))
+    # the same gain spread over the walk: 12, 8, 10, 10; 8 x 4 / 3, sqrt 3.266 / 400
+    spread = [{"blocks": [[100, 12], [100, 8]]}, {"blocks": [[100, 10], [100, 10]]}]
+    gain, noise = gain_noise(spread)
+    assert gain == pytest.approx(0.1) and noise == pytest.approx(np.sqrt(32 / 3) / 400)
+    # stretches of unequal steps: 30 of 300 and -5 of 100, a gain of 25 / 400; deviations
+    # 30 - 18.75 = 11.25 and -5 - 6.25 = -11.25: 253.125 x 2, sqrt 22.5, over 400
+    gain, noise = gain_noise([{"blocks": [[300, 30]]}, {"blocks": [[100, -5]]}])
+    assert gain == pytest.approx(0.0625) and noise == pytest.approx(22.5 / 400)
+    # one stretch has no spread to measure: no bar it could pass; no steps, no gain
+    assert gain_noise([{"blocks": [[100, 10]]}]) == (0.1, float("inf"))
+    assert gain_noise([{"blocks": []}]) == (0.0, float("inf"))
+
+
+def test_the_bar_of_the_noise_is_off_at_zero_confidence():
+    from topomap.core.motion.check import clears_noise
+
+    # the preset two_rooms walk: a gain of 0.054 against a noise of 0.061
+    assert clears_noise(0.054, 0.061, 0.0)
+    assert not clears_noise(0.054, 0.061, 1.0)
+    assert clears_noise(0.054, 0.061, 0.85)          # 0.054 > 0.05185
+    assert not clears_noise(0.1, 0.05, 2.0)           # exactly twice: not more
+    # one stretch: the noise unknown (infinite) -- no bar passes it, and none is asked at 0
+    assert clears_noise(0.1, float("inf"), 0.0)
+    assert not clears_noise(0.1, float("inf"), 2.0)
+
+
 def test_most_of_three_quarters_each_alone_outvote_a_mean_of_two():
     from topomap.core.motion.check import keeps_places, outvoted
 
@@ -421,6 +465,9 @@ def test_discrete_worlds_keep_the_map_of_the_split():
     ({"min_gain": -0.1}, r"^motion\.min_gain must be a number in \[0, 1\)"),
     ({"votes": -1}, r"^motion\.votes must be a non-negative integer"),
     ({"min_copies": 0}, r"^motion\.min_copies must be a positive number"),
+    ({"confidence": -1.0}, r"^motion\.confidence must be a number >= 0"),
+    ({"confidence": float("nan")}, r"^motion\.confidence must be a number >= 0"),
+    ({"block_runs": 0}, r"^motion\.block_runs must be a positive number"),
 ])
 def test_bad_motion_is_named(motion, message):
     Z, u, _ = _alike_halves(500)

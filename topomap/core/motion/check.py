@@ -41,7 +41,8 @@ from .places import Places, cut_places
 from .settings import MotionSettings
 
 __all__ = ["held_out_frame", "frame_error", "misplaced_steps", "misplaced_share", "keeps_places",
-           "outvoted", "pooled_shares", "tells_apart", "choose_places"]
+           "outvoted", "pooled_shares", "gain_blocks", "gain_noise", "clears_noise",
+           "tells_apart", "choose_places"]
 
 
 def held_out_frame(settings: MotionSettings, part: Places, Z, u, lengths, cut: int):
@@ -118,13 +119,46 @@ def pooled_shares(folds: list) -> dict:
             for name in ("places", "views")}
 
 
+def gain_blocks(places_far, views_far, block: int) -> list:
+    """``[[steps, gain], ...]``: the held-out steps (boolean rows, each misplaced by the places
+    and by the view clusters or not, in walking order) cut into stretches of ``block``
+    consecutive steps (the last one shorter), each with how many more of its steps the view
+    clusters misplace than the places."""
+    gain = np.asarray(views_far, dtype=int) - np.asarray(places_far, dtype=int)
+    return [[int(min(block, gain.size - s)), int(gain[s:s + block].sum())]
+            for s in range(0, gain.size, block)]
+
+
+def gain_noise(folds: list) -> tuple[float, float]:
+    """``(gain, noise)`` over the stretches of all ``folds`` (each a dict with ``blocks``, of
+    :func:`gain_blocks`): the views' misplaced share less the places' over all their steps, and
+    its standard error from the spread of the stretches' gains about it (batch means: the
+    stretches, not the steps, are the independent draws, since a step misplaced in the other
+    room is followed by more); one stretch alone gives no spread (noise infinite)."""
+    b = np.array([x for f in folds for x in f["blocks"]], dtype=float).reshape(-1, 2)
+    n = b[:, 0].sum()
+    if n == 0:
+        return 0.0, float("inf")
+    gain = b[:, 1].sum() / n
+    if len(b) < 2:
+        return float(gain), float("inf")
+    spread = np.sum((b[:, 1] - b[:, 0] * gain) ** 2) * len(b) / (len(b) - 1)
+    return float(gain), float(np.sqrt(spread) / n)
+
+
+def clears_noise(gain: float, noise: float, confidence: float) -> bool:
+    """Whether ``gain`` is more than ``confidence`` times ``noise`` (``confidence`` 0: no bar,
+    even where one stretch left the noise unknown)."""
+    return confidence == 0 or gain > confidence * noise
+
+
 def _state_means(labels, frame) -> np.ndarray:
     counts = np.maximum(np.bincount(labels), 1)[:, None]
     return np.column_stack([np.bincount(labels, weights=frame[:, j]) for j in range(2)]) / counts
 
 
 def _fold(settings: MotionSettings, X, Z, u, lengths, end: int, held: int, build,
-          n_states: int, n_actions: int, **kmeans) -> dict | None:
+          n_states: int, n_actions: int, *, block: int, **kmeans) -> dict | None:
     """The check on the steps before ``end``: places and view clusters learned on the steps
     before ``end - held``, decoding the ``held`` steps after them; None when the first part
     gives no odometry."""
@@ -138,17 +172,18 @@ def _fold(settings: MotionSettings, X, Z, u, lengths, end: int, held: int, build
     frame, joined = held_out_frame(settings, part, Z, u, lengths, cut)
     if not joined.any():
         return None
-    errors, misplaced, steps, referenced = {}, {}, {}, int(joined.sum())
+    errors, misplaced, steps, far, referenced = {}, {}, {}, {}, int(joined.sum())
     for name, labels in (("places", part.places), ("views", part.views)):
         decoded = build(X[:cut], u[:cut], labels, head, pooled=name == "views").predict(
             X[cut:], u[cut:], lengths=tail)
         placed = _state_means(labels, part.frame)[decoded]
         errors[name] = round(frame_error(placed, frame), 4)
-        steps[name] = misplaced_steps(placed[joined], frame[joined], settings.far)
+        far[name] = np.linalg.norm(placed[joined] - frame[joined], axis=1) > settings.far
+        steps[name] = int(np.count_nonzero(far[name]))
         misplaced[name] = round(steps[name] / referenced, 4)
     return {"learned": cut, "held_out": end - cut, "anchored": round(float(joined.mean()), 4),
             "referenced": referenced, **errors, "misplaced": misplaced,
-            "misplaced_steps": steps}
+            "misplaced_steps": steps, "blocks": gain_blocks(far["places"], far["views"], block)}
 
 
 def choose_places(settings: MotionSettings, X, Z, u, lengths, n_states: int, n_actions: int,
@@ -168,12 +203,13 @@ def choose_places(settings: MotionSettings, X, Z, u, lengths, n_states: int, n_a
         return whole.views, dict(info, chosen="views",
                                   check="the middle gate kept one copy per view cluster")
     step = int(round(T * settings.holdout))
+    block = max(1, int(round(settings.block_runs * info["mean_run"])))
     folds = []
     for i in range(max(settings.folds, settings.votes)):
         if T - (i + 1) * step < 100:
             break
         fold = _fold(settings, X, Z, u, lengths, T - i * step, step, build, n_states,
-                     n_actions, **kmeans)
+                     n_actions, block=block, **kmeans)
         if fold is None:
             break
         folds.append(fold)
@@ -181,9 +217,12 @@ def choose_places(settings: MotionSettings, X, Z, u, lengths, n_states: int, n_a
         return whole.views, dict(info, chosen="views",
                                   check="no held-out part with odometry and a reference")
     misplaced = pooled_shares(folds[:settings.folds])
-    by_mean = keeps_places(misplaced, settings.margin, settings.min_gain)
+    gain, noise = gain_noise(folds[:settings.folds])
+    by_mean = keeps_places(misplaced, settings.margin, settings.min_gain) and clears_noise(
+        gain, noise, settings.confidence)
     by_vote = outvoted(folds, settings.votes, settings.min_gain)
     chosen = "places" if by_mean or by_vote else "views"
     info.update(chosen=chosen, check=dict(folds[0], folds=folds, mean_misplaced=misplaced,
+                                          gain_noise=[round(gain, 4), round(noise, 4)],
                                           outvoted=by_vote))
     return (whole.places if chosen == "places" else whole.views), info

@@ -51,11 +51,16 @@ class MotionSettings:
     shares of a hundredth or so are a handful of runs of one view either way), or when most of
     the last ``votes`` parts (the third learning from the first quarter alone), each on its
     own, give the places a share at least ``min_gain`` below the view clusters' (``votes=0``:
-    no vote).  Else the map's states are the view clusters; they are also, unchecked, where the
-    middle gate's filter kept no more than ``min_copies`` copies per view cluster
-    (:func:`topomap.core.motion.check.tells_apart`: the odometry told no sighting of a view
-    from another, and the places could only follow its drift).  ``holdout=0`` (or a held-out
-    part under 100 steps) keeps the places unchecked.
+    no vote).  ``confidence`` > 0 also asks the pooled share to beat the view clusters' by that
+    many times its own sampling noise (:func:`topomap.core.motion.check.gain_noise`: the spread
+    of the gain over stretches of ``block_runs`` mean runs of one view cluster, since
+    neighbouring steps are not independent draws); the check records gain and noise either way
+    (off by default: on ``topomap experiment=arena_two_rooms`` a bar of 1 gives up places at
+    half the views' error, docs/benchmarks.md).  Else the map's states are the view clusters;
+    they are also, unchecked, where the middle gate's filter kept no more than ``min_copies``
+    copies per view cluster (:func:`topomap.core.motion.check.tells_apart`: the odometry told
+    no sighting of a view from another, and the places could only follow its drift).
+    ``holdout=0`` (or a held-out part under 100 steps) keeps the places unchecked.
 
     ``n_init``: the k-means++ starts of the view clusters (scikit-learn's ``KMeans`` on every
     row, as :func:`topomap.core.position_scores.kmeans_view_scores`).  A map that falls back to
@@ -82,6 +87,8 @@ class MotionSettings:
     min_gain: float = 0.02
     votes: int = 3
     min_copies: float = 1.0
+    confidence: float = 0.0
+    block_runs: float = 50.0
 
 
 def motion_settings(value) -> MotionSettings:
@@ -113,7 +120,7 @@ def motion_settings(value) -> MotionSettings:
     if not isinstance(gates, tuple) or not gates or not all(_positive(g) for g in gates):
         raise ParameterError("motion.gates", f"must be a non-empty list of positive numbers, "
                                              f"got {gates!r}")
-    for name in ("min_run", "weight", "pull", "max_return", "far", "min_copies"):
+    for name in ("min_run", "weight", "pull", "max_return", "far", "min_copies", "block_runs"):
         if not _positive(getattr(value, name)):
             raise ParameterError(f"motion.{name}", f"must be a positive number, "
                                                    f"got {getattr(value, name)!r}")
@@ -125,6 +132,9 @@ def motion_settings(value) -> MotionSettings:
         v = getattr(value, name)
         if not _positive(v) or v > 1:
             raise ParameterError(f"motion.{name}", f"must be a number in (0, 1], got {v!r}")
+    c = value.confidence
+    if not (isinstance(c, numbers.Real) and not isinstance(c, bool) and np.isfinite(c) and c >= 0):
+        raise ParameterError("motion.confidence", f"must be a number >= 0, got {c!r}")
     if value.pull > 1:
         raise ParameterError("motion.pull", f"must be at most 1, got {value.pull!r}")
     return value
