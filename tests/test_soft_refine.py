@@ -252,6 +252,39 @@ def test_a_hard_round_on_symbols_still_misread_is_cut_short(monkeypatch, cut):
     assert fit.info_["soft_rounds"][0].get("hard_cut", False) is cut
 
 
+@pytest.mark.parametrize("corrected", [0.0, 0.5])
+def test_a_soft_round_that_corrected_hardly_any_step_leaves_its_hard_round_whole(monkeypatch,
+                                                                                corrected):
+    """As above (the soft round's symbols forced back to the ones read, so the hard round on
+    them would be cut), but the soft round's record says it corrected ``corrected`` of the
+    steps: 0 is below ``CUT_CORRECTED`` x ``soft.detect`` (5 x 0.002 = 0.01), so the surprise
+    left is not taken for misreads and the hard round runs whole (no cut round asked for, no
+    ``hard_cut``); 0.5 is above, and the round is cut as before."""
+    sym, u, lengths, _, _ = _ring_walk()
+    seq = _seq(sym, u, lengths)
+    soft_round_of, cycle_rounds = rounds.soft_round, []
+    hard_round_of = EMRefinement._first_hard_round
+
+    def nothing_corrected(*args, **kwargs):
+        fit = soft_round_of(*args, **kwargs)
+        fit.sym = seq.sym.copy()
+        fit.info["corrected"] = corrected
+        return fit
+
+    def recorded_hard(self, *args, cycle=False):
+        fit = hard_round_of(self, *args, cycle=cycle)
+        if cycle:
+            cycle_rounds.append(fit.info)
+        return fit
+
+    monkeypatch.setattr(rounds, "soft_round", nothing_corrected)
+    monkeypatch.setattr(EMRefinement, "_first_hard_round", recorded_hard)
+    fit = EMRefinement(soft={"rounds": 1}).fit(seq, RING, 0)
+    cut = corrected >= rounds.CUT_CORRECTED * 0.002
+    assert len(cycle_rounds) == int(cut)
+    assert fit.info_["soft_rounds"][0].get("hard_cut", False) is cut
+
+
 @pytest.mark.parametrize("explained", [True, False])
 def test_the_map_is_tried_first_after_a_hard_round_that_explains_its_symbols(monkeypatch,
                                                                              explained):

@@ -177,13 +177,17 @@ class CloneRefinement(BaseEstimator):
 
     def _cycle_hard_round(self, seq: SymbolSequence, soft, random_state: int, detect: float):
         """The hard round on the symbols the soft round ``soft`` corrected (cut short like the
-        first where misreads still show: the next soft round corrects what is left), and
+        first where misreads still show, the next soft round correcting what is left, unless the
+        soft round corrected fewer than ``CUT_CORRECTED`` x ``detect`` of the steps), and
         whether it explains them: not cut, and its labelling predicts the next symbol of all
         but a ``detect`` share of its transitions (the next soft round is then tried without
         spare clones first: if it re-reads the symbols as they are, it is the map)."""
         split_symbol = np.where(soft.state_symbol < seq.n_symbols, soft.state_symbol, -1)
         read = replace(seq, sym=soft.sym)
-        hard = self._first_hard_round(read, split_symbol, random_state, cycle=True)
+        if soft.info["corrected"] < CUT_CORRECTED * detect:  # hardly any misreads left to cut for
+            hard = self._hard_round(read, split_symbol, random_state)
+        else:
+            hard = self._first_hard_round(read, split_symbol, random_state, cycle=True)
         return hard, hard.resume is None and successor_surprise(read, hard.labels) < detect
 
     def _provenance_soft(self) -> str:
@@ -193,6 +197,12 @@ class CloneRefinement(BaseEstimator):
         changed = [f"{f.name}={getattr(s, f.name)!r}" for f in fields(SoftSettings)
                    if getattr(s, f.name) != getattr(default, f.name)]
         return f"soft=SoftSettings({', '.join(changed)})" if changed else ""
+
+
+#: the share of steps (in ``soft.detect``) a soft round must correct for the hard round on its
+#: symbols to be cut short: below it the surprise left is the walk's own, not misreads (MiniGrid
+#: Empty-16x16 at 10,000 steps, seed 0, 0.2 % corrected: a cut round gave ARI 0.431, not 0.481)
+CUT_CORRECTED = 5.0
 
 
 #: the share of steps (in ``soft.detect``) below which a soft round's re-read symbols count as
