@@ -217,14 +217,10 @@ def test_soft_rounds_stop_once_the_reread_symbols_settle(monkeypatch, settle):
     assert fit.n_states_ == RING.size and same_partition(fit.labels_, place)
 
 
-@pytest.mark.parametrize("cut", [True, False])
-def test_a_hard_round_on_symbols_still_misread_is_cut_short(monkeypatch, cut):
-    """A soft round that corrects nothing (its symbols forced back to the ones read) leaves
-    the ring's misreads: the hard round on its symbols is the first hard round again, whose
-    stage-2 labelling shows them (``test_a_hard_round_cut_short_finishes_as_the_whole_round``),
-    so it stops there too (``hard_cut``); with the cut off (``CUT_SURPRISE`` infinite) it runs
-    its rounds on all steps.  Exact corrected symbols never cut it (``hard_cut`` absent in
-    ``test_soft_rounds_stop_once_the_reread_symbols_settle``'s fit)."""
+def _refit_with_nothing_corrected(monkeypatch, corrected=None):
+    """The ring refined with one soft round whose symbols are forced back to the ones read (its
+    record's ``corrected`` set to ``corrected`` unless None): ``(fit, the records of the hard
+    rounds on its symbols that were asked for as cut-short rounds)``."""
     sym, u, lengths, _, _ = _ring_walk()
     seq = _seq(sym, u, lengths)
     soft_round_of, cycle_rounds = rounds.soft_round, []
@@ -233,6 +229,8 @@ def test_a_hard_round_on_symbols_still_misread_is_cut_short(monkeypatch, cut):
     def nothing_corrected(*args, **kwargs):
         fit = soft_round_of(*args, **kwargs)
         fit.sym = seq.sym.copy()
+        if corrected is not None:
+            fit.info["corrected"] = corrected
         return fit
 
     def recorded_hard(self, *args, cycle=False):
@@ -243,9 +241,20 @@ def test_a_hard_round_on_symbols_still_misread_is_cut_short(monkeypatch, cut):
 
     monkeypatch.setattr(rounds, "soft_round", nothing_corrected)
     monkeypatch.setattr(EMRefinement, "_first_hard_round", recorded_hard)
+    return EMRefinement(soft={"rounds": 1}).fit(seq, RING, 0), cycle_rounds
+
+
+@pytest.mark.parametrize("cut", [True, False])
+def test_a_hard_round_on_symbols_still_misread_is_cut_short(monkeypatch, cut):
+    """A soft round that corrects nothing (its symbols forced back to the ones read) leaves
+    the ring's misreads: the hard round on its symbols is the first hard round again, whose
+    stage-2 labelling shows them (``test_a_hard_round_cut_short_finishes_as_the_whole_round``),
+    so it stops there too (``hard_cut``); with the cut off (``CUT_SURPRISE`` infinite) it runs
+    its rounds on all steps.  Exact corrected symbols never cut it (``hard_cut`` absent in
+    ``test_soft_rounds_stop_once_the_reread_symbols_settle``'s fit)."""
     if not cut:
         monkeypatch.setattr(methods, "CUT_SURPRISE", float("inf"))
-    fit = EMRefinement(soft={"rounds": 1}).fit(seq, RING, 0)
+    fit, cycle_rounds = _refit_with_nothing_corrected(monkeypatch)
     assert len(cycle_rounds) == 1
     assert cycle_rounds[0].get("cut", False) is cut
     assert (cycle_rounds[0]["rounds_on_all_steps"] == 0) is cut
@@ -260,26 +269,7 @@ def test_a_soft_round_that_corrected_hardly_any_step_leaves_its_hard_round_whole
     steps: 0 is below ``CUT_CORRECTED`` x ``soft.detect`` (5 x 0.002 = 0.01), so the surprise
     left is not taken for misreads and the hard round runs whole (no cut round asked for, no
     ``hard_cut``); 0.5 is above, and the round is cut as before."""
-    sym, u, lengths, _, _ = _ring_walk()
-    seq = _seq(sym, u, lengths)
-    soft_round_of, cycle_rounds = rounds.soft_round, []
-    hard_round_of = EMRefinement._first_hard_round
-
-    def nothing_corrected(*args, **kwargs):
-        fit = soft_round_of(*args, **kwargs)
-        fit.sym = seq.sym.copy()
-        fit.info["corrected"] = corrected
-        return fit
-
-    def recorded_hard(self, *args, cycle=False):
-        fit = hard_round_of(self, *args, cycle=cycle)
-        if cycle:
-            cycle_rounds.append(fit.info)
-        return fit
-
-    monkeypatch.setattr(rounds, "soft_round", nothing_corrected)
-    monkeypatch.setattr(EMRefinement, "_first_hard_round", recorded_hard)
-    fit = EMRefinement(soft={"rounds": 1}).fit(seq, RING, 0)
+    fit, cycle_rounds = _refit_with_nothing_corrected(monkeypatch, corrected)
     cut = corrected >= rounds.CUT_CORRECTED * 0.002
     assert len(cycle_rounds) == int(cut)
     assert fit.info_["soft_rounds"][0].get("hard_cut", False) is cut
