@@ -5,7 +5,7 @@ import pytest
 
 from topomap.core.map.observations import observation_models
 from topomap.core.split.engine import members_of
-from topomap.core.split.kernels import (instance_table, merge_tallies, pair_codes, tally_codes,
+from topomap.core.split.kernels import (_code_pair, instance_table, merge_tallies, tally_codes,
                                         transition_table)
 from topomap.core.stats import count_tables
 
@@ -36,13 +36,19 @@ def test_tally_codes_sorts_and_counts():
         assert out.tolist() == [2, 1 << 32, (1 << 32) | 3] and n.tolist() == [1, 1, 2]
 
 
-def test_pair_codes_and_transition_table():
+def _codes(x, u, steps, A, centred):
+    """The codes at ``steps`` (no split: the code before is the code after)."""
+    pairs = [_code_pair(x, u, t, A, np.int64(32), centred, 0, 99) for t in steps]
+    assert all(before == after for before, after in pairs)
+    return [after for _, after in pairs]
+
+
+def test_code_pairs_and_transition_table():
     x, u, A = np.array([0, 1, 1, 0]), np.array([1, 0, 1, 0]), 2
     # transitions at t = 0, 1, 2: (0*2+1 -> 1), (1*2+0 -> 1), (1*2+1 -> 0)
-    assert pair_codes(x, u, np.array([0, 1, 2]), A, np.int64(32), False).tolist() == [
-        (1 << 32) | 1, (2 << 32) | 1, (3 << 32) | 0]
+    assert _codes(x, u, [0, 1, 2], A, False) == [(1 << 32) | 1, (2 << 32) | 1, (3 << 32) | 0]
     # the instance centred at t = 1: key x[0]*A+u[0] = 1, column x[2]*A+u[1] = 2
-    assert pair_codes(x, u, np.array([1]), A, np.int64(32), True).tolist() == [(1 << 32) | 2]
+    assert _codes(x, u, [1], A, True) == [(1 << 32) | 2]
     has_next = np.array([True, False, True, False])
     codes, counts = transition_table(x, u, has_next, 2, A)
     assert codes.tolist() == [(1 << 32) | 1, (3 << 32) | 0] and counts.tolist() == [1, 1]

@@ -40,8 +40,8 @@ from .odometry import odometric_positions, reckoned_steps
 from .places import Places, cut_places
 from .settings import MotionSettings
 
-__all__ = ["held_out_frame", "frame_error", "misplaced_steps", "misplaced_share", "keeps_places",
-           "outvoted", "pooled_shares", "gain_blocks", "gain_noise", "clears_noise",
+__all__ = ["held_out_frame", "frame_error", "misplaced_rows", "misplaced_steps", "misplaced_share",
+           "keeps_places", "outvoted", "pooled_shares", "gain_blocks", "gain_noise", "clears_noise",
            "tells_apart", "choose_places"]
 
 
@@ -68,9 +68,14 @@ def frame_error(placed, frame) -> float:
     return float(np.median(np.linalg.norm(placed - frame, axis=1)))
 
 
+def misplaced_rows(placed, frame, far: float) -> np.ndarray:
+    """Whether each row of ``placed`` stands more than ``far`` from that of ``frame``."""
+    return np.linalg.norm(placed - frame, axis=1) > far
+
+
 def misplaced_steps(placed, frame, far: float) -> int:
     """How many rows of ``placed`` stand more than ``far`` from those of ``frame``."""
-    return int(np.count_nonzero(np.linalg.norm(placed - frame, axis=1) > far))
+    return int(np.count_nonzero(misplaced_rows(placed, frame, far)))
 
 
 def misplaced_share(placed, frame, far: float) -> float:
@@ -178,7 +183,7 @@ def _fold(settings: MotionSettings, X, Z, u, lengths, end: int, held: int, build
             X[cut:], u[cut:], lengths=tail)
         placed = _state_means(labels, part.frame)[decoded]
         errors[name] = round(frame_error(placed, frame), 4)
-        far[name] = np.linalg.norm(placed[joined] - frame[joined], axis=1) > settings.far
+        far[name] = misplaced_rows(placed[joined], frame[joined], settings.far)
         steps[name] = int(np.count_nonzero(far[name]))
         misplaced[name] = round(steps[name] / referenced, 4)
     return {"learned": cut, "held_out": end - cut, "anchored": round(float(joined.mean()), 4),

@@ -86,9 +86,10 @@ def entropy_gain(counts: np.ndarray, side: np.ndarray) -> float:
     rows: the same float as :func:`topomap.core.stats.weighted_entropy` over the two halves'
     sums gives (compiled, :func:`topomap.core.split.merge_kernels.gain_kernel`).  Not clipped at 0."""
     work = np.ascontiguousarray(counts, dtype=np.int64)
-    if work.sum() == 0:
+    total = int(work.sum())
+    if total == 0:
         return float("nan")  # 0 / 0, as numpy gives it
-    table = _TABLE.upto(int(work.sum()))
+    table = _TABLE.upto(total)
     return gain_kernel(work, np.ascontiguousarray(side, dtype=np.bool_), table)
 
 

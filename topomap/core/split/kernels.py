@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["transition_table", "action_table", "merge_tallies", "tally_codes", "pair_codes",
+__all__ = ["transition_table", "action_table", "merge_tallies", "tally_codes",
            "instance_table", "sorted_union", "follow_keys", "touched_codes", "split_table"]
 
 
@@ -74,20 +74,6 @@ def merge_tallies(codes, counts, minus, minus_n, plus, plus_n):
     if j < minus.size:
         raise ValueError("a code taken off is not in the table")
     return out_codes[:n], out_counts[:n]
-
-
-@njit(cache=True)
-def pair_codes(x, u, steps, A, shift, centred):
-    """Codes of the steps: with ``centred``, instance codes ``(x[t-1] * A + u[t-1]) << shift |
-    (x[t+1] * A + u[t])``; else transition codes ``(x[t] * A + u[t]) << shift | x[t+1]``."""
-    out = np.empty(steps.size, dtype=np.int64)
-    for i in range(steps.size):
-        t = steps[i]
-        if centred:
-            out[i] = ((x[t - 1] * A + u[t - 1]) << shift) | (x[t + 1] * A + u[t])
-        else:
-            out[i] = ((x[t] * A + u[t]) << shift) | x[t + 1]
-    return out
 
 
 @njit(cache=True)
