@@ -81,7 +81,9 @@ HELDOUT = 10_000
 
 
 def fit(registry, command: str, T: int, seed: int, method: str, data=None):
-    """One fit; returns the record and the data (trajectory, held-out walk) for the next method."""
+    """One fit; returns the record and the data (trajectory, held-out walk) for the next method.
+    ``em_iterations``: the EM iterations of the refinement's hard round (its stages), the
+    E-steps that are most of its time."""
     cfg = OmegaConf.to_container(compose(
         [*command.split(), f"data.n_steps={T}", f"data.heldout_steps={HELDOUT}", f"seed={seed}",
          f"refine={METHODS[method]}"], registry), resolve=True)
@@ -108,6 +110,8 @@ def fit(registry, command: str, T: int, seed: int, method: str, data=None):
         "heldout": m.score(heldout.observations, heldout.actions, gds=heldout.gds,
                            lengths=heldout.lengths),
         "load": os.getloadavg()[0], "phase1": t["phase1"], "refine": t.get("refine"),
+        "em_iterations": sum(st[2] for st in getattr(learner, "refine_info_", {}).get("stages",
+                                                                                     [])),
     }, data
 
 
@@ -168,20 +172,22 @@ HEADER = ("| world | T | method | ARI | NMI | states (places) | held-out LL/step
 
 
 def table(records) -> list[str]:
-    """Markdown rows of the medians per (world, T, method), in the order first seen."""
+    """Markdown rows of the medians per (world, T, method, overrides), in the order first seen
+    (a run with ``--overrides`` names them after its method)."""
     groups: dict = {}
     for r in records:
         if r["method"] != "cscg":  # the authors' code: in versus()
-            groups.setdefault((r["world"], r["T"], r["method"]), []).append(r)
+            key = (r["world"], r["T"], r["method"], r.get("overrides", ""))
+            groups.setdefault(key, []).append(r)
     rows = [HEADER, "|" + "---|" * (HEADER.count("|") - 1)]
-    for (world, T, method), rs in groups.items():
+    for (world, T, method, extra), rs in groups.items():
         med = {k: statistics.median(r[k] for r in rs)
                for k in ("ari", "nmi", "states", "heldout", "seconds")}
-        em = groups.get((world, T, "em"))
+        em = groups.get((world, T, "em", ""))
         speed = statistics.median(r["seconds"] for r in em) / med["seconds"] if em else None
-        rows.append(f"| {WORLDS[world][0]} | {T:,} | {method} | {med['ari']:.3f} | "
-                    f"{med['nmi']:.3f} | {med['states']:g} ({rs[0]['places']}) | "
-                    f"{med['heldout']:.3f} | {med['seconds']:.2f} | "
+        rows.append(f"| {WORLDS[world][0]} | {T:,} | {method}{f' ({extra})' if extra else ''} | "
+                    f"{med['ari']:.3f} | {med['nmi']:.3f} | {med['states']:g} "
+                    f"({rs[0]['places']}) | {med['heldout']:.3f} | {med['seconds']:.2f} | "
                     f"{f'{speed:.0f}' if speed and method == 'split+em' else ''} |")
     return rows
 
@@ -259,6 +265,9 @@ def main():
                     help="default: all (cscg only with --cscg)")
     ap.add_argument("--cscg", default=None, metavar="PATH",
                     help="the authors' chmm_actions.py: fit it too and print it beside split+em")
+    ap.add_argument("--overrides", nargs="+", default=[], metavar="KEY=VALUE",
+                    help="config overrides added to every world's command (e.g. "
+                         "refine.settle=0.01); kept in each record, which they tell apart")
     ap.add_argument("--log", default="benchmarks/results/bench_em.jsonl")
     ap.add_argument("--figure", default=None, help="write the ARI / fit time figure here")
     ap.add_argument("--report", action="store_true", help="only print the table of --log")
@@ -276,16 +285,19 @@ def main():
         registry = Registry.load()
         warm_up(registry)
         log.parent.mkdir(parents=True, exist_ok=True)
-        have = {(r["world"], r["T"], r["seed"], r["method"]) for r in done}
+        extra = " ".join(args.overrides)
+        have = {(r["world"], r["T"], r["seed"], r["method"], r.get("overrides", ""))
+                for r in done}
         for world in args.worlds:
             for T in sorted(set(args.sizes) | ({OFFICE_T} if world == "office" else set())):
                 for seed in args.seeds:
                     data = None
                     for method in args.methods:
-                        if (world, T, seed, method) in have:
+                        if (world, T, seed, method, extra) in have:
                             continue
-                        record, data = fit(registry, WORLDS[world][1], T, seed, method, data)
-                        record["world"] = world
+                        record, data = fit(registry, f"{WORLDS[world][1]} {extra}", T, seed,
+                                           method, data)
+                        record.update(world=world, overrides=extra)
                         done.append(record)
                         with log.open("a") as fh:
                             fh.write(json.dumps(record) + "\n")

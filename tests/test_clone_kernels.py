@@ -242,3 +242,38 @@ def test_column_pass_gives_the_row_pass_bits(prune):
     np.testing.assert_array_equal(cols[0], rows[0])
     np.testing.assert_array_equal(cols[1], rows[1])
     assert not np.array_equal(rows[0], start_counts)
+
+
+def test_the_decoded_path_is_every_steps_most_probable_clone_and_settles_when_it_stops_moving():
+    """Three steps of two clones each; the path has settled once it changed on fewer than the
+    share of steps at SETTLE_ITER (3) E-steps in a row."""
+    from topomap.core.refine.clones import SETTLE_ITER, SettledPath, step_argmax
+
+    pos = np.array([0, 2, 4, 6])
+    a = np.array([0.9, 0.1, 0.2, 0.8, 0.5, 0.5])  # ties go to the first clone
+    b = np.array([0.1, 0.9, 0.2, 0.8, 0.5, 0.5])  # step 0 moved
+    assert step_argmax(a, pos).tolist() == [0, 1, 0]
+    path = SettledPath(pos, share=0.5)  # settled: fewer than 1.5 of the 3 steps changed
+    for alpha, changed, settled in [(a, [], False), (b, [1], False), (b, [1, 0], False),
+                                    (b, [1, 0, 0], True), (a, [1, 0, 0, 1], True)]:
+        path.report(alpha)
+        assert path.changed == changed and path.settled is settled
+    assert SETTLE_ITER == 3
+    strict = SettledPath(pos, share=1 / 3)  # 1 change of 3 steps is not fewer than 1
+    for alpha in (a, b, a, b):
+        strict.report(alpha)
+    assert not strict.settled
+
+
+def test_a_settled_path_stops_baum_welch_after_its_first_judged_iteration():
+    """With ``settle=1`` an E-step is calm unless the path changed on all 200 steps at once, so
+    EM stops at the first iteration it judges, ``min_iter`` + 1; without it, at ``max_iter``
+    (``tol=-inf``: the gain never stops it)."""
+    from topomap.core.refine.clones import baum_welch
+
+    lay, _ = tiny_case(0, lengths=(200,), clones=(3, 2, 2))
+    init = np.random.default_rng(1).random(int(lay.boff[-1]))
+    for settle, iters in [(0.0, 30), (1.0, 6)]:
+        *_, history = baum_welch(lay, init, 1e-3, False, max_iter=30, tol=-np.inf, min_iter=5,
+                                 settle=settle)
+        assert len(history) == iters

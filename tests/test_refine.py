@@ -317,8 +317,8 @@ def test_the_refinements_store_their_parameters_as_given():
     params = em.get_params()
     assert params["clone_factor"] == 2 and params["prefix"] is em.prefix
     assert set(params) == {"clone_factor", "prefix", "prefix_visits", "max_rounds", "row_prior",
-                           "tol", "max_iter", "prune", "merge_threshold", "split_z", "spare",
-                           "init_noise", "guard", "budget", "evidence", "soft"}
+                           "tol", "max_iter", "settle", "prune", "merge_threshold", "split_z",
+                           "spare", "init_noise", "guard", "budget", "evidence", "soft"}
     twin = clone(em)
     assert twin is not em and twin.get_params() == params
     assert CSCGRefinement(clones_per_symbol=5).set_params(tol=0.5).get_params() == {
@@ -336,6 +336,9 @@ def test_the_repr_is_the_estimators_and_the_provenance_the_form_map_json_stores(
         "merge_threshold=6.63, split_z=3.09, spare=2, init_noise=1.0))")
     assert CSCGRefinement(clones_per_symbol=4, tol=0).provenance() == (
         "CSCGRefinement(clones_per_symbol=4, pseudocount=0.002, max_iter=1000, tol=0.0)")
+    # a stopping rule switched on is named, and only then
+    assert ("guard=True, settle=0.01, settings=EMSettings(row_prior=0.5, tol=1e-06, max_iter=50, "
+            "prune=" in EMRefinement(settle=0.01).provenance())
     # soft settings changed from their defaults are named, the others not
     assert ("evidence='soft', soft=SoftSettings(conf_warmup=10), settings=EMSettings("
             in EMRefinement(evidence="soft", soft={"conf_warmup": 10}).provenance())
@@ -353,6 +356,7 @@ def test_the_repr_is_the_estimators_and_the_provenance_the_form_map_json_stores(
     (EMRefinement, dict(row_prior=0.0), "row_prior must be > 0, got 0.0"),
     (EMRefinement, dict(tol=-1e-3), "tol must be >= 0, got -0.001"),
     (EMRefinement, dict(prune=1.0), r"prune must be in \[0, 1\), got 1.0"),
+    (EMRefinement, dict(settle=-0.1), r"settle must be in \[0, 1\], got -0.1"),
     (CSCGRefinement, dict(clones_per_symbol=0), "clones_per_symbol must be a positive integer"),
     (CSCGRefinement, dict(max_iter=0), "max_iter must be a positive integer, got 0"),
     (CSCGRefinement, dict(pseudocount=float("nan")), "pseudocount must be > 0, got nan"),

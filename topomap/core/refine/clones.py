@@ -24,6 +24,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 from ..progress import report
 from .convergence import ConvergenceMonitor
@@ -151,31 +152,93 @@ def m_step(lay: Layout, counts, pseudocount: float, joint: bool) -> np.ndarray:
 def e_step(lay: Layout, vals, prune: float = 0.0):
     """Expected counts, expected clone occupancy and log-likelihood under ``vals`` (``prune``: see
     :func:`topomap.core.refine.kernels.clone_forward`)."""
+    counts, occupancy, ll, _ = _e_step(lay, vals, prune)
+    return counts, occupancy, ll
+
+
+def _e_step(lay: Layout, vals, prune: float):
+    """:func:`e_step`, and the filtered distributions ``alpha`` of its forward pass."""
     tables = lay.tables
     alpha, log_c = clone_forward(tables, vals, prune)
     counts = np.zeros(vals.size)
     occupancy = np.zeros(lay.n_clones)
     clone_backward_counts(tables, vals, alpha, log_c, counts, occupancy)
-    return counts, occupancy, float(log_c.sum())
+    return counts, occupancy, float(log_c.sum()), alpha
 
 
 def baum_welch(lay: Layout, counts, pseudocount: float, joint: bool, *, max_iter: int,
-               tol: float, min_iter: int = 10, prune: float = 0.0):
+               tol: float, min_iter: int = 10, prune: float = 0.0, settle: float = 0.0):
     """Baum-Welch from ``counts`` until the log-likelihood gains less than ``tol`` nats per step
     (checked from iteration ``min_iter`` on: from a random start the first iterations barely move)
-    or ``max_iter`` iterations.
+    or ``max_iter`` iterations; with ``settle`` > 0 also once the decoded path has settled
+    (:class:`SettledPath`, judged from iteration ``min_iter`` on too).
 
     Returns ``(counts, occupancy, history)``: the last expected counts (whose M-step is the fitted
     model), the clone occupancy and the log-likelihood of every iteration.
     """
     monitor = ConvergenceMonitor(tol * lay.sym.size, max_iter, min_iter=min_iter)
+    path = SettledPath(lay.pos, settle) if settle > 0 else None
     occupancy = np.zeros(lay.n_clones)
-    while not monitor.converged:
-        counts, occupancy, ll = e_step(lay, m_step(lay, counts, pseudocount, joint), prune)
+    while not (monitor.converged or path is not None and monitor.iter > min_iter and path.settled):
+        counts, occupancy, ll, alpha = _e_step(lay, m_step(lay, counts, pseudocount, joint),
+                                               prune)
         monitor.report(ll)
+        if path is not None:
+            path.report(alpha)
         report("EM", len(monitor.history), max_iter)
     report("EM", len(monitor.history), len(monitor.history))  # converged: the loop ends here
     return counts, occupancy, monitor.history
+
+
+@njit(cache=True)
+def step_argmax(alpha, pos):
+    """(T,) the most probable clone (local index, the first of ties) of every step's vector
+    ``alpha[pos[t]:pos[t + 1]]``."""
+    T = pos.size - 1
+    out = np.empty(T, dtype=np.int64)
+    for t in range(T):
+        best, arg = -1.0, 0
+        for j in range(pos[t + 1] - pos[t]):
+            if alpha[pos[t] + j] > best:
+                best, arg = alpha[pos[t] + j], j
+        out[t] = arg
+    return out
+
+
+class SettledPath:
+    """EM's decoded path -- the most probable clone of every step given the steps so far (the
+    forward pass's filtered distributions, :func:`step_argmax`) -- followed over its E-steps.
+
+    It has *settled* once it changed on fewer than ``share`` of the steps at ``SETTLE_ITER``
+    E-steps in a row: what EM gains after that is its slow tail (mass moving between clones the
+    path hardly uses), which the rounds' Viterbi training, merges and splits finish faster.
+
+    Attributes
+    ----------
+    changed : list -- the steps whose decoded clone changed, at every E-step after the first
+    """
+
+    def __init__(self, pos, share: float):
+        self.pos, self.share = pos, share
+        self.changed, self._last = [], None
+
+    def report(self, alpha) -> None:
+        """Record the filtered distributions ``alpha`` of one more E-step."""
+        now = step_argmax(alpha, self.pos)
+        if self._last is not None:
+            self.changed.append(int(np.count_nonzero(now != self._last)))
+        self._last = now
+
+    @property
+    def settled(self) -> bool:
+        """Whether the path changed on fewer than ``share`` of the steps at each of the last
+        ``SETTLE_ITER`` E-steps."""
+        calm = [c < self.share * self._last.size for c in self.changed[-SETTLE_ITER:]]
+        return len(calm) == SETTLE_ITER and all(calm)
+
+
+#: the E-steps in a row a :class:`SettledPath` must change little at to have settled
+SETTLE_ITER = 3
 
 
 def decode(lay: Layout, counts, pseudocount: float, joint: bool):
@@ -207,16 +270,17 @@ def viterbi_training(lay: Layout, counts, joint: bool, *, pseudocount: float = 0
 
 
 def fit_clones(lay: Layout, init, pseudocount: float, *, max_iter: int, tol: float,
-               prune: float = 0.0, joint: bool = False):
-    """Baum-Welch from the counts ``init`` (:func:`baum_welch`), then Viterbi training without
-    pseudocount (:func:`viterbi_training`); the clones the final path uses become the states.
+               prune: float = 0.0, joint: bool = False, settle: float = 0.0):
+    """Baum-Welch from the counts ``init`` (:func:`baum_welch`, ``settle`` as there), then Viterbi
+    training without pseudocount (:func:`viterbi_training`); the clones the final path uses
+    become the states.
 
     Returns ``(labels, state_symbol, em_history, viterbi_history)``: the state of every step
     (numbered by first use), the symbol of every state, and the log-likelihoods of Baum-Welch's
     iterations and of the Viterbi paths.
     """
     counts, _, em_history = baum_welch(lay, init, pseudocount, joint, max_iter=max_iter, tol=tol,
-                                       prune=prune)
+                                       prune=prune, settle=settle)
     path, _, viterbi_history = viterbi_training(lay, counts, joint)
     labels, state_symbol, _ = compact_labels(path, lay.clone_symbol)
     return labels, state_symbol, em_history, viterbi_history

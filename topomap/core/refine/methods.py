@@ -68,12 +68,17 @@ class EMRefinement(CloneRefinement):
     (``row_prior / S`` per entry for ``S`` clones, so the prior does not grow with the clone count:
     CSCG's fixed 2e-3 per entry weighs 6 counts per row at 3,000 clones and folds FourRooms'
     congruent rooms onto each other), stopped after ``max_iter`` iterations or when it gains less
-    than ``tol`` nats per step (the structure moves, not EM's slow tail, finish the job);
+    than ``tol`` nats per step (the structure moves, not EM's slow tail, finish the job), and with
+    ``settle`` > 0 (default 0: off) also once its decoded path has settled: every step's most
+    probable clone changed on fewer than a ``settle`` share of the steps at three E-steps in a
+    row (:class:`~topomap.core.refine.clones.SettledPath`; from the 11th iteration on).  That
+    saves E-steps but not always the map: the slow tail also moves the mass of one place's
+    duplicate clones onto one, and cut short it can leave duplicates the merges do not join.
     ``prune`` drops filtered probabilities below it
-    (:func:`topomap.core.refine.kernels.clone_forward`).  ``merge_threshold`` is the G-test
-    threshold of merging bisimilar states (negative: never merge; 6.63 = chi-square(1) at 1 %) and
-    ``split_z`` the normal score of splitting compound states (``inf``: never split; 3.09:
-    p = 0.001).
+    (:func:`topomap.core.refine.kernels.clone_forward`).
+    ``merge_threshold`` is the G-test threshold of merging bisimilar states (negative: never
+    merge; 6.63 = chi-square(1) at 1 %) and ``split_z`` the normal score of splitting compound
+    states (``inf``: never split; 3.09: p = 0.001).
 
     ``budget`` sizes the first stage's clones (:data:`topomap.core.refine.budget.BUDGETS`):
     ``"evidence"`` (default) gives a view at least as many clones as the data's lower bound on the
@@ -97,9 +102,10 @@ class EMRefinement(CloneRefinement):
 
     def __init__(self, *, clone_factor: int = 2, prefix: int = 2000, prefix_visits: int = 40,
                  max_rounds: int = 8, row_prior: float = 0.5, tol: float = 1e-6,
-                 max_iter: int = 50, prune: float = 1e-4, merge_threshold: float = 6.63,
-                 split_z: float = 3.09, spare: int = 2, init_noise: float = 1.0,
-                 guard: bool = True, budget: str = "evidence", evidence: str = "auto",
+                 max_iter: int = 50, settle: float = 0.0, prune: float = 1e-4,
+                 merge_threshold: float = 6.63, split_z: float = 3.09, spare: int = 2,
+                 init_noise: float = 1.0, guard: bool = True, budget: str = "evidence",
+                 evidence: str = "auto",
                  soft: SoftSettings | Mapping = SoftSettings()):
         self.clone_factor = clone_factor
         self.prefix = prefix
@@ -108,6 +114,7 @@ class EMRefinement(CloneRefinement):
         self.row_prior = row_prior
         self.tol = tol
         self.max_iter = max_iter
+        self.settle = settle
         self.prune = prune
         self.merge_threshold = merge_threshold
         self.split_z = split_z
@@ -125,6 +132,7 @@ class EMRefinement(CloneRefinement):
             check_count(getattr(self, param), param, minimum=0)
         _check(self.row_prior > 0, "row_prior", self.row_prior, "> 0")
         _check(self.tol >= 0, "tol", self.tol, ">= 0")
+        _check(0 <= self.settle <= 1, "settle", self.settle, "in [0, 1]")
         _check(0 <= self.prune < 1, "prune", self.prune, "in [0, 1)")
         _check(self.budget in BUDGETS, "budget", self.budget, f"one of {', '.join(BUDGETS)}")
         super().check_params()
@@ -132,10 +140,11 @@ class EMRefinement(CloneRefinement):
     def provenance(self) -> str:
         """The text map.json stores as ``info["refine"]``: the refinement and its settings in the
         file's fixed form -- the EM round's knobs grouped as ``settings=EMSettings(...)`` (a
-        label of the file format, not a class), ``budget``, ``evidence`` and ``soft`` only when
-        changed from their defaults."""
+        label of the file format, not a class), ``budget``, ``settle``, ``evidence`` and ``soft``
+        only when changed from their defaults."""
         rounds = ", ".join(f"{k}={getattr(self, k)!r}" for k in _EM_ROUND)
         changed = "" if self.budget == "evidence" else f"budget={self.budget!r}, "
+        changed += f"settle={self.settle!r}, " if self.settle else ""
         changed += "" if self.evidence == "auto" else f"evidence={self.evidence!r}, "
         soft = self._provenance_soft()
         changed += f"{soft}, " if soft else ""
@@ -228,7 +237,7 @@ class EMRefinement(CloneRefinement):
         labels, state_symbol, em_history, _ = fit_clones(
             lay, init, self.row_prior / lay.n_clones,
             max_iter=self.max_iter if max_iter is None else max_iter, tol=self.tol,
-            prune=self.prune)
+            prune=self.prune, settle=self.settle)
         return labels, state_symbol, len(em_history)
 
     def _restructure(self, seq: SymbolSequence, labels, state_symbol):
