@@ -37,6 +37,8 @@ __all__ = [
     "m_step",
     "e_step",
     "baum_welch",
+    "SettledPath",
+    "step_argmax",
     "viterbi_training",
     "fit_clones",
     "decode",
@@ -210,8 +212,9 @@ class SettledPath:
     forward pass's filtered distributions, :func:`step_argmax`) -- followed over its E-steps.
 
     It has *settled* once it changed on fewer than ``share`` of the steps at ``SETTLE_ITER``
-    E-steps in a row: what EM gains after that is its slow tail (mass moving between clones the
-    path hardly uses), which the rounds' Viterbi training, merges and splits finish faster.
+    E-steps in a row: what EM does after that is its slow tail, mass moving between clones --
+    which also joins the duplicate clones of one place, so a round stopped there may leave
+    duplicates its merges do not join (:class:`~topomap.core.refine.methods.EMRefinement`).
 
     Attributes
     ----------
