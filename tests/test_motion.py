@@ -248,6 +248,42 @@ def test_the_places_are_not_checked_where_the_middle_gate_told_no_view_apart():
                            {"view_clusters": 8, "copies": [16]})
 
 
+def test_view_purity_counts_the_steps_in_their_places_view_cluster():
+    from topomap.core.motion.check import view_purity
+
+    # place 0: views 0, 0, 1 -> its view cluster is 0, its third step is not in it; place 1:
+    # views 1, 1 -> both in it; place 2: view 2 -> in it.  5 of 6 steps
+    assert view_purity([0, 0, 0, 1, 1, 2], [0, 0, 1, 1, 1, 2]) == pytest.approx(5 / 6)
+    # one place over three views, two steps in view 0: half the steps (the other way round,
+    # every view cluster lies within one place, but the places cut across the views)
+    assert view_purity([0, 0, 0, 0], [0, 0, 1, 2]) == pytest.approx(0.5)
+    # places that are the view clusters, renumbered: every step
+    assert view_purity([2, 2, 0, 1], [0, 0, 1, 2]) == 1.0
+    # one place across two views seen equally often: half the steps
+    assert view_purity([0, 0, 0, 0], [3, 3, 1, 1]) == pytest.approx(0.5)
+
+
+def test_places_that_cut_across_the_views_give_way_to_the_view_clusters():
+    from topomap.core.motion.check import view_purity
+    from topomap.core.motion.places import view_clusters
+
+    Z, u, _ = _alike_halves(2000)
+    places = MapLearner(n_clusters=4, n_states=8, random_state=0,
+                        motion=MotionSettings(holdout=0)).fit(Z, u)
+    assert places.motion_info_["chosen"] == "places"
+    purity = view_purity(places.labels_, view_clusters(Z, 8, n_init=4, random_state=0))
+    assert 0 < purity < 1
+    below = MapLearner(n_clusters=4, n_states=8, random_state=0,
+                       motion=MotionSettings(holdout=0.25, min_purity=purity - 1e-6)).fit(Z, u)
+    assert below.motion_info_.get("check") != "the places cut across the view clusters"
+    above = MapLearner(n_clusters=4, n_states=8, random_state=0,
+                       motion=MotionSettings(holdout=0.25, min_purity=purity + 1e-6)).fit(Z, u)
+    info = above.motion_info_
+    assert info["chosen"] == "views" and info["check"] == "the places cut across the view clusters"
+    assert info["purity"] == round(purity, 4)
+    assert _same_partition(above.labels_, view_clusters(Z, 8, n_init=4, random_state=0))
+
+
 def test_view_clusters_are_numbered_by_first_appearance():
     from topomap.core.motion.places import view_clusters
 
@@ -468,6 +504,7 @@ def test_discrete_worlds_keep_the_map_of_the_split():
     ({"confidence": -1.0}, r"^motion\.confidence must be a number >= 0"),
     ({"confidence": float("nan")}, r"^motion\.confidence must be a number >= 0"),
     ({"block_runs": 0}, r"^motion\.block_runs must be a positive number"),
+    ({"min_purity": 1.0}, r"^motion\.min_purity must be a number in \[0, 1\)"),
 ])
 def test_bad_motion_is_named(motion, message):
     Z, u, _ = _alike_halves(500)

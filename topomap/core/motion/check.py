@@ -42,7 +42,7 @@ from .settings import MotionSettings
 
 __all__ = ["held_out_frame", "frame_error", "misplaced_rows", "misplaced_steps", "misplaced_share",
            "keeps_places", "outvoted", "pooled_shares", "gain_blocks", "gain_noise", "clears_noise",
-           "tells_apart", "choose_places"]
+           "tells_apart", "view_purity", "choose_places"]
 
 
 def held_out_frame(settings: MotionSettings, part: Places, Z, u, lengths, cut: int):
@@ -112,6 +112,17 @@ def tells_apart(settings: MotionSettings, info: dict) -> bool:
     between pillars)."""
     copies = info["copies"][len(settings.gates) // 2]
     return copies > settings.min_copies * info["view_clusters"]
+
+
+def view_purity(places, views) -> float:
+    """The share of steps whose place's view cluster -- the one most of the place's steps have
+    -- is their own (``places``, ``views``: (T,) labels): 1 where every
+    place lies within one view cluster, low where the places cut across the views, the odometry
+    and not the view deciding where a step belongs."""
+    places, views = np.asarray(places, dtype=np.int64), np.asarray(views, dtype=np.int64)
+    table = np.zeros((int(places.max()) + 1, int(views.max()) + 1), dtype=np.int64)
+    np.add.at(table, (places, views), 1)
+    return float(np.mean(table.argmax(axis=1)[places] == views))
 
 
 def pooled_shares(folds: list) -> dict:
@@ -207,6 +218,10 @@ def choose_places(settings: MotionSettings, X, Z, u, lengths, n_states: int, n_a
     if not tells_apart(settings, info):
         return whole.views, dict(info, chosen="views",
                                   check="the middle gate kept one copy per view cluster")
+    purity = view_purity(whole.places, whole.views)
+    if purity < settings.min_purity:
+        return whole.views, dict(info, chosen="views", purity=round(purity, 4),
+                                  check="the places cut across the view clusters")
     step = int(round(T * settings.holdout))
     block = max(1, int(round(settings.block_runs * info["mean_run"])))
     folds = []

@@ -60,6 +60,11 @@ class MotionSettings:
     they are also, unchecked, where the middle gate's filter kept no more than ``min_copies``
     copies per view cluster (:func:`topomap.core.motion.check.tells_apart`: the odometry told
     no sighting of a view from another, and the places could only follow its drift).
+    They are also, unchecked, where fewer than ``min_purity`` of the steps lie in their place's
+    view cluster (:func:`topomap.core.motion.check.view_purity`: the places cut across the views,
+    the odometry alone deciding where a step belongs; with boundary-vector cells on
+    ``three_rooms`` and ``pillars`` such places were as often worse than the views as better;
+    0: never).
     ``holdout=0`` (or a held-out part under 100 steps) keeps the places unchecked.
 
     ``n_init``: the k-means++ starts of the view clusters (scikit-learn's ``KMeans`` on every
@@ -89,6 +94,7 @@ class MotionSettings:
     min_copies: float = 1.0
     confidence: float = 0.0
     block_runs: float = 50.0
+    min_purity: float = 0.2
 
 
 def motion_settings(value) -> MotionSettings:
@@ -124,7 +130,7 @@ def motion_settings(value) -> MotionSettings:
         if not _positive(getattr(value, name)):
             raise ParameterError(f"motion.{name}", f"must be a positive number, "
                                                    f"got {getattr(value, name)!r}")
-    for name in ("holdout", "min_gain"):
+    for name in ("holdout", "min_gain", "min_purity"):
         v = getattr(value, name)
         if not (isinstance(v, numbers.Real) and not isinstance(v, bool) and 0 <= v < 1):
             raise ParameterError(f"motion.{name}", f"must be a number in [0, 1), got {v!r}")
