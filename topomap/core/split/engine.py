@@ -28,6 +28,7 @@ paper's bottom-up merge, is shared by the entropy criterion and the refinement.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import partial
 
 import numpy as np
 from numba import njit
@@ -57,9 +58,10 @@ class _XlogxTable:
         self.values = xlogx(np.arange(1024))
 
     def upto(self, top: int) -> np.ndarray:
-        if top >= self.values.size:
-            self.values = xlogx(np.arange(max(top + 1, 2 * self.values.size)))
-        return self.values
+        values = self.values  # read once: another thread may grow the table meanwhile
+        if top >= values.size:
+            values = self.values = xlogx(np.arange(max(top + 1, 2 * values.size)))
+        return values
 
 
 _TABLE = _XlogxTable()
@@ -336,8 +338,13 @@ class Splitter:
         return self.engine.labels
 
     def best(self) -> Proposal | None:
-        for q in self._dirty:
-            self._cache[q] = self.engine.propose(q, self.criterion) if self.gds[q] < 0 else None
+        dirty = sorted(q for q in self._dirty if self.gds[q] < 0)
+        propose = partial(self.engine.propose, criterion=self.criterion)
+        # a criterion that says it is thread-safe is asked about several states at once
+        found = (in_threads(propose, dirty) if getattr(self.criterion, "thread_safe", False)
+                 else [propose(q) for q in dirty])
+        self._cache.update(dict.fromkeys(self._dirty))
+        self._cache.update(zip(dirty, found))
         self._dirty = set()
         candidates = [p for p in self._cache.values() if p is not None]
         if not candidates:
