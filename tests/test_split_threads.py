@@ -150,6 +150,11 @@ def test_proposals_on_threads_equal_those_asked_one_by_one(n_threads):
                       obs_entropy=np.zeros(S), criterion=criterion)
         records = []
         while len(records) < 8 and (best := sp.best()) is not None:
+            # the best of every state's proposal, each asked directly
+            asked = [sp.engine.propose(q, criterion) for q in range(sp.n_states)]
+            top = max((p for p in asked if p is not None), key=lambda p: (p.score, -p.state))
+            assert (best.state, best.score) == (top.state, top.score)
+            assert np.array_equal(best.side, top.side)
             records.append(sp.apply(best))
         runs.append((records, sp.labels.copy()))
     assert len(runs[0][0]) == 8
