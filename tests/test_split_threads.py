@@ -75,8 +75,8 @@ def test_touched_codes_in_pieces_by_hand(n_threads):
     # pieces of one step each cut between every neighbour
     x, u, A = np.array([0, 1, 3, 3, 2]), np.array([1, 0, 1, 0, 1]), 2
     has_prev, has_next = np.arange(5) > 0, np.arange(5) < 4
-    out, ins, starts, near = touched_codes(np.array([2, 3]), has_prev, has_next,
-                                           has_prev & has_next, x, u, A, np.int64(32), 1, 3, 1)
+    out, ins, starts, near = touched_codes(np.array([2, 3]), has_prev, has_next, has_prev & has_next,
+                                           x, u, A, np.int64(32), 1, 3, chunk=1)
     assert out.shape == (4, 0)
     assert ins.tolist() == [[(1 << 32) | 2, (2 << 32) | 3, (3 << 32) | 4],
                             [(1 << 32) | 6, (2 << 32) | 7, (7 << 32) | 4], [0, 1, 1]]
@@ -96,10 +96,10 @@ def test_touched_codes_in_pieces_equals_one_pass(seed, n_threads):
     x = x.copy()
     x[moved] = S  # the new state
     args = (moved, has_prev, has_next, has_prev & has_next, x, u, A, np.int64(32), 0, S)
-    whole = touched_codes(*args, WHOLE)
+    whole = touched_codes(*args, chunk=WHOLE)
     assert whole[0].shape[1] > 0 and whole[1].shape[1] > 0 and whole[2].shape[1] > 0
     for chunk in (1, 2, 3, 7):
-        for a, b in zip(touched_codes(*args, chunk), whole):
+        for a, b in zip(touched_codes(*args, chunk=chunk), whole):
             assert np.array_equal(a, b)
 
 

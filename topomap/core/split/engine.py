@@ -169,10 +169,7 @@ class SplitEngine:
         self.S, self.A = int(n_states), int(n_actions)
         self.has_prev, self.has_next = has_prev, has_next
         self.centre = has_prev & has_next
-        # each state's steps in an array of its own (views of one array would keep all of it
-        # alive as states split), as int32 while every step index fits
-        like = np.empty(0, dtype=np.int32 if self.labels.size < 2**31 else np.int64)
-        self.members = list(members_of(self.labels, self.S, like))
+        # every state's instance table from one pass in step order (pairs as int32 when they fit)
         size = (self.S + 1) * self.A
         bits = size.bit_length()
         pairs = np.empty(int(np.count_nonzero(self.centre)),
@@ -180,7 +177,11 @@ class SplitEngine:
         bounds = centre_pairs(self.labels, self.u, self.centre, self.S, self.A, bits, pairs)
         self.tables = in_threads(lambda s: tally_pairs(pairs[bounds[s]:bounds[s + 1]], bits, size),
                                  range(self.S))
-        del pairs
+        del pairs  # before the steps are sorted by state: the two never take memory at once
+        # each state's steps in an array of its own (views of one array would keep all of it
+        # alive as states split), as int32 while every step index fits
+        like = np.empty(0, dtype=np.int32 if self.labels.size < 2**31 else np.int64)
+        self.members = list(members_of(self.labels, self.S, like))
         self.state_counts = np.array([m.size for m in self.members], dtype=np.int64)
         self.action_counts = action_table(self.labels, self.u, self.S, self.A)
         self.transitions = transition_table(self.labels, self.u, np.asarray(has_next, dtype=bool),

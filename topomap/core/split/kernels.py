@@ -257,10 +257,10 @@ def _code_pair(x, u, t, A, shift, centred, q, new):
 
 
 @njit(cache=True, nogil=True)
-def _centre_codes(c, centre, x, u, A, shift, q, new):
-    """The centre rows of :func:`touched_codes` for the sorted steps ``c``, and ``near``."""
-    near = np.zeros(new + 1, dtype=np.bool_)
-    out, ins = np.empty((4, c.size), dtype=np.int64), np.empty((3, c.size), dtype=np.int64)
+def _centre_codes(c, centre, x, u, A, shift, q, new, rows, near):
+    """The centre rows of :func:`touched_codes` for the sorted steps ``c``, written into
+    ``rows`` (7, c.size): those outside ``q`` and ``new`` into rows 0-3, those inside into rows
+    4-6, each from column 0 on; ``near`` marked.  Returns how many of each."""
     n_out = n_in = 0
     for t in c:
         s = x[t]
@@ -269,24 +269,36 @@ def _centre_codes(c, centre, x, u, A, shift, q, new):
             continue
         b, a = _code_pair(x, u, t, A, shift, True, q, new)
         if s == q or s == new:
-            ins[0, n_in], ins[1, n_in], ins[2, n_in] = b, a, s == new
+            rows[4, n_in], rows[5, n_in], rows[6, n_in] = b, a, s == new
             n_in += 1
         else:
-            out[0, n_out], out[1, n_out], out[2, n_out], out[3, n_out] = t, s, b, a
+            rows[0, n_out], rows[1, n_out], rows[2, n_out], rows[3, n_out] = t, s, b, a
             n_out += 1
-    return out[:, :n_out].copy(), ins[:, :n_in].copy(), near
+    return n_out, n_in
 
 
 @njit(cache=True, nogil=True)
-def _start_codes(starts, has_next, x, u, A, shift, q, new):
-    """The transition rows of :func:`touched_codes` for the sorted steps ``starts``."""
-    trans = np.empty((2, starts.size), dtype=np.int64)
+def _start_codes(starts, has_next, x, u, A, shift, q, new, trans):
+    """The transition rows of :func:`touched_codes` for the sorted steps ``starts``, written
+    into ``trans`` (2, starts.size) from column 0 on; how many."""
     n = 0
     for t in starts:
         if has_next[t]:
             trans[0, n], trans[1, n] = _code_pair(x, u, t, A, shift, False, q, new)
             n += 1
-    return trans[:, :n].copy()
+    return n
+
+
+@njit(cache=True)
+def _close_up(rows, first, kept):
+    """Move the ``kept[k]`` columns of ``rows`` written from column ``first[k]`` on next to
+    those before them, in order; a copy of the columns kept."""
+    n = 0
+    for k in range(first.size):
+        if n != first[k]:
+            rows[:, n:n + kept[k]] = rows[:, first[k]:first[k] + kept[k]].copy()
+        n += kept[k]
+    return rows[:, :n].copy()
 
 
 @njit(cache=True, nogil=True)
@@ -298,7 +310,7 @@ def _around(moved, has_prev, has_next):
             sorted_union(_shifted(moved, has_next, 0), before))
 
 
-def touched_codes(moved, has_prev, has_next, centre, x, u, A, shift, q, new, chunk=CHUNK):
+def touched_codes(moved, has_prev, has_next, centre, x, u, A, shift, q, new, *, chunk=CHUNK):
     """What a split of ``q`` changed around the sorted steps ``moved`` (labels ``x`` already
     moved to ``new``), in passes over their neighbours (pieces of ``chunk`` steps on threads).
 
@@ -311,23 +323,24 @@ def touched_codes(moved, has_prev, has_next, centre, x, u, A, shift, q, new, chu
     """
     c, starts = _around(moved, has_prev, has_next)
     cut, cut_starts = pieces(c.size, chunk), pieces(starts.size, chunk)
-    jobs = [(True, p) for p in cut] + [(False, p) for p in cut_starts]
-    done = in_threads(lambda job: _centre_codes(c[job[1]], centre, x, u, A, shift, q, new)
-                      if job[0] else _start_codes(starts[job[1]], has_next, x, u, A, shift, q, new),
-                      jobs)
-    rows, trans = done[:len(cut)], done[len(cut):]
-    near = np.zeros(new + 1, dtype=bool)
-    for _, _, n in rows:
-        near |= n
-    return (_joined([r[0] for r in rows], 4), _joined([r[1] for r in rows], 3),
-            _joined(trans, 2), near)
+    # every piece writes into its own columns of arrays made here (no large arrays made on the
+    # threads, whose memory the allocator would keep apart)
+    rows, trans = np.empty((7, c.size), dtype=np.int64), np.empty((2, starts.size), dtype=np.int64)
+    near = np.zeros((len(cut), new + 1), dtype=bool)
 
+    def run(job):
+        k, p = job
+        if k < 0:
+            return _start_codes(starts[p], has_next, x, u, A, shift, q, new, trans[:, p])
+        return _centre_codes(c[p], centre, x, u, A, shift, q, new, rows[:, p], near[k])
 
-def _joined(blocks, n_rows):
-    """Row blocks side by side (an empty (n_rows, 0) array for none)."""
-    if not blocks:
-        return np.empty((n_rows, 0), dtype=np.int64)
-    return blocks[0] if len(blocks) == 1 else np.concatenate(blocks, axis=1)
+    done = in_threads(run, list(enumerate(cut)) + [(-1, p) for p in cut_starts])
+    first = np.array([p.start for p in cut], dtype=np.int64)
+    kept = np.array(done[:len(cut)], dtype=np.int64).reshape(-1, 2)
+    return (_close_up(rows[:4], first, kept[:, 0]), _close_up(rows[4:], first, kept[:, 1]),
+            _close_up(trans, np.array([p.start for p in cut_starts], dtype=np.int64),
+                      np.array(done[len(cut):], dtype=np.int64)),
+            near.any(axis=0))
 
 
 @njit(cache=True)
