@@ -6,11 +6,10 @@ import numpy as np
 import pytest
 
 from topomap.core.split import threads
-from topomap.core.split.criteria import EntropyCriterion
-from topomap.core.split.engine import Splitter, _XlogxTable, members_of
+from topomap.core.split.engine import members_of
 from topomap.core.split.kernels import (_tally, centre_pairs, follow_keys, instance_table,
                                         tally_pairs, touched_codes)
-from topomap.core.stats import episode_masks, xlogx
+from topomap.core.stats import episode_masks
 
 WHOLE = 1 << 40  # one piece: the pass over everything
 
@@ -136,32 +135,3 @@ def test_centre_pairs_by_hand():
     bounds = centre_pairs(x, u, centre, 2, 2, 3, pairs)
     # state 0: t = 2 (key 2, column 3) and t = 4 (key 2, column 3); state 1: t = 1 (key 1, 0)
     assert bounds.tolist() == [0, 2, 3] and pairs.tolist() == [2 << 3 | 3, 2 << 3 | 3, 1 << 3]
-
-
-class _Serial(EntropyCriterion):
-    thread_safe = False
-
-
-def test_proposals_on_threads_equal_those_asked_one_by_one(n_threads):
-    x, u, S, A, has_prev, has_next = _walk(0, T=3000, S=4)
-    runs = []
-    for criterion in (EntropyCriterion(), _Serial()):
-        sp = Splitter(x, u, A, has_prev, has_next, symbol=list(range(S)), gds=[-1] * S,
-                      obs_entropy=np.zeros(S), criterion=criterion)
-        records = []
-        while len(records) < 8 and (best := sp.best()) is not None:
-            # the best of every state's proposal, each asked directly
-            asked = [sp.engine.propose(q, criterion) for q in range(sp.n_states)]
-            top = max((p for p in asked if p is not None), key=lambda p: (p.score, -p.state))
-            assert (best.state, best.score) == (top.state, top.score)
-            assert np.array_equal(best.side, top.side)
-            records.append(sp.apply(best))
-        runs.append((records, sp.labels.copy()))
-    assert len(runs[0][0]) == 8
-    assert runs[0][0] == runs[1][0] and np.array_equal(runs[0][1], runs[1][1])
-
-
-def test_xlogx_table_grows_to_what_is_asked():
-    table = _XlogxTable()
-    assert table.upto(5000).size > 5000 and table.upto(10).size > 5000
-    assert np.array_equal(table.upto(3000)[:3001], xlogx(np.arange(3001)))

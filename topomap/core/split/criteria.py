@@ -25,9 +25,6 @@ class EntropyCriterion:
     """
 
     name = "entropy"
-    #: ``propose`` keeps no state and spends its time in compiled code that releases the GIL:
-    #: the splitter may ask about several states at once, on threads
-    thread_safe = True
 
     def propose(self, counts: np.ndarray):
         """Return ``(side, gain)`` -- ``side[g]`` is True for the groups of the second half -- or

@@ -28,7 +28,6 @@ paper's bottom-up merge, is shared by the entropy criterion and the refinement.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import partial
 
 import numpy as np
 from numba import njit
@@ -36,7 +35,6 @@ from numba import njit
 from .kernels import (action_table, centre_pairs, follow_keys, merge_tallies, split_table,
                       tally_codes, tally_pairs, touched_codes, transition_table)
 from .merge_kernels import count_matrix_kernel, gain_kernel, merge_groups_kernel
-from .threads import in_threads
 from ..stats import conditional_entropy, sparse_conditional_entropy, xlogx
 
 __all__ = ["merge_groups", "entropy_gain", "Proposal", "SplitEngine", "Splitter"]
@@ -58,10 +56,9 @@ class _XlogxTable:
         self.values = xlogx(np.arange(1024))
 
     def upto(self, top: int) -> np.ndarray:
-        values = self.values  # read once: another thread may grow the table meanwhile
-        if top >= values.size:
-            values = self.values = xlogx(np.arange(max(top + 1, 2 * values.size)))
-        return values
+        if top >= self.values.size:
+            self.values = xlogx(np.arange(max(top + 1, 2 * self.values.size)))
+        return self.values
 
 
 _TABLE = _XlogxTable()
@@ -175,8 +172,8 @@ class SplitEngine:
         pairs = np.empty(int(np.count_nonzero(self.centre)),
                          dtype=np.int32 if 2 * bits < 32 else np.int64)
         bounds = centre_pairs(self.labels, self.u, self.centre, self.S, self.A, bits, pairs)
-        self.tables = in_threads(lambda s: tally_pairs(pairs[bounds[s]:bounds[s + 1]], bits, size),
-                                 range(self.S))
+        self.tables = [tally_pairs(pairs[bounds[s]:bounds[s + 1]], bits, size)
+                       for s in range(self.S)]
         del pairs  # before the steps are sorted by state: the two never take memory at once
         # each state's steps in an array of its own (views of one array would keep all of it
         # alive as states split), as int32 while every step index fits
@@ -339,13 +336,8 @@ class Splitter:
         return self.engine.labels
 
     def best(self) -> Proposal | None:
-        dirty = sorted(q for q in self._dirty if self.gds[q] < 0)
-        propose = partial(self.engine.propose, criterion=self.criterion)
-        # a criterion that says it is thread-safe is asked about several states at once
-        found = (in_threads(propose, dirty) if getattr(self.criterion, "thread_safe", False)
-                 else [propose(q) for q in dirty])
-        self._cache.update(dict.fromkeys(self._dirty))
-        self._cache.update(zip(dirty, found))
+        for q in self._dirty:
+            self._cache[q] = self.engine.propose(q, self.criterion) if self.gds[q] < 0 else None
         self._dirty = set()
         candidates = [p for p in self._cache.values() if p is not None]
         if not candidates:

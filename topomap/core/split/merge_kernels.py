@@ -12,13 +12,13 @@ from ..sums import pairwise_sum
 __all__ = ["merge_groups_kernel", "gain_kernel", "count_matrix_kernel"]
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True)
 def _round(x, scale):
     """``np.round(x, decimals)`` for ``scale = 10.0 ** decimals``."""
     return np.rint(x * scale) / scale
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True)
 def _merged_sum(work, table, a, b, buf):
     """``table[work[a] + work[b]].sum()`` in numpy's order."""
     K = work.shape[1]
@@ -27,7 +27,7 @@ def _merged_sum(work, table, a, b, buf):
     return 0.0 + pairwise_sum(buf, 0, K)
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True)
 def _row_weight(work, table, n, a, buf):
     """``W[a] = table[n[a]] - table[work[a]].sum()``."""
     K = work.shape[1]
@@ -36,7 +36,7 @@ def _row_weight(work, table, n, a, buf):
     return table[n[a]] - (0.0 + pairwise_sum(buf, 0, K))
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True)
 def _initial_costs(work, table, n, W, scale, buf):
     """Upper triangle ``cost[a, b] = round(table[n_a + n_b] - s_ab - W_a - W_b)``, inf elsewhere."""
     G = work.shape[0]
@@ -48,7 +48,7 @@ def _initial_costs(work, table, n, W, scale, buf):
     return cost
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True)
 def _row_min(cost, i, rmin, rarg):
     """First smallest entry of row ``i`` right of the diagonal (-1 when all are inf)."""
     rmin[i], rarg[i] = np.inf, -1
@@ -57,7 +57,7 @@ def _row_min(cost, i, rmin, rarg):
             rmin[i], rarg[i] = cost[i, j], j
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True)
 def _argmin(rmin, rarg):
     """Row-major index of the first smallest cost (``np.argmin`` of the flattened matrix): the
     first row holding the smallest row minimum, at that row's first minimum."""
@@ -68,7 +68,7 @@ def _argmin(rmin, rarg):
     return ba, bb
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True)
 def _refresh_minima(cost, rmin, rarg, a, b):
     """Row minima after merging ``b`` into ``a``: row ``b`` and column ``b`` are now inf, row
     ``a`` and column ``a`` hold new costs; other entries are unchanged."""
@@ -83,7 +83,7 @@ def _refresh_minima(cost, rmin, rarg, a, b):
             rmin[i], rarg[i] = cost[i, a], a
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True)
 def _merge_pair(work, table, n, W, owner, cost, a, b, scale, buf):
     """Merge row ``b`` into row ``a`` and refresh row/column ``a`` of the cost matrix."""
     G = work.shape[0]
@@ -111,7 +111,7 @@ def _merge_pair(work, table, n, W, owner, cost, a, b, scale, buf):
             cost[j, a] = value
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True)
 def merge_groups_kernel(counts, table, decimals):
     """Bottom-up merge of the rows of ``counts`` (int64, G >= 2) into two clusters.
 
@@ -140,7 +140,7 @@ def merge_groups_kernel(counts, table, decimals):
     return owner != owner[0]
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True)
 def _weighted_entropy(row, table, buf):
     """``weighted_entropy`` of one row of counts: ``xlogx(row.sum()) - xlogx(row).sum()``."""
     n = 0
@@ -150,7 +150,7 @@ def _weighted_entropy(row, table, buf):
     return table[n] - (0.0 + pairwise_sum(buf, 0, row.size))
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True)
 def gain_kernel(counts, side, table):
     """The entropy gain of cutting the rows of ``counts`` into ``side`` False and True, as
     :class:`~topomap.core.split.criteria.EntropyCriterion` writes it in numpy: ``(n H(I) -
@@ -169,7 +169,7 @@ def gain_kernel(counts, side, table):
     return (whole - (0.0 + pairwise_sum(parts, 0, 2))) / (halves[0].sum() + halves[1].sum())
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True)
 def _ranks(values, size):
     """The sorted distinct entries of ``values`` (ints in ``[0, size)``) and each entry's rank
     among them (by a presence mask, or by sorting when ``values`` are few next to ``size``)."""
@@ -184,7 +184,7 @@ def _ranks(values, size):
     return distinct, rank[values]
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True)
 def count_matrix_kernel(codes, counts, size):
     """``(matrix, keys, cols)`` of a sorted instance table (codes ``key << 32 | column``, keys
     and columns below ``size``): its sorted distinct keys and columns and the (keys x columns)

@@ -9,8 +9,6 @@ which made the split's passes several times slower when other processes kept the
 
 from __future__ import annotations
 
-import ctypes
-import ctypes.util
 import os
 from concurrent.futures import ThreadPoolExecutor
 
@@ -24,19 +22,6 @@ CHUNK = 1 << 14
 
 _POOLS: dict[int, ThreadPoolExecutor] = {}
 os.register_at_fork(after_in_child=_POOLS.clear)
-
-
-def _trimmer():
-    """glibc's ``malloc_trim`` (None elsewhere): each thread allocates from a heap of its own,
-    which keeps the memory freed in it; trimmed after every batch, the threads' heaps do not add
-    up (the 1e7-step fit's peak memory stays that of one thread)."""
-    try:
-        return ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6").malloc_trim
-    except (OSError, AttributeError):
-        return None
-
-
-_TRIM = _trimmer()
 
 
 def n_threads() -> int:
@@ -54,10 +39,7 @@ def in_threads(fn, items) -> list:
     pool = _POOLS.get(n)
     if pool is None:
         pool = _POOLS[n] = ThreadPoolExecutor(n, thread_name_prefix="topomap")
-    done = list(pool.map(fn, items))
-    if _TRIM is not None:
-        _TRIM(0)
-    return done
+    return list(pool.map(fn, items))
 
 
 def pieces(n: int, chunk: int = CHUNK) -> list[slice]:
