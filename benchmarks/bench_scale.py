@@ -5,10 +5,13 @@
     python benchmarks/bench_scale.py --repeats 1 --sizes 1e4 1e5 --no-fourrooms
     python benchmarks/bench_scale.py --report                          # reprint the last results
     python benchmarks/bench_scale.py --end-to-end 1e6                 # `topomap data=file` at T = 1e6
+    python benchmarks/bench_scale.py --sizes 1e7 --refine-max-T 0 --no-fourrooms --one-thread
 
 ``--baseline`` runs every measurement also with another Python interpreter (a virtual environment
 with another version of topomap installed, numba included), interleaved with this checkout's, so
 that both are timed under the same load; ``--baseline-max-T`` limits its sizes.
+``--one-thread`` also times this checkout with ``NUMBA_NUM_THREADS=1`` (rows ``1th``: the split's
+passes and proposals on one thread; the same labels).
 
 Worlds:
 
@@ -52,6 +55,8 @@ HERE = Path(__file__).resolve().parent
 CURRENT = ("new", sys.executable)
 #: this checkout with the refinement after the split (``refine="em"``)
 REFINED = ("em", sys.executable)
+#: this checkout on one thread (``--one-thread``: rows ``1th``)
+ONE_THREAD = {"NUMBA_NUM_THREADS": "1"}
 WALK_SIZES = {10**4: (50, 100), 10**5: (50, 100), 10**6: (100, 200), 10**7: (100, 200)}
 FOURROOMS = ("MiniGrid-FourRooms-v0", 0, 1036)
 TARGETS = {10**5: (1.0, None), 10**6: (8.0, 1.0), 10**7: (100.0, 6.0)}
@@ -142,11 +147,12 @@ def child_fourrooms(T, data, score_steps):
     return rec
 
 
-def run_child(python, *args) -> dict:
-    """Run ``bench_scale.py --child ...`` with ``python`` in a fresh process; its result plus its
-    peak RSS."""
+def run_child(python, *args, env=None) -> dict:
+    """Run ``bench_scale.py --child ...`` with ``python`` in a fresh process (``env``: variables
+    set on top of this one's); its result plus its peak RSS."""
     cmd = [python, str(Path(__file__).resolve()), "--child", *map(str, args)]
-    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, text=True,
+                            env={**os.environ, **env} if env else None)
     out = proc.stdout.read()
     _, status, usage = os.wait4(proc.pid, 0)
     if status != 0:
@@ -188,7 +194,8 @@ def walk_rows(sizes, repeats, versions, baseline_max_T, refine_max_T):
         for _ in range(repeats):
             for impl, python in todo:
                 load = os.getloadavg()[0]
-                rec = run_child(python, "walk", T, *(["em"] if impl == "em" else []))
+                rec = run_child(python, "walk", T, *(["em"] if impl == "em" else []),
+                                env=ONE_THREAD if impl == "1th" else None)
                 records[impl].append({**rec, "load": load})
         for impl, _ in todo:
             rec = median_record(records[impl])
@@ -202,7 +209,7 @@ def fourrooms_rows(repeats, data, versions):
     rows = []
     for T, score in ((10_000, 0), (50_000, 50_000)):
         for impl, python in versions:
-            if impl == "em":
+            if impl in ("em", "1th"):
                 continue
             steps = min(score, 1000) if impl == "old" else score
             rec = measure(repeats if T < 50_000 or impl == "new" else 1, python, "fourrooms", T,
@@ -300,6 +307,8 @@ def main():
     ap.add_argument("--baseline-max-T", type=float, default=1e6)
     ap.add_argument("--refine-max-T", type=float, default=1e7,
                     help="largest T also fitted with refine=em (0: none)")
+    ap.add_argument("--one-thread", action="store_true",
+                    help="also time this checkout with NUMBA_NUM_THREADS=1 (rows 1th)")
     ap.add_argument("--no-fourrooms", action="store_true")
     ap.add_argument("--out", default=str(HERE / "results"))
     ap.add_argument("--report", action="store_true", help="reprint the last run's results")
@@ -319,6 +328,8 @@ def main():
             print(format_row(row))
         return report(rows, out)
     versions = ([("old", args.baseline)] if args.baseline else []) + [CURRENT, REFINED]
+    if args.one_thread:
+        versions.insert(-1, ("1th", sys.executable))
     rows = walk_rows([int(s) for s in args.sizes], args.repeats, versions, args.baseline_max_T,
                      args.refine_max_T)
     if not args.no_fourrooms:

@@ -32,8 +32,8 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from .kernels import (action_table, follow_keys, instance_table, merge_tallies, split_table,
-                      tally_codes, touched_codes, transition_table)
+from .kernels import (action_table, centre_pairs, follow_keys, merge_tallies, split_table,
+                      tally_codes, tally_pairs, touched_codes, transition_table)
 from .merge_kernels import count_matrix_kernel, gain_kernel, merge_groups_kernel
 from ..stats import conditional_entropy, sparse_conditional_entropy, xlogx
 
@@ -166,21 +166,24 @@ class SplitEngine:
         self.S, self.A = int(n_states), int(n_actions)
         self.has_prev, self.has_next = has_prev, has_next
         self.centre = has_prev & has_next
+        # every state's instance table from one pass in step order (pairs as int32 when they fit)
+        size = (self.S + 1) * self.A
+        bits = size.bit_length()
+        pairs = np.empty(int(np.count_nonzero(self.centre)),
+                         dtype=np.int32 if 2 * bits < 32 else np.int64)
+        bounds = centre_pairs(self.labels, self.u, self.centre, self.S, self.A, bits, pairs)
+        self.tables = [tally_pairs(pairs[bounds[s]:bounds[s + 1]], bits, size)
+                       for s in range(self.S)]
+        del pairs  # before the steps are sorted by state: the two never take memory at once
         # each state's steps in an array of its own (views of one array would keep all of it
         # alive as states split), as int32 while every step index fits
         like = np.empty(0, dtype=np.int32 if self.labels.size < 2**31 else np.int64)
         self.members = list(members_of(self.labels, self.S, like))
-        self.tables = [self._instance_table(m) for m in self.members]
         self.state_counts = np.array([m.size for m in self.members], dtype=np.int64)
         self.action_counts = action_table(self.labels, self.u, self.S, self.A)
         self.transitions = transition_table(self.labels, self.u, np.asarray(has_next, dtype=bool),
                                             self.S, self.A)
         self.near = np.zeros(self.S, dtype=bool)  # the states next to the last split's steps
-
-    # ------------------------------------------------------------------ codes
-    def _instance_table(self, steps):
-        return instance_table(self.labels, self.u, steps, self.centre, self.A,
-                              (self.S + 1) * self.A)
 
     # ------------------------------------------------------------------ proposals
     def count_matrix(self, q: int):

@@ -6,9 +6,11 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["transition_table", "action_table", "merge_tallies", "tally_codes",
-           "instance_table", "sorted_union", "follow_keys", "touched_codes", "split_table"]
+from .threads import CHUNK, in_threads, pieces
 
+__all__ = ["transition_table", "action_table", "merge_tallies", "tally_codes",
+           "instance_table", "centre_pairs", "tally_pairs", "sorted_union", "follow_keys",
+           "touched_codes", "split_table"]
 
 @njit(cache=True)
 def transition_table(x, u, has_next, S, A):
@@ -76,7 +78,7 @@ def merge_tallies(codes, counts, minus, minus_n, plus, plus_n):
     return out_codes[:n], out_counts[:n]
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _tally_sorted(codes):
     """Sorted distinct ``codes`` and their counts, by sorting them."""
     codes = np.sort(codes)
@@ -91,48 +93,48 @@ def _tally_sorted(codes):
     return out[:m], counts[:m]
 
 
-@njit(cache=True)
-def _tally(keys, cols, size):
-    """Sorted distinct codes ``key << 32 | col`` of the pairs (keys and columns below ``size``)
-    and their counts: a counting sort by key, then a tally of the columns of each key, in
-    O(pairs + size); by a sort, O(pairs log pairs), when the pairs are few next to ``size``."""
-    n = keys.size
-    if 16 * n < size:
-        return _tally_sorted((keys << 32) | cols)
+@njit(cache=True, nogil=True)
+def _stable_by(codes, shift, size, out):
+    """``codes`` into ``out`` in the order of ``(code >> shift) & 0xFFFFFFFF`` (below ``size``),
+    ties in their order: a counting sort."""
     start = np.zeros(size + 1, dtype=np.int64)
-    for i in range(n):
-        start[keys[i] + 1] += 1
+    for c in codes:
+        start[((c >> shift) & 0xFFFFFFFF) + 1] += 1
     for k in range(size):
         start[k + 1] += start[k]
-    by_key, fill = np.empty(n, dtype=np.int64), start[:-1].copy()
-    for i in range(n):
-        by_key[fill[keys[i]]] = cols[i]
-        fill[keys[i]] += 1
-    tally = np.zeros(size, dtype=np.int64)
-    codes, counts = np.empty(n, dtype=np.int64), np.empty(n, dtype=np.int64)
+    for c in codes:
+        d = (c >> shift) & 0xFFFFFFFF
+        out[start[d]] = c
+        start[d] += 1
+
+
+@njit(cache=True, nogil=True)
+def _tally(codes, size):
+    """Sorted distinct ``codes`` (``key << 32 | col``, keys and columns below ``size``) and
+    their counts: counting sorts by column then by key, then one pass over the sorted codes, in
+    O(codes + size); by a sort, O(codes log codes), when the codes are few next to ``size``."""
+    n = codes.size
+    if 16 * n < size:
+        return _tally_sorted(codes)
+    by_col, ordered = np.empty(n, dtype=np.int64), np.empty(n, dtype=np.int64)
+    _stable_by(codes, 0, size, by_col)
+    _stable_by(by_col, 32, size, ordered)
+    counts = by_col  # reused: its codes are no longer needed
     m = 0
-    for k in range(size):
-        first = m
-        for i in range(start[k], start[k + 1]):
-            c = by_key[i]
-            if tally[c] == 0:
-                codes[m] = c
-                m += 1
-            tally[c] += 1
-        codes[first:m].sort()
-        for i in range(first, m):
-            c = codes[i]
-            counts[i] = tally[c]
-            tally[c] = 0
-            codes[i] = (np.int64(k) << 32) | c
-    return codes[:m].copy(), counts[:m].copy()
+    for i in range(n):
+        if m > 0 and ordered[m - 1] == ordered[i]:
+            counts[m - 1] += 1
+        else:
+            ordered[m], counts[m] = ordered[i], 1
+            m += 1
+    return ordered[:m].copy(), counts[:m].copy()
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def tally_codes(codes, size):
     """Sorted distinct values of ``codes`` (``key << 32 | col``, keys and columns below
     ``size``) and how often each occurs."""
-    return _tally(codes >> 32, codes & 0xFFFFFFFF, size)
+    return _tally(codes, size)
 
 
 @njit(cache=True)
@@ -141,16 +143,49 @@ def instance_table(x, u, steps, centre, A, size):
     u[t-1]``, column ``x[t+1] * A + u[t]``) of the distinct pairs of the steps that are centres,
     and their counts (keys and columns below ``size``): one pass gathers the pairs, then
     :func:`_tally`; no (keys x columns) array."""
-    keys, cols = np.empty(steps.size, dtype=np.int64), np.empty(steps.size, dtype=np.int64)
+    codes = np.empty(steps.size, dtype=np.int64)
     n = 0
     for t in steps:
         if centre[t]:
-            keys[n], cols[n] = x[t - 1] * A + u[t - 1], x[t + 1] * A + u[t]
+            codes[n] = ((x[t - 1] * A + u[t - 1]) << 32) | (x[t + 1] * A + u[t])
             n += 1
-    return _tally(keys[:n], cols[:n], size)
+    return _tally(codes[:n], size)
 
 
 @njit(cache=True)
+def centre_pairs(x, u, centre, S, A, bits, pairs):
+    """Every centre's pair ``key << bits | column`` (see :func:`instance_table`; keys and
+    columns below ``2 ** bits``), in one pass in step order, put in its state's stretch of
+    ``pairs`` (as long as the centres; a dtype that holds ``2 ** (2 * bits)``): the stretches'
+    bounds, (S + 1,)."""
+    bounds = np.zeros(S + 1, dtype=np.int64)
+    for t in range(x.size):
+        if centre[t]:
+            bounds[x[t] + 1] += 1
+    for s in range(S):
+        bounds[s + 1] += bounds[s]
+    fill = bounds[:-1].copy()
+    for t in range(x.size):
+        if centre[t]:
+            s = x[t]
+            pairs[fill[s]] = ((x[t - 1] * A + u[t - 1]) << bits) | (x[t + 1] * A + u[t])
+            fill[s] += 1
+    return bounds
+
+
+@njit(cache=True, nogil=True)
+def tally_pairs(pairs, bits, size):
+    """The instance table of the pairs ``key << bits | column`` (:func:`centre_pairs`; keys and
+    columns below ``size``)."""
+    codes = np.empty(pairs.size, dtype=np.int64)
+    mask = (np.int64(1) << bits) - 1
+    for i in range(pairs.size):
+        p = np.int64(pairs[i])
+        codes[i] = ((p >> bits) << 32) | (p & mask)
+    return _tally(codes, size)
+
+
+@njit(cache=True, nogil=True)
 def sorted_union(a, b):
     """The distinct values of two sorted int arrays, sorted (a merge: no sort)."""
     out = np.empty(a.size + b.size, dtype=np.int64)
@@ -168,11 +203,8 @@ def sorted_union(a, b):
     return out[:n]
 
 
-@njit(cache=True)
-def follow_keys(x, u, steps, has_prev, has_next, A, chosen):
-    """``(goes, starts)``: a mask over ``steps``, those with a predecessor whose key ``x[t-1] *
-    A + u[t-1]`` is ``chosen`` (a mask over the keys), and the positions in ``steps`` of the
-    first steps of episodes that have a next step."""
+@njit(cache=True, nogil=True)
+def _follow_keys(x, u, steps, has_prev, has_next, A, chosen):
     goes = np.zeros(steps.size, dtype=np.bool_)
     starts = np.empty(steps.size, dtype=np.int64)
     n = 0
@@ -186,7 +218,19 @@ def follow_keys(x, u, steps, has_prev, has_next, A, chosen):
     return goes, starts[:n]
 
 
-@njit(cache=True)
+def follow_keys(x, u, steps, has_prev, has_next, A, chosen, chunk=CHUNK):
+    """``(goes, starts)``: a mask over ``steps``, those with a predecessor whose key ``x[t-1] *
+    A + u[t-1]`` is ``chosen`` (a mask over the keys), and the positions in ``steps`` of the
+    first steps of episodes that have a next step (pieces of ``chunk`` steps on threads)."""
+    cut = pieces(steps.size, chunk)
+    done = in_threads(lambda p: _follow_keys(x, u, steps[p], has_prev, has_next, A, chosen), cut)
+    if len(done) == 1:
+        return done[0]
+    return (np.concatenate([g for g, _ in done]),
+            np.concatenate([s + p.start for (_, s), p in zip(done, cut)]))
+
+
+@njit(cache=True, nogil=True)
 def _shifted(moved, has, shift):
     out = np.empty(moved.size, dtype=np.int64)
     n = 0
@@ -197,7 +241,7 @@ def _shifted(moved, has, shift):
     return out[:n]
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _code_pair(x, u, t, A, shift, centred, q, new):
     """The instance (``centred``) or transition code at step ``t`` before a split of ``q`` (the
     label ``new`` read as ``q``) and after it (labels ``x`` as they are)."""
@@ -212,22 +256,11 @@ def _code_pair(x, u, t, A, shift, centred, q, new):
     return ((a * A + u[t]) << shift) | b, after
 
 
-@njit(cache=True)
-def touched_codes(moved, has_prev, has_next, centre, x, u, A, shift, q, new):
-    """What a split of ``q`` changed around the sorted steps ``moved`` (labels ``x`` already
-    moved to ``new``), in one pass over their neighbours.
-
-    Returns ``(outside, inside, starts, near)``: ``outside`` rows the instance centres next to a
-    moved step that lie outside ``q`` and ``new``, their states, codes before and after;
-    ``inside`` rows the codes before and after of those inside, and 1 where the centre is in
-    ``new``; ``starts`` rows the codes before and after of the transitions starting next to or at
-    a moved step (all in step order); ``near`` a mask over the states holding a step next to a
-    moved one (``q`` and ``new`` may be missing).
-    """
-    before = _shifted(moved, has_prev, -1)
-    c = sorted_union(before, _shifted(moved, has_next, 1))
-    near = np.zeros(new + 1, dtype=np.bool_)
-    out, ins = np.empty((4, c.size), dtype=np.int64), np.empty((3, c.size), dtype=np.int64)
+@njit(cache=True, nogil=True)
+def _centre_codes(c, centre, x, u, A, shift, q, new, rows, near):
+    """The centre rows of :func:`touched_codes` for the sorted steps ``c``, written into
+    ``rows`` (7, c.size): those outside ``q`` and ``new`` into rows 0-3, those inside into rows
+    4-6, each from column 0 on; ``near`` marked.  Returns how many of each."""
     n_out = n_in = 0
     for t in c:
         s = x[t]
@@ -236,19 +269,78 @@ def touched_codes(moved, has_prev, has_next, centre, x, u, A, shift, q, new):
             continue
         b, a = _code_pair(x, u, t, A, shift, True, q, new)
         if s == q or s == new:
-            ins[0, n_in], ins[1, n_in], ins[2, n_in] = b, a, s == new
+            rows[4, n_in], rows[5, n_in], rows[6, n_in] = b, a, s == new
             n_in += 1
         else:
-            out[0, n_out], out[1, n_out], out[2, n_out], out[3, n_out] = t, s, b, a
+            rows[0, n_out], rows[1, n_out], rows[2, n_out], rows[3, n_out] = t, s, b, a
             n_out += 1
-    starts = sorted_union(_shifted(moved, has_next, 0), before)
-    trans = np.empty((2, starts.size), dtype=np.int64)
+    return n_out, n_in
+
+
+@njit(cache=True, nogil=True)
+def _start_codes(starts, has_next, x, u, A, shift, q, new, trans):
+    """The transition rows of :func:`touched_codes` for the sorted steps ``starts``, written
+    into ``trans`` (2, starts.size) from column 0 on; how many."""
     n = 0
     for t in starts:
         if has_next[t]:
             trans[0, n], trans[1, n] = _code_pair(x, u, t, A, shift, False, q, new)
             n += 1
-    return out[:, :n_out].copy(), ins[:, :n_in].copy(), trans[:, :n].copy(), near
+    return n
+
+
+@njit(cache=True)
+def _close_up(rows, first, kept):
+    """Move the ``kept[k]`` columns of ``rows`` written from column ``first[k]`` on next to
+    those before them, in order; a copy of the columns kept."""
+    n = 0
+    for k in range(first.size):
+        if n != first[k]:
+            rows[:, n:n + kept[k]] = rows[:, first[k]:first[k] + kept[k]].copy()
+        n += kept[k]
+    return rows[:, :n].copy()
+
+
+@njit(cache=True, nogil=True)
+def _around(moved, has_prev, has_next):
+    """The sorted steps next to a moved step, and the sorted starts of the transitions next to
+    or at one."""
+    before = _shifted(moved, has_prev, -1)
+    return (sorted_union(before, _shifted(moved, has_next, 1)),
+            sorted_union(_shifted(moved, has_next, 0), before))
+
+
+def touched_codes(moved, has_prev, has_next, centre, x, u, A, shift, q, new, *, chunk=CHUNK):
+    """What a split of ``q`` changed around the sorted steps ``moved`` (labels ``x`` already
+    moved to ``new``), in passes over their neighbours (pieces of ``chunk`` steps on threads).
+
+    Returns ``(outside, inside, starts, near)``: ``outside`` rows the instance centres next to a
+    moved step that lie outside ``q`` and ``new``, their states, codes before and after;
+    ``inside`` rows the codes before and after of those inside, and 1 where the centre is in
+    ``new``; ``starts`` rows the codes before and after of the transitions starting next to or at
+    a moved step (all in step order); ``near`` a mask over the states holding a step next to a
+    moved one (``q`` and ``new`` may be missing).
+    """
+    c, starts = _around(moved, has_prev, has_next)
+    cut, cut_starts = pieces(c.size, chunk), pieces(starts.size, chunk)
+    # every piece writes into its own columns of arrays made here (no large arrays made on the
+    # threads, whose memory the allocator would keep apart)
+    rows, trans = np.empty((7, c.size), dtype=np.int64), np.empty((2, starts.size), dtype=np.int64)
+    near = np.zeros((len(cut), new + 1), dtype=bool)
+
+    def run(job):
+        k, p = job
+        if k < 0:
+            return _start_codes(starts[p], has_next, x, u, A, shift, q, new, trans[:, p])
+        return _centre_codes(c[p], centre, x, u, A, shift, q, new, rows[:, p], near[k])
+
+    done = in_threads(run, list(enumerate(cut)) + [(-1, p) for p in cut_starts])
+    first = np.array([p.start for p in cut], dtype=np.int64)
+    kept = np.array(done[:len(cut)], dtype=np.int64).reshape(-1, 2)
+    return (_close_up(rows[:4], first, kept[:, 0]), _close_up(rows[4:], first, kept[:, 1]),
+            _close_up(trans, np.array([p.start for p in cut_starts], dtype=np.int64),
+                      np.array(done[len(cut):], dtype=np.int64)),
+            near.any(axis=0))
 
 
 @njit(cache=True)

@@ -1,0 +1,47 @@
+"""Compiled kernels run on threads: calls that release the GIL spread over a pool of
+``NUMBA_NUM_THREADS`` threads, their results returned in call order, so that what is computed
+is the same whatever the number of threads (one thread: the calls run one after the other).
+
+The pool is made on first use and kept (a process forked from this one makes its own).
+Python threads, not ``numba.prange``: numba's OpenMP layer spins its threads while they wait,
+which made the split's passes several times slower when other processes kept the cores busy.
+"""
+
+from __future__ import annotations
+
+import os
+from concurrent.futures import ThreadPoolExecutor
+
+import numba
+
+__all__ = ["CHUNK", "n_threads", "in_threads", "pieces"]
+
+#: steps per piece of a pass cut into pieces (a fixed size: the pieces are the same whatever the
+#: number of threads)
+CHUNK = 1 << 14
+
+_POOLS: dict[int, ThreadPoolExecutor] = {}
+os.register_at_fork(after_in_child=_POOLS.clear)
+
+
+def n_threads() -> int:
+    """The threads compiled work may use: numba's ``NUMBA_NUM_THREADS`` (by default the CPUs)."""
+    return max(1, int(numba.config.NUMBA_NUM_THREADS))
+
+
+def in_threads(fn, items) -> list:
+    """``[fn(i) for i in items]``, the calls spread over :func:`n_threads` threads (``fn``
+    should spend its time in compiled code that releases the GIL)."""
+    items = list(items)
+    n = min(n_threads(), len(items))
+    if n < 2:
+        return [fn(i) for i in items]
+    pool = _POOLS.get(n)
+    if pool is None:
+        pool = _POOLS[n] = ThreadPoolExecutor(n, thread_name_prefix="topomap")
+    return list(pool.map(fn, items))
+
+
+def pieces(n: int, chunk: int = CHUNK) -> list[slice]:
+    """``range(n)`` cut into slices of ``chunk`` (the last one shorter)."""
+    return [slice(lo, min(lo + chunk, n)) for lo in range(0, n, chunk)]
