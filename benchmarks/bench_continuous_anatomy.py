@@ -45,6 +45,7 @@ from sklearn.metrics import pairwise_distances_argmin
 
 import bench_continuous as bc
 from topomap.core.motion import MotionSettings
+from topomap.core.motion.check import view_purity
 from topomap.core.motion.places import view_clusters
 from topomap.core.position_scores import _majority, _unit_means
 
@@ -114,7 +115,7 @@ def probes(learner, train, held, S, states, placed, dt) -> dict:
     mass = np.zeros((Xh.shape[0], S))
     np.add.at(mass.T, cluster_of, G.T)
     viewed = _unit_means(vl, train.positions, S)[vh]
-    out = {"purity": round(float(np.mean(cluster_of[learner.labels_] == vl)), 3)}
+    out = {"purity": round(view_purity(learner.labels_, vl), 3)}
     for name, hedge in (("unsure", mass.max(axis=1) < 0.99), ("differs", cluster_of[states] != vh)):
         mixed = np.where(hedge[:, None], viewed, placed["places"])
         out[name] = {"share": round(float(hedge.mean()), 3),
@@ -149,7 +150,6 @@ def purity(case: str, setting: str, seed: int, cache: Path) -> dict:
     """The places' ``purity`` alone: the places of the whole log, unchecked
     (``MotionSettings(holdout=0)``: the places the check decides on), against the view
     clusters."""
-    from topomap.core.motion.check import view_purity
 
     s = dict(bc.BASE, **({} if setting == "base" else bc.SETTINGS[int(setting)]))
     _, train, _, ns, S = bc.walks(case, seed, s, cache)

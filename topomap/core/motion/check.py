@@ -35,6 +35,7 @@ from __future__ import annotations
 import numpy as np
 from sklearn.metrics import pairwise_distances_argmin
 
+from ..metrics import purity
 from ..size import split_holdout
 from .odometry import odometric_positions, reckoned_steps
 from .places import Places, cut_places
@@ -118,11 +119,9 @@ def view_purity(places, views) -> float:
     """The share of steps whose place's view cluster -- the one most of the place's steps have
     -- is their own (``places``, ``views``: (T,) labels): 1 where every
     place lies within one view cluster, low where the places cut across the views, the odometry
-    and not the view deciding where a step belongs."""
-    places, views = np.asarray(places, dtype=np.int64), np.asarray(views, dtype=np.int64)
-    table = np.zeros((int(places.max()) + 1, int(views.max()) + 1), dtype=np.int64)
-    np.add.at(table, (places, views), 1)
-    return float(np.mean(table.argmax(axis=1)[places] == views))
+    and not the view deciding where a step belongs: :func:`topomap.core.metrics.purity` of the
+    places with the view clusters as the truth."""
+    return purity(views, places)
 
 
 def pooled_shares(folds: list) -> dict:
