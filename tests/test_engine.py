@@ -120,6 +120,8 @@ def test_the_engine_splits_exactly_as_the_numpy_code(seed, episodes):
         splitter.apply(best)
         assert np.array_equal(splitter.labels, x)
         n, ac, tc = count_tables(x, u, splitter.n_states, A, has_next)
+        for kept, counted in zip(splitter.count_tables(), (n, ac, tc)):
+            assert kept.dtype == counted.dtype and np.array_equal(kept, counted)
         ent = splitter.entropies()
         assert bits(ent["H_u"]) == bits(conditional_entropy(ac))
         assert bits(ent["H_x"]) == bits(conditional_entropy(tc.reshape(-1, splitter.n_states)))

@@ -126,7 +126,7 @@ def _group_steps(labels, n_states, order):
     return bounds
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def members_of(labels, n_states, like):
     """The steps of every state, each state's in increasing order in an array of its own (of
     ``like``'s dtype): a counting sort without a (T,) order array."""
@@ -184,6 +184,16 @@ class SplitEngine:
         self.transitions = transition_table(self.labels, self.u, np.asarray(has_next, dtype=bool),
                                             self.S, self.A)
         self.near = np.zeros(self.S, dtype=bool)  # the states next to the last split's steps
+
+    def count_tables(self):
+        """``(state_counts (S,), action_counts (S, A), transition_counts (S, A, S))`` of the
+        current labelling from the tables kept (new arrays): what
+        :func:`topomap.core.stats.count_tables` counts over the steps."""
+        S, A = self.S, self.A
+        trans = np.zeros((S * A, S), dtype=np.int64)
+        codes, counts = self.transitions
+        trans[codes >> _SHIFT, codes & 0xFFFFFFFF] = counts
+        return self.state_counts.copy(), self.action_counts.copy(), trans.reshape(S, A, S)
 
     # ------------------------------------------------------------------ proposals
     def count_matrix(self, q: int):
@@ -362,6 +372,11 @@ class Splitter:
             "n_steps_kept": int(self.engine.members[q].size), "n_steps_new": int(moved.size),
             "n_groups": int(best.keys.size),
         }
+
+    def count_tables(self):
+        """The labelling's ``(state_counts, action_counts, transition_counts)`` from the
+        engine's tables (:meth:`SplitEngine.count_tables`)."""
+        return self.engine.count_tables()
 
     def roots(self) -> np.ndarray:
         """The phase-1 state every state descends from (a state of phase 1 is its own)."""
