@@ -34,6 +34,7 @@ from numba import njit
 
 from .kernels import (action_table, centre_pairs, follow_keys, merge_tallies, split_table,
                       tally_codes, tally_pairs, touched_codes, transition_table)
+from .threads import beside
 from .merge_kernels import count_matrix_kernel, gain_kernel, merge_groups_kernel
 from ..stats import conditional_entropy, sparse_conditional_entropy, xlogx
 
@@ -271,14 +272,16 @@ class SplitEngine:
             moved, self.has_prev, self.has_next, self.centre, self.labels, self.u, self.A, _SHIFT,
             q, new)
         size = (self.S + 1) * self.A
+        # the transitions need nothing of the instance tables: merged beside them
+        transitions = beside(_merge_delta, self.transitions, starts[0], starts[1], size)
         self._update_instances(*outside[1:])
-        self.transitions = _merge_delta(self.transitions, starts[0], starts[1], size)
         self.members[q] = steps[~goes]
         self.members.append(moved)
         halves = split_table(*self.tables[q], chosen, _SHIFT)
         went = inside[2] == 1
         self.tables[q] = _merge_delta(halves[0], inside[0][~went], inside[1][~went], size)
         self.tables.append(_merge_delta(halves[1], inside[0][went], inside[1][went], size))
+        self.transitions = transitions()
         self._update_counts(q, moved)
         return moved
 

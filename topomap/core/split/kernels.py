@@ -46,7 +46,7 @@ def action_table(x, u, S, A):
     return out
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def merge_tallies(codes, counts, minus, minus_n, plus, plus_n):
     """The sorted sparse table (``codes``, ``counts``) with ``minus_n[j]`` taken off at code
     ``minus[j]`` and ``plus_n[k]`` added at code ``plus[k]`` (both tallies sorted and distinct;
