@@ -2,6 +2,7 @@
 
     python benchmarks/bench_scale.py                                  # this checkout, medians of 3
     python benchmarks/bench_scale.py --baseline /path/to/old/venv/bin/python   # two versions, one run
+    python benchmarks/bench_scale.py --baseline-checkout /path/to/old/checkout  # the same, one venv
     python benchmarks/bench_scale.py --repeats 1 --sizes 1e4 1e5 --no-fourrooms
     python benchmarks/bench_scale.py --report                          # reprint the last results
     python benchmarks/bench_scale.py --end-to-end 1e6                 # `topomap data=file` at T = 1e6
@@ -10,6 +11,8 @@
 ``--baseline`` runs every measurement also with another Python interpreter (a virtual environment
 with another version of topomap installed, numba included), interleaved with this checkout's, so
 that both are timed under the same load; ``--baseline-max-T`` limits its sizes.
+``--baseline-checkout DIR`` does the same with this Python and the ``topomap/`` of another
+checkout (``DIR`` put first on ``PYTHONPATH`` of the baseline's processes).
 ``--one-thread`` also times this checkout with ``NUMBA_NUM_THREADS=1`` (rows ``1th``: the split's
 passes and proposals on one thread; the same labels).
 
@@ -57,6 +60,8 @@ CURRENT = ("new", sys.executable)
 REFINED = ("em", sys.executable)
 #: this checkout on one thread (``--one-thread``: rows ``1th``)
 ONE_THREAD = {"NUMBA_NUM_THREADS": "1"}
+#: variables set on top of this process's for the children of a version (by its label)
+ENVS = {"1th": ONE_THREAD}
 WALK_SIZES = {10**4: (50, 100), 10**5: (50, 100), 10**6: (100, 200), 10**7: (100, 200)}
 FOURROOMS = ("MiniGrid-FourRooms-v0", 0, 1036)
 TARGETS = {10**5: (1.0, None), 10**6: (8.0, 1.0), 10**7: (100.0, 6.0)}
@@ -173,12 +178,12 @@ def median_record(records: list) -> dict:
     return out
 
 
-def measure(repeats, python, *args) -> dict:
-    """Median over ``repeats`` fresh processes of ``python``."""
+def measure(repeats, python, *args, env=None) -> dict:
+    """Median over ``repeats`` fresh processes of ``python`` (``env``: see :func:`run_child`)."""
     records = []
     for _ in range(repeats):
         load = os.getloadavg()[0]
-        records.append({**run_child(python, *args), "load": load})
+        records.append({**run_child(python, *args, env=env), "load": load})
     return median_record(records)
 
 
@@ -195,7 +200,7 @@ def walk_rows(sizes, repeats, versions, baseline_max_T, refine_max_T):
             for impl, python in todo:
                 load = os.getloadavg()[0]
                 rec = run_child(python, "walk", T, *(["em"] if impl == "em" else []),
-                                env=ONE_THREAD if impl == "1th" else None)
+                                env=ENVS.get(impl))
                 records[impl].append({**rec, "load": load})
         for impl, _ in todo:
             rec = median_record(records[impl])
@@ -213,7 +218,7 @@ def fourrooms_rows(repeats, data, versions):
                 continue
             steps = min(score, 1000) if impl == "old" else score
             rec = measure(repeats if T < 50_000 or impl == "new" else 1, python, "fourrooms", T,
-                          data, steps)
+                          data, steps, env=ENVS.get(impl))
             rows.append({"world": "FourRooms", "T": T, "impl": impl, **rec})
             print(format_row(rows[-1]), flush=True)
     return rows
@@ -304,6 +309,8 @@ def main():
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--sizes", nargs="+", type=float, default=sorted(WALK_SIZES))
     ap.add_argument("--baseline", help="another Python (virtual environment) to time beside this one")
+    ap.add_argument("--baseline-checkout", metavar="DIR",
+                    help="time the topomap/ of another checkout (on PYTHONPATH) beside this one")
     ap.add_argument("--baseline-max-T", type=float, default=1e6)
     ap.add_argument("--refine-max-T", type=float, default=1e7,
                     help="largest T also fitted with refine=em (0: none)")
@@ -327,6 +334,9 @@ def main():
         for row in rows:
             print(format_row(row))
         return report(rows, out)
+    if args.baseline_checkout:
+        args.baseline = sys.executable
+        ENVS["old"] = {"PYTHONPATH": str(Path(args.baseline_checkout).resolve())}
     versions = ([("old", args.baseline)] if args.baseline else []) + [CURRENT, REFINED]
     if args.one_thread:
         versions.insert(-1, ("1th", sys.executable))
@@ -357,6 +367,9 @@ def child_main(argv):
         rec = child_walk(int(T), *rest)
     else:
         rec = child_fourrooms(int(T), rest[0], int(rest[1]))
+    import topomap
+
+    rec["checkout"] = str(Path(topomap.__file__).resolve().parents[1])  # the code timed
     print(json.dumps(rec))
 
 

@@ -120,6 +120,8 @@ def test_the_engine_splits_exactly_as_the_numpy_code(seed, episodes):
         splitter.apply(best)
         assert np.array_equal(splitter.labels, x)
         n, ac, tc = count_tables(x, u, splitter.n_states, A, has_next)
+        for kept, counted in zip(splitter.count_tables(), (n, ac, tc)):
+            assert kept.dtype == counted.dtype and np.array_equal(kept, counted)
         ent = splitter.entropies()
         assert bits(ent["H_u"]) == bits(conditional_entropy(ac))
         assert bits(ent["H_x"]) == bits(conditional_entropy(tc.reshape(-1, splitter.n_states)))
@@ -127,10 +129,16 @@ def test_the_engine_splits_exactly_as_the_numpy_code(seed, episodes):
 
 
 @pytest.mark.parametrize("seed, episodes", [(5, 1), (6, 9)])
-def test_the_tables_kept_through_splits_are_the_tables_built_afresh(seed, episodes):
+@pytest.mark.parametrize("n_threads", [1, 2, 3])
+def test_the_tables_kept_through_splits_are_the_tables_built_afresh(seed, episodes, n_threads,
+                                                                     monkeypatch):
     # after each split the engine cuts the split state's table in two and moves the instances
-    # next to the moved steps; every state's table must be the one its steps give from scratch
+    # next to the moved steps (the transitions merged beside them on threads); every state's
+    # table must be the one its steps give from scratch
+    from topomap.core.split import threads
     from topomap.core.split.kernels import instance_table, transition_table
+
+    monkeypatch.setattr(threads, "n_threads", lambda: n_threads)
 
     labels, u, lengths, S, A = random_walk(seed, 1200, episodes=episodes)
     has_prev, has_next = episode_masks(len(u), lengths)

@@ -18,6 +18,7 @@ from .refining import bic_scores, heldout_scores, refined_from, resized, symbol_
 from .online import OnlineState, Window
 from .online_pass import PassStart, start_map, warm_start, warm_starts, wider_pass
 from .phase1.clustering import cluster_observations
+from .phase1.start import phase1_labels, start_split, variance_beside
 from .size import AutoStates, probe_sizes, split_holdout
 from .map.model import TopologicalMap
 from .map_methods import MapMethods
@@ -348,6 +349,7 @@ class MapLearner(MapMethods, BaseEstimator):
         plain = data.gds < 0
         if plain.sum() < 1:
             raise ValueError("every step is labelled as a GDS; no observations are left to cluster")
+        variance = variance_beside(data.X)  # the observation models' scale: needs no labels
         if symbols is not None:
             choice = {"method": "online codebook"}
             symbols = np.array(symbols, dtype=np.int64)  # the caller's array is left alone
@@ -357,27 +359,22 @@ class MapLearner(MapMethods, BaseEstimator):
                 symbols, choice = cluster_observations(
                     data.X if plain.all() else data.X[plain], searched, metric,
                     n_init=self.n_init, random_state=self.random_state, method=self.phase1,
-                    sample_size=self.sample_size)
+                    sample_size=self.sample_size, checked=True)
         self.phase1_method_ = choice.pop("method")
         self.cluster_choice_ = choice
         ns = self.n_clusters_ = int(symbols.max()) + 1
-        gds_ids = np.unique(data.gds[~plain])
-        if gds_ids.size:
-            labels = np.empty(data.X.shape[0], dtype=np.int64)
-            labels[plain] = symbols
-            labels[~plain] = ns + np.searchsorted(gds_ids, data.gds[~plain])
-        else:  # the splitter works on its own copy: the symbols are kept as they are
-            labels = np.asarray(symbols, dtype=np.int64)
+        # the splitter works on its own copy: the symbols are kept as they are
+        labels, gds_ids = phase1_labels(symbols, ns, data.gds)
         del symbols
         with naming(self, "stop"):
             stopping.check(ns + gds_ids.size)
         self.labels_phase1_ = labels
         self.split_history_, self.entropies_ = [], []
-        splitter = Splitter(labels, data.u, data.n_actions, *data.masks,
-                            symbol=list(range(ns)) + [-1] * gds_ids.size,
-                            gds=[-1] * ns + gds_ids.tolist(), obs_entropy=np.zeros(0),
-                            criterion=criterion, recompute_all=self._recompute_all)
-        m = self._make_map(data, splitter)
+        splitter, models = start_split(data, labels, ns, gds_ids, variance, criterion=criterion,
+                                       recompute_all=self._recompute_all,
+                                       covariance_type=self.covariance_type,
+                                       reg_covar=self.reg_covar)
+        m = self._make_map(data, splitter, models=models)
         self.entropies_.append(dict(m.entropies(), n_states=m.n_states, iteration=0))
         m = self.map_phase1_ = replace(m, entropy_history=self.entropies_)
         splitter.obs_entropy = m.state_entropies()
@@ -431,7 +428,7 @@ class MapLearner(MapMethods, BaseEstimator):
             covariance_type=self.covariance_type, reg_covar=self.reg_covar,
             action_names=data.action_names, gds_names=data.gds_names,
             split_history=self.split_history_, entropy_history=self.entropies_, info=info,
-            models=models)
+            models=models, counts=splitter.count_tables())
 
     # ------------------------------------------------------------------ conveniences
     def _forget_fit(self) -> None:

@@ -81,12 +81,14 @@ class TopologicalMap:
     @classmethod
     def from_labels(cls, observations, actions, labels, *, lengths=None, state_symbol, state_gds,
                     state_parent, n_actions, covariance_type="diag", reg_covar=1e-3, info=None,
-                    models=None, **fields):
+                    models=None, counts=None, **fields):
         """Estimate every table from a labelled sequence (labels in ``[0, S)``); ``fields`` are
         the map's keyword fields (names, histories), ``info`` gets ``covariance_type`` first.
         ``models``: the ``(means, covariances)`` of every state when they are known already (a
-        split keeps every step's symbol, so the split map's are phase 1's); they are not
-        estimated again.
+        split keeps every step's symbol, so the split map's are phase 1's; else
+        :meth:`state_models`); ``counts``: the ``(state_counts, action_counts,
+        transition_counts)`` of the labelling when they are known already (the split's, kept
+        as it goes); neither is estimated again.
 
         The observation model of a state is the Gaussian of all steps sharing its symbol (or its
         GDS id); ``reg_covar`` times the mean feature variance of the data is added to every
@@ -98,24 +100,32 @@ class TopologicalMap:
         T = X.shape[0]
         S = len(state_symbol)
         A = int(n_actions)
-        L = np.array([T]) if lengths is None else np.asarray(lengths)
-        _, has_next = episode_masks(T, L)
-        symbol = np.asarray(state_symbol)
-        gds = np.asarray(state_gds)
+        if x.size and (x.min() < 0 or x.max() >= S):
+            raise ValueError(f"labels must lie in [0, {S}) (the states of state_symbol)")
+        if models is None:
+            models = cls.state_models(X, x, state_symbol, state_gds, covariance_type, reg_covar)
+        if counts is None:
+            L = np.array([T]) if lengths is None else np.asarray(lengths)
+            _, has_next = episode_masks(T, L)
+            counts = count_tables(x, u, S, A, has_next)
+        info = {"covariance_type": covariance_type, **(info or {})}
+        return cls(state_symbol, state_gds, state_parent, *models, *counts, info=info, **fields)
+
+    @staticmethod
+    def state_models(observations, labels, state_symbol, state_gds, covariance_type="diag",
+                     reg_covar=1e-3, variance=None):
+        """``(means (S, D), covariances)`` of every state of a labelling, as :meth:`from_labels`
+        estimates them: the Gaussian of all steps sharing the state's symbol (or GDS id).
+        ``variance``: the data's feature variance when it is known already
+        (:func:`~topomap.core.map.observations.observation_models`)."""
+        symbol, gds = np.asarray(state_symbol), np.asarray(state_gds)
         # a "model id" per state: symbols, then GDS ids after them
         n_sym = int(symbol.max()) + 1 if (symbol >= 0).any() else 0
         model_of_state = np.where(symbol >= 0, symbol, n_sym + gds)
         M = int(model_of_state.max()) + 1
-        if x.size and (x.min() < 0 or x.max() >= S):
-            raise ValueError(f"labels must lie in [0, {S}) (the states of state_symbol)")
-        if models is None:
-            mean_m, cov_m, _ = observation_models(X, x, M, covariance_type, reg_covar,
-                                                  lookup=model_of_state)
-            models = mean_m[model_of_state], cov_m[model_of_state]
-        state_counts, action_counts, trans = count_tables(x, u, S, A, has_next)
-        info = {"covariance_type": covariance_type, **(info or {})}
-        return cls(state_symbol, state_gds, state_parent, *models, state_counts, action_counts,
-                   trans, info=info, **fields)
+        mean_m, cov_m, _ = observation_models(observations, labels, M, covariance_type, reg_covar,
+                                              lookup=model_of_state, variance=variance)
+        return mean_m[model_of_state], cov_m[model_of_state]
 
     # ------------------------------------------------------------------ sizes and tables
     @property

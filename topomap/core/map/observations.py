@@ -34,7 +34,7 @@ def model_counts(model, n_models, lookup):
     return out
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def model_squares(X, model, means, lookup):
     """``np.add.at(sq, lookup[model], (X - means[lookup[model]]) ** 2)``: per-model squared
     residuals."""
@@ -47,7 +47,7 @@ def model_squares(X, model, means, lookup):
     return out
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _column_var_rowwise(X):
     T, D = X.shape
     s = np.zeros(D)
@@ -82,7 +82,19 @@ def _full_covariances(X, model, means, n_models, reg):
     return cov
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
+def _moments(X, model, n_models, lookup):
+    """``model_counts`` and ``model_sums`` in one pass over ``X``."""
+    n, sums = np.zeros(n_models), np.zeros((n_models, X.shape[1]))
+    for t in range(X.shape[0]):
+        m = lookup[model[t]]
+        n[m] += 1.0
+        for d in range(X.shape[1]):
+            sums[m, d] += X[t, d]
+    return n, sums
+
+
+@njit(cache=True, nogil=True)
 def _diag_moments(X, model, n_models, lookup):
     """``model_counts``, ``model_sums`` and the column sums of ``_column_var_rowwise`` in one
     pass over ``X`` (each sum in step order, as theirs)."""
@@ -96,7 +108,7 @@ def _diag_moments(X, model, n_models, lookup):
     return n, sums, col
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _diag_residuals(X, model, means, lookup, col_mean):
     """``model_squares`` and the squared residuals of ``_column_var_rowwise`` in one pass."""
     sq, q = np.zeros(means.shape), np.zeros(X.shape[1])
@@ -110,31 +122,42 @@ def _diag_residuals(X, model, means, lookup, col_mean):
     return sq, q
 
 
-def _diag_models(X, model, n_models, reg_covar, lookup):
+def _diag_models(X, model, n_models, reg_covar, lookup, variance=None):
     """The diagonal models of :func:`observation_models` in two passes over ``X`` (C-contiguous,
-    T > 1, D > 1), the same floats."""
+    T > 1, D > 1), the same floats; the passes also sum the columns' variance unless it is
+    given (``variance``: :func:`feature_variance` of ``X``)."""
     T = X.shape[0]
-    n_m, sums, col = _diag_moments(X, model, n_models, lookup)
-    means = sums / np.maximum(n_m, 1)[:, None]
-    sq, q = _diag_residuals(X, model, means, lookup, col / T)
-    reg = reg_covar * float(np.mean(q / T))
+    if variance is None:
+        n_m, sums, col = _diag_moments(X, model, n_models, lookup)
+        means = sums / np.maximum(n_m, 1)[:, None]
+        sq, q = _diag_residuals(X, model, means, lookup, col / T)
+        variance = q / T
+    else:
+        n_m, sums = _moments(X, model, n_models, lookup)
+        means = sums / np.maximum(n_m, 1)[:, None]
+        sq = model_squares(X, model, means, lookup)
+    reg = reg_covar * float(np.mean(variance))
     reg = reg if reg > 0 else reg_covar
     return means, sq / np.maximum(n_m, 1)[:, None] + reg, n_m
 
 
-def observation_models(X, model, n_models, covariance_type="diag", reg_covar=1e-3, lookup=None):
+def observation_models(X, model, n_models, covariance_type="diag", reg_covar=1e-3, lookup=None,
+                       variance=None):
     """Gaussian of every model id: ``(means (M, D), covariances (M, D[, D]), counts (M,))``,
     the same floats as ``TopologicalMap.from_labels`` (:mod:`topomap.core.map.model`).  The model
     id of step ``t`` is ``lookup[model[t]]`` when ``lookup`` is given (a state's model), else
-    ``model[t]``."""
+    ``model[t]``.  ``variance``: :func:`feature_variance` of ``X`` when it is known already (it
+    sets the regularisation; computed here otherwise)."""
     T = X.shape[0]
     model = np.asarray(model)
     lookup = np.arange(n_models) if lookup is None else np.asarray(lookup, dtype=np.int64)
     if covariance_type == "diag" and T > 1 and X.flags.c_contiguous and X.shape[1] >= 2:
-        return _diag_models(X, model, n_models, reg_covar, lookup)
+        return _diag_models(X, model, n_models, reg_covar, lookup, variance)
     n_m = model_counts(model, n_models, lookup)
     means = model_sums(X, model, n_models, lookup) / np.maximum(n_m, 1)[:, None]
-    reg = reg_covar * float(np.mean(feature_variance(X))) if T > 1 else reg_covar
+    if T > 1 and variance is None:
+        variance = feature_variance(X)
+    reg = reg_covar * float(np.mean(variance)) if T > 1 else reg_covar
     reg = reg if reg > 0 else reg_covar
     if covariance_type == "diag":
         cov = model_squares(X, model, means, lookup) / np.maximum(n_m, 1)[:, None] + reg

@@ -46,6 +46,7 @@ from __future__ import annotations
 
 import numpy as np
 from numba import njit
+from sklearn import config_context
 from sklearn.cluster import KMeans, MiniBatchKMeans
 from sklearn.mixture import GaussianMixture
 from threadpoolctl import threadpool_limits
@@ -272,11 +273,12 @@ def sample_rows(n_clusters: int, sample_size: int | None = None) -> int:
     return sample_size or max(_MIN_SAMPLE, 64 * n_clusters)
 
 
-def _fit_sample(Z, ns, n_init, random_state, sample_size=None, repair=True, **_):
+def _fit_sample(Z, ns, n_init, random_state, sample_size=None, repair=True, finite=False, **_):
     T, m = Z.shape[0], sample_rows(ns, sample_size)
     rows = np.sort(np.random.default_rng(random_state).choice(T, size=m, replace=False))
     km, info = _fitted(Z[rows], ns, n_init, random_state, repair)
-    return km.predict(Z), info
+    with config_context(assume_finite=finite):  # rows checked already: not checked again
+        return km.predict(Z), info
 
 
 def _fit_minibatch(Z, ns, n_init, random_state, **_):
@@ -301,8 +303,8 @@ def _run(method, Z, ns, **kw):
 
 def cluster_observations(X: np.ndarray, policy, metric, *, n_init: int = 10,
                          random_state: int = 0, method: str = "auto",
-                         sample_size: int | None = None,
-                         repair: bool = True) -> tuple[np.ndarray, dict]:
+                         sample_size: int | None = None, repair: bool = True,
+                         checked: bool = False) -> tuple[np.ndarray, dict]:
     """K-means symbols for the rows of ``X`` (GDS steps already removed).
 
     Returns ``(symbols, details)``: int64 symbols in ``[0, ns)`` numbered by first appearance in
@@ -311,7 +313,9 @@ def cluster_observations(X: np.ndarray, policy, metric, *, n_init: int = 10,
     ran (``"auto"`` resolved; see :data:`METHODS`).  Raises a
     :class:`~topomap.core.checks.ParameterError` naming ``ns`` (the count the policy chose) when
     more clusters are asked for than there are distinct observations.  ``repair=False`` leaves
-    views K-means cut in two as they are (:mod:`topomap.core.phase1.repair`).
+    views K-means cut in two as they are (:mod:`topomap.core.phase1.repair`).  ``checked=True``
+    says that every value of ``X`` is known to be finite: where the metric passes ``X`` through
+    unchanged, scikit-learn's assignment of every row does not check it again (the same labels).
     """
     if method not in METHODS:
         raise ParameterError("method", f"={method!r} is unknown; choose one of {', '.join(METHODS)}")
@@ -331,7 +335,8 @@ def cluster_observations(X: np.ndarray, policy, metric, *, n_init: int = 10,
     if method == "sample" and sample_rows(ns, sample_size) >= Z.shape[0]:
         method = "full"  # the sample would hold every row
     labels, cut = _run(method, Z, ns, n_init=n_init, random_state=random_state,
-                       distinct=distinct, sample_size=sample_size, repair=repair)
+                       distinct=distinct, sample_size=sample_size, repair=repair,
+                       finite=checked and Z is X)
     if cut is not None:
         details = dict(details, cut_views=cut)
     labels = np.asarray(labels)  # scikit-learn's int32: renaming gives int64 without a copy

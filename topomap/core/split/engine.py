@@ -34,6 +34,7 @@ from numba import njit
 
 from .kernels import (action_table, centre_pairs, follow_keys, merge_tallies, split_table,
                       tally_codes, tally_pairs, touched_codes, transition_table)
+from .threads import beside
 from .merge_kernels import count_matrix_kernel, gain_kernel, merge_groups_kernel
 from ..stats import conditional_entropy, sparse_conditional_entropy, xlogx
 
@@ -126,7 +127,7 @@ def _group_steps(labels, n_states, order):
     return bounds
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def members_of(labels, n_states, like):
     """The steps of every state, each state's in increasing order in an array of its own (of
     ``like``'s dtype): a counting sort without a (T,) order array."""
@@ -184,6 +185,16 @@ class SplitEngine:
         self.transitions = transition_table(self.labels, self.u, np.asarray(has_next, dtype=bool),
                                             self.S, self.A)
         self.near = np.zeros(self.S, dtype=bool)  # the states next to the last split's steps
+
+    def count_tables(self):
+        """``(state_counts (S,), action_counts (S, A), transition_counts (S, A, S))`` of the
+        current labelling from the tables kept (new arrays): what
+        :func:`topomap.core.stats.count_tables` counts over the steps."""
+        S, A = self.S, self.A
+        trans = np.zeros((S * A, S), dtype=np.int64)
+        codes, counts = self.transitions
+        trans[codes >> _SHIFT, codes & 0xFFFFFFFF] = counts
+        return self.state_counts.copy(), self.action_counts.copy(), trans.reshape(S, A, S)
 
     # ------------------------------------------------------------------ proposals
     def count_matrix(self, q: int):
@@ -261,14 +272,16 @@ class SplitEngine:
             moved, self.has_prev, self.has_next, self.centre, self.labels, self.u, self.A, _SHIFT,
             q, new)
         size = (self.S + 1) * self.A
+        # the transitions need nothing of the instance tables: merged beside them
+        transitions = beside(_merge_delta, self.transitions, starts[0], starts[1], size)
         self._update_instances(*outside[1:])
-        self.transitions = _merge_delta(self.transitions, starts[0], starts[1], size)
         self.members[q] = steps[~goes]
         self.members.append(moved)
         halves = split_table(*self.tables[q], chosen, _SHIFT)
         went = inside[2] == 1
         self.tables[q] = _merge_delta(halves[0], inside[0][~went], inside[1][~went], size)
         self.tables.append(_merge_delta(halves[1], inside[0][went], inside[1][went], size))
+        self.transitions = transitions()
         self._update_counts(q, moved)
         return moved
 
@@ -362,6 +375,11 @@ class Splitter:
             "n_steps_kept": int(self.engine.members[q].size), "n_steps_new": int(moved.size),
             "n_groups": int(best.keys.size),
         }
+
+    def count_tables(self):
+        """The labelling's ``(state_counts, action_counts, transition_counts)`` from the
+        engine's tables (:meth:`SplitEngine.count_tables`)."""
+        return self.engine.count_tables()
 
     def roots(self) -> np.ndarray:
         """The phase-1 state every state descends from (a state of phase 1 is its own)."""

@@ -12,7 +12,7 @@ __all__ = ["transition_table", "action_table", "merge_tallies", "tally_codes",
            "instance_table", "centre_pairs", "tally_pairs", "sorted_union", "follow_keys",
            "touched_codes", "split_table"]
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def transition_table(x, u, has_next, S, A):
     """Sorted codes ``(x[t] * A + u[t]) << 32 | x[t + 1]`` of the distinct transitions (steps
     with ``has_next``) and their counts, in two passes over the steps and no (T,) temporaries:
@@ -37,7 +37,7 @@ def transition_table(x, u, has_next, S, A):
     return codes, n.ravel()[nz]
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def action_table(x, u, S, A):
     """(S, A) how often each state takes each action: ``np.bincount(x * A + u)`` in one pass."""
     out = np.zeros((S, A), dtype=np.int64)
@@ -46,7 +46,7 @@ def action_table(x, u, S, A):
     return out
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def merge_tallies(codes, counts, minus, minus_n, plus, plus_n):
     """The sorted sparse table (``codes``, ``counts``) with ``minus_n[j]`` taken off at code
     ``minus[j]`` and ``plus_n[k]`` added at code ``plus[k]`` (both tallies sorted and distinct;
@@ -152,7 +152,7 @@ def instance_table(x, u, steps, centre, A, size):
     return _tally(codes[:n], size)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def centre_pairs(x, u, centre, S, A, bits, pairs):
     """Every centre's pair ``key << bits | column`` (see :func:`instance_table`; keys and
     columns below ``2 ** bits``), in one pass in step order, put in its state's stretch of

@@ -10,11 +10,11 @@ which made the split's passes several times slower when other processes kept the
 from __future__ import annotations
 
 import os
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import Future, ThreadPoolExecutor
 
 import numba
 
-__all__ = ["CHUNK", "n_threads", "in_threads", "pieces"]
+__all__ = ["CHUNK", "n_threads", "in_threads", "beside", "pieces"]
 
 #: steps per piece of a pass cut into pieces (a fixed size: the pieces are the same whatever the
 #: number of threads)
@@ -29,6 +29,13 @@ def n_threads() -> int:
     return max(1, int(numba.config.NUMBA_NUM_THREADS))
 
 
+def _pool(n: int) -> ThreadPoolExecutor:
+    pool = _POOLS.get(n)
+    if pool is None:
+        pool = _POOLS[n] = ThreadPoolExecutor(n, thread_name_prefix="topomap")
+    return pool
+
+
 def in_threads(fn, items) -> list:
     """``[fn(i) for i in items]``, the calls spread over :func:`n_threads` threads (``fn``
     should spend its time in compiled code that releases the GIL)."""
@@ -36,10 +43,22 @@ def in_threads(fn, items) -> list:
     n = min(n_threads(), len(items))
     if n < 2:
         return [fn(i) for i in items]
-    pool = _POOLS.get(n)
-    if pool is None:
-        pool = _POOLS[n] = ThreadPoolExecutor(n, thread_name_prefix="topomap")
-    return list(pool.map(fn, items))
+    return list(_pool(n).map(fn, items))
+
+
+def beside(fn, *args):
+    """Start ``fn(*args)`` on a thread of the pool, so that the calling thread goes on with
+    other work; returns a function without arguments that waits for the result and returns it
+    (or raises what ``fn`` raised).  On one thread ``fn`` runs at once, in this call (what it
+    raises is raised by the function returned, as with threads)."""
+    if n_threads() >= 2:
+        return _pool(n_threads()).submit(fn, *args).result
+    done = Future()
+    try:
+        done.set_result(fn(*args))
+    except Exception as error:  # noqa: BLE001 -- handed to the caller, as a thread's would be
+        done.set_exception(error)
+    return done.result
 
 
 def pieces(n: int, chunk: int = CHUNK) -> list[slice]:
