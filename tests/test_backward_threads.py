@@ -113,13 +113,14 @@ def test_pair_work_by_hand():
     assert pair_work(lay.tables) == 6 + 9
 
 
-@pytest.mark.parametrize("threads_allowed, work_bound, threaded", [
-    (1, 0, False), (2, 0, True), (2, 1 << 40, False)])
-def test_the_threads_run_where_allowed_and_worth_it(threads_allowed, work_bound, threaded,
-                                                    monkeypatch):
+@pytest.mark.parametrize("threads_allowed, work_bound, step_pairs, threaded", [
+    (1, 0, 0, False), (2, 0, 0, True), (2, 1 << 40, 0, False), (2, 0, 1 << 20, False)])
+def test_the_threads_run_where_allowed_and_worth_it(threads_allowed, work_bound, step_pairs,
+                                                    threaded, monkeypatch):
     calls = []
     monkeypatch.setattr(threads, "n_threads", lambda: threads_allowed)
     monkeypatch.setattr(backward, "THREAD_WORK", work_bound)
+    monkeypatch.setattr(backward, "THREAD_STEP_PAIRS", step_pairs)
     real = backward.backward_counts_threaded
     monkeypatch.setattr(backward, "backward_counts_threaded",
                         lambda *a: calls.append(1) or real(*a))

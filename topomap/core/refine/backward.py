@@ -27,12 +27,16 @@ from ..split import threads
 from .kernels import _block_rows, _clone_active, _transpose_blocks, _widest, clone_backward_counts
 
 __all__ = ["backward_counts", "backward_counts_threaded", "pair_work", "THREAD_CHUNK",
-           "THREAD_WORK"]
+           "THREAD_WORK", "THREAD_STEP_PAIRS"]
 
 #: steps per piece handed from the message thread to the counting thread
 THREAD_CHUNK = 512
-#: clone pairs over all steps (:func:`pair_work`) from which the pass runs on two threads
+#: clone pairs over all steps (:func:`pair_work`) from which the pass runs on two threads (the
+#: fused pass takes about a millisecond there; handing the pieces over costs a tenth of that)
 THREAD_WORK = 1_000_000
+#: clone pairs per step (on average) from which the pass runs on two threads: with fewer, each
+#: half costs 0.7-0.9 of the fused pass (the steps' fixed costs are paid twice)
+THREAD_STEP_PAIRS = 200
 
 
 @njit(cache=True)
@@ -127,8 +131,10 @@ def backward_counts(tables, vals, alpha, log_c, counts, occupancy):
     """:func:`~topomap.core.refine.kernels.clone_backward_counts` (the same arguments, the same
     bits): on two threads (:func:`backward_counts_threaded`) where
     :func:`~topomap.core.split.threads.n_threads` is at least 2 and the pass visits at least
-    :data:`THREAD_WORK` clone pairs (:func:`pair_work`), else the fused one-thread pass."""
-    if threads.n_threads() < 2 or pair_work(tables) < THREAD_WORK:
+    :data:`THREAD_WORK` clone pairs (:func:`pair_work`), :data:`THREAD_STEP_PAIRS` a step on
+    average; else the fused one-thread pass."""
+    if (threads.n_threads() < 2
+            or pair_work(tables) < max(THREAD_WORK, THREAD_STEP_PAIRS * tables.sym.size)):
         return clone_backward_counts(tables, vals, alpha, log_c, counts, occupancy)
     return backward_counts_threaded(tables, vals, alpha, log_c, counts, occupancy)
 
