@@ -2,6 +2,8 @@
 bit for bit: on hand cases, and on random clone tables whose episode ends and piece bounds fall
 anywhere (pieces of 1, 2, 3 and 7 steps, one and two threads, pruned clones or none)."""
 
+import threading
+
 import numpy as np
 import pytest
 
@@ -134,14 +136,36 @@ def test_the_threads_run_where_allowed_and_worth_it(threads_allowed, work_bound,
     np.testing.assert_array_equal(_bits(got[0]), _bits(fused[0]))
 
 
-def test_a_failing_message_job_raises_instead_of_leaving_the_counts_waiting(n_threads,
-                                                                           monkeypatch):
-    def broken(*args):
-        raise FloatingPointError("messages")
+@pytest.mark.parametrize("fail_from", [1, 2])
+def test_a_failing_message_job_raises_and_no_count_is_added_after_it(fail_from, n_threads,
+                                                                     monkeypatch):
+    """The messages fail at their first or second piece: the call raises their error (it does
+    not wait for messages that never come: run on a thread given 60 s) and no count is added
+    from a piece whose messages were not done (the first piece's may have been added before the
+    failure; with one thread the messages run first, so none is)."""
+    real, real_tally, tallied, outcome = backward._messages, backward._tally, [], []
+
+    def broken(tables, vals_t, alpha, log_c, betas, hi, lo):
+        if hi <= tables.sym.size - 7 * (fail_from - 1):
+            raise FloatingPointError("messages")
+        return real(tables, vals_t, alpha, log_c, betas, hi, lo)
 
     monkeypatch.setattr(backward, "_messages", broken)
+    monkeypatch.setattr(backward, "_tally", lambda *a: tallied.append(a[-2:]) or real_tally(*a))
     lay, vals, _ = _random_case(2)
     alpha, log_c = clone_forward(lay.tables, vals, 0.0)
-    with pytest.raises(FloatingPointError, match="messages"):
-        backward_counts_threaded(lay.tables, vals, alpha, log_c, np.zeros(vals.size),
-                                 np.zeros(lay.n_clones), 3)
+
+    def call():
+        try:
+            backward_counts_threaded(lay.tables, vals, alpha, log_c, np.zeros(vals.size),
+                                     np.zeros(lay.n_clones), 7)
+        except FloatingPointError as error:
+            outcome.append(error)
+
+    caller = threading.Thread(target=call, daemon=True)
+    caller.start()
+    caller.join(60)
+    assert not caller.is_alive() and len(outcome) == 1 and "messages" in str(outcome[0])
+    T = lay.sym.size
+    assert set(tallied) <= ({(T, T - 7)} if fail_from == 2 else set())
+    assert n_threads == 2 or tallied == []

@@ -151,6 +151,8 @@ def backward_counts_threaded(tables, vals, alpha, log_c, counts, occupancy,
     pieces = list(zip(edges, edges[1:]))
     ready = [threading.Event() for _ in pieces]
 
+    failed = []
+
     def messages():
         try:
             vals_t = np.empty(vals.size)
@@ -159,6 +161,8 @@ def backward_counts_threaded(tables, vals, alpha, log_c, counts, occupancy,
             for (hi, lo), done in zip(pieces, ready):
                 _messages(tables, vals_t, alpha, log_c, betas, hi, lo)
                 done.set()
+        except BaseException as error:  # raised below, once the counting job has stopped too
+            failed.append(error)
         finally:  # a failure must not leave the counting job waiting
             for done in ready:
                 done.set()
@@ -166,7 +170,11 @@ def backward_counts_threaded(tables, vals, alpha, log_c, counts, occupancy,
     def tally():
         for (hi, lo), done in zip(pieces, ready):
             done.wait()
+            if failed:
+                return
             _tally(tables, vals, alpha, log_c, betas, counts, occupancy, hi, lo)
 
     threads.in_threads(lambda job: job(), [messages, tally])
+    if failed:
+        raise failed[0]
     return counts, occupancy
