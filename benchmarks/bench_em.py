@@ -28,8 +28,9 @@ worlds past ``CSCG_MAX_BYTES`` are left out (FourRooms' 450 symbols would need 1
 Columns, medians over the seeds: ARI and NMI against the true places, the states used, the
 held-out log-likelihood per step (``TopologicalMap.score``, nats: a log-density, comparable
 between rows of one world and T) and the fit time (seconds; phase 1 included).  Every run is
-appended as JSON to ``--log`` (runs already there are not repeated, so an interrupted benchmark
-resumes); ``--figure`` draws ARI against fit time.
+appended as JSON to ``--log``, with the load average and ``threads`` (the threads the compiled
+passes may use, ``NUMBA_NUM_THREADS``); runs already there are not repeated, so an interrupted
+benchmark resumes.  ``--figure`` draws ARI against fit time.
 """
 
 from __future__ import annotations
@@ -52,6 +53,7 @@ from topomap.app.run.data import load_data
 from topomap.app.compose.registry import Registry
 from topomap.core.learner import MapLearner
 from topomap.core.metrics import adjusted_rand, nmi
+from topomap.core.split.threads import n_threads
 
 from bench_worlds import EMPTY16, FOURROOMS, GRID12, RG60
 
@@ -109,7 +111,8 @@ def fit(registry, command: str, T: int, seed: int, method: str, data=None):
         "states": m.n_states, "seconds": seconds,
         "heldout": m.score(heldout.observations, heldout.actions, gds=heldout.gds,
                            lengths=heldout.lengths),
-        "load": os.getloadavg()[0], "phase1": t["phase1"], "refine": t.get("refine"),
+        "load": os.getloadavg()[0], "threads": n_threads(), "phase1": t["phase1"],
+        "refine": t.get("refine"),
         "em_iterations": sum(st[2] for st in getattr(learner, "refine_info_", {}).get("stages",
                                                                                      [])),
     }, data
