@@ -582,7 +582,7 @@ def test_capped_growth_stages_on_the_ring():
     sym, u, lengths, _, _ = _ring_walk(misread=0.12)
     seq = _seq(sym, u, lengths)
     soft = {"stage_cap": 3, "stage_rtol": 1.0}
-    free = EMRefinement()._first_hard_round(seq, RING, 0)
+    free = EMRefinement(soft={"stage_cap": 0})._first_hard_round(seq, RING, 0)
     capped = EMRefinement(soft=soft)._first_hard_round(seq, RING, 0)
     assert max(iters for _, _, iters in free.info["stages"][1:]) > 3
     assert [iters for _, _, iters in capped.info["stages"][1:]] == [3] * (
@@ -610,7 +610,8 @@ def test_a_soft_round_stops_by_its_relative_tolerance(monkeypatch):
             monitors.append(self)
 
     monkeypatch.setattr(soft_module, "ConvergenceMonitor", Recorded)
-    soft_round(seq, hard.labels, hard.state_symbol, settings=SoftSettings(tol=0.0, max_iter=20))
+    soft_round(seq, hard.labels, hard.state_symbol,
+               settings=SoftSettings(tol=0.0, max_iter=20, rtol=0.0))
     h = np.array(monitors[-1].history)
     share = np.diff(h) / np.abs(h[:-1])  # share[j - 1]: the gain of iteration j + 1
     rtol = float(np.median(share[2:]))
@@ -627,7 +628,7 @@ def test_the_soft_rounds_stop_by_rtol_only_where_misreads_are_many(misread):
     fit is the one without it."""
     sym, u, lengths, _, _ = _ring_walk(misread=misread)
     seq = _seq(sym, u, lengths)
-    plain = EMRefinement().fit(seq, RING, 0)
+    plain = EMRefinement(soft={"rtol": 0.0}).fit(seq, RING, 0)
     loose = EMRefinement(soft={"rtol": 0.5}).fit(seq, RING, 0)
     first = [fit.info_["soft_rounds"][0]["em_iterations"] for fit in (plain, loose)]
     if misread < 0.1:

@@ -133,17 +133,14 @@ class CloneRefinement(BaseEstimator):
         predicts the next symbol of all but a ``soft.detect`` share of its transitions
         (:func:`~topomap.core.refine.soft.successor_surprise`: there is nothing to correct), and
         after the first soft round when that round explains fewer steps than ``soft.detect`` as
-        misread (:func:`~topomap.core.refine.soft.misread_share`) and corrects fewer.
+        misread (:func:`~topomap.core.refine.soft.misread_share`) and corrects fewer.  Where
+        misreads are many, the soft rounds stop by ``soft.rtol`` (:func:`_round_settings`).
         ``n_reference`` is the state count a fractional ``soft.min_steps`` refers to (the
         split's; default: the hard round's)."""
-        s = soft_settings(self.soft)
-        if self.evidence == "soft":
-            s = replace(s, detect=-1.0)
         surprise = successor_surprise(seq, hard_fit.labels)
+        s = _round_settings(soft_settings(self.soft), self.evidence, surprise)
         if surprise < s.detect:
             return _skipped(hard_fit, surprise, [])
-        if surprise < CAP_SURPRISE * s.detect:  # few misreads: the soft rounds run to ``tol``
-            s = replace(s, rtol=0.0)
         rng = np.random.default_rng(random_state)
         labels, state_symbol = hard_fit.labels, hard_fit.state_symbol
         n_ref = state_symbol.size if n_reference is None else int(n_reference)
@@ -224,6 +221,17 @@ SETTLE_REREAD = 1.0
 def reread_share(sym, read) -> float:
     """The share of steps whose symbol ``sym`` differs from ``read``."""
     return float(np.mean(np.asarray(sym) != np.asarray(read))) if len(read) else 0.0
+
+
+def _round_settings(s: SoftSettings, evidence: str, surprise: float) -> SoftSettings:
+    """The soft settings ``s`` of the rounds after a hard round whose labelling shows the
+    successor ``surprise``: ``detect`` -1 with ``evidence="soft"`` (the soft rounds always run);
+    ``rtol`` 0 (the soft rounds run to ``tol``) unless misreads are many, a surprise at least
+    ``CAP_SURPRISE`` x ``soft.detect`` -- there the slow tail of a soft round only moves what
+    the next round corrects anyway."""
+    few = surprise < CAP_SURPRISE * s.detect
+    return replace(s, detect=-1.0 if evidence == "soft" else s.detect,
+                   rtol=0.0 if few else s.rtol)
 
 
 def _skipped(hard_fit: CloneFit, surprise: float, rounds) -> CloneFit:

@@ -48,7 +48,9 @@ class SoftSettings:
     steps per state of the reference count, the split's states; ``prune_every=False``: only
     before the last round); ``spare`` extra clones per K-means symbol in the intermediate soft rounds;
     ``max_iter`` / ``tol`` Baum-Welch's stop (nats per step; ``rtol`` > 0: instead once an
-    iteration gains at most that share of the log-likelihood); ``row_prior`` the pseudocount mass of
+    iteration gains at most that share of the log-likelihood, in the refinements only after a
+    hard round whose labelling shows many misreads,
+    :data:`~topomap.core.refine.rounds.CAP_SURPRISE`); ``row_prior`` the pseudocount mass of
     a transition row; ``conf_diag`` / ``conf_off`` the Dirichlet pseudocounts of the confusion
     matrix's diagonal / off-diagonal entries (per row); ``init_error`` the misread rate the
     confusion matrix starts from; ``floor`` the smallest ``C[k, r]`` allowed as evidence (smaller
@@ -64,10 +66,11 @@ class SoftSettings:
     (:func:`merge_twins`); ``conf_warmup``: EM iterations with the confusion matrix held at its
     start before it is learned (0: from the first; docs/refinement.md has its effect on
     gridroom at 23 % misreads).  ``stage_cap`` / ``stage_rtol``: where the first stage's
-    labelling of a hard round's prefix already shows misreads, the growth stages' Baum-Welch
-    stops after ``stage_cap`` iterations unless its last iteration still gained more than
-    ``stage_rtol`` x |log-likelihood|, and then once an iteration gains less (0: off;
-    :meth:`~topomap.core.refine.methods.EMRefinement._stages`).
+    labelling of a hard round's prefix already shows many misreads (``CAP_SURPRISE``), the
+    growth stages' Baum-Welch stops after ``stage_cap`` iterations unless its last iteration
+    still gained more than ``stage_rtol`` x |log-likelihood|, and then once an iteration gains
+    less (``stage_cap`` 0: off; ``stage_rtol`` inf: never goes on;
+    :meth:`~topomap.core.refine.methods.EMRefinement._stage_cap`).
     """
 
     rounds: int = 3
@@ -88,9 +91,9 @@ class SoftSettings:
     twin_merge: float = 0.5
     conf_warmup: int = 0
     detect_iter: int = 3
-    stage_cap: int = 0
-    stage_rtol: float = 1e-3
-    rtol: float = 0.0
+    stage_cap: int = 15
+    stage_rtol: float = float("inf")
+    rtol: float = 1e-3
 
 
 #: the real-valued soft settings and what each must be
