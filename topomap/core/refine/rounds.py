@@ -201,7 +201,7 @@ class CloneRefinement(BaseEstimator):
 #: the successor surprise (in ``soft.detect``) from which misreads count as many: the growth
 #: stages of a hard round whose first stage's labelling of the prefix shows it are capped
 #: (``soft.stage_cap``), and the soft rounds after a hard round whose labelling shows it stop by
-#: ``soft.rtol``.  Gridroom 8x6's prefixes show 0.6-1.1 % without misreads, 3.6-3.8 % at 2.5 %
+#: ``soft.rtol``.  Gridroom 8x6's prefixes show 0.6-1.1 % without misreads, 3.5-3.8 % at 2.5 %
 #: misreads (where the cap cost ARI), 8-10 % at 9.7 %
 CAP_SURPRISE = 25.0
 
