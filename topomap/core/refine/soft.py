@@ -91,9 +91,9 @@ class SoftSettings:
     twin_merge: float = 0.5
     conf_warmup: int = 0
     detect_iter: int = 3
-    stage_cap: int = 15
+    stage_cap: int = 0
     stage_rtol: float = float("inf")
-    rtol: float = 1e-3
+    rtol: float = 0.0
 
 
 #: the real-valued soft settings and what each must be
