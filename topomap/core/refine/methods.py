@@ -88,8 +88,8 @@ class EMRefinement(CloneRefinement):
     ``evidence`` (:data:`~topomap.core.refine.soft.EVIDENCE`): ``"auto"`` (default) corrects
     misread symbols when the first soft round finds some (the first hard round stops before
     stage 3 where its labelling already shows misreads: :meth:`_first_hard_round`; where the
-    prefix shows many, the growth stages stop after ``soft.stage_cap`` EM iterations:
-    :meth:`_stage_cap`), ``"soft"`` always, ``"hard"`` never;
+    prefix shows many, the growth stages stop after ``soft.stage_cap`` EM iterations, 0 and
+    off by default: :meth:`_stage_cap`), ``"soft"`` always, ``"hard"`` never;
     ``soft`` holds the soft rounds' settings (:class:`~topomap.core.refine.soft.SoftSettings`, or
     a mapping of some of its fields, e.g. ``{"conf_warmup": 10}``).
 
