@@ -3,7 +3,8 @@ and EM alone, as sensor noise grows.
 
     python benchmarks/bench_noise.py                 # every world, every noise level, seeds 0-2
     python benchmarks/bench_noise.py --quick         # gridroom 8x6 and random_graph 60, 3 levels, seed 0
-    python benchmarks/bench_noise.py --worlds gridroom --seeds 0 1 2 --methods split em_hard em_soft
+    python benchmarks/bench_noise.py --worlds gridroom_8x6 --seeds 0 1 2 --methods split em_hard em_soft
+    python benchmarks/bench_noise.py --worlds gridroom_8x6 --methods em_soft --soft stage_cap=15 rtol=0.001
 
 Each world is a ``topomap`` command (``WORLDS``); its noise is the Gaussian noise of the
 observations (``noise.sigma``; ``SIGMAS`` per world, chosen so that the symbol error spans about
@@ -19,9 +20,10 @@ method fits a :class:`topomap.MapLearner` on it:
 * ``cscg_soft``-- ``refine=cscg`` (EM alone with soft evidence).
 
 Every fit keeps the number of states its method finds (``learner.refined_size=free``), so the
-table shows how misreads multiply states.  Reported: medians over the seeds of the symbol error, ARI (states against the true places),
-states and fit seconds (phase 1 + split + refinement; simulation and scoring excluded).  Prints a
-Markdown table and draws ARI against symbol error, one line per method, into
+table shows how misreads multiply states.  Reported: medians over the seeds of the symbol error,
+ARI (states against the true places), states, fit seconds (phase 1 + split + refinement;
+simulation and scoring excluded) and the process's CPU seconds over the fit, then the ARI of every
+seed.  Prints a Markdown table and draws ARI against symbol error, one line per method, into
 ``docs/img/noise.png`` (``--figure``).  The machine's load average is printed with the table:
 fit times are wall-clock seconds.
 """
@@ -33,6 +35,7 @@ import os
 import shlex
 import statistics
 import time
+from dataclasses import fields
 from pathlib import Path
 
 import numpy as np
@@ -43,6 +46,7 @@ from topomap.app.run.experiment import _as_dict, make_learner
 from topomap.app.compose.registry import Registry
 from topomap.core import metrics as M
 from topomap.core.refine.methods import CSCGRefinement, EMRefinement
+from topomap.core.refine.soft import SoftSettings
 
 TEN_K = "data.n_steps=10000"
 WORLDS = {
@@ -82,7 +86,7 @@ def symbol_error(symbols, places, gds) -> float:
 
 
 def run_level(world: str, sigma: float, seed: int, methods, registry) -> dict:
-    """Every method on one simulated trajectory: ``{method: {err, ari, states, fit}}``."""
+    """Every method on one simulated trajectory: ``{method: {err, ari, states, fit, cpu}}``."""
     overrides = [*shlex.split(WORLDS[world]), f"noise.sigma={sigma}", f"seed={seed}",
                  "data.heldout_steps=0", "output.figures=false", "output.progress=false",
                  "learner.refined_size=free"]  # the states each method finds by itself
@@ -95,17 +99,19 @@ def run_level(world: str, sigma: float, seed: int, methods, registry) -> dict:
             continue  # read from em_hard's fit
         learner = make_learner(cfg, parts)
         learner.set_params(refine=None if name == "split" else METHODS[name]())
+        cpu = time.process_time()
         learner.fit_trajectory(traj)
+        cpu = time.process_time() - cpu
         t = learner.timings_
         err = symbol_error(learner.labels_phase1_, traj.places, traj.gds)
         out[name] = {"err": err, "ari": M.evaluate(traj.places, learner.labels_)["ari"],
                      "states": int(np.unique(learner.labels_).size),
-                     "fit": t["phase1"] + t["phase2"] + t.get("refine", 0.0)}
+                     "fit": t["phase1"] + t["phase2"] + t.get("refine", 0.0), "cpu": cpu}
         if name == "em_hard" and "split" in methods:
             out["split"] = {"err": err,
                             "ari": M.evaluate(traj.places, learner.labels_split_)["ari"],
                             "states": int(np.unique(learner.labels_split_).size),
-                            "fit": t["phase1"] + t["phase2"]}
+                            "fit": t["phase1"] + t["phase2"], "cpu": float("nan")}
     return out
 
 
@@ -122,6 +128,8 @@ def main():
     ap.add_argument("--methods", nargs="+", default=ALL_METHODS, choices=ALL_METHODS)
     ap.add_argument("--quick", action="store_true",
                     help=f"{QUICK['worlds']}, levels {QUICK['levels']}, seed 0")
+    ap.add_argument("--soft", nargs="+", default=[], metavar="KEY=VALUE",
+                    help="soft settings of em_soft and cscg_soft (e.g. stage_cap=15)")
     ap.add_argument("--figure", default="docs/img/noise.png", help="'' for none")
     ap.add_argument("--from-table", nargs="+", metavar="FILE",
                     help="draw the figure from tables this script printed (no runs)")
@@ -132,6 +140,7 @@ def main():
         return
     if args.quick:
         args.worlds, args.levels, args.seeds = QUICK["worlds"], QUICK["levels"], QUICK["seeds"]
+    set_soft(args.soft)
     registry = Registry.load()
     # compile the kernels outside the timings
     run_level("gridroom_8x6", 0.3, 0, ["em_soft"], registry) if "em_soft" in args.methods else None
@@ -139,7 +148,7 @@ def main():
     print(f"medians over seeds {args.seeds}; load average at start {os.getloadavg()[0]:.2f} "
           f"on {os.cpu_count()} cores")
     header = "| world | sigma | symbol error | " + " | ".join(
-        f"{m} ARI / states / s" for m in args.methods) + " |"
+        f"{m} ARI / states / s / CPU s / ARI per seed" for m in args.methods) + " |"
     print(header)
     print("|" + "---|" * (header.count("|") - 1), flush=True)
     t_start = time.perf_counter()
@@ -153,13 +162,33 @@ def main():
             results.setdefault(world, []).append((err, {m: _med(per[m], "ari")
                                                         for m in args.methods}))
             cells = " | ".join(
-                f"{_med(per[m], 'ari'):.3f} / {'/'.join(str(r['states']) for r in per[m])} / "
-                f"{_med(per[m], 'fit'):.1f}" for m in args.methods)
+                f"{_med(per[m], 'ari'):.4f} / {'/'.join(str(r['states']) for r in per[m])} / "
+                f"{_med(per[m], 'fit'):.2f} / {_med(per[m], 'cpu'):.2f} / "
+                f"{','.join(format(r['ari'], '.4f') for r in per[m])}"
+                for m in args.methods)
             print(f"| {world} | {sigma} | {err:.1%} | {cells} |", flush=True)
     print(f"total {time.perf_counter() - t_start:.0f} s; load average at end "
           f"{os.getloadavg()[0]:.2f}")
     if args.figure:
         draw(results, args.methods, Path(args.figure))
+
+
+def set_soft(pairs) -> None:
+    """The soft methods of ``METHODS`` with the soft settings ``KEY=VALUE`` of ``pairs`` (each
+    value read as its setting's type)."""
+    if not pairs:
+        return
+    kinds = {f.name: f.type for f in fields(SoftSettings)}
+    soft = {}
+    for pair in pairs:
+        key, _, value = pair.partition("=")
+        if key not in kinds:
+            raise SystemExit(f"--soft: {key!r} is not a soft setting ({', '.join(kinds)})")
+        soft[key] = {"int": int, "float": float, "bool": lambda v: v.lower() == "true"}[
+            kinds[key]](value)
+    print(f"soft settings: {soft}")
+    METHODS["em_soft"] = lambda: EMRefinement(evidence="auto", soft=soft)
+    METHODS["cscg_soft"] = lambda: CSCGRefinement(evidence="auto", soft=soft)
 
 
 def read_tables(files):

@@ -509,3 +509,132 @@ def test_gapped_candidates_match_enumeration():
     np.testing.assert_allclose(stats.trans, tr, atol=1e-12)
     np.testing.assert_allclose(stats.emit, em, atol=1e-12)
     np.testing.assert_allclose(stats.init, ini, atol=1e-12)
+
+
+# ------------------------------------------- growth stages cut short where the prefix misreads
+def _ring_layout(misread=0.04, seed=0):
+    """The ring walk with misreads, 4 clones per symbol, random counts."""
+    from topomap.core.refine.clones import clone_budget, random_counts
+    sym, u, lengths, _, _ = _ring_walk(misread=misread)
+    lay = _seq(sym, u, lengths).layout(clone_budget(3, 0, 4))
+    return lay, random_counts(lay, np.random.default_rng(seed))
+
+
+def test_capped_baum_welch_with_no_tolerance_is_baum_welch_itself():
+    """``rtol=0``: the stop after the cap is Baum-Welch's own (``tol``), and the run goes on from
+    the counts it stopped at -- the same iterations, log-likelihoods and counts as one run."""
+    from topomap.core.refine.clones import baum_welch
+    lay, init = _ring_layout()
+    counts, _, history = baum_welch(lay, init.copy(), 0.01, False, max_iter=30, tol=1e-9)
+    capped, capped_history = methods.capped_baum_welch(lay, init.copy(), 0.01, max_iter=30,
+                                                       tol=1e-9, cap=12, rtol=0.0)
+    assert len(history) == 30  # it never settles by tol: the cap and the rest both run
+    assert capped_history == history
+    np.testing.assert_array_equal(capped, counts)
+
+
+def test_capped_baum_welch_goes_on_only_while_it_gains_the_share_asked():
+    """After ``cap`` iterations Baum-Welch stops unless its last gain exceeds ``rtol`` x |its
+    log-likelihood|; then it stops at the first later iteration gaining less than that."""
+    from topomap.core.refine.clones import baum_welch
+    lay, init = _ring_layout()
+    _, _, full = baum_welch(lay, init.copy(), 0.01, False, max_iter=40, tol=0.0)
+    cap = 12
+    gain = np.diff(full)
+    # a share the gain at the cap exceeds (twice over), but a later gain falls below
+    rtol = 0.5 * gain[cap - 2] / abs(full[cap - 1])
+    bar = rtol * abs(full[cap - 1])
+    later = [j for j in range(cap + 1, 40) if full[j] - full[j - 1] < bar]
+    assert later, "the ring's Baum-Welch keeps gaining: pick another rtol"
+    _, history = methods.capped_baum_welch(lay, init.copy(), 0.01, max_iter=40, tol=0.0,
+                                           cap=cap, rtol=rtol)
+    assert len(history) == later[0] + 1
+    _, history = methods.capped_baum_welch(lay, init.copy(), 0.01, max_iter=40, tol=0.0,
+                                           cap=cap, rtol=4 * rtol)  # the gain at the cap is less
+    assert len(history) == cap
+
+
+@pytest.mark.parametrize("misread, evidence, stage_cap, capped", [
+    (0.12, "auto", 15, True), (0.12, "soft", 15, True), (0.0, "auto", 15, False),
+    (0.04, "auto", 15, False), (0.12, "hard", 15, False), (0.12, "auto", 0, False),
+    (0.12, "auto", 50, False)])
+def test_the_growth_stages_are_capped_only_where_the_prefix_shows_misreads(
+        misread, evidence, stage_cap, capped):
+    """The cap comes with many misreads on the first stage's prefix (12 % of the steps: its
+    successor surprise at least ``CAP_SURPRISE`` x ``soft.detect``), never with exact symbols,
+    few misreads (4 %), ``evidence="hard"``, ``soft.stage_cap`` 0 or a cap at ``max_iter`` or
+    above."""
+    sym, u, lengths, _, _ = _ring_walk(misread=misread)
+    seq = _seq(sym, u, lengths)
+    est = EMRefinement(evidence=evidence, soft={"stage_cap": stage_cap, "stage_rtol": 0.01})
+    rng = np.random.default_rng(0)
+    prefix = seq.head(2000)
+    labels, _, _ = est._first_round(prefix, RING, rng)
+    surprise = successor_surprise(prefix, labels) / SoftSettings().detect
+    assert (surprise >= methods.CAP_SURPRISE) is (misread > 0.1)
+    assert (est._stage_cap(prefix, labels) == (stage_cap, 0.01)) is capped
+
+
+def test_capped_growth_stages_on_the_ring():
+    """With 12 % misreads, every growth stage stops at the cap (a relative gain of 1 is never
+    reached) where some ran longer without it; on exact symbols the fit is the same with or
+    without the cap (the map of a clean walk never changes)."""
+    sym, u, lengths, _, _ = _ring_walk(misread=0.12)
+    seq = _seq(sym, u, lengths)
+    soft = {"stage_cap": 3, "stage_rtol": 1.0}
+    free = EMRefinement(soft={"stage_cap": 0})._first_hard_round(seq, RING, 0)
+    capped = EMRefinement(soft=soft)._first_hard_round(seq, RING, 0)
+    assert max(iters for _, _, iters in free.info["stages"][1:]) > 3
+    assert [iters for _, _, iters in capped.info["stages"][1:]] == [3] * (
+        len(capped.info["stages"]) - 1)
+    sym, u, lengths, _, _ = _ring_walk(misread=0.0)
+    seq = _seq(sym, u, lengths)
+    exact = EMRefinement().fit(seq, RING, 0)
+    exact_capped = EMRefinement(soft=soft).fit(seq, RING, 0)
+    np.testing.assert_array_equal(exact_capped.labels_, exact.labels_)
+    assert exact_capped.info_ == exact.info_
+
+
+def test_a_soft_round_stops_by_its_relative_tolerance(monkeypatch):
+    """``soft.rtol``: Baum-Welch with soft evidence stops at the first iteration (from the third)
+    gaining at most that share of the log-likelihood before it -- read off a run without it."""
+    from topomap.core.refine import soft as soft_module
+    sym, u, lengths, _, _ = _ring_walk(misread=0.12)
+    seq = _seq(sym, u, lengths)
+    hard = EMRefinement(evidence="hard")._hard_round(seq, RING, 0)
+    monitors = []
+
+    class Recorded(soft_module.ConvergenceMonitor):
+        def __init__(self, *args, **kwargs):
+            super().__init__(*args, **kwargs)
+            monitors.append(self)
+
+    monkeypatch.setattr(soft_module, "ConvergenceMonitor", Recorded)
+    soft_round(seq, hard.labels, hard.state_symbol,
+               settings=SoftSettings(tol=0.0, max_iter=20, rtol=0.0))
+    h = np.array(monitors[-1].history)
+    share = np.diff(h) / np.abs(h[:-1])  # share[j - 1]: the gain of iteration j + 1
+    rtol = float(np.median(share[2:]))
+    stop = next(j for j in range(2, h.size) if h[j] <= h[j - 1] + rtol * abs(h[j - 1]))
+    fit = soft_round(seq, hard.labels, hard.state_symbol,
+                     settings=SoftSettings(tol=0.0, max_iter=20, rtol=rtol))
+    assert fit.info["em_iterations"] == stop + 1 < 20
+
+
+@pytest.mark.parametrize("misread", [0.04, 0.12])
+def test_the_soft_rounds_stop_by_rtol_only_where_misreads_are_many(misread):
+    """``soft.rtol`` applies where the hard round's labelling shows many misreads (surprise at
+    least ``CAP_SURPRISE`` x ``soft.detect``: 12 % of the ring's steps misread); with 4 % the
+    fit is the one without it."""
+    sym, u, lengths, _, _ = _ring_walk(misread=misread)
+    seq = _seq(sym, u, lengths)
+    plain = EMRefinement(soft={"rtol": 0.0}).fit(seq, RING, 0)
+    loose = EMRefinement(soft={"rtol": 0.5}).fit(seq, RING, 0)
+    first = [fit.info_["soft_rounds"][0]["em_iterations"] for fit in (plain, loose)]
+    if misread < 0.1:
+        assert plain.info_["surprise"] < rounds.CAP_SURPRISE * SoftSettings().detect
+        np.testing.assert_array_equal(loose.labels_, plain.labels_)
+        assert loose.info_ == plain.info_
+    else:
+        assert plain.info_["surprise"] >= rounds.CAP_SURPRISE * SoftSettings().detect
+        assert first[1] == 3 < first[0]  # stopped at the first iteration it judges

@@ -35,9 +35,9 @@ import numpy as np
 
 from ..checks import check_count
 from .budget import BUDGETS
-from .clones import (Layout, clone_budget, fit_clones, init_from_path, random_counts,
-                     states_to_clones)
-from .rounds import CloneFit, CloneRefinement, _check
+from .clones import (Layout, baum_welch, clone_budget, compact_labels, fit_clones,
+                     init_from_path, random_counts, states_to_clones, viterbi_training)
+from .rounds import CAP_SURPRISE, CloneFit, CloneRefinement, _check
 from .sequence import SymbolSequence
 from .soft import SoftSettings, soft_settings, successor_surprise
 from .structure import merge_states, same_partition, split_compounds
@@ -87,8 +87,9 @@ class EMRefinement(CloneRefinement):
 
     ``evidence`` (:data:`~topomap.core.refine.soft.EVIDENCE`): ``"auto"`` (default) corrects
     misread symbols when the first soft round finds some (the first hard round stops before
-    stage 3 where its labelling already shows misreads: :meth:`_first_hard_round`), ``"soft"``
-    always, ``"hard"`` never;
+    stage 3 where its labelling already shows misreads: :meth:`_first_hard_round`; where the
+    prefix shows many, the growth stages stop after ``soft.stage_cap`` EM iterations, 0 and
+    off by default: :meth:`_stage_cap`), ``"soft"`` always, ``"hard"`` never;
     ``soft`` holds the soft rounds' settings (:class:`~topomap.core.refine.soft.SoftSettings`, or
     a mapping of some of its fields, e.g. ``{"conf_warmup": 10}``).
 
@@ -202,16 +203,30 @@ class EMRefinement(CloneRefinement):
         n = min(max(self.prefix, self.prefix_visits * n_split), seq.T)
         labels, state_symbol, iters = self._first_round(seq.head(n), split_state_symbol, rng)
         stages = [(n, int(state_symbol.size), iters)]
+        cap = self._stage_cap(seq.head(n), labels)
         while n < seq.T:  # growth: the prefix doubles, or takes all steps once settled
             _, split, _ = self._restructure(seq.head(n), labels, state_symbol)
             settled = len(stages) > 1 and stages[-1][1] == stages[-2][1]
             n = seq.T if settled else min(2 * n, seq.T)
-            labels, state_symbol, iters = self._warm_round(seq.head(n), *split, rng)
+            labels, state_symbol, iters = self._warm_round(seq.head(n), *split, rng, cap=cap)
             stages.append((n, int(state_symbol.size), iters))
         yield labels, state_symbol, {"stages": list(stages)}
         (labels, state_symbol), rounds = self._rounds_on_all_steps(seq, labels, state_symbol,
                                                                    rng, stages)
         return CloneFit(labels, state_symbol, {"stages": stages, "rounds_on_all_steps": rounds})
+
+    def _stage_cap(self, prefix: SymbolSequence, labels):
+        """``(soft.stage_cap, soft.stage_rtol)`` for the growth stages of a hard round whose
+        first stage's labelling ``labels`` of the ``prefix`` already shows many misreads
+        (successor surprise at least ``CAP_SURPRISE`` x ``soft.detect``), else None: on misread
+        symbols the stages' Baum-Welch does not settle by ``tol`` and runs its ``max_iter``
+        iterations for little gain.  None with ``evidence="hard"`` or ``soft.stage_cap`` 0."""
+        s = soft_settings(self.soft)
+        if self.evidence == "hard" or not s.stage_cap or s.stage_cap >= self.max_iter:
+            return None
+        if successor_surprise(prefix, labels) < CAP_SURPRISE * s.detect:
+            return None
+        return s.stage_cap, s.stage_rtol
 
     def _first_round(self, seq: SymbolSequence, split_state_symbol, rng):
         """Stage 1: the clones of ``budget`` (:mod:`topomap.core.refine.budget`), from random
@@ -220,24 +235,35 @@ class EMRefinement(CloneRefinement):
                                               self.spare))
         return self._fit_layout(lay, random_counts(lay, rng))
 
-    def _warm_round(self, seq: SymbolSequence, labels, state_symbol, rng, max_iter=None):
+    def _warm_round(self, seq: SymbolSequence, labels, state_symbol, rng, max_iter=None,
+                    cap=None):
         """One EM round on ``seq`` started from a labelling of its first ``labels.size`` steps:
         each state becomes a clone, every K-means symbol gets ``spare`` more (at most
-        ``max_iter`` EM iterations; default: the parameter's)."""
+        ``max_iter`` EM iterations, default: the parameter's; ``cap`` as for
+        :meth:`_fit_layout`)."""
         budget, path = states_to_clones(labels, state_symbol, seq.n_ids, seq.n_symbols,
                                         self.spare)
         lay = seq.layout(budget)
         return self._fit_layout(lay, init_from_path(lay, path, labels.size, rng,
-                                                    self.init_noise), max_iter)
+                                                    self.init_noise), max_iter, cap)
 
-    def _fit_layout(self, lay: Layout, init, max_iter=None):
+    def _fit_layout(self, lay: Layout, init, max_iter=None, cap=None):
         """Baum-Welch then Viterbi training on ``lay`` from ``init`` (at most ``max_iter`` EM
-        iterations; default: the parameter's); returns the labels and state symbols of the clones
-        the path uses, and the number of EM iterations."""
-        labels, state_symbol, em_history, _ = fit_clones(
-            lay, init, self.row_prior / lay.n_clones,
-            max_iter=self.max_iter if max_iter is None else max_iter, tol=self.tol,
-            prune=self.prune, settle=self.settle)
+        iterations, default: the parameter's; with ``cap``, ``(iterations, rtol)``, Baum-Welch
+        as :func:`capped_baum_welch`); returns the labels and state symbols of the clones the
+        path uses, and the number of EM iterations."""
+        max_iter = self.max_iter if max_iter is None else max_iter
+        pseudocount = self.row_prior / lay.n_clones
+        if cap is None or cap[0] >= max_iter:
+            labels, state_symbol, em_history, _ = fit_clones(
+                lay, init, pseudocount, max_iter=max_iter, tol=self.tol, prune=self.prune,
+                settle=self.settle)
+            return labels, state_symbol, len(em_history)
+        counts, em_history = capped_baum_welch(lay, init, pseudocount, max_iter=max_iter,
+                                               tol=self.tol, cap=cap[0], rtol=cap[1],
+                                               prune=self.prune, settle=self.settle)
+        path, _, _ = viterbi_training(lay, counts, False)
+        labels, state_symbol, _ = compact_labels(path, lay.clone_symbol)
         return labels, state_symbol, len(em_history)
 
     def _restructure(self, seq: SymbolSequence, labels, state_symbol):
@@ -278,6 +304,25 @@ WARM_ITER = 15
 
 #: the successor surprise (in ``soft.detect``) that cuts :meth:`EMRefinement._first_hard_round`
 CUT_SURPRISE = 5.0
+
+
+def capped_baum_welch(lay: Layout, init, pseudocount: float, *, max_iter: int, tol: float,
+                      cap: int, rtol: float, prune: float = 0.0, settle: float = 0.0):
+    """Baum-Welch (:func:`~topomap.core.refine.clones.baum_welch`) stopped after ``cap`` of its
+    ``max_iter`` iterations unless the last one still gained more than ``rtol`` x |its
+    log-likelihood| (and more than ``tol`` nats per step); then it goes on, from where it
+    stopped, until an iteration gains less than that share of the log-likelihood reached at
+    ``cap``.  Returns the last expected counts and the log-likelihood of every iteration."""
+    counts, _, history = baum_welch(lay, init, pseudocount, False, max_iter=min(cap, max_iter),
+                                    tol=tol, prune=prune, settle=settle)
+    T = lay.sym.size
+    bar = max(tol * T, rtol * abs(history[-1]))
+    if len(history) < max_iter and len(history) >= 2 and history[-1] - history[-2] > bar:
+        counts, _, more = baum_welch(lay, counts, pseudocount, False,
+                                     max_iter=max_iter - len(history), tol=bar / T, min_iter=1,
+                                     prune=prune, settle=settle)
+        history = [*history, *more]
+    return counts, history
 
 
 def _finish(stages) -> CloneFit:

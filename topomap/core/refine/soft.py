@@ -47,7 +47,10 @@ class SoftSettings:
     dropped before every soft round (0: keep all; a float below 1 is a fraction of the mean
     steps per state of the reference count, the split's states; ``prune_every=False``: only
     before the last round); ``spare`` extra clones per K-means symbol in the intermediate soft rounds;
-    ``max_iter`` / ``tol`` Baum-Welch's stop (nats per step); ``row_prior`` the pseudocount mass of
+    ``max_iter`` / ``tol`` Baum-Welch's stop (nats per step; ``rtol`` > 0: instead once an
+    iteration gains at most that share of the log-likelihood, in the refinements only after a
+    hard round whose labelling shows many misreads,
+    :data:`~topomap.core.refine.rounds.CAP_SURPRISE`); ``row_prior`` the pseudocount mass of
     a transition row; ``conf_diag`` / ``conf_off`` the Dirichlet pseudocounts of the confusion
     matrix's diagonal / off-diagonal entries (per row); ``init_error`` the misread rate the
     confusion matrix starts from; ``floor`` the smallest ``C[k, r]`` allowed as evidence (smaller
@@ -62,7 +65,12 @@ class SoftSettings:
     small state is the residue of misreads / a state is merged into its twin of another symbol
     (:func:`merge_twins`); ``conf_warmup``: EM iterations with the confusion matrix held at its
     start before it is learned (0: from the first; docs/refinement.md has its effect on
-    gridroom at 23 % misreads).
+    gridroom at 23 % misreads).  ``stage_cap`` / ``stage_rtol``: where the first stage's
+    labelling of a hard round's prefix already shows many misreads (``CAP_SURPRISE``), the
+    growth stages' Baum-Welch stops after ``stage_cap`` iterations unless its last iteration
+    still gained more than ``stage_rtol`` x |log-likelihood|, and then once an iteration gains
+    less (``stage_cap`` 0: off; ``stage_rtol`` inf: never goes on;
+    :meth:`~topomap.core.refine.methods.EMRefinement._stage_cap`).
     """
 
     rounds: int = 3
@@ -83,6 +91,9 @@ class SoftSettings:
     twin_merge: float = 0.5
     conf_warmup: int = 0
     detect_iter: int = 3
+    stage_cap: int = 0
+    stage_rtol: float = float("inf")
+    rtol: float = 0.0
 
 
 #: the real-valued soft settings and what each must be
@@ -93,6 +104,7 @@ _RANGES = {
     "floor": (lambda v: 0 < v < 1, "in (0, 1)"), "prune": (lambda v: 0 <= v < 1, "in [0, 1)"),
     "detect": (lambda v: v == v, "a number"), "clone_prior": (lambda v: v > 0, "> 0"),
     "twin": (lambda v: v >= 0, ">= 0"), "twin_merge": (lambda v: v >= 0, ">= 0"),
+    "stage_rtol": (lambda v: v >= 0, ">= 0"), "rtol": (lambda v: v >= 0, ">= 0"),
 }
 
 
@@ -109,7 +121,7 @@ def soft_settings(value) -> SoftSettings:
     if not isinstance(value, SoftSettings):
         raise ParameterError("soft", f"must be SoftSettings or a mapping of its fields, "
                                      f"got {value!r}")
-    for name in ("rounds", "spare", "conf_warmup", "detect_iter"):
+    for name in ("rounds", "spare", "conf_warmup", "detect_iter", "stage_cap"):
         check_count(getattr(value, name), f"soft.{name}", minimum=0)
     check_count(value.max_iter, "soft.max_iter")
     for name, (ok, what) in _RANGES.items():
@@ -290,7 +302,7 @@ def _soft_em(seq, data, counts, clone_symbol, conf, s, learn_conf, exact_below):
     ns, n_ids, A, S = seq.n_symbols, seq.n_ids, seq.n_actions, clone_symbol.size
     init = np.full(S, 1.0 / S)
     pseudo = s.row_prior / S
-    monitor = ConvergenceMonitor(s.tol * seq.T, s.max_iter, min_iter=2)
+    monitor = ConvergenceMonitor(s.tol * seq.T, s.max_iter, min_iter=2, rtol=s.rtol or None)
     trans = _normalise_trans(counts, pseudo)
     emit = _clone_emission(conf, clone_symbol, None, s.clone_prior)
     while not monitor.converged:
