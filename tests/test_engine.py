@@ -139,6 +139,7 @@ def test_the_tables_kept_through_splits_are_the_tables_built_afresh(seed, episod
     from topomap.core.split.kernels import instance_table, transition_table
 
     monkeypatch.setattr(threads, "n_threads", lambda: n_threads)
+    monkeypatch.setattr(threads, "THREAD_STEPS", 0)  # a thread for every merge, however small
 
     labels, u, lengths, S, A = random_walk(seed, 1200, episodes=episodes)
     has_prev, has_next = episode_masks(len(u), lengths)

@@ -42,6 +42,15 @@ def test_beside_runs_on_another_thread_only_with_threads(n_threads):
     assert (ran_on == caller) == (n_threads == 1)
 
 
+def test_beside_keeps_small_work_on_the_calling_thread(n_threads, monkeypatch):
+    import threading
+
+    monkeypatch.setattr(threads, "THREAD_STEPS", 100)
+    caller = threading.get_ident()
+    assert threads.beside(threading.get_ident, steps=99)() == caller
+    assert (threads.beside(threading.get_ident, steps=100)() == caller) == (n_threads == 1)
+
+
 def test_models_with_the_variance_given_by_hand():
     # model 0 holds rows 0, 1, 3, model 1 row 2; feature variances 14 and 0
     X = np.array([[0.0, 1.0], [2.0, 1.0], [10.0, 1.0], [4.0, 1.0]])
@@ -92,7 +101,9 @@ def _walk(seed, T=3000, S=6, A=3, episodes=4):
 
 
 @pytest.mark.parametrize("seed", range(3))
-def test_start_split_gives_the_models_and_tables_of_the_steps_in_turn(seed, n_threads):
+def test_start_split_gives_the_models_and_tables_of_the_steps_in_turn(seed, n_threads,
+                                                                     monkeypatch):
+    monkeypatch.setattr(threads, "THREAD_STEPS", 0)  # on a thread, however few the steps
     data, x, S = _walk(seed)
     labels, ids = phase1_labels(x[data.gds < 0], S, data.gds)
     variance = variance_beside(data.X)

@@ -17,6 +17,7 @@ WHOLE = 1 << 40  # one piece: the pass over everything
 @pytest.fixture(params=[1, 2, 3])
 def n_threads(request, monkeypatch):
     monkeypatch.setattr(threads, "n_threads", lambda: request.param)
+    monkeypatch.setattr(threads, "THREAD_STEPS", 0)  # threads however few the steps
     return request.param
 
 
@@ -36,6 +37,17 @@ def _walk(seed, T=400, S=5, A=3):
 def test_in_threads_keeps_the_call_order(n_threads):
     assert threads.in_threads(lambda i: i * i, range(50)) == [i * i for i in range(50)]
     assert threads.in_threads(len, []) == []
+
+
+def test_in_threads_keeps_few_steps_on_the_calling_thread(n_threads, monkeypatch):
+    import threading
+
+    monkeypatch.setattr(threads, "THREAD_STEPS", 100)
+    caller = threading.get_ident()
+    ran_on = threads.in_threads(lambda _: threading.get_ident(), range(4), steps=99)
+    assert ran_on == [caller] * 4
+    ran_on = threads.in_threads(lambda _: threading.get_ident(), range(4), steps=100)
+    assert (caller in ran_on) == (n_threads == 1)
 
 
 def test_pieces_cover_the_range_in_order():

@@ -24,7 +24,7 @@ __all__ = ["variance_beside", "phase1_labels", "start_split"]
 def variance_beside(X: np.ndarray):
     """Start :func:`~topomap.core.map.observations.feature_variance` of ``X`` on a thread; a
     function without arguments returns it."""
-    return beside(feature_variance, X)
+    return beside(feature_variance, X, steps=X.shape[0])
 
 
 def phase1_labels(symbols: np.ndarray, ns: int, gds: np.ndarray):
@@ -50,7 +50,7 @@ def start_split(data, labels: np.ndarray, ns: int, gds_ids: np.ndarray, variance
     symbol = list(range(ns)) + [-1] * gds_ids.size
     gds = [-1] * ns + gds_ids.tolist()
     models = beside(TopologicalMap.state_models, data.X, labels, symbol, gds, covariance_type,
-                    reg_covar, variance())
+                    reg_covar, variance(), steps=labels.size)
     splitter = Splitter(labels, data.u, data.n_actions, *data.masks, symbol=symbol, gds=gds,
                         obs_entropy=np.zeros(0), criterion=criterion,
                         recompute_all=recompute_all)

@@ -34,9 +34,11 @@ THREAD_CHUNK = 512
 #: clone pairs over all steps (:func:`pair_work`) from which the pass runs on two threads (the
 #: fused pass takes about a millisecond there; handing the pieces over costs a tenth of that)
 THREAD_WORK = 1_000_000
-#: clone pairs per step (on average) from which the pass runs on two threads: with fewer, each
-#: half costs 0.7-0.9 of the fused pass (the steps' fixed costs are paid twice)
-THREAD_STEP_PAIRS = 200
+#: clone pairs per step (on average) from which the pass runs on two threads: with fewer, the
+#: two threads took longer than the fused pass on an idle machine (pruned clones leave less
+#: work than the pairs counted: the 8 x 6 room's passes of 216 and 706 pairs a step took 1.5x
+#: as long, the 12 x 12 room's of 1,566 0.82x)
+THREAD_STEP_PAIRS = 1000
 
 
 @njit(cache=True)

@@ -272,8 +272,9 @@ class SplitEngine:
             moved, self.has_prev, self.has_next, self.centre, self.labels, self.u, self.A, _SHIFT,
             q, new)
         size = (self.S + 1) * self.A
-        # the transitions need nothing of the instance tables: merged beside them
-        transitions = beside(_merge_delta, self.transitions, starts[0], starts[1], size)
+        # the transitions need nothing of the instance tables: merged beside them (on long logs)
+        transitions = beside(_merge_delta, self.transitions, starts[0], starts[1], size,
+                             steps=self.labels.size)
         self._update_instances(*outside[1:])
         self.members[q] = steps[~goes]
         self.members.append(moved)

@@ -223,7 +223,8 @@ def follow_keys(x, u, steps, has_prev, has_next, A, chosen, chunk=CHUNK):
     A + u[t-1]`` is ``chosen`` (a mask over the keys), and the positions in ``steps`` of the
     first steps of episodes that have a next step (pieces of ``chunk`` steps on threads)."""
     cut = pieces(steps.size, chunk)
-    done = in_threads(lambda p: _follow_keys(x, u, steps[p], has_prev, has_next, A, chosen), cut)
+    done = in_threads(lambda p: _follow_keys(x, u, steps[p], has_prev, has_next, A, chosen), cut,
+                      steps=steps.size)
     if len(done) == 1:
         return done[0]
     return (np.concatenate([g for g, _ in done]),
@@ -334,7 +335,8 @@ def touched_codes(moved, has_prev, has_next, centre, x, u, A, shift, q, new, *, 
             return _start_codes(starts[p], has_next, x, u, A, shift, q, new, trans[:, p])
         return _centre_codes(c[p], centre, x, u, A, shift, q, new, rows[:, p], near[k])
 
-    done = in_threads(run, list(enumerate(cut)) + [(-1, p) for p in cut_starts])
+    done = in_threads(run, list(enumerate(cut)) + [(-1, p) for p in cut_starts],
+                      steps=c.size + starts.size)
     first = np.array([p.start for p in cut], dtype=np.int64)
     kept = np.array(done[:len(cut)], dtype=np.int64).reshape(-1, 2)
     return (_close_up(rows[:4], first, kept[:, 0]), _close_up(rows[4:], first, kept[:, 1]),
