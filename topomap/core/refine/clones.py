@@ -27,10 +27,9 @@ import numpy as np
 from numba import njit
 
 from ..progress import report
-from .backward import backward_counts
 from .convergence import ConvergenceMonitor
-from .kernels import (CloneTables, clone_forward, clone_normalize_blocks, clone_path_counts,
-                      clone_step_offsets, clone_viterbi)
+from .kernels import (CloneTables, clone_backward_counts, clone_forward, clone_normalize_blocks,
+                      clone_path_counts, clone_step_offsets, clone_viterbi)
 
 __all__ = [
     "Layout",
@@ -165,7 +164,7 @@ def _e_step(lay: Layout, vals, prune: float):
     alpha, log_c = clone_forward(tables, vals, prune)
     counts = np.zeros(vals.size)
     occupancy = np.zeros(lay.n_clones)
-    backward_counts(tables, vals, alpha, log_c, counts, occupancy)
+    clone_backward_counts(tables, vals, alpha, log_c, counts, occupancy)
     return counts, occupancy, float(log_c.sum()), alpha
 
 
