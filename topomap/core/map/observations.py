@@ -83,18 +83,6 @@ def _full_covariances(X, model, means, n_models, reg):
 
 
 @njit(cache=True, nogil=True)
-def _moments(X, model, n_models, lookup):
-    """``model_counts`` and ``model_sums`` in one pass over ``X``."""
-    n, sums = np.zeros(n_models), np.zeros((n_models, X.shape[1]))
-    for t in range(X.shape[0]):
-        m = lookup[model[t]]
-        n[m] += 1.0
-        for d in range(X.shape[1]):
-            sums[m, d] += X[t, d]
-    return n, sums
-
-
-@njit(cache=True, nogil=True)
 def _diag_moments(X, model, n_models, lookup):
     """``model_counts``, ``model_sums`` and the column sums of ``_column_var_rowwise`` in one
     pass over ``X`` (each sum in step order, as theirs)."""
@@ -127,14 +115,12 @@ def _diag_models(X, model, n_models, reg_covar, lookup, variance=None):
     T > 1, D > 1), the same floats; the passes also sum the columns' variance unless it is
     given (``variance``: :func:`feature_variance` of ``X``)."""
     T = X.shape[0]
+    n_m, sums, col = _diag_moments(X, model, n_models, lookup)
+    means = sums / np.maximum(n_m, 1)[:, None]
     if variance is None:
-        n_m, sums, col = _diag_moments(X, model, n_models, lookup)
-        means = sums / np.maximum(n_m, 1)[:, None]
         sq, q = _diag_residuals(X, model, means, lookup, col / T)
         variance = q / T
     else:
-        n_m, sums = _moments(X, model, n_models, lookup)
-        means = sums / np.maximum(n_m, 1)[:, None]
         sq = model_squares(X, model, means, lookup)
     reg = reg_covar * float(np.mean(variance))
     reg = reg if reg > 0 else reg_covar
