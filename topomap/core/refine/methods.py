@@ -34,6 +34,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from ..checks import check_count
+from .accelerate import check_accelerate
 from .budget import BUDGETS
 from .clones import (Layout, baum_welch, clone_budget, compact_labels, fit_clones,
                      init_from_path, random_counts, states_to_clones, viterbi_training)
@@ -106,7 +107,7 @@ class EMRefinement(CloneRefinement):
                  max_iter: int = 50, settle: float = 0.0, prune: float = 1e-4,
                  merge_threshold: float = 6.63, split_z: float = 3.09, spare: int = 2,
                  init_noise: float = 1.0, guard: bool = True, budget: str = "evidence",
-                 evidence: str = "auto",
+                 accelerate: str = "none", evidence: str = "auto",
                  soft: SoftSettings | Mapping = SoftSettings()):
         self.clone_factor = clone_factor
         self.prefix = prefix
@@ -123,6 +124,7 @@ class EMRefinement(CloneRefinement):
         self.init_noise = init_noise
         self.guard = guard
         self.budget = budget
+        self.accelerate = accelerate
         self.evidence = evidence
         self.soft = soft
 
@@ -136,6 +138,7 @@ class EMRefinement(CloneRefinement):
         _check(0 <= self.settle <= 1, "settle", self.settle, "in [0, 1]")
         _check(0 <= self.prune < 1, "prune", self.prune, "in [0, 1)")
         _check(self.budget in BUDGETS, "budget", self.budget, f"one of {', '.join(BUDGETS)}")
+        check_accelerate(self.accelerate)
         super().check_params()
 
     def provenance(self) -> str:
@@ -146,6 +149,7 @@ class EMRefinement(CloneRefinement):
         rounds = ", ".join(f"{k}={getattr(self, k)!r}" for k in _EM_ROUND)
         changed = "" if self.budget == "evidence" else f"budget={self.budget!r}, "
         changed += f"settle={self.settle!r}, " if self.settle else ""
+        changed += "" if self.accelerate == "none" else f"accelerate={self.accelerate!r}, "
         changed += "" if self.evidence == "auto" else f"evidence={self.evidence!r}, "
         soft = self._provenance_soft()
         changed += f"{soft}, " if soft else ""
@@ -257,11 +261,12 @@ class EMRefinement(CloneRefinement):
         if cap is None or cap[0] >= max_iter:
             labels, state_symbol, em_history, _ = fit_clones(
                 lay, init, pseudocount, max_iter=max_iter, tol=self.tol, prune=self.prune,
-                settle=self.settle)
+                settle=self.settle, accelerate=self.accelerate)
             return labels, state_symbol, len(em_history)
         counts, em_history = capped_baum_welch(lay, init, pseudocount, max_iter=max_iter,
                                                tol=self.tol, cap=cap[0], rtol=cap[1],
-                                               prune=self.prune, settle=self.settle)
+                                               prune=self.prune, settle=self.settle,
+                                               accelerate=self.accelerate)
         path, _, _ = viterbi_training(lay, counts, False)
         labels, state_symbol, _ = compact_labels(path, lay.clone_symbol)
         return labels, state_symbol, len(em_history)
@@ -307,20 +312,21 @@ CUT_SURPRISE = 5.0
 
 
 def capped_baum_welch(lay: Layout, init, pseudocount: float, *, max_iter: int, tol: float,
-                      cap: int, rtol: float, prune: float = 0.0, settle: float = 0.0):
+                      cap: int, rtol: float, prune: float = 0.0, settle: float = 0.0,
+                      accelerate: str = "none"):
     """Baum-Welch (:func:`~topomap.core.refine.clones.baum_welch`) stopped after ``cap`` of its
     ``max_iter`` iterations unless the last one still gained more than ``rtol`` x |its
     log-likelihood| (and more than ``tol`` nats per step); then it goes on, from where it
     stopped, until an iteration gains less than that share of the log-likelihood reached at
     ``cap``.  Returns the last expected counts and the log-likelihood of every iteration."""
     counts, _, history = baum_welch(lay, init, pseudocount, False, max_iter=min(cap, max_iter),
-                                    tol=tol, prune=prune, settle=settle)
+                                    tol=tol, prune=prune, settle=settle, accelerate=accelerate)
     T = lay.sym.size
     bar = max(tol * T, rtol * abs(history[-1]))
     if len(history) < max_iter and len(history) >= 2 and history[-1] - history[-2] > bar:
         counts, _, more = baum_welch(lay, counts, pseudocount, False,
                                      max_iter=max_iter - len(history), tol=bar / T, min_iter=1,
-                                     prune=prune, settle=settle)
+                                     prune=prune, settle=settle, accelerate=accelerate)
         history = [*history, *more]
     return counts, history
 
