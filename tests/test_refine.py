@@ -339,6 +339,8 @@ def test_the_repr_is_the_estimators_and_the_provenance_the_form_map_json_stores(
     # a stopping rule switched on is named, and only then
     assert ("guard=True, settle=0.01, settings=EMSettings(row_prior=0.5, tol=1e-06, max_iter=50, "
             "prune=" in EMRefinement(settle=0.01).provenance())
+    assert "guard=True, accelerate='squarem', settings=EMSettings(" in EMRefinement(
+        accelerate="squarem").provenance()
     # soft settings changed from their defaults are named, the others not
     assert ("evidence='soft', soft=SoftSettings(conf_warmup=10), settings=EMSettings("
             in EMRefinement(evidence="soft", soft={"conf_warmup": 10}).provenance())
@@ -357,6 +359,7 @@ def test_the_repr_is_the_estimators_and_the_provenance_the_form_map_json_stores(
     (EMRefinement, dict(tol=-1e-3), "tol must be >= 0, got -0.001"),
     (EMRefinement, dict(prune=1.0), r"prune must be in \[0, 1\), got 1.0"),
     (EMRefinement, dict(settle=-0.1), r"settle must be in \[0, 1\], got -0.1"),
+    (EMRefinement, dict(accelerate="fast"), "accelerate must be one of none, squarem, got 'fast'$"),
     (CSCGRefinement, dict(clones_per_symbol=0), "clones_per_symbol must be a positive integer"),
     (CSCGRefinement, dict(max_iter=0), "max_iter must be a positive integer, got 0"),
     (CSCGRefinement, dict(pseudocount=float("nan")), "pseudocount must be > 0, got nan"),
