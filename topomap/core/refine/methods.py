@@ -75,7 +75,10 @@ class EMRefinement(CloneRefinement):
     row (:class:`~topomap.core.refine.clones.SettledPath`; from the 11th iteration on).  That
     saves E-steps but not always the map: the slow tail also moves the mass of one place's
     duplicate clones onto one, and cut short it can leave duplicates the merges do not join.
-    ``prune`` drops filtered probabilities below it
+    ``accelerate="squarem"`` (default ``"none"``) runs the Baum-Welch of every warm-started round
+    (stages 2 and 3) as SQUAREM's cycles on the expected counts
+    (:mod:`topomap.core.refine.accelerate`): the same stops, in E-steps, judged on each cycle's
+    plain EM step; stage 1, from random counts, stays plain EM.  ``prune`` drops filtered probabilities below it
     (:func:`topomap.core.refine.kernels.clone_forward`).
     ``merge_threshold`` is the G-test threshold of merging bisimilar states (negative: never
     merge; 6.63 = chi-square(1) at 1 %) and ``split_z`` the normal score of splitting compound
@@ -234,10 +237,11 @@ class EMRefinement(CloneRefinement):
 
     def _first_round(self, seq: SymbolSequence, split_state_symbol, rng):
         """Stage 1: the clones of ``budget`` (:mod:`topomap.core.refine.budget`), from random
-        counts."""
+        counts, by plain EM (``accelerate`` is for the warm-started rounds: from a random start
+        it is EM's path that picks the optimum, and a jump can pick another)."""
         lay = seq.layout(BUDGETS[self.budget](split_state_symbol, seq, self.clone_factor,
                                               self.spare))
-        return self._fit_layout(lay, random_counts(lay, rng))
+        return self._fit_layout(lay, random_counts(lay, rng), warm=False)
 
     def _warm_round(self, seq: SymbolSequence, labels, state_symbol, rng, max_iter=None,
                     cap=None):
@@ -251,22 +255,23 @@ class EMRefinement(CloneRefinement):
         return self._fit_layout(lay, init_from_path(lay, path, labels.size, rng,
                                                     self.init_noise), max_iter, cap)
 
-    def _fit_layout(self, lay: Layout, init, max_iter=None, cap=None):
+    def _fit_layout(self, lay: Layout, init, max_iter=None, cap=None, *, warm: bool = True):
         """Baum-Welch then Viterbi training on ``lay`` from ``init`` (at most ``max_iter`` EM
         iterations, default: the parameter's; with ``cap``, ``(iterations, rtol)``, Baum-Welch
-        as :func:`capped_baum_welch`); returns the labels and state symbols of the clones the
-        path uses, and the number of EM iterations."""
+        as :func:`capped_baum_welch`; ``accelerate`` only where ``warm``); returns the labels and
+        state symbols of the clones the path uses, and the number of EM iterations."""
         max_iter = self.max_iter if max_iter is None else max_iter
+        accelerate = self.accelerate if warm else "none"
         pseudocount = self.row_prior / lay.n_clones
         if cap is None or cap[0] >= max_iter:
             labels, state_symbol, em_history, _ = fit_clones(
                 lay, init, pseudocount, max_iter=max_iter, tol=self.tol, prune=self.prune,
-                settle=self.settle, accelerate=self.accelerate)
+                settle=self.settle, accelerate=accelerate)
             return labels, state_symbol, len(em_history)
         counts, em_history = capped_baum_welch(lay, init, pseudocount, max_iter=max_iter,
                                                tol=self.tol, cap=cap[0], rtol=cap[1],
                                                prune=self.prune, settle=self.settle,
-                                               accelerate=self.accelerate)
+                                               accelerate=accelerate)
         path, _, _ = viterbi_training(lay, counts, False)
         labels, state_symbol, _ = compact_labels(path, lay.clone_symbol)
         return labels, state_symbol, len(em_history)
