@@ -58,12 +58,25 @@ def test_refine_recovers_every_place_of_an_aliased_ring(seed):
     assert adjusted_rand_score(places, fit.labels_) == 1.0 and fit.n_states_ == 8
 
 
+@pytest.mark.parametrize("accelerate", ["none", "squarem"])
 @pytest.mark.parametrize("seed", range(3))
-def test_refine_recovers_every_cell_of_a_small_grid(seed):
+def test_refine_recovers_every_cell_of_a_small_grid(seed, accelerate):
     """The split is given as many states per symbol as there are cells (its usual size)."""
     sym, u, places = grid_walk(4000, seed)
-    fit = refine_fit(sym, u, [4000], 4, 3, ROOM.place_symbols, random_state=seed)
+    fit = refine_fit(sym, u, [4000], 4, 3, ROOM.place_symbols, random_state=seed,
+                     accelerate=accelerate)
     assert adjusted_rand_score(places, fit.labels_) == 1.0 and fit.n_states_ == 12
+
+
+def test_accelerated_refinement_keeps_the_first_stage_plain():
+    """``accelerate`` speeds the warm-started rounds only: the first stage, from random counts,
+    runs the same EM iterations to the same labelling, so both fits start their growth from the
+    same states."""
+    sym, u, _ = grid_walk(4000, 0)
+    plain, fast = (refine_fit(sym, u, [4000], 4, 3, ROOM.place_symbols, accelerate=a)
+                   for a in ("none", "squarem"))
+    assert plain.info_["stages"][0] == fast.info_["stages"][0]
+    assert plain.info_["stages"][1:] != fast.info_["stages"][1:]  # the later rounds did change
 
 
 def test_refine_respects_episodes():
