@@ -5,6 +5,7 @@ and EM alone, as sensor noise grows.
     python benchmarks/bench_noise.py --quick         # gridroom 8x6 and random_graph 60, 3 levels, seed 0
     python benchmarks/bench_noise.py --worlds gridroom_8x6 --seeds 0 1 2 --methods split em_hard em_soft
     python benchmarks/bench_noise.py --worlds gridroom_8x6 --methods em_soft --soft stage_cap=15 rtol=0.001
+    python benchmarks/bench_noise.py --worlds gridroom_8x6 --methods em_soft --accelerate squarem
 
 Each world is a ``topomap`` command (``WORLDS``); its noise is the Gaussian noise of the
 observations (``noise.sigma``; ``SIGMAS`` per world, chosen so that the symbol error spans about
@@ -45,6 +46,7 @@ from topomap.app.run.data import load_data
 from topomap.app.run.experiment import _as_dict, make_learner
 from topomap.app.compose.registry import Registry
 from topomap.core import metrics as M
+from topomap.core.refine.accelerate import ACCELERATIONS
 from topomap.core.refine.methods import CSCGRefinement, EMRefinement
 from topomap.core.refine.soft import SoftSettings
 
@@ -130,6 +132,8 @@ def main():
                     help=f"{QUICK['worlds']}, levels {QUICK['levels']}, seed 0")
     ap.add_argument("--soft", nargs="+", default=[], metavar="KEY=VALUE",
                     help="soft settings of em_soft and cscg_soft (e.g. stage_cap=15)")
+    ap.add_argument("--accelerate", default="none", choices=ACCELERATIONS,
+                    help="EM's acceleration in em_hard and em_soft (refine.accelerate)")
     ap.add_argument("--figure", default="docs/img/noise.png", help="'' for none")
     ap.add_argument("--from-table", nargs="+", metavar="FILE",
                     help="draw the figure from tables this script printed (no runs)")
@@ -140,7 +144,7 @@ def main():
         return
     if args.quick:
         args.worlds, args.levels, args.seeds = QUICK["worlds"], QUICK["levels"], QUICK["seeds"]
-    set_soft(args.soft)
+    set_soft(args.soft, args.accelerate)
     registry = Registry.load()
     # compile the kernels outside the timings
     run_level("gridroom_8x6", 0.3, 0, ["em_soft"], registry) if "em_soft" in args.methods else None
@@ -173,9 +177,13 @@ def main():
         draw(results, args.methods, Path(args.figure))
 
 
-def set_soft(pairs) -> None:
+def set_soft(pairs, accelerate: str = "none") -> None:
     """The soft methods of ``METHODS`` with the soft settings ``KEY=VALUE`` of ``pairs`` (each
-    value read as its setting's type)."""
+    value read as its setting's type), and EM's ``accelerate`` in ``em_hard`` and ``em_soft``."""
+    if accelerate != "none":
+        print(f"accelerate: {accelerate}")
+        METHODS["em_hard"] = lambda: EMRefinement(evidence="hard", accelerate=accelerate)
+        METHODS["em_soft"] = lambda: EMRefinement(evidence="auto", accelerate=accelerate)
     if not pairs:
         return
     kinds = {f.name: f.type for f in fields(SoftSettings)}
@@ -187,7 +195,7 @@ def set_soft(pairs) -> None:
         soft[key] = {"int": int, "float": float, "bool": lambda v: v.lower() == "true"}[
             kinds[key]](value)
     print(f"soft settings: {soft}")
-    METHODS["em_soft"] = lambda: EMRefinement(evidence="auto", soft=soft)
+    METHODS["em_soft"] = lambda: EMRefinement(evidence="auto", soft=soft, accelerate=accelerate)
     METHODS["cscg_soft"] = lambda: CSCGRefinement(evidence="auto", soft=soft)
 
 

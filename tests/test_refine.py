@@ -58,12 +58,25 @@ def test_refine_recovers_every_place_of_an_aliased_ring(seed):
     assert adjusted_rand_score(places, fit.labels_) == 1.0 and fit.n_states_ == 8
 
 
+@pytest.mark.parametrize("accelerate", ["none", "squarem"])
 @pytest.mark.parametrize("seed", range(3))
-def test_refine_recovers_every_cell_of_a_small_grid(seed):
+def test_refine_recovers_every_cell_of_a_small_grid(seed, accelerate):
     """The split is given as many states per symbol as there are cells (its usual size)."""
     sym, u, places = grid_walk(4000, seed)
-    fit = refine_fit(sym, u, [4000], 4, 3, ROOM.place_symbols, random_state=seed)
+    fit = refine_fit(sym, u, [4000], 4, 3, ROOM.place_symbols, random_state=seed,
+                     accelerate=accelerate)
     assert adjusted_rand_score(places, fit.labels_) == 1.0 and fit.n_states_ == 12
+
+
+def test_accelerated_refinement_keeps_the_first_stage_plain():
+    """``accelerate`` speeds the warm-started rounds only: the first stage, from random counts,
+    runs the same EM iterations to the same labelling, so both fits start their growth from the
+    same states."""
+    sym, u, _ = grid_walk(4000, 0)
+    plain, fast = (refine_fit(sym, u, [4000], 4, 3, ROOM.place_symbols, accelerate=a)
+                   for a in ("none", "squarem"))
+    assert plain.info_["stages"][0] == fast.info_["stages"][0]
+    assert plain.info_["stages"][1:] != fast.info_["stages"][1:]  # the later rounds did change
 
 
 def test_refine_respects_episodes():
@@ -318,7 +331,8 @@ def test_the_refinements_store_their_parameters_as_given():
     assert params["clone_factor"] == 2 and params["prefix"] is em.prefix
     assert set(params) == {"clone_factor", "prefix", "prefix_visits", "max_rounds", "row_prior",
                            "tol", "max_iter", "settle", "prune", "merge_threshold", "split_z",
-                           "spare", "init_noise", "guard", "budget", "evidence", "soft"}
+                           "spare", "init_noise", "guard", "budget", "accelerate", "evidence",
+                           "soft"}
     twin = clone(em)
     assert twin is not em and twin.get_params() == params
     assert CSCGRefinement(clones_per_symbol=5).set_params(tol=0.5).get_params() == {
@@ -339,6 +353,8 @@ def test_the_repr_is_the_estimators_and_the_provenance_the_form_map_json_stores(
     # a stopping rule switched on is named, and only then
     assert ("guard=True, settle=0.01, settings=EMSettings(row_prior=0.5, tol=1e-06, max_iter=50, "
             "prune=" in EMRefinement(settle=0.01).provenance())
+    assert "guard=True, accelerate='squarem', settings=EMSettings(" in EMRefinement(
+        accelerate="squarem").provenance()
     # soft settings changed from their defaults are named, the others not
     assert ("evidence='soft', soft=SoftSettings(conf_warmup=10), settings=EMSettings("
             in EMRefinement(evidence="soft", soft={"conf_warmup": 10}).provenance())
@@ -357,6 +373,7 @@ def test_the_repr_is_the_estimators_and_the_provenance_the_form_map_json_stores(
     (EMRefinement, dict(tol=-1e-3), "tol must be >= 0, got -0.001"),
     (EMRefinement, dict(prune=1.0), r"prune must be in \[0, 1\), got 1.0"),
     (EMRefinement, dict(settle=-0.1), r"settle must be in \[0, 1\], got -0.1"),
+    (EMRefinement, dict(accelerate="fast"), "accelerate must be one of none, squarem, got 'fast'$"),
     (CSCGRefinement, dict(clones_per_symbol=0), "clones_per_symbol must be a positive integer"),
     (CSCGRefinement, dict(max_iter=0), "max_iter must be a positive integer, got 0"),
     (CSCGRefinement, dict(pseudocount=float("nan")), "pseudocount must be > 0, got nan"),

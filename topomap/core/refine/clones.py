@@ -27,6 +27,7 @@ import numpy as np
 from numba import njit
 
 from ..progress import report
+from .accelerate import squarem
 from .convergence import ConvergenceMonitor
 from .kernels import (CloneTables, clone_backward_counts, clone_forward, clone_normalize_blocks,
                       clone_path_counts, clone_step_offsets, clone_viterbi)
@@ -169,17 +170,23 @@ def _e_step(lay: Layout, vals, prune: float):
 
 
 def baum_welch(lay: Layout, counts, pseudocount: float, joint: bool, *, max_iter: int,
-               tol: float, min_iter: int = 10, prune: float = 0.0, settle: float = 0.0):
+               tol: float, min_iter: int = 10, prune: float = 0.0, settle: float = 0.0,
+               accelerate: str = "none"):
     """Baum-Welch from ``counts`` until the log-likelihood gains less than ``tol`` nats per step
     (checked from iteration ``min_iter`` on: from a random start the first iterations barely move)
     or ``max_iter`` iterations; with ``settle`` > 0 also once the decoded path has settled
-    (:class:`SettledPath`, judged from iteration ``min_iter`` on too).
+    (:class:`SettledPath`, judged from iteration ``min_iter`` on too).  ``accelerate="squarem"``
+    runs SQUAREM's cycles instead (:func:`topomap.core.refine.accelerate.squarem`: the gain is
+    judged on every cycle's plain EM step; ``max_iter`` counts E-steps).
 
     Returns ``(counts, occupancy, history)``: the last expected counts (whose M-step is the fitted
-    model), the clone occupancy and the log-likelihood of every iteration.
+    model), the clone occupancy and the log-likelihood of every iteration (E-step).
     """
-    monitor = ConvergenceMonitor(tol * lay.sym.size, max_iter, min_iter=min_iter)
     path = SettledPath(lay.pos, settle) if settle > 0 else None
+    if accelerate != "none":
+        return _squarem_baum_welch(lay, counts, pseudocount, joint, path, max_iter=max_iter,
+                                   tol=tol, min_iter=min_iter, prune=prune)
+    monitor = ConvergenceMonitor(tol * lay.sym.size, max_iter, min_iter=min_iter)
     occupancy = np.zeros(lay.n_clones)
     while not (monitor.converged or path is not None and monitor.iter > min_iter and path.settled):
         counts, occupancy, ll, alpha = _e_step(lay, m_step(lay, counts, pseudocount, joint),
@@ -190,6 +197,22 @@ def baum_welch(lay: Layout, counts, pseudocount: float, joint: bool, *, max_iter
         report("EM", len(monitor.history), max_iter)
     report("EM", len(monitor.history), len(monitor.history))  # converged: the loop ends here
     return counts, occupancy, monitor.history
+
+
+def _squarem_baum_welch(lay: Layout, counts, pseudocount: float, joint: bool, path, *,
+                        max_iter: int, tol: float, min_iter: int, prune: float):
+    """:func:`baum_welch` by SQUAREM's cycles (``path``: its :class:`SettledPath`, or None)."""
+    def em_step(c):
+        new, occupancy, ll, alpha = _e_step(lay, m_step(lay, c, pseudocount, joint), prune)
+        if path is not None:
+            path.report(alpha)
+        return new, occupancy, ll
+
+    counts, occupancy, history, _ = squarem(
+        em_step, counts, max_iter=max_iter, tol=tol * lay.sym.size, min_iter=min_iter,
+        stop=None if path is None else lambda: path.settled)
+    report("EM", len(history), len(history))
+    return counts, occupancy, history
 
 
 @njit(cache=True)
@@ -273,8 +296,10 @@ def viterbi_training(lay: Layout, counts, joint: bool, *, pseudocount: float = 0
 
 
 def fit_clones(lay: Layout, init, pseudocount: float, *, max_iter: int, tol: float,
-               prune: float = 0.0, joint: bool = False, settle: float = 0.0):
-    """Baum-Welch from the counts ``init`` (:func:`baum_welch`, ``settle`` as there), then Viterbi
+               prune: float = 0.0, joint: bool = False, settle: float = 0.0,
+               accelerate: str = "none"):
+    """Baum-Welch from the counts ``init`` (:func:`baum_welch`, ``settle`` and ``accelerate`` as
+    there), then Viterbi
     training without pseudocount (:func:`viterbi_training`); the clones the final path uses
     become the states.
 
@@ -283,7 +308,7 @@ def fit_clones(lay: Layout, init, pseudocount: float, *, max_iter: int, tol: flo
     iterations and of the Viterbi paths.
     """
     counts, _, em_history = baum_welch(lay, init, pseudocount, joint, max_iter=max_iter, tol=tol,
-                                       prune=prune, settle=settle)
+                                       prune=prune, settle=settle, accelerate=accelerate)
     path, _, viterbi_history = viterbi_training(lay, counts, joint)
     labels, state_symbol, _ = compact_labels(path, lay.clone_symbol)
     return labels, state_symbol, em_history, viterbi_history

@@ -34,6 +34,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from ..checks import check_count
+from .accelerate import check_accelerate
 from .budget import BUDGETS
 from .clones import (Layout, baum_welch, clone_budget, compact_labels, fit_clones,
                      init_from_path, random_counts, states_to_clones, viterbi_training)
@@ -74,7 +75,10 @@ class EMRefinement(CloneRefinement):
     row (:class:`~topomap.core.refine.clones.SettledPath`; from the 11th iteration on).  That
     saves E-steps but not always the map: the slow tail also moves the mass of one place's
     duplicate clones onto one, and cut short it can leave duplicates the merges do not join.
-    ``prune`` drops filtered probabilities below it
+    ``accelerate="squarem"`` (default ``"none"``) runs the Baum-Welch of every warm-started round
+    (stages 2 and 3) as SQUAREM's cycles on the expected counts
+    (:mod:`topomap.core.refine.accelerate`): the same stops, in E-steps, judged on each cycle's
+    plain EM step; stage 1, from random counts, stays plain EM.  ``prune`` drops filtered probabilities below it
     (:func:`topomap.core.refine.kernels.clone_forward`).
     ``merge_threshold`` is the G-test threshold of merging bisimilar states (negative: never
     merge; 6.63 = chi-square(1) at 1 %) and ``split_z`` the normal score of splitting compound
@@ -106,7 +110,7 @@ class EMRefinement(CloneRefinement):
                  max_iter: int = 50, settle: float = 0.0, prune: float = 1e-4,
                  merge_threshold: float = 6.63, split_z: float = 3.09, spare: int = 2,
                  init_noise: float = 1.0, guard: bool = True, budget: str = "evidence",
-                 evidence: str = "auto",
+                 accelerate: str = "none", evidence: str = "auto",
                  soft: SoftSettings | Mapping = SoftSettings()):
         self.clone_factor = clone_factor
         self.prefix = prefix
@@ -123,6 +127,7 @@ class EMRefinement(CloneRefinement):
         self.init_noise = init_noise
         self.guard = guard
         self.budget = budget
+        self.accelerate = accelerate
         self.evidence = evidence
         self.soft = soft
 
@@ -136,6 +141,7 @@ class EMRefinement(CloneRefinement):
         _check(0 <= self.settle <= 1, "settle", self.settle, "in [0, 1]")
         _check(0 <= self.prune < 1, "prune", self.prune, "in [0, 1)")
         _check(self.budget in BUDGETS, "budget", self.budget, f"one of {', '.join(BUDGETS)}")
+        check_accelerate(self.accelerate)
         super().check_params()
 
     def provenance(self) -> str:
@@ -146,6 +152,7 @@ class EMRefinement(CloneRefinement):
         rounds = ", ".join(f"{k}={getattr(self, k)!r}" for k in _EM_ROUND)
         changed = "" if self.budget == "evidence" else f"budget={self.budget!r}, "
         changed += f"settle={self.settle!r}, " if self.settle else ""
+        changed += "" if self.accelerate == "none" else f"accelerate={self.accelerate!r}, "
         changed += "" if self.evidence == "auto" else f"evidence={self.evidence!r}, "
         soft = self._provenance_soft()
         changed += f"{soft}, " if soft else ""
@@ -230,10 +237,11 @@ class EMRefinement(CloneRefinement):
 
     def _first_round(self, seq: SymbolSequence, split_state_symbol, rng):
         """Stage 1: the clones of ``budget`` (:mod:`topomap.core.refine.budget`), from random
-        counts."""
+        counts, by plain EM (``accelerate`` is for the warm-started rounds: from a random start
+        it is EM's path that picks the optimum, and a jump can pick another)."""
         lay = seq.layout(BUDGETS[self.budget](split_state_symbol, seq, self.clone_factor,
                                               self.spare))
-        return self._fit_layout(lay, random_counts(lay, rng))
+        return self._fit_layout(lay, random_counts(lay, rng), warm=False)
 
     def _warm_round(self, seq: SymbolSequence, labels, state_symbol, rng, max_iter=None,
                     cap=None):
@@ -247,21 +255,23 @@ class EMRefinement(CloneRefinement):
         return self._fit_layout(lay, init_from_path(lay, path, labels.size, rng,
                                                     self.init_noise), max_iter, cap)
 
-    def _fit_layout(self, lay: Layout, init, max_iter=None, cap=None):
+    def _fit_layout(self, lay: Layout, init, max_iter=None, cap=None, *, warm: bool = True):
         """Baum-Welch then Viterbi training on ``lay`` from ``init`` (at most ``max_iter`` EM
         iterations, default: the parameter's; with ``cap``, ``(iterations, rtol)``, Baum-Welch
-        as :func:`capped_baum_welch`); returns the labels and state symbols of the clones the
-        path uses, and the number of EM iterations."""
+        as :func:`capped_baum_welch`; ``accelerate`` only where ``warm``); returns the labels and
+        state symbols of the clones the path uses, and the number of EM iterations."""
         max_iter = self.max_iter if max_iter is None else max_iter
+        accelerate = self.accelerate if warm else "none"
         pseudocount = self.row_prior / lay.n_clones
         if cap is None or cap[0] >= max_iter:
             labels, state_symbol, em_history, _ = fit_clones(
                 lay, init, pseudocount, max_iter=max_iter, tol=self.tol, prune=self.prune,
-                settle=self.settle)
+                settle=self.settle, accelerate=accelerate)
             return labels, state_symbol, len(em_history)
         counts, em_history = capped_baum_welch(lay, init, pseudocount, max_iter=max_iter,
                                                tol=self.tol, cap=cap[0], rtol=cap[1],
-                                               prune=self.prune, settle=self.settle)
+                                               prune=self.prune, settle=self.settle,
+                                               accelerate=accelerate)
         path, _, _ = viterbi_training(lay, counts, False)
         labels, state_symbol, _ = compact_labels(path, lay.clone_symbol)
         return labels, state_symbol, len(em_history)
@@ -307,20 +317,21 @@ CUT_SURPRISE = 5.0
 
 
 def capped_baum_welch(lay: Layout, init, pseudocount: float, *, max_iter: int, tol: float,
-                      cap: int, rtol: float, prune: float = 0.0, settle: float = 0.0):
+                      cap: int, rtol: float, prune: float = 0.0, settle: float = 0.0,
+                      accelerate: str = "none"):
     """Baum-Welch (:func:`~topomap.core.refine.clones.baum_welch`) stopped after ``cap`` of its
     ``max_iter`` iterations unless the last one still gained more than ``rtol`` x |its
     log-likelihood| (and more than ``tol`` nats per step); then it goes on, from where it
     stopped, until an iteration gains less than that share of the log-likelihood reached at
     ``cap``.  Returns the last expected counts and the log-likelihood of every iteration."""
     counts, _, history = baum_welch(lay, init, pseudocount, False, max_iter=min(cap, max_iter),
-                                    tol=tol, prune=prune, settle=settle)
+                                    tol=tol, prune=prune, settle=settle, accelerate=accelerate)
     T = lay.sym.size
     bar = max(tol * T, rtol * abs(history[-1]))
     if len(history) < max_iter and len(history) >= 2 and history[-1] - history[-2] > bar:
         counts, _, more = baum_welch(lay, counts, pseudocount, False,
                                      max_iter=max_iter - len(history), tol=bar / T, min_iter=1,
-                                     prune=prune, settle=settle)
+                                     prune=prune, settle=settle, accelerate=accelerate)
         history = [*history, *more]
     return counts, history
 
