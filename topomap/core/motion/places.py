@@ -25,7 +25,7 @@ from .odometry import (action_vectors, cell_extent, dead_reckoning, odometric_po
                        reckoned_steps)
 from .settings import MotionSettings, mean_run
 
-__all__ = ["Places", "cut_places", "view_clusters"]
+__all__ = ["Places", "cut_places", "place_features", "view_clusters"]
 
 
 @dataclass
@@ -70,6 +70,17 @@ def _view_spread(Z, fsym, k) -> float:
     return max(float(np.sqrt(np.mean(((Z - centres[fsym]) ** 2).sum(axis=1)))), 1e-12)
 
 
+def place_features(views, positions, weight: float) -> np.ndarray:
+    """(T, D + 2 G) what the places are cut from: ``views`` (in units of one view cluster's
+    extent) beside the ``G`` odometric position estimates of ``positions`` (each (T, 2), in cell
+    extents), the gates sharing ``weight``: two steps' squared distance is their views' plus
+    ``weight**2`` times their positions' mean squared distance.  At 0.5 a view differing by one
+    cluster's extent weighs as a position two cell extents off: drift of a cell or so inside a
+    room leaves a step with its view, and alike rooms many cell extents apart stay apart."""
+    w = weight / np.sqrt(len(positions))  # the gates share the positions' weight
+    return np.hstack([views] + [w * P for P in positions])
+
+
 def cut_places(settings: MotionSettings, Z, u, lengths, n_states: int, n_actions: int, *,
                n_init: int = 3, random_state: int = 0, method: str = "auto") -> Places:
     """``n_states`` places for the steps of ``Z`` (observations in the metric's space), the view
@@ -94,8 +105,7 @@ def cut_places(settings: MotionSettings, Z, u, lengths, n_states: int, n_actions
         P, _, n_copies = odometric_positions(fsym, steps, lengths, gate * r, pull=settings.pull)
         positions.append(P / r)
         copies.append(n_copies)
-    w = settings.weight / np.sqrt(len(positions))  # the gates share the positions' weight
-    F = np.hstack([Z / _view_spread(Z, fsym, k)] + [w * P for P in positions])
+    F = place_features(Z / _view_spread(Z, fsym, k), positions, settings.weight)
     info.update(odometry=True, cell_extent=round(r, 4), copies=copies)
     places = _kmeans(F, int(n_states), n_init, random_state, method)
     return Places(fsym, places, V, r, positions[len(positions) // 2], info)
