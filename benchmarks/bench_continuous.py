@@ -187,8 +187,8 @@ def route(name, train, held, ns, S, regions, seed):
                   "unscaled": MotionSettings(fallback_variance=1.0, min_gain=0.0),
                   "no_vote": MotionSettings(votes=0),
                   "confidence2": MotionSettings(confidence=2.0),
-                  "weight1": MotionSettings(weight=1.0),
-                  "weight05": MotionSettings(weight=0.5)}[name]
+                  "weight1": MotionSettings(weight=1.0, loose_weight=1.0),
+                  "weight05": MotionSettings(weight=0.5, loose_weight=0.5)}[name]
         return _learner_row(*_fit(train, refine="em", motion=motion, **kw), train, held, regions)
     if name == "self_decoded":
         learner, seconds = _fit(train, refine="em", motion=MotionSettings(holdout=0), **kw)

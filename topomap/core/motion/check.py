@@ -196,7 +196,8 @@ def _fold(settings: MotionSettings, X, Z, u, lengths, end: int, held: int, build
         far[name] = misplaced_rows(placed[joined], frame[joined], settings.far)
         steps[name] = int(np.count_nonzero(far[name]))
         misplaced[name] = round(steps[name] / referenced, 4)
-    return {"learned": cut, "held_out": end - cut, "anchored": round(float(joined.mean()), 4),
+    return {"learned": cut, "held_out": end - cut, "weight": part.info["weight"],
+            "anchored": round(float(joined.mean()), 4),
             "referenced": referenced, **errors, "misplaced": misplaced,
             "misplaced_steps": steps, "blocks": gain_blocks(far["places"], far["views"], block)}
 
@@ -221,6 +222,7 @@ def choose_places(settings: MotionSettings, X, Z, u, lengths, n_states: int, n_a
     if purity < settings.min_purity:
         return whole.views, dict(info, chosen="views", purity=round(purity, 4),
                                   check="the places cut across the view clusters")
+    kmeans = dict(kmeans, weight=info["weight"])  # the held-out parts weigh as the whole log
     step = int(round(T * settings.holdout))
     block = max(1, int(round(settings.block_runs * info["mean_run"])))
     folds = []
