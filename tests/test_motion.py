@@ -597,3 +597,20 @@ def test_the_held_out_parts_cut_their_places_with_the_whole_logs_weight():
     folds = learner.motion_info_["check"]["folds"]
     assert learner.motion_info_["weight"] == 1.0 and folds
     assert all(f["weight"] == 1.0 for f in folds)
+
+
+def test_places_at_the_default_weight_are_checked_where_the_loosely_weighted_ones_give_way():
+    Z, u, x = _alike_halves()
+    # every log loose (a bar of 0.001), its loose weight so small that the places are all but
+    # the view clusters, which cannot tell the alike halves apart: the check gives them up,
+    # and the places at weight 1 -- those the check keeps on this log -- are checked in turn
+    motion = MotionSettings(loose_return=0.001, loose_weight=0.01)
+    learner = MapLearner(n_clusters=4, n_states=8, random_state=0, motion=motion).fit(Z, u)
+    info = learner.motion_info_
+    assert info["loose"]["weight"] == 0.01 and info["loose"]["chosen"] == "views"
+    assert info["chosen"] == "places" and info["weight"] == 1.0
+    assert _mixed_share(learner.labels_, x) < 0.02
+    # no second try where the default weight is the loose one
+    same = MotionSettings(loose_return=0.001, loose_weight=1.0)
+    info = MapLearner(n_clusters=4, n_states=8, random_state=0, motion=same).fit(Z, u).motion_info_
+    assert "loose" not in info and info["chosen"] == "places"
