@@ -73,7 +73,7 @@ ROOMS = ("two_rooms", "four_rooms", "corridor", "open", "alcoves")
 UNSEEN = ("l_rooms", "pillars", "three_rooms", "grid6", "ring", "sizes")
 ROUTES = ("split", "em", "views", "ceiling", "positions", "shipped", "unchecked", "one_gate",
           "no_odometry", "merged_runs", "fallback", "folds3", "unscaled", "no_vote",
-          "confidence2", "self_decoded")
+          "confidence2", "self_decoded", "weight1", "weight05")
 #: the main sensor: 12 compass beams, max range 3 m, noise 0.02; random motion 0.16 m/s, 10 Hz
 BASE = {"beams": 12, "max_range": 3.0, "sigma": 0.02, "speed": 0.16, "dt": 0.1,
         "actions": "compass", "frame": "compass", "sensor": "range"}
@@ -180,13 +180,15 @@ def route(name, train, held, ns, S, regions, seed):
         return _learner_row(*_fit(train, motion="discrete", refine="em" if name == "em" else None,
                                   **kw), train, held, regions)
     if name in ("shipped", "unchecked", "one_gate", "folds3", "unscaled", "no_vote",
-                "confidence2"):
+                "confidence2", "weight1", "weight05"):
         motion = {"shipped": MotionSettings(), "unchecked": MotionSettings(holdout=0),
                   "one_gate": MotionSettings(gates=(3.0,)),
                   "folds3": MotionSettings(folds=3),
                   "unscaled": MotionSettings(fallback_variance=1.0, min_gain=0.0),
                   "no_vote": MotionSettings(votes=0),
-                  "confidence2": MotionSettings(confidence=2.0)}[name]
+                  "confidence2": MotionSettings(confidence=2.0),
+                  "weight1": MotionSettings(weight=1.0, loose_weight=1.0),
+                  "weight05": MotionSettings(weight=0.5, loose_weight=0.5)}[name]
         return _learner_row(*_fit(train, refine="em", motion=motion, **kw), train, held, regions)
     if name == "self_decoded":
         learner, seconds = _fit(train, refine="em", motion=MotionSettings(holdout=0), **kw)

@@ -15,6 +15,10 @@ the wrong region; the medians over the steps both place in the right region (the
 a region); and per region its share of the training and of the held-out steps, with both
 medians and wrong-region shares there.
 
+``--weights W ...``: the unchecked places of the whole log cut with each positions' weight
+``W`` (``motion.weight``), their purity, and their map decoded with one pooled variance (scale
+1 and 0.1), beside K-means on the views.
+
 Probes (where the check kept the places; ``purity`` -- the share of training steps whose place's
 view cluster is their own; ``view clusters`` are the fallback's own,
 :func:`~topomap.core.motion.places.view_clusters` on the training views, each place taken as the
@@ -161,6 +165,37 @@ def purity(case: str, setting: str, seed: int, cache: Path) -> dict:
             "purity": round(view_purity(learner.labels_, vl), 3)}
 
 
+def weights(case: str, setting: str, seed: int, cache: Path, ws) -> dict:
+    """The places of the whole log, unchecked (``MotionSettings(holdout=0)``), cut with each
+    positions' weight of ``ws`` (the loose weight too): each weight's median error, the places'
+    ``purity``, and the median error when the places' map decodes with one variance shared by
+    its states (:func:`~topomap.core.motion.learn.pooled_variances`, scale 1 and 0.1: the view
+    likelihood weighed more against the transitions)."""
+    from topomap.core.motion.learn import pooled_variances
+
+    s = dict(bc.BASE, **({} if setting == "base" else bc.SETTINGS[int(setting)]))
+    _, train, held, ns, S = bc.walks(case, seed, s, cache)
+    km = KMeans(S, n_init=4, random_state=0).fit(train.observations)
+    row = {"case": case, "setting": bc.setting_name(s), "seed": seed,
+           "views": _median(_unit_means(km.labels_, train.positions, S)[
+               km.predict(held.observations)], held.positions)}
+    vl = view_clusters(train.observations, S, MotionSettings().n_init, 0)
+    for w in ws:
+        learner, _ = bc._fit(train, n_clusters=ns, n_states=S, random_state=0, refine="em",
+                             motion=MotionSettings(holdout=0, weight=w, loose_weight=w))
+        m, labels = learner.map_, learner.labels_
+        spots = _unit_means(labels, train.positions, m.n_states)
+        r = {"places": _median(spots[m.predict(held.observations, held.actions)],
+                               held.positions),
+             "purity": round(view_purity(labels, vl), 3)}
+        for scale in (1.0, 0.1):
+            pm = pooled_variances(m, train.observations, labels, learner.reg_covar, scale)
+            r[f"pooled{scale:g}"] = _median(spots[pm.predict(held.observations, held.actions)],
+                                            held.positions)
+        row[f"weight{w:g}"] = r
+    return row
+
+
 def _seldom(row) -> str:
     """Held-out share in regions trained on less than half their held-out share, and both
     maps' medians there (weighted by the held-out steps)."""
@@ -199,6 +234,8 @@ def main() -> None:
     p.add_argument("--table", action="store_true", help="print the log's rows as a table")
     p.add_argument("--purity", action="store_true",
                    help="the places' purity alone (a fit without the check), no anatomy")
+    p.add_argument("--weights", nargs="+", type=float, default=None, metavar="W",
+                   help="the unchecked places cut with each of these positions' weights")
     p.add_argument("--log", default="anatomy.jsonl")
     p.add_argument("--cache", default=os.path.expanduser("~/.cache/topomap-bench"))
     a = p.parse_args()
@@ -212,8 +249,11 @@ def main() -> None:
         case, setting, seed = t.split(":")
         if (case, setting, int(seed)) in done:
             continue
-        row = {"triple": [case, setting, int(seed)],
-               **(purity if a.purity else anatomy)(case, setting, int(seed), Path(a.cache))}
+        if a.weights:
+            body = weights(case, setting, int(seed), Path(a.cache), a.weights)
+        else:
+            body = (purity if a.purity else anatomy)(case, setting, int(seed), Path(a.cache))
+        row = {"triple": [case, setting, int(seed)], **body}
         with open(a.log, "a") as fh:
             fh.write(json.dumps(row) + "\n")
         print(json.dumps({k: v for k, v in row.items() if k != "regions"}), flush=True)

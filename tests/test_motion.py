@@ -514,3 +514,103 @@ def test_bad_motion_is_named(motion, message):
     with pytest.raises(ParameterError, match=message):
         learner.fit(Z, u)
     assert not hasattr(learner, "map_")  # nothing half-written
+
+
+def test_place_features_weigh_the_positions_beside_the_view():
+    from topomap.core.motion.places import place_features
+
+    views = np.array([[0.0], [0.0]])
+    # three gates, each putting the second step 2 cell extents east of the first
+    positions = [np.array([[0.0, 0.0], [2.0, 0.0]])] * 3
+    F = place_features(views, positions, 0.5)
+    assert F.shape == (2, 1 + 2 * 3)
+    # the gates share the weight: the squared distance is 0.5**2 times the positions' mean one
+    assert np.linalg.norm(F[1] - F[0]) == pytest.approx(0.5 * 2.0)
+
+
+
+def _places_of_two_rooms_of_two_views(weight):
+    """Two alike rooms 20 cell extents apart; in each, steps of two views one cluster's extent
+    apart, drift putting either view at reckoned x = 0 or 1.6 cell extents (ten steps of every
+    view, position and room); two places a room.  Within a room the four kinds of step are the
+    corners of a rectangle 1 (view) by 1.6 * weight (position): 2-means cuts it across its
+    longer side, so by the view where 1.6 * weight < 1.  Returns, for the keys ``room``,
+    ``view`` and ``x``, whether the places are exactly the steps alike in the given keys."""
+    from sklearn.cluster import KMeans
+    from topomap.core.motion.places import place_features
+
+    view, x, room = (np.repeat(a.ravel(), 10) for a in np.meshgrid([0.0, 1.0], [0.0, 1.6],
+                                                                     [0.0, 20.0]))
+    P = np.column_stack([x + room, np.zeros_like(x)])
+    labels = KMeans(4, n_init=10, random_state=0).fit_predict(
+        place_features(view[:, None], [P, P, P], weight))
+    keys = {"room": room, "view": view, "x": x}
+
+    def alike_in(*names):
+        kinds = np.unique(np.column_stack([keys[n] for n in names]), axis=0,
+                          return_inverse=True)[1].ravel()
+        return all(np.unique(labels[kinds == k]).size == 1 for k in np.unique(kinds)) and \
+            np.unique(labels).size == np.unique(kinds).size
+    return alike_in
+
+
+def test_places_follow_the_view_where_drift_is_a_cell_or_so_and_keep_alike_rooms_apart():
+    # the weight where odometry is loose (0.5): 1.6 * 0.5 < 1, the places are each room's views
+    assert _places_of_two_rooms_of_two_views(MotionSettings().loose_weight)("room", "view")
+    # at weight 1 (the default's own): 1.6 > 1, each room's drifted positions, views mixed
+    assert _places_of_two_rooms_of_two_views(MotionSettings().weight)("room", "x")
+
+
+def test_the_positions_weigh_less_where_the_odometry_closes_loops_loosely():
+    from topomap.core.motion.places import position_weight
+
+    s = MotionSettings(weight=1.0, loose_return=0.26, loose_weight=0.5)
+    assert position_weight(s, [0.2, 0.25]) == 1.0    # both returns within 0.26: tight
+    assert position_weight(s, [0.2, 0.26]) == 1.0    # at the bar: still tight
+    assert position_weight(s, [0.2, 0.3]) == 0.5     # the weaker direction keeps 0.3: loose
+    assert position_weight(s, [0.3, 0.2]) == 0.5     # whichever direction it is
+
+
+def test_the_held_out_parts_cut_their_places_with_the_whole_logs_weight():
+    from topomap.core.motion.places import cut_places
+
+    Z, u, _ = _alike_halves(2000)
+    whole = cut_places(MotionSettings(), Z, u, [u.size], 8, 2)
+    # a walk on a line: the odometry keeps one direction, and its return ratio is the one read
+    assert not np.asarray(whole.info["action_vectors"])[:, 1].any()
+    ratio = whole.info["return_ratios"][0]
+    loose = cut_places(MotionSettings(loose_return=ratio / 2), Z, u, [u.size], 8, 2)
+    tight = cut_places(MotionSettings(loose_return=ratio * 1.001), Z, u, [u.size], 8, 2)
+    assert loose.info["weight"] == 0.5 and tight.info["weight"] == 1.0
+    # a given weight wins over the log's own (what the held-out check passes on)
+    given = cut_places(MotionSettings(loose_return=ratio / 2), Z, u, [u.size], 8, 2, weight=1.0)
+    assert given.info["weight"] == 1.0
+    np.testing.assert_array_equal(given.places, tight.places)
+    # the check's first part (the first 1,500 steps) closes its loops a little more loosely
+    # than the whole log: a bar between the two leaves the whole log tight, and the parts
+    # cut with the whole log's weight, not their own
+    part = cut_places(MotionSettings(), Z[:1500], u[:1500], [1500], 8, 2)
+    bar = (ratio + part.info["return_ratios"][0]) / 2
+    assert part.info["return_ratios"][0] > bar > ratio
+    learner = MapLearner(n_clusters=4, n_states=8, random_state=0,
+                         motion=MotionSettings(loose_return=bar)).fit(Z, u)
+    folds = learner.motion_info_["check"]["folds"]
+    assert learner.motion_info_["weight"] == 1.0 and folds
+    assert all(f["weight"] == 1.0 for f in folds)
+
+
+def test_places_at_the_default_weight_are_checked_where_the_loosely_weighted_ones_give_way():
+    Z, u, x = _alike_halves()
+    # every log loose (a bar of 0.001), its loose weight so small that the places are all but
+    # the view clusters, which cannot tell the alike halves apart: the check gives them up,
+    # and the places at weight 1 -- those the check keeps on this log -- are checked in turn
+    motion = MotionSettings(loose_return=0.001, loose_weight=0.01)
+    learner = MapLearner(n_clusters=4, n_states=8, random_state=0, motion=motion).fit(Z, u)
+    info = learner.motion_info_
+    assert info["loose"]["weight"] == 0.01 and info["loose"]["chosen"] == "views"
+    assert info["chosen"] == "places" and info["weight"] == 1.0
+    assert _mixed_share(learner.labels_, x) < 0.02
+    # no second try where the default weight is the loose one
+    same = MotionSettings(loose_return=0.001, loose_weight=1.0)
+    info = MapLearner(n_clusters=4, n_states=8, random_state=0, motion=same).fit(Z, u).motion_info_
+    assert "loose" not in info and info["chosen"] == "places"

@@ -196,7 +196,8 @@ def _fold(settings: MotionSettings, X, Z, u, lengths, end: int, held: int, build
         far[name] = misplaced_rows(placed[joined], frame[joined], settings.far)
         steps[name] = int(np.count_nonzero(far[name]))
         misplaced[name] = round(steps[name] / referenced, 4)
-    return {"learned": cut, "held_out": end - cut, "anchored": round(float(joined.mean()), 4),
+    return {"learned": cut, "held_out": end - cut, "weight": part.info["weight"],
+            "anchored": round(float(joined.mean()), 4),
             "referenced": referenced, **errors, "misplaced": misplaced,
             "misplaced_steps": steps, "blocks": gain_blocks(far["places"], far["views"], block)}
 
@@ -206,8 +207,28 @@ def choose_places(settings: MotionSettings, X, Z, u, lengths, n_states: int, n_a
     """``(labels, info)``: the places of the whole log (:func:`cut_places`), or its view clusters
     when the held-out check prefers them or finds no odometry.  ``build(X, u, labels, lengths)``
     makes a map of labelled steps (``pooled=True``: one variance shared by its states, the view
-    clusters' map); ``kmeans``: ``n_init``, ``random_state``, ``method``."""
-    whole = cut_places(settings, Z, u, lengths, n_states, n_actions, **kmeans)
+    clusters' map); ``kmeans``: ``n_init``, ``random_state``, ``method``.  Where the odometry is
+    loose (:func:`~topomap.core.motion.places.position_weight`) and the places cut with the
+    loose weight give way to the view clusters, the places cut with ``settings.weight`` are
+    checked in turn (on ``ring`` at 50 Hz, seed 0, those kept alike rooms apart where the loosely
+    weighted ones did not); ``info["loose"]`` then says what the first try chose and why."""
+    labels, info = _choose(settings, X, Z, u, lengths, n_states, n_actions, build, **kmeans)
+    if info["chosen"] == "places" or info.get("weight", settings.weight) == settings.weight:
+        return labels, info
+    labels2, info2 = _choose(settings, X, Z, u, lengths, n_states, n_actions, build,
+                             weight=settings.weight, **kmeans)
+    if info2["chosen"] != "places":
+        return labels, info
+    first = {k: info[k] for k in ("weight", "chosen", "check", "purity") if k in info}
+    if isinstance(first.get("check"), dict):  # the first try's shares, not its folds
+        first["check"] = {k: first["check"][k] for k in ("mean_misplaced", "outvoted")}
+    return labels2, dict(info2, loose=first)
+
+
+def _choose(settings: MotionSettings, X, Z, u, lengths, n_states: int, n_actions: int,
+            build, weight=None, **kmeans) -> tuple[np.ndarray, dict]:
+    """:func:`choose_places` for one weight of the positions (None: the log's own)."""
+    whole = cut_places(settings, Z, u, lengths, n_states, n_actions, weight=weight, **kmeans)
     info = dict(whole.info)
     if whole.places is None:
         return whole.views, dict(info, chosen="views")
@@ -221,6 +242,7 @@ def choose_places(settings: MotionSettings, X, Z, u, lengths, n_states: int, n_a
     if purity < settings.min_purity:
         return whole.views, dict(info, chosen="views", purity=round(purity, 4),
                                   check="the places cut across the view clusters")
+    kmeans = dict(kmeans, weight=info["weight"])  # the held-out parts weigh as the whole log
     step = int(round(T * settings.holdout))
     block = max(1, int(round(settings.block_runs * info["mean_run"])))
     folds = []

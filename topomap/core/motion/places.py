@@ -25,7 +25,7 @@ from .odometry import (action_vectors, cell_extent, dead_reckoning, odometric_po
                        reckoned_steps)
 from .settings import MotionSettings, mean_run
 
-__all__ = ["Places", "cut_places", "view_clusters"]
+__all__ = ["Places", "cut_places", "place_features", "position_weight", "view_clusters"]
 
 
 @dataclass
@@ -70,12 +70,35 @@ def _view_spread(Z, fsym, k) -> float:
     return max(float(np.sqrt(np.mean(((Z - centres[fsym]) ** 2).sum(axis=1)))), 1e-12)
 
 
+def place_features(views, positions, weight: float) -> np.ndarray:
+    """(T, D + 2 G) what the places are cut from: ``views`` (in units of one view cluster's
+    extent) beside the ``G`` odometric position estimates of ``positions`` (each (T, 2), in cell
+    extents), the gates sharing ``weight``: two steps' squared distance is their views' plus
+    ``weight**2`` times their positions' mean squared distance.  At 0.5 a view differing by one
+    cluster's extent weighs as a position two cell extents off: drift of a cell or so inside a
+    room leaves a step with its view, and alike rooms many cell extents apart stay apart."""
+    w = weight / np.sqrt(len(positions))  # the gates share the positions' weight
+    return np.hstack([views] + [w * P for P in positions])
+
+
+def position_weight(settings: MotionSettings, ratios) -> float:
+    """The positions' weight beside the views: ``settings.loose_weight`` where the odometry
+    closes loops loosely -- the largest of the return ratios of the directions it kept (the
+    share of a random window's displacement that windows returning to their view cluster keep,
+    :func:`~topomap.core.motion.odometry.action_vectors`; two in a plane, one on a line) above
+    ``settings.loose_return`` -- else ``settings.weight``."""
+    return float(settings.loose_weight if max(ratios) > settings.loose_return
+                 else settings.weight)
+
+
 def cut_places(settings: MotionSettings, Z, u, lengths, n_states: int, n_actions: int, *,
-               n_init: int = 3, random_state: int = 0, method: str = "auto") -> Places:
+               n_init: int = 3, random_state: int = 0, method: str = "auto",
+               weight: float | None = None) -> Places:
     """``n_states`` places for the steps of ``Z`` (observations in the metric's space), the view
     clusters beside them, and what was measured on the way (:class:`Places`): the view clusters,
     the actions' displacements learned from them, the cell extent, and for each gate of
-    ``settings.gates`` the copies of view clusters its positions kept."""
+    ``settings.gates`` the copies of view clusters its positions kept.  ``weight``: the
+    positions' weight (None: :func:`position_weight` of this log's odometry)."""
     lengths = np.asarray(lengths, dtype=np.int64)
     k = min(int(n_states), int(np.unique(Z, axis=0).shape[0]))
     fsym = view_clusters(Z, k, settings.n_init, random_state)
@@ -94,8 +117,9 @@ def cut_places(settings: MotionSettings, Z, u, lengths, n_states: int, n_actions
         P, _, n_copies = odometric_positions(fsym, steps, lengths, gate * r, pull=settings.pull)
         positions.append(P / r)
         copies.append(n_copies)
-    w = settings.weight / np.sqrt(len(positions))  # the gates share the positions' weight
-    F = np.hstack([Z / _view_spread(Z, fsym, k)] + [w * P for P in positions])
-    info.update(odometry=True, cell_extent=round(r, 4), copies=copies)
+    if weight is None:  # the directions kept: a plane, or a line (the first alone)
+        weight = position_weight(settings, ratios if V[:, 1].any() else ratios[:1])
+    F = place_features(Z / _view_spread(Z, fsym, k), positions, float(weight))
+    info.update(odometry=True, cell_extent=round(r, 4), copies=copies, weight=float(weight))
     places = _kmeans(F, int(n_states), n_init, random_state, method)
     return Places(fsym, places, V, r, positions[len(positions) // 2], info)

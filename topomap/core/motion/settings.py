@@ -32,8 +32,17 @@ class MotionSettings:
     position (:func:`topomap.core.motion.odometry.odometric_positions`); each gate gives one
     position estimate, and all of them enter the K-means that cuts the places, so that no single
     gate decides (a tight gate splits an open room by drift, a wide one joins alike rooms).
-    ``weight``: the positions' weight beside the view in that K-means (both in units of one view
-    cluster's extent).  ``pull``: how far a step's reckoned position moves towards the copy it
+    ``weight``: the positions' weight beside the view in that K-means (the view in units of one
+    view cluster's extent, the positions in cell extents;
+    :func:`topomap.core.motion.places.place_features`).  ``loose_weight``: their weight instead
+    where the odometry closes loops loosely -- walks that return to a view cluster keep more
+    than ``loose_return`` of a random walk's displacement in its weaker direction
+    (:func:`topomap.core.motion.places.position_weight`): at 0.5 a view one cluster's extent
+    off counts as a position two cell extents off, so drift of a cell or so inside a room
+    leaves a step with its view (with boundary-vector cells, whose odometry keeps 0.26-0.33,
+    places cut at weight 1 smeared inside rooms and placed a new walk worse than the views;
+    docs/benchmarks.md); where the places cut so give way to the view clusters in the held-out
+    check, those cut at ``weight`` are checked in turn.  ``pull``: how far a step's reckoned position moves towards the copy it
     joins.  ``max_return``: odometry is used only where walks that come back to a view cluster
     keep at most this share of a random walk's displacement
     (:func:`topomap.core.motion.odometry.action_vectors`); turn / forward commands fail it and
@@ -95,6 +104,8 @@ class MotionSettings:
     confidence: float = 0.0
     block_runs: float = 50.0
     min_purity: float = 0.2
+    loose_return: float = 0.26
+    loose_weight: float = 0.5
 
 
 def motion_settings(value) -> MotionSettings:
@@ -126,11 +137,11 @@ def motion_settings(value) -> MotionSettings:
     if not isinstance(gates, tuple) or not gates or not all(_positive(g) for g in gates):
         raise ParameterError("motion.gates", f"must be a non-empty list of positive numbers, "
                                              f"got {gates!r}")
-    for name in ("min_run", "weight", "pull", "max_return", "far", "min_copies", "block_runs"):
+    for name in ("min_run", "weight", "loose_weight", "pull", "max_return", "far", "min_copies", "block_runs"):
         if not _positive(getattr(value, name)):
             raise ParameterError(f"motion.{name}", f"must be a positive number, "
                                                    f"got {getattr(value, name)!r}")
-    for name in ("holdout", "min_gain", "min_purity"):
+    for name in ("holdout", "min_gain", "min_purity", "loose_return"):
         v = getattr(value, name)
         if not (isinstance(v, numbers.Real) and not isinstance(v, bool) and 0 <= v < 1):
             raise ParameterError(f"motion.{name}", f"must be a number in [0, 1), got {v!r}")
