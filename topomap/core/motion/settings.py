@@ -42,8 +42,8 @@ class MotionSettings:
     leaves a step with its view (with boundary-vector cells, whose odometry keeps 0.26-0.33,
     places cut at weight 1 smeared inside rooms and placed a new walk worse than the views;
     docs/benchmarks.md); where the places cut so give way to the view clusters in the held-out
-    check, those cut at ``weight`` are checked in turn.  ``pull``: how far a step's reckoned position moves towards the copy it
-    joins.  ``max_return``: odometry is used only where walks that come back to a view cluster
+    check, those cut at ``weight`` are checked in turn.  ``pull``: how far a step's reckoned
+    position moves towards the copy it joins.  ``max_return``: odometry is used only where walks that come back to a view cluster
     keep at most this share of a random walk's displacement
     (:func:`topomap.core.motion.odometry.action_vectors`); turn / forward commands fail it and
     the places are then the view clusters alone.
@@ -137,7 +137,8 @@ def motion_settings(value) -> MotionSettings:
     if not isinstance(gates, tuple) or not gates or not all(_positive(g) for g in gates):
         raise ParameterError("motion.gates", f"must be a non-empty list of positive numbers, "
                                              f"got {gates!r}")
-    for name in ("min_run", "weight", "loose_weight", "pull", "max_return", "far", "min_copies", "block_runs"):
+    for name in ("min_run", "weight", "loose_weight", "pull", "max_return", "far", "min_copies",
+                 "block_runs"):
         if not _positive(getattr(value, name)):
             raise ParameterError(f"motion.{name}", f"must be a positive number, "
                                                    f"got {getattr(value, name)!r}")
