@@ -43,8 +43,8 @@ class MotionSettings:
     places cut at weight 1 smeared inside rooms and placed a new walk worse than the views;
     docs/benchmarks.md); where the places cut so give way to the view clusters in the held-out
     check, those cut at ``weight`` are checked in turn.  ``pull``: how far a step's reckoned
-    position moves towards the copy it joins.  ``max_return``: odometry is used only where walks that come back to a view cluster
-    keep at most this share of a random walk's displacement
+    position moves towards the copy it joins.  ``max_return``: odometry is used only where walks
+    that come back to a view cluster keep at most this share of a random walk's displacement
     (:func:`topomap.core.motion.odometry.action_vectors`); turn / forward commands fail it and
     the places are then the view clusters alone.
 
