@@ -85,7 +85,7 @@ def test_a_bad_split_start_is_refused_in_one_line(split_labels, message):
 
 def test_an_unknown_start_is_refused_by_name():
     with pytest.raises(ParameterError, match=r"^start must be one of random, split, "
-                                             r"split_budget, got 'warm'$"):
+                                             r"split_budget, auto, got 'warm'$"):
         EMRefinement(start="warm").check_params()
 
 
@@ -96,3 +96,22 @@ def test_the_random_start_ignores_split_labels():
     a = EMRefinement().fit(seq, np.asarray(RING), 0)
     b = EMRefinement().fit(seq, np.asarray(RING), 0, split_labels=places)
     assert np.array_equal(a.labels_, b.labels_) and a.info_ == b.info_
+
+
+def test_auto_starts_from_a_split_that_predicts_the_next_view():
+    """The right split predicts every next symbol (successor surprise 0): ``"auto"`` starts from
+    it, as ``"split"`` does."""
+    seq, places = ring(0)
+    auto, split = (EMRefinement(start=s).fit(seq, np.asarray(RING), 0, split_labels=places)
+                   for s in ("auto", "split"))
+    assert auto.info_ == split.info_ and np.array_equal(auto.labels_, split.labels_)
+
+
+def test_auto_starts_from_random_counts_where_the_split_joined_places():
+    """One state per symbol on the ring: from the state of symbol 1 (places 1 and 4) the move
+    forward shows symbol 2 or 4, so the split is far from predicting the next view and
+    ``"auto"`` starts as ``"random"`` does."""
+    seq, _ = ring(0)
+    auto = EMRefinement(start="auto").fit(seq, np.arange(6), 0, split_labels=seq.sym)
+    plain = EMRefinement().fit(seq, np.arange(6), 0)
+    assert auto.info_ == plain.info_ and np.array_equal(auto.labels_, plain.labels_)

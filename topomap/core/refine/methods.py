@@ -250,13 +250,19 @@ class EMRefinement(CloneRefinement):
         ``"split_budget"``, on the clones of ``budget``: a symbol's clones shared out among its
         split states, every step of a state on one of its clones at random
         (:func:`~topomap.core.refine.clones.spread_states`), so EM can still tell apart places
-        the split joined.  Either way the warm-started EM (``accelerate`` applies)."""
+        the split joined; with ``"auto"``, as ``"split"`` where the split's labelling of the
+        prefix predicts the next symbol of all but a ``SPLIT_TRUST`` share of its transitions
+        (:func:`~topomap.core.refine.soft.successor_surprise`), else from random counts.  From
+        the split, the warm-started EM (``accelerate`` applies).  The hard
+        rounds on the symbols a soft round corrected have no split labelling: random counts."""
         budget = BUDGETS[self.budget](split_state_symbol, seq, self.clone_factor, self.spare)
-        if self.start == "random":
+        if split_labels is not None:
+            labels, state_symbol, _ = compact_labels(split_labels[0][:seq.T], split_labels[1])
+        if self.start == "random" or split_labels is None or (  # or on corrected symbols
+                self.start == "auto" and successor_surprise(seq, labels) >= SPLIT_TRUST):
             lay = seq.layout(budget)
             return self._fit_layout(lay, random_counts(lay, rng), warm=False)
-        labels, state_symbol, _ = compact_labels(split_labels[0][:seq.T], split_labels[1])
-        if self.start == "split":
+        if self.start in ("split", "auto"):
             return self._warm_round(seq, labels, state_symbol, rng)
         budget = np.maximum(budget, np.bincount(state_symbol, minlength=budget.size))
         lay = seq.layout(budget)
@@ -327,7 +333,12 @@ class EMRefinement(CloneRefinement):
 
 
 #: what :meth:`EMRefinement._first_round` starts from: random counts, or the split's labelling
-STARTS = ("random", "split", "split_budget")
+STARTS = ("random", "split", "split_budget", "auto")
+
+#: ``start="auto"`` starts from the split where its labelling of the prefix has a successor
+#: surprise below this: the paper's office (0.0, split right) does, the 8 x 6 and 12 x 12 rooms
+#: (about 0.2, the split far from the places: from it EM needs 1.4 x the E-steps) do not
+SPLIT_TRUST = 0.05
 
 #: rounds on all steps at most after a warm start (``init``), and the EM iterations of each: the
 #: labelling it starts from has had its rounds already (the last map's), so a few short EM

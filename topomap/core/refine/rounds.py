@@ -106,9 +106,9 @@ class CloneRefinement(BaseEstimator):
 
     def _checked_split(self, seq: SymbolSequence, split_labels):
         """``split_labels`` of :meth:`fit` as ``(labels, state_symbol)`` (each split state's
-        symbol id, read off the steps) where the first stage starts from it
-        (``start="split..."``), else None; a ``ValueError`` naming what is wrong."""
-        if not str(getattr(self, "start", "random")).startswith("split"):
+        symbol id, read off the steps) where the first stage may start from it (``start`` other
+        than ``"random"``), else None; a ``ValueError`` naming what is wrong."""
+        if getattr(self, "start", "random") == "random":
             return None
         if split_labels is None:
             raise ValueError(f"split_labels: start={self.start!r} needs the split state of "
