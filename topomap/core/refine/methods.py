@@ -89,6 +89,9 @@ class EMRefinement(CloneRefinement):
     ``"evidence"`` (default) gives a view at least as many clones as the data's lower bound on the
     places showing it (the same action sequence from the view followed by that many different
     symbol sequences), ``"split"`` only ``clone_factor`` x its split states + ``spare``.
+    ``start`` (:data:`STARTS`): what stage 1 starts from, random counts (default) or the split's
+    labelling ``split_labels`` of :meth:`fit` (``"split"``, ``"split_budget"``, ``"auto"``:
+    :meth:`_first_round`).
 
     ``evidence`` (:data:`~topomap.core.refine.soft.EVIDENCE`): ``"auto"`` (default) corrects
     misread symbols when the first soft round finds some (the first hard round stops before
