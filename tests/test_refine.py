@@ -331,7 +331,7 @@ def test_the_refinements_store_their_parameters_as_given():
     assert params["clone_factor"] == 2 and params["prefix"] is em.prefix
     assert set(params) == {"clone_factor", "prefix", "prefix_visits", "max_rounds", "row_prior",
                            "tol", "max_iter", "settle", "prune", "merge_threshold", "split_z",
-                           "spare", "init_noise", "guard", "budget", "accelerate", "evidence",
+                           "spare", "init_noise", "guard", "budget", "accelerate", "start", "evidence",
                            "soft"}
     twin = clone(em)
     assert twin is not em and twin.get_params() == params

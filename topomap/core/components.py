@@ -5,6 +5,7 @@ error naming the learner's own parameter (:func:`naming`)."""
 from __future__ import annotations
 
 import copy
+import inspect
 import warnings
 from contextlib import contextmanager
 
@@ -132,15 +133,19 @@ def make_refinement(refine):
 
 
 def fit_refinement(refinement, seq, split_state_symbol, random_state: int,
-                   init=None) -> CloneFit:
+                   init=None, split_labels=None) -> CloneFit:
     """Fit ``refinement`` and return what it learned as a :class:`CloneFit`.
 
     A refinement's ``fit`` returns the refinement, its ``labels_``, ``state_symbol_`` and
     ``info_`` set (``info_`` optional).  A ``fit`` that returns a ``CloneFit`` itself (the
     contract before 0.3) is still accepted, with a ``FutureWarning``, until 0.4.  ``init`` (a
     labelling to start from, :meth:`~topomap.core.refine.rounds.CloneRefinement.fit`) is given
-    only when not None, so a refinement whose ``fit`` does not take it still works without."""
+    only when not None, so a refinement whose ``fit`` does not take it still works without;
+    ``split_labels`` (the split state of every step) only to a refinement whose ``fit`` takes
+    it."""
     extra = {} if init is None else {"init": init}
+    if split_labels is not None and "split_labels" in inspect.signature(refinement.fit).parameters:
+        extra["split_labels"] = split_labels
     out = refinement.fit(seq, split_state_symbol, random_state, **extra)
     if isinstance(out, CloneFit):
         warnings.warn(f"{type(refinement).__name__}.fit returned a CloneFit; since 0.3 a "

@@ -291,7 +291,7 @@ class MapLearner(MapMethods, BaseEstimator):
             self.labels_split_, self.map_split_ = start_map(self, data, init)
         with naming(self, "refine"):
             fit = fit_refinement(runner, seq, self._split_symbol(splitter), self.random_state,
-                                 init)
+                                 init, self.labels_split_)
         if runner is not refinement:  # the last map's refinement found no misread symbols
             fit.info.update(soft="skipped", soft_from="the last map")
         if told is not None and self.refined_size == "told" and fit.n_states != told:
@@ -335,7 +335,8 @@ class MapLearner(MapMethods, BaseEstimator):
         seq = SymbolSequence.build(self.labels_phase1_[:cut], data.u[:cut], L, data.n_actions,
                                    self.n_clusters_)
         with naming(self, "refine"):
-            fit = fit_refinement(refinement, seq, self._split_symbol(splitter), self.random_state)
+            fit = fit_refinement(refinement, seq, self._split_symbol(splitter), self.random_state,
+                                 split_labels=self.labels_split_[:cut])
         scores = heldout_scores(data, seq, fit, held, splitter.criterion, self.n_clusters_,
                                 covariance_type=self.covariance_type, reg_covar=self.reg_covar)
         chosen = max(sorted(scores), key=lambda n: scores[n])

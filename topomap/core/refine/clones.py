@@ -348,12 +348,29 @@ def states_to_clones(labels, state_symbol, n_ids: int, n_symbols: int, spare: in
     clone of its symbol."""
     per = np.bincount(state_symbol, minlength=n_ids)
     budget = per + np.where(np.arange(n_ids) < n_symbols, spare, 0)
+    start = np.concatenate([[0], np.cumsum(budget)])
+    return budget, (start[state_symbol] + _rank_in_symbol(state_symbol, per))[labels]
+
+
+def _rank_in_symbol(state_symbol, per):
+    """Every state's rank among the states of its symbol (``per``: states per symbol id)."""
     order = np.argsort(state_symbol, kind="stable")
     rank = np.empty(state_symbol.size, dtype=np.int64)
     first = np.concatenate([[0], np.cumsum(per)])
     rank[order] = np.arange(state_symbol.size) - first[state_symbol[order]]
+    return rank
+
+
+def spread_states(labels, state_symbol, budget, rng):
+    """The clone path of ``labels`` on ``budget`` clones per symbol id (at least the states of
+    each): the ``n`` states of a symbol with ``B`` clones get ``B // n`` clones each, and every
+    step of a state takes one of its state's clones at random (the others of the symbol stay
+    unused)."""
+    per = np.bincount(state_symbol, minlength=budget.size)
     start = np.concatenate([[0], np.cumsum(budget)])
-    return budget, (start[state_symbol] + rank)[labels]
+    first = start[state_symbol] + _rank_in_symbol(state_symbol, per)  # each state's first clone
+    copies = np.maximum(budget // np.maximum(per, 1), 1)[state_symbol]  # clones per state
+    return first[labels] + per[state_symbol][labels] * rng.integers(0, copies[labels])
 
 
 def compact_labels(path, clone_symbol):

@@ -54,17 +54,18 @@ def _check(ok: bool, param: str, value, what: str) -> None:
         raise ParameterError(param, f"must be {what}, got {value!r}")
 
 
-def _checked_init(seq: SymbolSequence, labels, state_symbol):
+def _checked_init(seq: SymbolSequence, labels, state_symbol, name: str = "init"):
     """``init`` of :meth:`CloneRefinement.fit` as int64 arrays, or a ``ValueError`` naming what
     is wrong: a label for every step, each a state, each state emitting its steps' symbol."""
     labels = np.asarray(labels, dtype=np.int64)
     state_symbol = np.asarray(state_symbol, dtype=np.int64)
     if labels.shape != (seq.T,):
-        raise ValueError(f"init: {labels.size} labels for {seq.T} steps")
+        raise ValueError(f"{name}: {labels.size} labels for {seq.T} steps")
     if labels.size and (labels.min() < 0 or labels.max() >= state_symbol.size):
-        raise ValueError(f"init: labels must be states 0..{state_symbol.size - 1}")
+        raise ValueError(f"{name}: labels must be states 0..{state_symbol.size - 1}")
     if not np.array_equal(state_symbol[labels], seq.sym):
-        raise ValueError("init: a state does not emit the symbol of every step labelled with it")
+        raise ValueError(f"{name}: a state does not emit the symbol of every step labelled "
+                         "with it")
     return labels, state_symbol
 
 
@@ -76,21 +77,24 @@ class CloneRefinement(BaseEstimator):
     name = ""
 
     def fit(self, seq: SymbolSequence, split_state_symbol=None, random_state: int = 0, *,
-            init=None) -> Self:
+            init=None, split_labels=None) -> Self:
         """Refine ``seq``; ``split_state_symbol`` is the symbol of every split state
         (``map_.state_symbol``, -1 for GDS); ``init``, optional, a labelling ``(labels,
         state_symbol)`` of every step of ``seq`` (each state emitting one symbol id) the first
         hard round starts from instead (a warm start: :class:`EMRefinement` runs its rounds on
-        all steps from it; :class:`CSCGRefinement` ignores it).  Sets ``labels_``,
+        all steps from it; :class:`CSCGRefinement` ignores it); ``split_labels``, optional, the
+        split state of every step (``labels_split_``), the first EM stage starts from with
+        :class:`EMRefinement`'s ``start="split"``.  Sets ``labels_``,
         ``state_symbol_``, ``n_states_`` and ``info_`` (with ``evidence`` other than ``"hard"``
         also ``"soft"`` and ``"soft_rounds"``); returns ``self``."""
         self.check_params()
         if init is not None:
             init = _checked_init(seq, *init)
+        split = None if init is not None else self._checked_split(seq, split_labels)
         if self.evidence == "hard":
-            fit = self._hard_round(seq, split_state_symbol, random_state, init)
+            fit = self._hard_round(seq, split_state_symbol, random_state, init, split)
         else:
-            hard = self._first_hard_round(seq, split_state_symbol, random_state, init)
+            hard = self._first_hard_round(seq, split_state_symbol, random_state, init, split)
             n_reference = None if split_state_symbol is None else len(split_state_symbol)
             fit = self._soft_rounds(seq, hard, n_reference, random_state)
             if fit.info["soft"] == "skipped" and hard.resume is not None:
@@ -100,21 +104,40 @@ class CloneRefinement(BaseEstimator):
         self.n_states_ = fit.n_states
         return self
 
+    def _checked_split(self, seq: SymbolSequence, split_labels):
+        """``split_labels`` of :meth:`fit` as ``(labels, state_symbol)`` (each split state's
+        symbol id, read off the steps) where the first stage may start from it (``start`` other
+        than ``"random"``), else None; a ``ValueError`` naming what is wrong."""
+        if getattr(self, "start", "random") == "random":
+            return None
+        if split_labels is None:
+            raise ValueError(f"split_labels: start={self.start!r} needs the split state of "
+                             "every step")
+        labels = np.asarray(split_labels)
+        if labels.shape != (seq.T,) or not np.issubdtype(labels.dtype, np.integer):
+            raise ValueError(f"split_labels: must be {seq.T} integer states, one per step, got "
+                             f"shape {labels.shape} of {labels.dtype}")
+        if labels.size and labels.min() < 0:
+            raise ValueError("split_labels: states must be >= 0")
+        state_symbol = np.full(int(labels.max(initial=-1)) + 1, -1, dtype=np.int64)
+        state_symbol[labels] = seq.sym
+        return _checked_init(seq, labels, state_symbol, "split_labels")
+
     def check_params(self) -> None:
         """Check the parameters (``fit`` does); a :class:`ParameterError` names the bad one."""
         check_evidence(self.evidence)
         soft_settings(self.soft)
 
     def _hard_round(self, seq: SymbolSequence, split_state_symbol, random_state: int,
-                    init=None) -> CloneFit:
+                    init=None, split_labels=None) -> CloneFit:
         raise NotImplementedError
 
     def _first_hard_round(self, seq: SymbolSequence, split_state_symbol, random_state: int,
-                          init=None, *, cycle: bool = False):
+                          init=None, split_labels=None, *, cycle: bool = False):
         """A hard round a soft round starts from: the first, or (``cycle``) one on the
         corrected symbols of the cycles (default: :meth:`_hard_round`; a subclass may cut it
         short where its labelling still shows misreads, setting the fit's ``resume``)."""
-        return self._hard_round(seq, split_state_symbol, random_state, init)
+        return self._hard_round(seq, split_state_symbol, random_state, init, split_labels)
 
     def _soft_rounds(self, seq: SymbolSequence, hard_fit: CloneFit, n_reference, random_state):
         """Hard and soft rounds in turn, from the hard round ``hard_fit`` on ``seq``:
