@@ -79,8 +79,8 @@ class EMRefinement(CloneRefinement):
     ``accelerate="squarem"`` (default ``"none"``) runs the Baum-Welch of every warm-started round
     (stages 2 and 3) as SQUAREM's cycles on the expected counts
     (:mod:`topomap.core.refine.accelerate`): the same stops, in E-steps, judged on each cycle's
-    plain EM step; stage 1, from random counts, stays plain EM.  ``prune`` drops filtered probabilities below it
-    (:func:`topomap.core.refine.kernels.clone_forward`).
+    plain EM step; stage 1, from random counts, stays plain EM.  ``prune`` drops filtered
+    probabilities below it (:func:`topomap.core.refine.kernels.clone_forward`).
     ``merge_threshold`` is the G-test threshold of merging bisimilar states (negative: never
     merge; 6.63 = chi-square(1) at 1 %) and ``split_z`` the normal score of splitting compound
     states (``inf``: never split; 3.09: p = 0.001).
@@ -259,10 +259,11 @@ class EMRefinement(CloneRefinement):
         the split, the warm-started EM (``accelerate`` applies).  The hard
         rounds on the symbols a soft round corrected have no split labelling: random counts."""
         budget = BUDGETS[self.budget](split_state_symbol, seq, self.clone_factor, self.spare)
-        if split_labels is not None:
+        from_split = self.start != "random" and split_labels is not None  # none: corrected
+        if from_split:
             labels, state_symbol, _ = compact_labels(split_labels[0][:seq.T], split_labels[1])
-        if self.start == "random" or split_labels is None or (  # or on corrected symbols
-                self.start == "auto" and successor_surprise(seq, labels) >= SPLIT_TRUST):
+            from_split = self.start != "auto" or successor_surprise(seq, labels) < SPLIT_TRUST
+        if not from_split:
             lay = seq.layout(budget)
             return self._fit_layout(lay, random_counts(lay, rng), warm=False)
         if self.start in ("split", "auto"):
