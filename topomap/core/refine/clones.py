@@ -299,9 +299,8 @@ def fit_clones(lay: Layout, init, pseudocount: float, *, max_iter: int, tol: flo
                prune: float = 0.0, joint: bool = False, settle: float = 0.0,
                accelerate: str = "none"):
     """Baum-Welch from the counts ``init`` (:func:`baum_welch`, ``settle`` and ``accelerate`` as
-    there), then Viterbi
-    training without pseudocount (:func:`viterbi_training`); the clones the final path uses
-    become the states.
+    there), then Viterbi training without pseudocount (:func:`viterbi_training`); the clones the
+    final path uses become the states.
 
     Returns ``(labels, state_symbol, em_history, viterbi_history)``: the state of every step
     (numbered by first use), the symbol of every state, and the log-likelihoods of Baum-Welch's
