@@ -14,7 +14,9 @@ held-out step with a reference is counted against the view cluster the whole log
 clusters misplace than the places (``gain``). The mixed map labels every training step of a
 view cluster whose gain is below zero (``neg``) -- or at most zero (``nonpos``) -- with that
 view cluster, every other step with its place; each state its own Gaussian, counted on the raw
-rows. Printed: the median error on the held-out walk of the default, of K-means on the views
+rows. ``neg_n`` keeps the state count: the places are cut again on the whole log, as many as
+the view clusters ``neg`` hands back fewer, and the steps of those view clusters labelled with
+them. Printed: the median error on the held-out walk of the default, of K-means on the views
 (nearest centre) and of each mixed map, the view clusters each hands back, their training share
 and the states.
 
@@ -141,8 +143,15 @@ def mixed(case: str, setting: str, seed: int, cache: Path) -> dict:
     gain, steps, row["check_truth"] = cluster_gains(learner, X, u, train.positions, m.n_states,
                                                      vl)
     row["gains"] = [[int(g), int(n)] for g, n in zip(gain, steps)]
-    for name, bad in (("neg", gain < 0), ("nonpos", (gain <= 0) & (steps > 0))):
-        labels = np.where(bad[vl], m.n_states + vl, learner.labels_)
+    for name, bad in (("neg", gain < 0), ("nonpos", (gain <= 0) & (steps > 0)),
+                      ("neg_n", gain < 0)):
+        places = learner.labels_
+        if name == "neg_n" and bad.any():  # as many states: fewer places cut beside them
+            places = cut_places(MotionSettings(), X, u, [len(u)], m.n_states - int(bad.sum()),
+                                m.n_actions, n_init=learner.n_init, random_state=0,
+                                method=learner.phase1,
+                                weight=learner.motion_info_["weight"]).places
+        labels = np.where(bad[vl], m.n_states + vl, places)
         labels = np.unique(labels, return_inverse=True)[1]
         mm = bc._own_gaussians(X, u, labels, m.n_actions)
         ms = _unit_means(labels, train.positions, mm.n_states)
