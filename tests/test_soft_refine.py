@@ -376,9 +376,11 @@ def test_squarem_soft_round_corrects_as_plain_em_in_fewer_e_steps(misread):
 
 def test_squarem_soft_round_still_stops_early_on_exact_readings():
     """The first ``detect_iter`` iterations stay plain EM, so exact readings stop the
-    accelerated round as they stop the plain one."""
-    sym, u, lengths, place, _ = _ring_walk(misread=0.0)
-    s = SoftSettings(accelerate="squarem")
+    accelerated round as they stop the plain one: 6 misreads in 6,000 steps, fewer than
+    ``detect`` (``tol`` 0: EM, which still gains on them, has no other stop before
+    ``max_iter``)."""
+    sym, u, lengths, place, _ = _ring_walk(misread=0.001)
+    s = SoftSettings(accelerate="squarem", tol=0.0)
     fit = soft_round(_seq(sym, u, lengths), place, RING, settings=s, exact_below=s.detect)
     assert fit.info["stopped"] == "exact" and fit.info["em_iterations"] == s.detect_iter
 
