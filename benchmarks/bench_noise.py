@@ -177,14 +177,13 @@ def main():
         args.worlds, args.levels, args.seeds = QUICK["worlds"], QUICK["levels"], QUICK["seeds"]
     set_soft(args.soft, args.accelerate)
     registry = Registry.load()
-    if args.overrides:
-        print(f"overrides: {' '.join(args.overrides)}")
     # compile the kernels outside the timings
     if "em_soft" in args.methods:
         run_level("gridroom_8x6", 0.3, 0, ["em_soft"], registry, args.overrides)
     results = {}
     print(f"medians over seeds {args.seeds}; load average at start {os.getloadavg()[0]:.2f} "
-          f"on {os.cpu_count()} cores")
+          f"on {os.cpu_count()} cores" + "; overrides " * bool(args.overrides)
+          + " ".join(args.overrides))
     header = "| world | sigma | symbol error | " + " | ".join(
         f"{m} ARI / states / s / CPU s / ARI per seed" for m in args.methods) + " |"
     print(header)
