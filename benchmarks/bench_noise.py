@@ -6,6 +6,7 @@ and EM alone, as sensor noise grows.
     python benchmarks/bench_noise.py --worlds gridroom_8x6 --seeds 0 1 2 --methods split em_hard em_soft
     python benchmarks/bench_noise.py --worlds gridroom_8x6 --methods em_soft --soft stage_cap=15 rtol=0.001
     python benchmarks/bench_noise.py --worlds gridroom_8x6 --methods em_soft --accelerate squarem
+    python benchmarks/bench_noise.py --worlds gridroom_8x6 --methods em_soft --overrides refine.start=auto
 
 Each world is a ``topomap`` command (``WORLDS``); its noise is the Gaussian noise of the
 observations (``noise.sigma``; ``SIGMAS`` per world, chosen so that the symbol error spans about
@@ -24,7 +25,11 @@ Every fit keeps the number of states its method finds (``learner.refined_size=fr
 table shows how misreads multiply states.  Reported: medians over the seeds of the symbol error,
 ARI (states against the true places), states, fit seconds (phase 1 + split + refinement;
 simulation and scoring excluded) and the process's CPU seconds over the fit, then the ARI of every
-seed.  Prints a Markdown table and draws ARI against symbol error, one line per method, into
+seed.  ``--overrides`` adds config overrides to every world's command; those of ``refine.*``
+instead set the same parameters of every refinement method that has them (``refine.start=auto``
+the EM methods', ``refine.soft.rtol=0.001`` the soft settings of all four, the rest of ``soft``
+as the config's), each method keeping its own ``evidence``.  Prints a Markdown table and draws
+ARI against symbol error, one line per method, into
 ``docs/img/noise.png`` (``--figure``).  The machine's load average is printed with the table:
 fit times are wall-clock seconds.
 """
@@ -87,11 +92,13 @@ def symbol_error(symbols, places, gds) -> float:
     return 1.0 - sum(best.values()) / s.size
 
 
-def run_level(world: str, sigma: float, seed: int, methods, registry) -> dict:
-    """Every method on one simulated trajectory: ``{method: {err, ari, states, fit, cpu}}``."""
+def run_level(world: str, sigma: float, seed: int, methods, registry, extra=()) -> dict:
+    """Every method on one simulated trajectory: ``{method: {err, ari, states, fit, cpu}}``
+    (``extra``: config overrides added to the world's command, :func:`refine_params`)."""
     overrides = [*shlex.split(WORLDS[world]), f"noise.sigma={sigma}", f"seed={seed}",
                  "data.heldout_steps=0", "output.figures=false", "output.progress=false",
-                 "learner.refined_size=free"]  # the states each method finds by itself
+                 "learner.refined_size=free",  # the states each method finds by itself
+                 *(o for o in extra if not o.startswith("refine"))]  # those: refinement()
     cfg = _as_dict(compose(overrides, registry))
     parts = registry.build(cfg)
     (traj, _), _ = load_data(cfg, parts, registry)
@@ -100,7 +107,7 @@ def run_level(world: str, sigma: float, seed: int, methods, registry) -> dict:
         if name == "split" and "em_hard" in methods:
             continue  # read from em_hard's fit
         learner = make_learner(cfg, parts)
-        learner.set_params(refine=None if name == "split" else METHODS[name]())
+        learner.set_params(refine=None if name == "split" else refinement(name, extra, registry))
         cpu = time.process_time()
         learner.fit_trajectory(traj)
         cpu = time.process_time() - cpu
@@ -115,6 +122,27 @@ def run_level(world: str, sigma: float, seed: int, methods, registry) -> dict:
                             "states": int(np.unique(learner.labels_split_).size),
                             "fit": t["phase1"] + t["phase2"], "cpu": float("nan")}
     return out
+
+
+def refine_params(extra, component: str, registry) -> dict:
+    """The parameters of ``refine=<component>`` the ``refine.*`` overrides of ``extra`` set, as
+    the config gives them (a nested key such as ``refine.soft.rtol`` gives the whole ``soft``);
+    overrides of keys the component does not have are left out."""
+    own = _as_dict(compose([f"refine={component}"], registry))["refine"]
+    mine = [o for o in extra if o.startswith("refine.")
+            and o.split("=", 1)[0].split(".")[1] in own]
+    if not mine:
+        return {}
+    cfg = _as_dict(compose([f"refine={component}", *mine], registry))["refine"]
+    return {k: cfg[k] for k in sorted({o.split("=", 1)[0].split(".")[1] for o in mine})}
+
+
+def refinement(name: str, extra, registry):
+    """The refinement of method ``name`` (``METHODS``) with the ``refine.*`` overrides of
+    ``extra`` (:func:`refine_params`; its ``evidence`` stays the method's)."""
+    ref = METHODS[name]()
+    params = refine_params(extra, ref.name, registry)
+    return ref.set_params(**{k: v for k, v in params.items() if k != "evidence"})
 
 
 def _med(runs, key):
@@ -134,6 +162,9 @@ def main():
                     help="soft settings of em_soft and cscg_soft (e.g. stage_cap=15)")
     ap.add_argument("--accelerate", default="none", choices=ACCELERATIONS,
                     help="EM's acceleration in em_hard and em_soft (refine.accelerate)")
+    ap.add_argument("--overrides", nargs="+", default=[], metavar="KEY=VALUE",
+                    help="config overrides added to every world's command (e.g. "
+                         "refine.start=auto: the refinements' own parameters)")
     ap.add_argument("--figure", default="docs/img/noise.png", help="'' for none")
     ap.add_argument("--from-table", nargs="+", metavar="FILE",
                     help="draw the figure from tables this script printed (no runs)")
@@ -147,10 +178,12 @@ def main():
     set_soft(args.soft, args.accelerate)
     registry = Registry.load()
     # compile the kernels outside the timings
-    run_level("gridroom_8x6", 0.3, 0, ["em_soft"], registry) if "em_soft" in args.methods else None
+    if "em_soft" in args.methods:
+        run_level("gridroom_8x6", 0.3, 0, ["em_soft"], registry, args.overrides)
     results = {}
     print(f"medians over seeds {args.seeds}; load average at start {os.getloadavg()[0]:.2f} "
-          f"on {os.cpu_count()} cores")
+          f"on {os.cpu_count()} cores" + "; overrides " * bool(args.overrides)
+          + " ".join(args.overrides))
     header = "| world | sigma | symbol error | " + " | ".join(
         f"{m} ARI / states / s / CPU s / ARI per seed" for m in args.methods) + " |"
     print(header)
@@ -160,7 +193,8 @@ def main():
         sigmas = SIGMAS[world]
         for level in (args.levels if args.levels is not None else range(len(sigmas))):
             sigma = sigmas[level]
-            runs = [run_level(world, sigma, s, args.methods, registry) for s in args.seeds]
+            runs = [run_level(world, sigma, s, args.methods, registry, args.overrides)
+                    for s in args.seeds]
             per = {m: [r[m] for r in runs] for m in args.methods}
             err = _med(per[args.methods[0]], "err")
             results.setdefault(world, []).append((err, {m: _med(per[m], "ari")

@@ -62,3 +62,19 @@ def test_a_jump_that_lowers_the_likelihood_falls_back_to_plain_em():
     # 0 (the jump from 2, 1, 0.5: refused), 0.5 (plain: 1 -> 0.5 lost likelihood, stop)
     assert history == pytest.approx([-7.84, -0.64, -1.44, -0.04, -1.44, -0.49])
     assert counts[0] == 0.25
+
+
+@pytest.mark.parametrize("rtol, steps", [(0.2, 2), (0.1, 4)])
+def test_squarem_stops_by_a_relative_gain(rtol, steps):
+    """``rtol``: a cycle's plain step that gains at most that share of the log-likelihood it
+    started from ends the cycles.  A map halving its counts, log-likelihood ``-c - 10``: from
+    4, the plain step 2 -> 1 gains 2 of 14 (a share of 0.143: the end at 0.2, not at 0.1);
+    then the jump lands on the fixed point 0 (-10, kept) and the plain step from there gains
+    nothing."""
+    def em_step(c):
+        return c / 2, None, -float(c[0]) - 10.0
+
+    counts, _, history, _ = squarem(em_step, np.array([4.0]), max_iter=100, tol=np.inf,
+                                    min_iter=0, rtol=rtol)
+    assert history == [-14.0, -12.0, -10.0, -10.0][:steps]
+    assert counts[0] == (1.0 if steps == 2 else 0.0)

@@ -114,10 +114,12 @@ def _extrapolate(c0, c1, c2, a):
     return out
 
 
-def squarem(em_step, counts, *, max_iter: int, tol: float, min_iter: int = 10, stop=None):
+def squarem(em_step, counts, *, max_iter: int, tol: float, min_iter: int = 10, stop=None,
+            rtol: float = 0.0):
     """SQUAREM cycles from ``counts`` (the module's text) until a cycle's plain EM step gains
-    less than ``tol`` (checked once more than ``min_iter`` E-steps ran), ``max_iter`` E-steps,
-    or ``stop()`` (judged as there) holds.
+    less than ``tol`` (with ``rtol`` > 0 instead: at most ``rtol`` x |the log-likelihood it
+    started from|; checked once more than ``min_iter`` E-steps ran), ``max_iter`` E-steps, or
+    ``stop()`` (judged as there) holds.
 
     ``em_step(c)`` is one E-step on the model of ``c``: it returns ``(F(c), occupancy, ll)``,
     ``ll`` the log-likelihood of that model.  Returns ``(counts, occupancy, history, state)``:
@@ -132,15 +134,16 @@ def squarem(em_step, counts, *, max_iter: int, tol: float, min_iter: int = 10, s
         report("EM", len(history), max_iter)
         return new, occ, ll
 
-    def done(gain=np.inf):
+    def done(gain=np.inf, base=0.0):
         n = len(history)
-        return n >= max_iter or n > min_iter and (gain < tol or stop is not None and stop())
+        stalled = gain <= rtol * abs(base) if rtol else gain < tol
+        return n >= max_iter or n > min_iter and (stalled or stop is not None and stop())
 
     x0 = counts
     x1, occ1, l0 = step(x0)
     while not done():
         x2, occ2, l1 = step(x1)
-        if done(l1 - l0):
+        if done(l1 - l0, l0):
             return x2, occ2, history, state
         c, a = state.jump(x0, x1, x2)
         if a is None:  # the plain EM step

@@ -27,6 +27,7 @@ import numpy as np
 from ..checks import ParameterError, check_count
 from ..progress import report
 from .clones import compact_labels
+from .accelerate import ACCELERATIONS, squarem
 from .convergence import ConvergenceMonitor
 from .soft_kernels import (SoftData, SoftModel, SoftStats, soft_backward, soft_candidates,
                            soft_forward, soft_offsets, soft_viterbi)
@@ -70,7 +71,10 @@ class SoftSettings:
     growth stages' Baum-Welch stops after ``stage_cap`` iterations unless its last iteration
     still gained more than ``stage_rtol`` x |log-likelihood|, and then once an iteration gains
     less (``stage_cap`` 0: off; ``stage_rtol`` inf: never goes on;
-    :meth:`~topomap.core.refine.methods.EMRefinement._stage_cap`).
+    :meth:`~topomap.core.refine.methods.EMRefinement._stage_cap`).  ``accelerate``
+    (:data:`~topomap.core.refine.accelerate.ACCELERATIONS`): ``"squarem"`` runs the soft rounds'
+    Baum-Welch, after its first iteration, as SQUAREM's cycles on the expected counts
+    (``max_iter`` counts E-steps; default ``"none"``: plain EM).
     """
 
     rounds: int = 3
@@ -94,6 +98,7 @@ class SoftSettings:
     stage_cap: int = 0
     stage_rtol: float = float("inf")
     rtol: float = 0.0
+    accelerate: str = "none"
 
 
 #: the real-valued soft settings and what each must be
@@ -128,6 +133,9 @@ def soft_settings(value) -> SoftSettings:
         v = getattr(value, name)
         if not (isinstance(v, numbers.Real) and not isinstance(v, bool) and ok(v)):
             raise ParameterError(f"soft.{name}", f"must be {what}, got {v!r}")
+    if value.accelerate not in ACCELERATIONS:
+        raise ParameterError("soft.accelerate", f"must be one of {', '.join(ACCELERATIONS)}, "
+                                                f"got {value.accelerate!r}")
     if not isinstance(value.prune_every, (bool, np.bool_)):
         raise ParameterError("soft.prune_every", f"must be true or false, got {value.prune_every!r}")
     return value
@@ -298,33 +306,85 @@ def soft_round(seq, labels, state_symbol, conf=None, *, spare: int = 0,
 
 def _soft_em(seq, data, counts, clone_symbol, conf, s, learn_conf, exact_below):
     """Soft-evidence Baum-Welch from ``counts`` and ``conf`` (:func:`soft_round`); returns
-    ``(trans, emit, conf, N, monitor)``, ``N`` the last E-step's (true x read symbol) counts."""
-    ns, n_ids, A, S = seq.n_symbols, seq.n_ids, seq.n_actions, clone_symbol.size
+    ``(trans, emit, conf, N, monitor)``, ``N`` the last E-step's (true x read symbol) counts.
+    With ``s.accelerate="squarem"``, after its first E-step (its first ``detect_iter`` with
+    ``exact_below``) the iterations are SQUAREM's cycles (:func:`_soft_squarem`)."""
+    ns, S = seq.n_symbols, clone_symbol.size
     init = np.full(S, 1.0 / S)
     pseudo = s.row_prior / S
     monitor = ConvergenceMonitor(s.tol * seq.T, s.max_iter, min_iter=2, rtol=s.rtol or None)
+    squarem = s.accelerate == "squarem"
+    plain = (s.detect_iter if exact_below is not None else 1) if squarem else s.max_iter
     trans = _normalise_trans(counts, pseudo)
     emit = _clone_emission(conf, clone_symbol, None, s.clone_prior)
-    while not monitor.converged:
-        model = _model(trans, emit, init, s.floor)
-        pos = soft_offsets(data, model)
-        alpha, log_c = soft_forward(data, model, pos, s.prune)
-        stats = SoftStats(np.zeros((A, S, S)), np.zeros((S, n_ids)), np.zeros(S))
-        soft_backward(data, model, pos, alpha, log_c, stats)
-        monitor.report(float(log_c.sum()))
-        trans = _normalise_trans(stats.trans, pseudo)
-        N = np.zeros((n_ids, n_ids))
-        np.add.at(N, clone_symbol, stats.emit)
-        if learn_conf and monitor.iter >= s.conf_warmup:
-            conf = _confusion_mstep(N, ns, s)
-        emit = _clone_emission(conf, clone_symbol, stats.emit, s.clone_prior)
-        emit[clone_symbol >= ns] = conf[clone_symbol[clone_symbol >= ns]]  # GDS: never confused
+    while not monitor.converged and monitor.iter < plain:
+        stats, ll = _soft_estep(data, _model(trans, emit, init, s.floor), s, seq.n_ids)
+        monitor.report(ll)
+        last = (stats.trans.copy(), stats.emit) if squarem else None
+        trans, emit, conf, N = _soft_mstep(stats, conf, clone_symbol, ns, s, pseudo,
+                                           learn_conf and monitor.iter >= s.conf_warmup)
         report("EM", monitor.iter, s.max_iter)
         if (exact_below is not None and monitor.iter == s.detect_iter
                 and misread_share(N, ns) < exact_below):
             break
+    else:
+        if squarem and not monitor.converged:
+            trans, emit, conf, N = _soft_squarem(data, last, conf, clone_symbol, s, learn_conf,
+                                                 monitor, seq)
     report("EM", monitor.iter, monitor.iter)
     return trans, emit, conf, N, monitor
+
+
+def _soft_estep(data, model, s, n_ids):
+    """One soft E-step on ``model``: the expected counts (:class:`SoftStats`) and the
+    log-likelihood."""
+    A, S = model.trans.shape[0], model.trans.shape[1]
+    pos = soft_offsets(data, model)
+    alpha, log_c = soft_forward(data, model, pos, s.prune)
+    stats = SoftStats(np.zeros((A, S, S)), np.zeros((S, n_ids)), np.zeros(S))
+    soft_backward(data, model, pos, alpha, log_c, stats)
+    return stats, float(log_c.sum())
+
+
+def _soft_mstep(stats, conf, clone_symbol, ns, s, pseudo, learn_conf):
+    """The soft M-step from the expected counts ``stats`` (their ``trans`` normalised in place):
+    ``(trans, emit, conf, N)``, the confusion matrix learned only where ``learn_conf``."""
+    trans = _normalise_trans(stats.trans, pseudo)
+    N = np.zeros((conf.shape[0], conf.shape[0]))
+    np.add.at(N, clone_symbol, stats.emit)
+    if learn_conf:
+        conf = _confusion_mstep(N, ns, s)
+    emit = _clone_emission(conf, clone_symbol, stats.emit, s.clone_prior)
+    emit[clone_symbol >= ns] = conf[clone_symbol[clone_symbol >= ns]]  # GDS: never confused
+    return trans, emit, conf, N
+
+
+def _soft_squarem(data, last, conf, clone_symbol, s, learn_conf, monitor, seq):
+    """The rest of :func:`_soft_em`'s iterations as SQUAREM's cycles
+    (:func:`~topomap.core.refine.accelerate.squarem`) on the expected transition and emission
+    counts (``last``: those of the E-step before, unnormalised), every E-step reported to
+    ``monitor``; its stops as the plain loop's (``tol`` or ``rtol`` judged on every cycle's
+    plain step), the confusion matrix learned from ``conf_warmup`` E-steps on (the M-step of
+    a point depends only on it and on its counts).  Returns the M-step of the last counts."""
+    ns, S, A, n_ids = seq.n_symbols, clone_symbol.size, seq.n_actions, seq.n_ids
+    init, pseudo, size = np.full(S, 1.0 / S), s.row_prior / S, A * S * S
+    conf0 = conf
+
+    def mstep(c):
+        stats = SoftStats(c[:size].reshape(A, S, S).copy(), c[size:].reshape(S, n_ids), None)
+        learn = learn_conf and monitor.iter >= s.conf_warmup
+        return _soft_mstep(stats, conf0, clone_symbol, ns, s, pseudo, learn)
+
+    def em_step(c):
+        trans, emit, _, _ = mstep(c)
+        stats, ll = _soft_estep(data, _model(trans, emit, init, s.floor), s, n_ids)
+        monitor.report(ll)
+        return np.concatenate([stats.trans.ravel(), stats.emit.ravel()]), None, ll
+
+    counts = np.concatenate([last[0].ravel(), last[1].ravel()])
+    c, _, _, _ = squarem(em_step, counts, max_iter=s.max_iter - monitor.iter, tol=s.tol * seq.T,
+                         rtol=s.rtol, min_iter=max(0, 2 - monitor.iter))
+    return mstep(c)
 
 
 def misread_rate(conf, n_symbols: int) -> float:
