@@ -36,7 +36,7 @@ import numpy as np
 from ..checks import check_count
 from .accelerate import check_accelerate
 from .budget import BUDGETS
-from .clones import (Layout, baum_welch, clone_budget, compact_labels, fit_clones,
+from .clones import (Layout, capped_baum_welch, clone_budget, compact_labels, fit_clones,
                      init_from_path, random_counts, spread_states, states_to_clones,
                      viterbi_training)
 from .rounds import CAP_SURPRISE, CloneFit, CloneRefinement, _check
@@ -114,7 +114,8 @@ class EMRefinement(CloneRefinement):
                  max_iter: int = 50, settle: float = 0.0, prune: float = 1e-4,
                  merge_threshold: float = 6.63, split_z: float = 3.09, spare: int = 2,
                  init_noise: float = 1.0, guard: bool = True, budget: str = "evidence",
-                 accelerate: str = "none", start: str = "random", evidence: str = "auto",
+                 accelerate: str = "none", start: str = "random", first_iter: int = 0,
+                 first_rtol: float = float("inf"), evidence: str = "auto",
                  soft: SoftSettings | Mapping = SoftSettings()):
         self.clone_factor = clone_factor
         self.prefix = prefix
@@ -133,13 +134,15 @@ class EMRefinement(CloneRefinement):
         self.budget = budget
         self.accelerate = accelerate
         self.start = start
+        self.first_iter = first_iter
+        self.first_rtol = first_rtol
         self.evidence = evidence
         self.soft = soft
 
     def check_params(self) -> None:
         for param in ("clone_factor", "prefix", "max_rounds", "max_iter"):
             check_count(getattr(self, param), param)
-        for param in ("prefix_visits", "spare"):
+        for param in ("prefix_visits", "spare", "first_iter"):
             check_count(getattr(self, param), param, minimum=0)
         _check(self.row_prior > 0, "row_prior", self.row_prior, "> 0")
         _check(self.tol >= 0, "tol", self.tol, ">= 0")
@@ -160,6 +163,8 @@ class EMRefinement(CloneRefinement):
         changed += f"settle={self.settle!r}, " if self.settle else ""
         changed += "" if self.accelerate == "none" else f"accelerate={self.accelerate!r}, "
         changed += "" if self.start == "random" else f"start={self.start!r}, "
+        changed += f"first_iter={self.first_iter!r}, " if self.first_iter else ""
+        changed += "" if self.first_rtol == float("inf") else f"first_rtol={self.first_rtol!r}, "
         changed += "" if self.evidence == "auto" else f"evidence={self.evidence!r}, "
         soft = self._provenance_soft()
         changed += f"{soft}, " if soft else ""
@@ -265,13 +270,20 @@ class EMRefinement(CloneRefinement):
             from_split = self.start != "auto" or successor_surprise(seq, labels) < SPLIT_TRUST
         if not from_split:
             lay = seq.layout(budget)
-            return self._fit_layout(lay, random_counts(lay, rng), warm=False)
+            return self._fit_layout(lay, random_counts(lay, rng), cap=self._first_cap(),
+                                    warm=False)
         if self.start in ("split", "auto"):
             return self._warm_round(seq, labels, state_symbol, rng)
         budget = np.maximum(budget, np.bincount(state_symbol, minlength=budget.size))
         lay = seq.layout(budget)
         path = spread_states(labels, state_symbol, budget, rng)
-        return self._fit_layout(lay, init_from_path(lay, path, seq.T, rng, self.init_noise))
+        return self._fit_layout(lay, init_from_path(lay, path, seq.T, rng, self.init_noise),
+                                cap=self._first_cap())
+
+    def _first_cap(self):
+        """``(first_iter, first_rtol)``, the cap of stage 1's Baum-Welch on the budget's clones
+        (:func:`~topomap.core.refine.clones.capped_baum_welch`), or None (``first_iter`` 0)."""
+        return (self.first_iter, float(self.first_rtol)) if self.first_iter else None
 
     def _warm_round(self, seq: SymbolSequence, labels, state_symbol, rng, max_iter=None,
                     cap=None):
@@ -355,26 +367,6 @@ WARM_ITER = 15
 
 #: the successor surprise (in ``soft.detect``) that cuts :meth:`EMRefinement._first_hard_round`
 CUT_SURPRISE = 5.0
-
-
-def capped_baum_welch(lay: Layout, init, pseudocount: float, *, max_iter: int, tol: float,
-                      cap: int, rtol: float, prune: float = 0.0, settle: float = 0.0,
-                      accelerate: str = "none"):
-    """Baum-Welch (:func:`~topomap.core.refine.clones.baum_welch`) stopped after ``cap`` of its
-    ``max_iter`` iterations unless the last one still gained more than ``rtol`` x |its
-    log-likelihood| (and more than ``tol`` nats per step); then it goes on, from where it
-    stopped, until an iteration gains less than that share of the log-likelihood reached at
-    ``cap``.  Returns the last expected counts and the log-likelihood of every iteration."""
-    counts, _, history = baum_welch(lay, init, pseudocount, False, max_iter=min(cap, max_iter),
-                                    tol=tol, prune=prune, settle=settle, accelerate=accelerate)
-    T = lay.sym.size
-    bar = max(tol * T, rtol * abs(history[-1]))
-    if len(history) < max_iter and len(history) >= 2 and history[-1] - history[-2] > bar:
-        counts, _, more = baum_welch(lay, counts, pseudocount, False,
-                                     max_iter=max_iter - len(history), tol=bar / T, min_iter=1,
-                                     prune=prune, settle=settle, accelerate=accelerate)
-        history = [*history, *more]
-    return counts, history
 
 
 def _finish(stages) -> CloneFit:
