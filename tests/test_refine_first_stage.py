@@ -15,7 +15,7 @@ from topomap.core.refine.sequence import SymbolSequence
 ROUGH = {"first_factor": 1, "first_iter": 25}
 
 
-def ring(seed, T=3000):
+def ring(seed, T=3200):
     sym, u, places = ring_walk(T, RING, seed)
     return SymbolSequence.build(sym, u, [T], 2, 6), places
 
@@ -28,8 +28,8 @@ def grid(seed, T=4000):
 @pytest.mark.parametrize("seed", range(3))
 @pytest.mark.parametrize("rough", [ROUGH, {"first_factor": 1, "first_iter": 5}])
 def test_a_rough_first_stage_still_finds_every_place_of_the_ring(seed, rough):
-    """The split found nothing (one state per symbol): stage 1 is on the first 2,000 of 3,000
-    steps, so it is cut to ``first_iter`` E-steps on one clone per split state (+ spare); the
+    """The split found nothing (one state per symbol): stage 1 is on the first 2,000 of 3,200
+    steps (at most ``ROUGH`` of them), so it is cut to ``first_iter`` E-steps on one clone per split state (+ spare); the
     growth stage and the rounds on all steps still find the 8 places.  (Baum-Welch judges its
     own stop from the 11th E-step on: a stage of 5 E-steps was cut.)"""
     seq, places = ring(seed)
@@ -60,23 +60,25 @@ def factors_used(monkeypatch):
     return used
 
 
-def test_the_first_factor_sizes_the_budget_of_a_stage_on_a_prefix_only(monkeypatch):
+def test_the_first_factor_sizes_the_budget_of_a_stage_on_a_short_prefix_only(monkeypatch):
+    """2,000 of 3,200 steps is at most ``ROUGH`` (2/3) of them, 2,400 or all 3,200 are more."""
     used = factors_used(monkeypatch)
     seq, _ = ring(0)
-    EMRefinement(first_factor=1).fit(seq, np.arange(6), 0)
-    EMRefinement(first_factor=1, prefix=3000).fit(seq, np.arange(6), 0)  # all steps
+    for prefix in (2000, 2400, 3200):
+        EMRefinement(first_factor=1, prefix=prefix).fit(seq, np.arange(6), 0)
     EMRefinement(clone_factor=3).fit(seq, np.arange(6), 0)
-    assert used == [1, 2, 3]
+    assert methods.ROUGH == 2 / 3 and used == [1, 2, 2, 3]
 
 
-def test_a_first_stage_on_all_steps_keeps_its_iterations():
-    """``prefix`` as long as the walk: no growth stage follows, so stage 1 is not cut and the fit
+@pytest.mark.parametrize("prefix", [2400, 3200])
+def test_a_first_stage_on_most_steps_keeps_its_iterations(prefix):
+    """A prefix of more than ``ROUGH`` of the steps (3/4, all): stage 1 is not cut, and the fit
     is the plain one, stage for stage."""
     seq, _ = ring(0)
-    plain = EMRefinement(prefix=3000).fit(seq, np.arange(6), 0)
-    rough = EMRefinement(prefix=3000, first_factor=1, first_iter=5).fit(seq, np.arange(6), 0)
-    assert plain.info_["stages"][0][:2] == (3000, plain.info_["stages"][0][1])
-    assert plain.info_["stages"][0][2] > 5 and rough.info_["stages"] == plain.info_["stages"]
+    plain = EMRefinement(prefix=prefix).fit(seq, np.arange(6), 0)
+    rough = EMRefinement(prefix=prefix, first_factor=1, first_iter=5).fit(seq, np.arange(6), 0)
+    assert plain.info_["stages"][0][0] == prefix and plain.info_["stages"][0][2] > 5
+    assert rough.info_["stages"] == plain.info_["stages"]
 
 
 def test_first_rtol_lets_stage_one_go_on_while_it_gains():

@@ -91,10 +91,10 @@ class EMRefinement(CloneRefinement):
     symbol sequences), ``"split"`` only ``clone_factor`` x its split states + ``spare``.
     ``start`` (:data:`STARTS`): what stage 1 starts from, random counts (default) or the split's
     labelling ``split_labels`` of :meth:`fit` (``"split"``, ``"split_budget"``, ``"auto"``:
-    :meth:`_first_round`).  Where stage 1 is on a prefix, ``first_factor`` replaces
-    ``clone_factor`` and its Baum-Welch stops after ``first_iter`` iterations unless the last still
-    gained ``first_rtol`` x |log-likelihood| (:func:`~topomap.core.refine.clones.capped_baum_welch`;
-    each 0: off): the growth stages refit every state on more steps.
+    :meth:`_first_round`).  Where stage 1 is on a prefix of at most :data:`ROUGH` of the steps (the
+    growth stages refit every state on many more), ``first_factor`` replaces ``clone_factor`` and
+    its Baum-Welch stops after ``first_iter`` iterations unless the last still gained ``first_rtol``
+    x |log-likelihood| (:func:`~topomap.core.refine.clones.capped_baum_welch`; each 0: off).
 
     ``evidence`` (:data:`~topomap.core.refine.soft.EVIDENCE`): ``"auto"`` (default) corrects
     misread symbols when the first soft round finds some (the first hard round stops before
@@ -228,7 +228,7 @@ class EMRefinement(CloneRefinement):
         n_split = int(np.sum(split_state_symbol >= 0))
         n = min(max(self.prefix, self.prefix_visits * n_split), seq.T)
         labels, state_symbol, iters = self._first_round(seq.head(n), split_state_symbol, rng,
-                                                        split_labels, rough=n < seq.T)
+                                                        split_labels, rough=n <= ROUGH * seq.T)
         stages = [(n, int(state_symbol.size), iters)]
         cap = self._stage_cap(seq.head(n), labels)
         while n < seq.T:  # growth: the prefix doubles, or takes all steps once settled
@@ -258,19 +258,18 @@ class EMRefinement(CloneRefinement):
     def _first_round(self, seq: SymbolSequence, split_state_symbol, rng, split_labels=None, *,
                      rough: bool = False):
         """Stage 1: the clones of ``budget`` (:mod:`topomap.core.refine.budget`), from random
-        counts, by plain EM (``accelerate`` is for the warm-started rounds: from a random start
-        it is EM's path that picks the optimum, and a jump can pick another).  With
-        ``start="split"``, from the split's labelling of the prefix (``split_labels``, every
-        split state a clone, ``spare`` more per symbol: :meth:`_warm_round`); with
-        ``"split_budget"``, on the clones of ``budget``: a symbol's clones shared out among its
-        split states, every step of a state on one of its clones at random
-        (:func:`~topomap.core.refine.clones.spread_states`), so EM can still tell apart places
-        the split joined; with ``"auto"``, as ``"split"`` where the split's labelling of the
-        prefix predicts the next symbol of all but a ``SPLIT_TRUST`` share of its transitions
-        (:func:`~topomap.core.refine.soft.successor_surprise`), else from random counts.  From
-        the split, the warm-started EM (``accelerate`` applies).  The hard
-        rounds on the symbols a soft round corrected have no split labelling: random counts.
-        ``rough``: stage 1 is on a prefix (:meth:`_first_settings`)."""
+        counts, by plain EM (``accelerate`` is for the warm-started rounds: from a random start it
+        is EM's path that picks the optimum, and a jump can pick another).  With ``start="split"``,
+        from the split's labelling of the prefix (``split_labels``, every split state a clone,
+        ``spare`` more per symbol: :meth:`_warm_round`); with ``"split_budget"``, on the clones of
+        ``budget``: a symbol's clones shared out among its split states, every step of a state on
+        one of its clones at random (:func:`~topomap.core.refine.clones.spread_states`), so EM can
+        still tell apart places the split joined; with ``"auto"``, as ``"split"`` where the split's
+        labelling of the prefix predicts the next symbol of all but a ``SPLIT_TRUST`` share of its
+        transitions (:func:`~topomap.core.refine.soft.successor_surprise`), else from random counts.
+        From the split, the warm-started EM (``accelerate`` applies).  The hard rounds on the
+        symbols a soft round corrected have no split labelling: random counts.  ``rough``: on a
+        short prefix (:meth:`_first_settings`)."""
         factor, cap = self._first_settings(rough)
         budget = BUDGETS[self.budget](split_state_symbol, seq, factor, self.spare)
         from_split = self.start != "random" and split_labels is not None  # none: corrected
@@ -289,10 +288,8 @@ class EMRefinement(CloneRefinement):
                                 cap=cap)
 
     def _first_settings(self, rough: bool):
-        """Stage 1's clone factor and Baum-Welch cap (``(iterations, rtol)`` as for
-        :meth:`_fit_layout`, or None): where it is ``rough`` (on a prefix; the growth stages
-        refit every state on more steps), ``first_factor`` and ``(first_iter, first_rtol)``,
-        each unless 0; else ``clone_factor`` and ``max_iter``."""
+        """Stage 1's clone factor and Baum-Welch cap (as for :meth:`_fit_layout`): ``first_*``
+        where ``rough`` (on a short prefix), each unless 0, else ``clone_factor`` and none."""
         factor = self.first_factor if rough and self.first_factor else self.clone_factor
         cap = (self.first_iter, float(self.first_rtol)) if rough and self.first_iter else None
         return factor, cap
@@ -370,6 +367,10 @@ STARTS = ("random", "split", "split_budget", "auto")
 #: the next view does not tell apart) loses ARI, 1.0 -> 0.82-0.92; the 8 x 6 and 12 x 12 rooms
 #: (about 0.2) take 1.4 x the E-steps
 SPLIT_TRUST = 0.02
+
+#: stage 1 is rough (``first_*``) on a prefix of at most this share of the steps.  FourRooms at
+#: 50,000 steps (stage 1 on 0.83 of them) lost ARI with it, the 12x12 room (0.58) kept it
+ROUGH = 2 / 3
 
 #: rounds on all steps at most after a warm start (``init``), and the EM iterations of each: the
 #: labelling it starts from has had its rounds already (the last map's), so a few short EM
