@@ -13,6 +13,7 @@ from topomap.core.refine.methods import EMRefinement
 from topomap.core.refine.sequence import SymbolSequence
 
 ROUGH = {"first_factor": 1, "first_iter": 25}
+PLAIN = {"first_factor": 0, "first_iter": 0}  # stage 1 as every round (the defaults)
 
 
 def ring(seed, T=3200):
@@ -66,7 +67,7 @@ def test_the_first_factor_sizes_the_budget_of_a_stage_on_a_short_prefix_only(mon
     seq, _ = ring(0)
     for prefix in (2000, 2400, 3200):
         EMRefinement(first_factor=1, prefix=prefix).fit(seq, np.arange(6), 0)
-    EMRefinement(clone_factor=3).fit(seq, np.arange(6), 0)
+    EMRefinement(clone_factor=3, first_factor=0).fit(seq, np.arange(6), 0)
     assert methods.ROUGH == 2 / 3 and used == [1, 2, 2, 3]
 
 
@@ -75,7 +76,7 @@ def test_a_first_stage_on_most_steps_keeps_its_iterations(prefix):
     """A prefix of more than ``ROUGH`` of the steps (3/4, all): stage 1 is not cut, and the fit
     is the plain one, stage for stage."""
     seq, _ = ring(0)
-    plain = EMRefinement(prefix=prefix).fit(seq, np.arange(6), 0)
+    plain = EMRefinement(prefix=prefix, **PLAIN).fit(seq, np.arange(6), 0)
     rough = EMRefinement(prefix=prefix, first_factor=1, first_iter=5).fit(seq, np.arange(6), 0)
     assert plain.info_["stages"][0][0] == prefix and plain.info_["stages"][0][2] > 5
     assert rough.info_["stages"] == plain.info_["stages"]
@@ -85,14 +86,17 @@ def test_first_rtol_lets_stage_one_go_on_while_it_gains():
     """``first_rtol`` 0: past ``first_iter`` Baum-Welch goes on while it gains anything (above
     ``tol``), the plain stop: stage 1 runs as long as without a cap; ``inf``: it stops there."""
     seq, _ = ring(1)
-    plain = EMRefinement().fit(seq, np.arange(6), 1).info_["stages"][0]
-    on = EMRefinement(first_iter=12, first_rtol=0.0).fit(seq, np.arange(6), 1).info_["stages"][0]
-    cut = EMRefinement(first_iter=12).fit(seq, np.arange(6), 1).info_["stages"][0]
+    def stage_one(**params):
+        return EMRefinement(**params).fit(seq, np.arange(6), 1).info_["stages"][0]
+
+    plain = stage_one(**PLAIN)
+    on = stage_one(first_factor=0, first_iter=12, first_rtol=0.0)
+    cut = stage_one(first_factor=0, first_iter=12)
     assert plain[2] > 13 and on == plain and cut[2] == 12
 
 
 def test_the_first_stage_settings_are_named_in_the_provenance_only_when_set():
-    assert "first_" not in EMRefinement(first_factor=0, first_iter=0).provenance()
+    assert "first_" not in EMRefinement(**PLAIN).provenance()
     assert ("start='split', first_factor=1, first_iter=25, first_rtol=0.001, settings="
             in EMRefinement(start="split", first_rtol=1e-3, **ROUGH).provenance())
 
