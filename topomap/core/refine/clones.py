@@ -38,6 +38,7 @@ __all__ = [
     "m_step",
     "e_step",
     "baum_welch",
+    "capped_baum_welch",
     "SettledPath",
     "step_argmax",
     "viterbi_training",
@@ -197,6 +198,25 @@ def baum_welch(lay: Layout, counts, pseudocount: float, joint: bool, *, max_iter
         report("EM", len(monitor.history), max_iter)
     report("EM", len(monitor.history), len(monitor.history))  # converged: the loop ends here
     return counts, occupancy, monitor.history
+
+
+def capped_baum_welch(lay: Layout, init, pseudocount: float, *, max_iter: int, tol: float,
+                      cap: int, rtol: float, prune: float = 0.0, settle: float = 0.0,
+                      accelerate: str = "none"):
+    """Baum-Welch (:func:`baum_welch`) stopped after ``cap`` of its ``max_iter`` iterations
+    unless the last one still gained more than ``rtol`` x |its log-likelihood| (and more than
+    ``tol`` nats per step); then it goes on, from where it stopped, until an iteration gains less
+    than that share of the log-likelihood reached at ``cap``.  Returns the last expected counts and the log-likelihood of every iteration."""
+    counts, _, history = baum_welch(lay, init, pseudocount, False, max_iter=min(cap, max_iter),
+                                    tol=tol, prune=prune, settle=settle, accelerate=accelerate)
+    T = lay.sym.size
+    bar = max(tol * T, rtol * abs(history[-1]))
+    if len(history) < max_iter and len(history) >= 2 and history[-1] - history[-2] > bar:
+        counts, _, more = baum_welch(lay, counts, pseudocount, False,
+                                     max_iter=max_iter - len(history), tol=bar / T, min_iter=1,
+                                     prune=prune, settle=settle, accelerate=accelerate)
+        history = [*history, *more]
+    return counts, history
 
 
 def _squarem_baum_welch(lay: Layout, counts, pseudocount: float, joint: bool, path, *,

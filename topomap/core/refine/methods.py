@@ -36,7 +36,7 @@ import numpy as np
 from ..checks import check_count
 from .accelerate import check_accelerate
 from .budget import BUDGETS
-from .clones import (Layout, baum_welch, clone_budget, compact_labels, fit_clones,
+from .clones import (Layout, capped_baum_welch, clone_budget, compact_labels, fit_clones,
                      init_from_path, random_counts, spread_states, states_to_clones,
                      viterbi_training)
 from .rounds import CAP_SURPRISE, CloneFit, CloneRefinement, _check
@@ -91,7 +91,10 @@ class EMRefinement(CloneRefinement):
     symbol sequences), ``"split"`` only ``clone_factor`` x its split states + ``spare``.
     ``start`` (:data:`STARTS`): what stage 1 starts from, random counts (default) or the split's
     labelling ``split_labels`` of :meth:`fit` (``"split"``, ``"split_budget"``, ``"auto"``:
-    :meth:`_first_round`).
+    :meth:`_first_round`).  Where stage 1 is on a prefix of at most :data:`ROUGH` of the steps (the
+    growth stages refit every state on many more), ``first_factor`` replaces ``clone_factor`` and
+    its Baum-Welch stops after ``first_iter`` iterations unless the last still gained ``first_rtol``
+    x |log-likelihood| (:func:`~topomap.core.refine.clones.capped_baum_welch`; each 0: off).
 
     ``evidence`` (:data:`~topomap.core.refine.soft.EVIDENCE`): ``"auto"`` (default) corrects
     misread symbols when the first soft round finds some (the first hard round stops before
@@ -114,7 +117,8 @@ class EMRefinement(CloneRefinement):
                  max_iter: int = 50, settle: float = 0.0, prune: float = 1e-4,
                  merge_threshold: float = 6.63, split_z: float = 3.09, spare: int = 2,
                  init_noise: float = 1.0, guard: bool = True, budget: str = "evidence",
-                 accelerate: str = "none", start: str = "random", evidence: str = "auto",
+                 accelerate: str = "none", start: str = "random", first_factor: int = 0,
+                 first_iter: int = 0, first_rtol: float = float("inf"), evidence: str = "auto",
                  soft: SoftSettings | Mapping = SoftSettings()):
         self.clone_factor = clone_factor
         self.prefix = prefix
@@ -133,16 +137,20 @@ class EMRefinement(CloneRefinement):
         self.budget = budget
         self.accelerate = accelerate
         self.start = start
+        self.first_factor = first_factor
+        self.first_iter = first_iter
+        self.first_rtol = first_rtol
         self.evidence = evidence
         self.soft = soft
 
     def check_params(self) -> None:
         for param in ("clone_factor", "prefix", "max_rounds", "max_iter"):
             check_count(getattr(self, param), param)
-        for param in ("prefix_visits", "spare"):
+        for param in ("prefix_visits", "spare", "first_factor", "first_iter"):
             check_count(getattr(self, param), param, minimum=0)
         _check(self.row_prior > 0, "row_prior", self.row_prior, "> 0")
         _check(self.tol >= 0, "tol", self.tol, ">= 0")
+        _check(self.first_rtol >= 0, "first_rtol", self.first_rtol, ">= 0")
         _check(0 <= self.settle <= 1, "settle", self.settle, "in [0, 1]")
         _check(0 <= self.prune < 1, "prune", self.prune, "in [0, 1)")
         _check(self.budget in BUDGETS, "budget", self.budget, f"one of {', '.join(BUDGETS)}")
@@ -160,6 +168,9 @@ class EMRefinement(CloneRefinement):
         changed += f"settle={self.settle!r}, " if self.settle else ""
         changed += "" if self.accelerate == "none" else f"accelerate={self.accelerate!r}, "
         changed += "" if self.start == "random" else f"start={self.start!r}, "
+        changed += f"first_factor={self.first_factor!r}, " if self.first_factor else ""
+        changed += f"first_iter={self.first_iter!r}, " if self.first_iter else ""
+        changed += "" if self.first_rtol == float("inf") else f"first_rtol={self.first_rtol!r}, "
         changed += "" if self.evidence == "auto" else f"evidence={self.evidence!r}, "
         soft = self._provenance_soft()
         changed += f"{soft}, " if soft else ""
@@ -217,7 +228,7 @@ class EMRefinement(CloneRefinement):
         n_split = int(np.sum(split_state_symbol >= 0))
         n = min(max(self.prefix, self.prefix_visits * n_split), seq.T)
         labels, state_symbol, iters = self._first_round(seq.head(n), split_state_symbol, rng,
-                                                        split_labels)
+                                                        split_labels, rough=n <= ROUGH * seq.T)
         stages = [(n, int(state_symbol.size), iters)]
         cap = self._stage_cap(seq.head(n), labels)
         while n < seq.T:  # growth: the prefix doubles, or takes all steps once settled
@@ -244,34 +255,44 @@ class EMRefinement(CloneRefinement):
             return None
         return s.stage_cap, s.stage_rtol
 
-    def _first_round(self, seq: SymbolSequence, split_state_symbol, rng, split_labels=None):
+    def _first_round(self, seq: SymbolSequence, split_state_symbol, rng, split_labels=None, *,
+                     rough: bool = False):
         """Stage 1: the clones of ``budget`` (:mod:`topomap.core.refine.budget`), from random
-        counts, by plain EM (``accelerate`` is for the warm-started rounds: from a random start
-        it is EM's path that picks the optimum, and a jump can pick another).  With
-        ``start="split"``, from the split's labelling of the prefix (``split_labels``, every
-        split state a clone, ``spare`` more per symbol: :meth:`_warm_round`); with
-        ``"split_budget"``, on the clones of ``budget``: a symbol's clones shared out among its
-        split states, every step of a state on one of its clones at random
-        (:func:`~topomap.core.refine.clones.spread_states`), so EM can still tell apart places
-        the split joined; with ``"auto"``, as ``"split"`` where the split's labelling of the
-        prefix predicts the next symbol of all but a ``SPLIT_TRUST`` share of its transitions
-        (:func:`~topomap.core.refine.soft.successor_surprise`), else from random counts.  From
-        the split, the warm-started EM (``accelerate`` applies).  The hard
-        rounds on the symbols a soft round corrected have no split labelling: random counts."""
-        budget = BUDGETS[self.budget](split_state_symbol, seq, self.clone_factor, self.spare)
+        counts, by plain EM (``accelerate`` is for the warm-started rounds: from a random start it
+        is EM's path that picks the optimum, and a jump can pick another).  With ``start="split"``,
+        from the split's labelling of the prefix (``split_labels``, every split state a clone,
+        ``spare`` more per symbol: :meth:`_warm_round`); with ``"split_budget"``, on the clones of
+        ``budget``: a symbol's clones shared out among its split states, every step of a state on
+        one of its clones at random (:func:`~topomap.core.refine.clones.spread_states`), so EM can
+        still tell apart places the split joined; with ``"auto"``, as ``"split"`` where the split's
+        labelling of the prefix predicts the next symbol of all but a ``SPLIT_TRUST`` share of its
+        transitions (:func:`~topomap.core.refine.soft.successor_surprise`), else from random counts.
+        From the split, the warm-started EM (``accelerate`` applies).  The hard rounds on the
+        symbols a soft round corrected have no split labelling: random counts.  ``rough``: on a
+        short prefix (:meth:`_first_settings`)."""
+        factor, cap = self._first_settings(rough)
+        budget = BUDGETS[self.budget](split_state_symbol, seq, factor, self.spare)
         from_split = self.start != "random" and split_labels is not None  # none: corrected
         if from_split:
             labels, state_symbol, _ = compact_labels(split_labels[0][:seq.T], split_labels[1])
             from_split = self.start != "auto" or successor_surprise(seq, labels) < SPLIT_TRUST
         if not from_split:
             lay = seq.layout(budget)
-            return self._fit_layout(lay, random_counts(lay, rng), warm=False)
+            return self._fit_layout(lay, random_counts(lay, rng), cap=cap, warm=False)
         if self.start in ("split", "auto"):
             return self._warm_round(seq, labels, state_symbol, rng)
         budget = np.maximum(budget, np.bincount(state_symbol, minlength=budget.size))
         lay = seq.layout(budget)
         path = spread_states(labels, state_symbol, budget, rng)
-        return self._fit_layout(lay, init_from_path(lay, path, seq.T, rng, self.init_noise))
+        return self._fit_layout(lay, init_from_path(lay, path, seq.T, rng, self.init_noise),
+                                cap=cap)
+
+    def _first_settings(self, rough: bool):
+        """Stage 1's clone factor and Baum-Welch cap (as for :meth:`_fit_layout`): ``first_*``
+        where ``rough`` (on a short prefix), each unless 0, else ``clone_factor`` and none."""
+        factor = self.first_factor if rough and self.first_factor else self.clone_factor
+        cap = (self.first_iter, float(self.first_rtol)) if rough and self.first_iter else None
+        return factor, cap
 
     def _warm_round(self, seq: SymbolSequence, labels, state_symbol, rng, max_iter=None,
                     cap=None):
@@ -347,6 +368,10 @@ STARTS = ("random", "split", "split_budget", "auto")
 #: (about 0.2) take 1.4 x the E-steps
 SPLIT_TRUST = 0.02
 
+#: stage 1 is rough (``first_*``) on a prefix of at most this share of the steps.  FourRooms at
+#: 50,000 steps (stage 1 on 0.83 of them) lost ARI with it, the 12x12 room (0.58) kept it
+ROUGH = 2 / 3
+
 #: rounds on all steps at most after a warm start (``init``), and the EM iterations of each: the
 #: labelling it starts from has had its rounds already (the last map's), so a few short EM
 #: rounds with their merges and splits bring it to the steps it had not seen
@@ -355,26 +380,6 @@ WARM_ITER = 15
 
 #: the successor surprise (in ``soft.detect``) that cuts :meth:`EMRefinement._first_hard_round`
 CUT_SURPRISE = 5.0
-
-
-def capped_baum_welch(lay: Layout, init, pseudocount: float, *, max_iter: int, tol: float,
-                      cap: int, rtol: float, prune: float = 0.0, settle: float = 0.0,
-                      accelerate: str = "none"):
-    """Baum-Welch (:func:`~topomap.core.refine.clones.baum_welch`) stopped after ``cap`` of its
-    ``max_iter`` iterations unless the last one still gained more than ``rtol`` x |its
-    log-likelihood| (and more than ``tol`` nats per step); then it goes on, from where it
-    stopped, until an iteration gains less than that share of the log-likelihood reached at
-    ``cap``.  Returns the last expected counts and the log-likelihood of every iteration."""
-    counts, _, history = baum_welch(lay, init, pseudocount, False, max_iter=min(cap, max_iter),
-                                    tol=tol, prune=prune, settle=settle, accelerate=accelerate)
-    T = lay.sym.size
-    bar = max(tol * T, rtol * abs(history[-1]))
-    if len(history) < max_iter and len(history) >= 2 and history[-1] - history[-2] > bar:
-        counts, _, more = baum_welch(lay, counts, pseudocount, False,
-                                     max_iter=max_iter - len(history), tol=bar / T, min_iter=1,
-                                     prune=prune, settle=settle, accelerate=accelerate)
-        history = [*history, *more]
-    return counts, history
 
 
 def _finish(stages) -> CloneFit:

@@ -1,0 +1,111 @@
+"""``EMRefinement(first_factor=..., first_iter=..., first_rtol=...)``: a rougher first EM stage
+where it runs on a prefix, on the small worlds of test_refine.py whose answer is known (the
+aliased ring and the 4 x 3 grid)."""
+
+import numpy as np
+import pytest
+from sklearn.metrics import adjusted_rand_score
+
+from test_refine import RING, ROOM, grid_walk, ring_walk
+from topomap.core.checks import ParameterError
+from topomap.core.refine import methods
+from topomap.core.refine.methods import EMRefinement
+from topomap.core.refine.sequence import SymbolSequence
+
+ROUGH = {"first_factor": 1, "first_iter": 25}
+PLAIN = {"first_factor": 0, "first_iter": 0}  # stage 1 as every round (the defaults)
+
+
+def ring(seed, T=3200):
+    sym, u, places = ring_walk(T, RING, seed)
+    return SymbolSequence.build(sym, u, [T], 2, 6), places
+
+
+def grid(seed, T=4000):
+    sym, u, places = grid_walk(T, seed)
+    return SymbolSequence.build(sym, u, [T], 4, 3), places
+
+
+@pytest.mark.parametrize("seed", range(3))
+@pytest.mark.parametrize("rough", [ROUGH, {"first_factor": 1, "first_iter": 5}])
+def test_a_rough_first_stage_still_finds_every_place_of_the_ring(seed, rough):
+    """The split found nothing (one state per symbol): stage 1 is on the first 2,000 of 3,200
+    steps (at most ``ROUGH`` of them), so it is cut to ``first_iter`` E-steps on one clone per split state (+ spare); the
+    growth stage and the rounds on all steps still find the 8 places.  (Baum-Welch judges its
+    own stop from the 11th E-step on: a stage of 5 E-steps was cut.)"""
+    seq, places = ring(seed)
+    fit = EMRefinement(**rough).fit(seq, np.arange(6), seed)
+    n, _, iters = fit.info_["stages"][0]
+    assert n == 2000 and iters <= rough["first_iter"] and (iters == 5) is (rough["first_iter"] == 5)
+    assert fit.n_states_ == 8 and adjusted_rand_score(places, fit.labels_) == 1.0
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_a_rough_first_stage_still_finds_every_cell_of_the_grid(seed):
+    """The split's usual size (a state per cell): stage 1 on the first 2,000 of 4,000 steps."""
+    seq, places = grid(seed)
+    fit = EMRefinement(**ROUGH).fit(seq, ROOM.place_symbols, seed)
+    assert fit.info_["stages"][0][0] == 2000 and fit.info_["stages"][0][2] <= 25
+    assert fit.n_states_ == 12 and adjusted_rand_score(places, fit.labels_) == 1.0
+
+
+def factors_used(monkeypatch):
+    """The clone factors the first stages size their budget with, in order."""
+    used, evidence = [], methods.BUDGETS["evidence"]
+
+    def spy(split_state_symbol, seq, factor, spare):
+        used.append(factor)
+        return evidence(split_state_symbol, seq, factor, spare)
+
+    monkeypatch.setitem(methods.BUDGETS, "evidence", spy)
+    return used
+
+
+def test_the_first_factor_sizes_the_budget_of_a_stage_on_a_short_prefix_only(monkeypatch):
+    """2,000 of 3,200 steps is at most ``ROUGH`` (2/3) of them, 2,400 or all 3,200 are more."""
+    used = factors_used(monkeypatch)
+    seq, _ = ring(0)
+    for prefix in (2000, 2400, 3200):
+        EMRefinement(first_factor=1, prefix=prefix).fit(seq, np.arange(6), 0)
+    EMRefinement(clone_factor=3, first_factor=0).fit(seq, np.arange(6), 0)
+    assert methods.ROUGH == 2 / 3 and used == [1, 2, 2, 3]
+
+
+@pytest.mark.parametrize("prefix", [2400, 3200])
+def test_a_first_stage_on_most_steps_keeps_its_iterations(prefix):
+    """A prefix of more than ``ROUGH`` of the steps (3/4, all): stage 1 is not cut, and the fit
+    is the plain one, stage for stage."""
+    seq, _ = ring(0)
+    plain = EMRefinement(prefix=prefix, **PLAIN).fit(seq, np.arange(6), 0)
+    rough = EMRefinement(prefix=prefix, first_factor=1, first_iter=5).fit(seq, np.arange(6), 0)
+    assert plain.info_["stages"][0][0] == prefix and plain.info_["stages"][0][2] > 5
+    assert rough.info_["stages"] == plain.info_["stages"]
+
+
+def test_first_rtol_lets_stage_one_go_on_while_it_gains():
+    """``first_rtol`` 0: past ``first_iter`` Baum-Welch goes on while it gains anything (above
+    ``tol``), the plain stop: stage 1 runs as long as without a cap; ``inf``: it stops there."""
+    seq, _ = ring(1)
+    def stage_one(**params):
+        return EMRefinement(**params).fit(seq, np.arange(6), 1).info_["stages"][0]
+
+    plain = stage_one(**PLAIN)
+    on = stage_one(first_factor=0, first_iter=12, first_rtol=0.0)
+    cut = stage_one(first_factor=0, first_iter=12)
+    assert plain[2] > 13 and on == plain and cut[2] == 12
+
+
+def test_the_first_stage_settings_are_named_in_the_provenance_only_when_set():
+    assert "first_" not in EMRefinement(**PLAIN).provenance()
+    assert ("start='split', first_factor=1, first_iter=25, first_rtol=0.001, settings="
+            in EMRefinement(start="split", first_rtol=1e-3, **ROUGH).provenance())
+
+
+@pytest.mark.parametrize("params, message", [
+    (dict(first_factor=-1), "first_factor must be a non-negative integer, got -1"),
+    (dict(first_iter=2.5), "first_iter must be a non-negative integer, got 2.5"),
+    (dict(first_rtol=-0.1), "first_rtol must be >= 0, got -0.1"),
+])
+def test_bad_first_stage_settings_are_refused_by_name(params, message):
+    with pytest.raises(ParameterError, match=f"^{message}"):
+        EMRefinement(**params).check_params()
