@@ -247,6 +247,14 @@ def _done(log: Path) -> set:
     return {(r["case"], r["setting"], r["seed"], r["train"], r["route"]) for r in rows}
 
 
+def logged_triples(log: Path) -> set:
+    """The ``(case, setting, seed)`` of every walk a per-walk log (``"triple"`` rows) holds."""
+    if not log.exists():
+        return set()
+    return {tuple(json.loads(line)["triple"]) for line in log.read_text().splitlines()
+            if line.strip()}
+
+
 def run(cases, routes, seeds, settings, steps, log: Path, cache: Path) -> None:
     done = _done(log)
     for s in settings:

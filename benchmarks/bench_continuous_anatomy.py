@@ -242,9 +242,7 @@ def main() -> None:
     if a.table:
         print_table(Path(a.log))
         return
-    done = set()
-    if Path(a.log).exists():
-        done = {tuple(json.loads(x)["triple"]) for x in Path(a.log).read_text().splitlines()}
+    done = bc.logged_triples(Path(a.log))
     for t in a.triples:
         case, setting, seed = t.split(":")
         if (case, setting, int(seed)) in done:

@@ -168,9 +168,7 @@ def main() -> None:
     p.add_argument("--log", default="mixed.jsonl")
     p.add_argument("--cache", default=os.path.expanduser("~/.cache/topomap-bench"))
     a = p.parse_args()
-    done = set()
-    if Path(a.log).exists():
-        done = {tuple(json.loads(x)["triple"]) for x in Path(a.log).read_text().splitlines()}
+    done = bc.logged_triples(Path(a.log))
     for t in a.triples:
         case, setting, seed = t.split(":")
         if (case, setting, int(seed)) in done:
