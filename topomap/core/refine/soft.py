@@ -103,7 +103,7 @@ class SoftSettings:
     rtol: float = 0.0
     accelerate: str = "none"
     prune_loose: float = 0.0
-    loose_below: float = 0.1
+    loose_below: float = 0.12
 
 
 #: the real-valued soft settings and what each must be
