@@ -76,8 +76,8 @@ class SoftSettings:
     Baum-Welch, after its first iteration, as SQUAREM's cycles on the expected counts
     (``max_iter`` counts E-steps; default ``"none"``: plain EM).  ``prune_loose`` (0: off)
     replaces ``prune`` in the soft rounds after a first hard round whose labelling shows a
-    successor surprise below ``loose_below`` (few misreads: :func:`~topomap.core.refine.rounds.
-    _round_settings`).
+    successor surprise below ``loose_below`` (few misreads;
+    :func:`~topomap.core.refine.rounds._round_settings`).
     """
 
     rounds: int = 3
