@@ -671,3 +671,42 @@ def test_the_soft_rounds_stop_by_rtol_only_where_misreads_are_many(misread):
     else:
         assert plain.info_["surprise"] >= rounds.CAP_SURPRISE * SoftSettings().detect
         assert first[1] == 3 < first[0]  # stopped at the first iteration it judges
+
+
+def _prunes_of_the_soft_rounds(monkeypatch, seq, soft):
+    """The fit of the ring with ``soft`` and the ``prune`` every soft round of it ran with."""
+    prunes, soft_round_of = [], rounds.soft_round
+
+    def recorded_soft(*args, settings, **kwargs):
+        prunes.append(settings.prune)
+        return soft_round_of(*args, settings=settings, **kwargs)
+
+    monkeypatch.setattr(rounds, "soft_round", recorded_soft)
+    return EMRefinement(soft=soft).fit(seq, RING, 0), prunes
+
+
+def test_the_soft_rounds_prune_loosely_only_below_the_surprise_bar(monkeypatch):
+    """``soft.prune_loose`` replaces ``soft.prune`` in every soft round when the labelling of the
+    hard round they start from shows a successor surprise below ``soft.loose_below``, in none
+    when the bar is that surprise itself; below it, or with ``prune_loose`` 0, the fit is the
+    one without the setting."""
+    sym, u, lengths, _, _ = _ring_walk(misread=0.04)
+    seq = _seq(sym, u, lengths)
+    plain, prunes = _prunes_of_the_soft_rounds(monkeypatch, seq, {})
+    surprise = plain.info_["surprise"]
+    assert 0 < surprise < 1 and len(prunes) >= 2 and set(prunes) == {1e-6}
+    _, prunes = _prunes_of_the_soft_rounds(
+        monkeypatch, seq, {"prune_loose": 1e-3, "loose_below": surprise + 1e-9})
+    assert len(prunes) >= 2 and set(prunes) == {1e-3}
+    for soft in ({"prune_loose": 1e-3, "loose_below": surprise}, {"loose_below": 1.0}):
+        fit, prunes = _prunes_of_the_soft_rounds(monkeypatch, seq, soft)
+        assert set(prunes) == {1e-6}
+        np.testing.assert_array_equal(fit.labels_, plain.labels_)
+        assert fit.info_ == plain.info_
+
+
+def test_bad_loose_pruning_rejected():
+    with pytest.raises(ValueError, match="soft.prune_loose"):
+        EMRefinement(soft={"prune_loose": 1.5}).fit(_seq(*_ring_walk(T=30)[:3]), RING, 0)
+    with pytest.raises(ValueError, match="soft.loose_below"):
+        EMRefinement(soft={"loose_below": -0.1}).fit(_seq(*_ring_walk(T=30)[:3]), RING, 0)

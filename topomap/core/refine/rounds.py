@@ -251,10 +251,12 @@ def _round_settings(s: SoftSettings, evidence: str, surprise: float) -> SoftSett
     successor ``surprise``: ``detect`` -1 with ``evidence="soft"`` (the soft rounds always run);
     ``rtol`` 0 (the soft rounds run to ``tol``) unless misreads are many, a surprise at least
     ``CAP_SURPRISE`` x ``soft.detect`` -- there the slow tail of a soft round only moves what
-    the next round corrects anyway."""
+    the next round corrects anyway; ``prune`` ``soft.prune_loose`` (if not 0) where the surprise
+    is below ``soft.loose_below`` -- misreads too few for the sparser soft passes to cost ARI."""
     few = surprise < CAP_SURPRISE * s.detect
+    loose = s.prune_loose > 0 and surprise < s.loose_below
     return replace(s, detect=-1.0 if evidence == "soft" else s.detect,
-                   rtol=0.0 if few else s.rtol)
+                   rtol=0.0 if few else s.rtol, prune=s.prune_loose if loose else s.prune)
 
 
 def _skipped(hard_fit: CloneFit, surprise: float, rounds) -> CloneFit:

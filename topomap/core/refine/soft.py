@@ -74,7 +74,10 @@ class SoftSettings:
     :meth:`~topomap.core.refine.methods.EMRefinement._stage_cap`).  ``accelerate``
     (:data:`~topomap.core.refine.accelerate.ACCELERATIONS`): ``"squarem"`` runs the soft rounds'
     Baum-Welch, after its first iteration, as SQUAREM's cycles on the expected counts
-    (``max_iter`` counts E-steps; default ``"none"``: plain EM).
+    (``max_iter`` counts E-steps; default ``"none"``: plain EM).  ``prune_loose`` (0: off)
+    replaces ``prune`` in the soft rounds after a first hard round whose labelling shows a
+    successor surprise below ``loose_below`` (few misreads;
+    :func:`~topomap.core.refine.rounds._round_settings`).
     """
 
     rounds: int = 3
@@ -99,6 +102,8 @@ class SoftSettings:
     stage_rtol: float = float("inf")
     rtol: float = 0.0
     accelerate: str = "none"
+    prune_loose: float = 0.0
+    loose_below: float = 0.12
 
 
 #: the real-valued soft settings and what each must be
@@ -110,6 +115,7 @@ _RANGES = {
     "detect": (lambda v: v == v, "a number"), "clone_prior": (lambda v: v > 0, "> 0"),
     "twin": (lambda v: v >= 0, ">= 0"), "twin_merge": (lambda v: v >= 0, ">= 0"),
     "stage_rtol": (lambda v: v >= 0, ">= 0"), "rtol": (lambda v: v >= 0, ">= 0"),
+    "prune_loose": (lambda v: 0 <= v < 1, "in [0, 1)"), "loose_below": (lambda v: v >= 0, ">= 0"),
 }
 
 
