@@ -319,14 +319,14 @@ def _soft_em(seq, data, counts, clone_symbol, conf, s, learn_conf, exact_below):
     init = np.full(S, 1.0 / S)
     pseudo = s.row_prior / S
     monitor = ConvergenceMonitor(s.tol * seq.T, s.max_iter, min_iter=2, rtol=s.rtol or None)
-    squarem = s.accelerate == "squarem"
-    plain = (s.detect_iter if exact_below is not None else 1) if squarem else s.max_iter
+    accelerated = s.accelerate == "squarem"
+    plain = (s.detect_iter if exact_below is not None else 1) if accelerated else s.max_iter
     trans = _normalise_trans(counts, pseudo)
     emit = _clone_emission(conf, clone_symbol, None, s.clone_prior)
     while not monitor.converged and monitor.iter < plain:
         stats, ll = _soft_estep(data, _model(trans, emit, init, s.floor), s, seq.n_ids)
         monitor.report(ll)
-        last = (stats.trans.copy(), stats.emit) if squarem else None
+        last = (stats.trans.copy(), stats.emit) if accelerated else None
         trans, emit, conf, N = _soft_mstep(stats, conf, clone_symbol, ns, s, pseudo,
                                            learn_conf and monitor.iter >= s.conf_warmup)
         report("EM", monitor.iter, s.max_iter)
@@ -334,7 +334,7 @@ def _soft_em(seq, data, counts, clone_symbol, conf, s, learn_conf, exact_below):
                 and misread_share(N, ns) < exact_below):
             break
     else:
-        if squarem and not monitor.converged:
+        if accelerated and not monitor.converged:
             trans, emit, conf, N = _soft_squarem(data, last, conf, clone_symbol, s, learn_conf,
                                                  monitor, seq)
     report("EM", monitor.iter, monitor.iter)
