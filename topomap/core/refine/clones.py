@@ -206,7 +206,8 @@ def capped_baum_welch(lay: Layout, init, pseudocount: float, *, max_iter: int, t
     """Baum-Welch (:func:`baum_welch`) stopped after ``cap`` of its ``max_iter`` iterations
     unless the last one still gained more than ``rtol`` x |its log-likelihood| (and more than
     ``tol`` nats per step); then it goes on, from where it stopped, until an iteration gains less
-    than that share of the log-likelihood reached at ``cap``.  Returns the last expected counts and the log-likelihood of every iteration."""
+    than that share of the log-likelihood reached at ``cap``.  Returns the last expected counts
+    and the log-likelihood of every iteration."""
     counts, _, history = baum_welch(lay, init, pseudocount, False, max_iter=min(cap, max_iter),
                                     tol=tol, prune=prune, settle=settle, accelerate=accelerate)
     T = lay.sym.size

@@ -270,17 +270,17 @@ class EMRefinement(CloneRefinement):
         From the split, the warm-started EM (``accelerate`` applies).  The hard rounds on the
         symbols a soft round corrected have no split labelling: random counts.  ``rough``: on a
         short prefix (:meth:`_first_settings`)."""
-        factor, cap = self._first_settings(rough)
-        budget = BUDGETS[self.budget](split_state_symbol, seq, factor, self.spare)
         from_split = self.start != "random" and split_labels is not None  # none: corrected
         if from_split:
             labels, state_symbol, _ = compact_labels(split_labels[0][:seq.T], split_labels[1])
             from_split = self.start != "auto" or successor_surprise(seq, labels) < SPLIT_TRUST
+        if from_split and self.start in ("split", "auto"):
+            return self._warm_round(seq, labels, state_symbol, rng)
+        factor, cap = self._first_settings(rough)
+        budget = BUDGETS[self.budget](split_state_symbol, seq, factor, self.spare)
         if not from_split:
             lay = seq.layout(budget)
             return self._fit_layout(lay, random_counts(lay, rng), cap=cap, warm=False)
-        if self.start in ("split", "auto"):
-            return self._warm_round(seq, labels, state_symbol, rng)
         budget = np.maximum(budget, np.bincount(state_symbol, minlength=budget.size))
         lay = seq.layout(budget)
         path = spread_states(labels, state_symbol, budget, rng)
