@@ -84,3 +84,28 @@ def test_a_soft_round_stops_once_its_path_settles():
 def test_bad_soft_shortcuts_rejected(soft, field):
     with pytest.raises(ValueError, match=field):
         EMRefinement(soft=soft).fit(_seq(*_ring_walk(T=30)[:3]), RING, 0)
+
+
+def _ring_model(floor_off):
+    """A 3-clone model of the ring's symbols whose clones read the other symbols with
+    ``floor_off`` each: at 0 every step has one candidate (sparse), at 0.1 three (dense)."""
+    emit = np.full((3, 3), floor_off) + np.eye(3) * (1 - 3 * floor_off)
+    emit = np.where(emit > 0, emit, 0.0)
+    trans = np.full((3, 3, 3), 1 / 3)
+    cptr, cidx = soft_candidates(emit)
+    return SoftModel(trans, emit, np.full(3, 1 / 3), cptr, cidx)
+
+
+@pytest.mark.parametrize("floor_off, dense", [(0.0, False), (0.1, True)])
+def test_the_share_acts_only_where_candidates_are_dense(monkeypatch, floor_off, dense):
+    """``read_share`` runs :func:`soft_forward_read` only where a step's candidates are at least
+    ``READ_DENSE`` of the clones on average (1 of 3 is not, 3 of 3 is)."""
+    from topomap.core.refine import soft as soft_module
+    calls = []
+    monkeypatch.setattr(soft_module, "soft_forward_read",
+                        lambda *a: calls.append(1) or soft_forward(*a[:4]))
+    sym, u, _, _, _ = _ring_walk(T=60)
+    data = SoftData(sym.astype(np.int64), u.astype(np.int64), np.r_[np.ones(59, bool), False])
+    soft_module._soft_estep(data, _ring_model(floor_off), SoftSettings(read_share=1e-3),
+                            np.arange(3))
+    assert bool(calls) == dense

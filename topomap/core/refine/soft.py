@@ -79,11 +79,11 @@ class SoftSettings:
     (``max_iter`` counts E-steps; default ``"none"``: plain EM).  ``prune_loose`` (0: off)
     replaces ``prune`` in the soft rounds after a first hard round whose labelling shows a
     successor surprise below ``loose_below`` (few misreads;
-    :func:`~topomap.core.refine.rounds._round_settings`).  ``label_every`` (0: off): every that
-    many iterations a soft round decodes its model (Viterbi) and stops once fewer than
-    ``label_tol`` of the steps changed clone since the last decoding (:func:`_soft_em`).
-    ``read_share`` (0: off): a step's candidates of a symbol whose share of its evidence, given
-    the forward message, is below it stay 0 (:func:`~.soft_kernels.soft_forward_read`).
+    :func:`~topomap.core.refine.rounds._round_settings`).  ``label_every`` (0: off): a soft round
+    decodes its model that often and stops once under ``label_tol`` of the steps moved.
+    ``read_share`` (0: off): where candidates are dense (:data:`READ_DENSE`), a step's
+    candidates of a symbol whose share of its evidence, given the forward message, is below it
+    stay 0 (:func:`~.soft_kernels.soft_forward_read`).
     """
 
     rounds: int = 3
@@ -293,12 +293,10 @@ def soft_round(seq, labels, state_symbol, conf=None, *, spare: int = 0,
     readings are exact, and the :class:`SoftFit` holds ``labels`` and ``state_symbol``
     unchanged and ``info["stopped"] = "exact"``.
     """
-    s = settings
+    s, ns, data = settings, seq.n_symbols, _episode_data(seq)
     rng = np.random.default_rng(0) if rng is None else rng
-    ns = seq.n_symbols
     state_symbol = np.asarray(state_symbol, dtype=np.int64)
     keep = np.ones(state_symbol.size, bool) if keep is None else np.asarray(keep, bool)
-    data = _episode_data(seq)
     counts, clone_symbol = _warm_counts(data, labels, state_symbol, keep, ns, seq.n_actions,
                                         spare, rng)
     conf = (initial_confusion(seq.n_ids, ns, s.init_error, co_successors(seq, labels))
@@ -323,10 +321,10 @@ def _soft_em(seq, data, counts, clone_symbol, conf, s, learn_conf, exact_below):
     """Soft-evidence Baum-Welch from ``counts`` and ``conf`` (:func:`soft_round`); returns
     ``(trans, emit, conf, N, monitor)``, ``N`` the last E-step's (true x read symbol) counts.
     With ``s.accelerate="squarem"``, after its first E-step (its first ``detect_iter`` with
-    ``exact_below``) the iterations are SQUAREM's cycles (:func:`_soft_squarem`)."""
+    ``exact_below``) the iterations are SQUAREM's cycles (:func:`_soft_squarem`); with
+    ``s.label_every``, the plain loop stops once its decoded path settles (:func:`_moved`)."""
     ns, S = seq.n_symbols, clone_symbol.size
-    init = np.full(S, 1.0 / S)
-    pseudo = s.row_prior / S
+    init, pseudo = np.full(S, 1.0 / S), s.row_prior / S
     monitor = ConvergenceMonitor(s.tol * seq.T, s.max_iter, min_iter=2, rtol=s.rtol or None)
     accelerated, path = s.accelerate == "squarem", None
     plain = (s.detect_iter if exact_below is not None else 1) if accelerated else s.max_iter
@@ -360,12 +358,18 @@ def _moved(data, model, previous):
     return path, 1.0 if previous is None else float(np.mean(path != previous))
 
 
+#: ``soft.read_share`` acts where the candidates are at least this share of the clones (gridroom
+#: 8 x 6 1.0, random_graph 60 0.85; the office 0.1-0.13, where it saved no time but moved ARIs)
+READ_DENSE = 0.5
+
+
 def _soft_estep(data, model, s, clone_symbol):
     """One soft E-step on ``model``: the expected counts (:class:`SoftStats`) and the
-    log-likelihood (``s.read_share`` > 0: the forward pass :func:`soft_forward_read`)."""
+    log-likelihood (``s.read_share`` > 0 and candidates dense, :data:`READ_DENSE`: the forward
+    pass :func:`soft_forward_read`)."""
     A, S, n_ids = model.trans.shape[0], model.trans.shape[1], model.emit.shape[1]
     pos = soft_offsets(data, model)
-    if s.read_share:
+    if s.read_share and pos[-1] >= READ_DENSE * S * data.read.size:
         alpha, log_c = soft_forward_read(data, model, pos, s.prune, clone_symbol,
                                          read_tables(model, clone_symbol, n_ids), s.read_share)
     else:
