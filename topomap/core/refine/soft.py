@@ -81,7 +81,7 @@ class SoftSettings:
     successor surprise below ``loose_below`` (few misreads;
     :func:`~topomap.core.refine.rounds._round_settings`).  ``label_every`` (0: off): a soft round
     decodes its model that often and stops once under ``label_tol`` of the steps moved.
-    ``read_share`` (0: off): where candidates are dense (:data:`READ_DENSE`), a step's
+    ``read_share`` (3e-4; 0: off): where candidates are dense (:data:`READ_DENSE`), a step's
     candidates of a symbol whose share of its evidence, given the forward message, is below it
     stay 0 (:func:`~.soft_kernels.soft_forward_read`).
     """
@@ -112,7 +112,7 @@ class SoftSettings:
     loose_below: float = 0.12
     label_every: int = 0
     label_tol: float = 1e-3
-    read_share: float = 0.0
+    read_share: float = 3e-4
 
 
 #: the real-valued soft settings and what each must be
