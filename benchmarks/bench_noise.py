@@ -7,6 +7,7 @@ and EM alone, as sensor noise grows.
     python benchmarks/bench_noise.py --worlds gridroom_8x6 --methods em_soft --soft stage_cap=15 rtol=0.001
     python benchmarks/bench_noise.py --worlds gridroom_8x6 --methods em_soft --accelerate squarem
     python benchmarks/bench_noise.py --worlds gridroom_8x6 --methods em_soft --overrides refine.start=auto
+    python benchmarks/bench_noise.py --worlds gridroom_8x6 --levels 2 3 --side-by-side rs=read_share=0.001
 
 Each world is a ``topomap`` command (``WORLDS``); its noise is the Gaussian noise of the
 observations (``noise.sigma``; ``SIGMAS`` per world, chosen so that the symbol error spans about
@@ -30,7 +31,10 @@ instead set the same parameters of every refinement method that has them (``refi
 the EM methods', ``refine.soft.rtol=0.001`` the soft settings of all four, the rest of ``soft``
 as the config's), each method keeping its own ``evidence``.  Prints a Markdown table and draws
 ARI against symbol error, one line per method, into
-``docs/img/noise.png`` (``--figure``).  The machine's load average is printed with the table:
+``docs/img/noise.png`` (``--figure``).  ``--side-by-side NAME=KEY=VALUE[,KEY=VALUE]...`` instead
+fits ``em_soft`` with its default soft settings and with each variant's, in turn on every
+trajectory (the order rotated by the seed), and prints per variant the ARI, the E-steps (hard and
+soft forward passes) and the CPU seconds of every seed, and its CPU time over the default's.  The machine's load average is printed with the table:
 fit times are wall-clock seconds.
 """
 
@@ -166,6 +170,8 @@ def main():
                     help="config overrides added to every world's command (e.g. "
                          "refine.start=auto: the refinements' own parameters)")
     ap.add_argument("--figure", default="docs/img/noise.png", help="'' for none")
+    ap.add_argument("--side-by-side", nargs="+", default=[], metavar="NAME=KEY=VALUE[,...]",
+                    help="em_soft with these soft settings beside the default, fit by fit")
     ap.add_argument("--from-table", nargs="+", metavar="FILE",
                     help="draw the figure from tables this script printed (no runs)")
     args = ap.parse_args()
@@ -178,8 +184,10 @@ def main():
     set_soft(args.soft, args.accelerate)
     registry = Registry.load()
     # compile the kernels outside the timings
-    if "em_soft" in args.methods:
+    if "em_soft" in args.methods or args.side_by_side:
         run_level("gridroom_8x6", 0.3, 0, ["em_soft"], registry, args.overrides)
+    if args.side_by_side:
+        return side_by_side(args, registry)
     results = {}
     print(f"medians over seeds {args.seeds}; load average at start {os.getloadavg()[0]:.2f} "
           f"on {os.cpu_count()} cores" + "; overrides " * bool(args.overrides)
@@ -211,6 +219,61 @@ def main():
         draw(results, args.methods, Path(args.figure))
 
 
+def soft_values(pairs) -> dict:
+    """The soft settings ``KEY=VALUE`` of ``pairs``, each value read as its setting's type."""
+    kinds = {f.name: f.type for f in fields(SoftSettings)}
+    soft = {}
+    for pair in pairs:
+        key, _, value = pair.partition("=")
+        if key not in kinds:
+            raise SystemExit(f"{key!r} is not a soft setting ({', '.join(kinds)})")
+        soft[key] = {"int": int, "float": float, "bool": lambda v: v.lower() == "true"}[
+            kinds[key]](value)
+    return soft
+
+
+def side_by_side(args, registry) -> None:
+    """``--side-by-side``: ``em_soft`` with the default soft settings and each variant's, in
+    turn on every trajectory; one row per world, level and variant."""
+    from topomap.core.refine import clones, soft as soft_module
+    variants = [("default", {})] + [(v.split("=", 1)[0], soft_values(v.split("=", 1)[1].split(",")))
+                                    for v in args.side_by_side]
+    count = {"hard": 0, "soft": 0}
+
+    def counted(kind, fn):
+        def run(*a):
+            count[kind] += 1
+            return fn(*a)
+        return run
+    clones.clone_forward = counted("hard", clones.clone_forward)
+    soft_module.soft_forward = counted("soft", soft_module.soft_forward)
+    soft_module.soft_forward_read = counted("soft", soft_module.soft_forward_read)
+    print(f"load average at start {os.getloadavg()[0]:.2f}; variants {variants}")
+    print("| world | level | symbol error | variant | ARI median | ARI per seed | hard + soft "
+          "E-steps per seed | CPU s per seed | CPU / default |")
+    print("|---|---|---|---|---|---|---|---|---|")
+    for world in args.worlds:
+        for level in (args.levels if args.levels is not None else range(len(SIGMAS[world]))):
+            runs = {name: [] for name, _ in variants}
+            for seed in args.seeds:
+                k = seed % len(variants)
+                for name, soft in variants[k:] + variants[:k]:
+                    METHODS["em_soft"] = lambda soft=soft: EMRefinement(evidence="auto", soft=soft)
+                    count.update(hard=0, soft=0)
+                    out = run_level(world, SIGMAS[world][level], seed, ["em_soft"], registry,
+                                    args.overrides)["em_soft"]
+                    runs[name].append({**out, **count})
+            base = sum(r["cpu"] for r in runs["default"])
+            for name, rs in runs.items():
+                aris = " / ".join(format(r["ari"], ".4f") for r in rs)
+                steps = " / ".join(f"{r['hard']} + {r['soft']}" for r in rs)
+                cpus = " / ".join(format(r["cpu"], ".2f") for r in rs)
+                print(f"| {world} | {level} | {_med(rs, 'err'):.1%} | {name} | "
+                      f"{_med(rs, 'ari'):.4f} | {aris} | {steps} | {cpus} | "
+                      f"{sum(r['cpu'] for r in rs) / base:.2f} |", flush=True)
+    print(f"load average at end {os.getloadavg()[0]:.2f}")
+
+
 def set_soft(pairs, accelerate: str = "none") -> None:
     """The soft methods of ``METHODS`` with the soft settings ``KEY=VALUE`` of ``pairs`` (each
     value read as its setting's type), and EM's ``accelerate`` in ``em_hard`` and ``em_soft``."""
@@ -220,14 +283,7 @@ def set_soft(pairs, accelerate: str = "none") -> None:
         METHODS["em_soft"] = lambda: EMRefinement(evidence="auto", accelerate=accelerate)
     if not pairs:
         return
-    kinds = {f.name: f.type for f in fields(SoftSettings)}
-    soft = {}
-    for pair in pairs:
-        key, _, value = pair.partition("=")
-        if key not in kinds:
-            raise SystemExit(f"--soft: {key!r} is not a soft setting ({', '.join(kinds)})")
-        soft[key] = {"int": int, "float": float, "bool": lambda v: v.lower() == "true"}[
-            kinds[key]](value)
+    soft = soft_values(pairs)
     print(f"soft settings: {soft}")
     METHODS["em_soft"] = lambda: EMRefinement(evidence="auto", soft=soft, accelerate=accelerate)
     METHODS["cscg_soft"] = lambda: CSCGRefinement(evidence="auto", soft=soft)

@@ -30,8 +30,10 @@ from .clones import compact_labels
 from .accelerate import ACCELERATIONS, squarem
 from .convergence import ConvergenceMonitor
 from .soft_kernels import (SoftData, SoftModel, SoftStats, soft_backward, soft_candidates,
-                           soft_forward, soft_offsets, soft_viterbi)
-from .soft_states import keep_states, merge_twins, min_steps_of, twin_overlap
+                           soft_forward, soft_forward_read, soft_offsets, soft_viterbi,
+                           read_tables)
+from .soft_states import (keep_states, merge_twins, min_steps_of, successor_surprise,
+                          twin_overlap)
 
 __all__ = ["SoftSettings", "soft_settings", "SoftFit", "EVIDENCE", "check_evidence", "soft_round",
            "misread_rate", "misread_share", "successor_surprise", "merge_twins", "keep_states",
@@ -77,7 +79,11 @@ class SoftSettings:
     (``max_iter`` counts E-steps; default ``"none"``: plain EM).  ``prune_loose`` (0: off)
     replaces ``prune`` in the soft rounds after a first hard round whose labelling shows a
     successor surprise below ``loose_below`` (few misreads;
-    :func:`~topomap.core.refine.rounds._round_settings`).
+    :func:`~topomap.core.refine.rounds._round_settings`).  ``label_every`` (0: off): a soft round
+    decodes its model that often and stops once under ``label_tol`` of the steps moved.
+    ``read_share`` (3e-4; 0: off): where candidates are dense (:data:`READ_DENSE`), a step's
+    candidates of a symbol whose share of its evidence, given the forward message, is below it
+    stay 0 (:func:`~.soft_kernels.soft_forward_read`).
     """
 
     rounds: int = 3
@@ -104,6 +110,9 @@ class SoftSettings:
     accelerate: str = "none"
     prune_loose: float = 0.0
     loose_below: float = 0.12
+    label_every: int = 0
+    label_tol: float = 1e-3
+    read_share: float = 3e-4
 
 
 #: the real-valued soft settings and what each must be
@@ -116,6 +125,8 @@ _RANGES = {
     "twin": (lambda v: v >= 0, ">= 0"), "twin_merge": (lambda v: v >= 0, ">= 0"),
     "stage_rtol": (lambda v: v >= 0, ">= 0"), "rtol": (lambda v: v >= 0, ">= 0"),
     "prune_loose": (lambda v: 0 <= v < 1, "in [0, 1)"), "loose_below": (lambda v: v >= 0, ">= 0"),
+    "label_tol": (lambda v: 0 <= v <= 1, "in [0, 1]"),
+    "read_share": (lambda v: 0 <= v < 1, "in [0, 1)"),
 }
 
 
@@ -132,7 +143,7 @@ def soft_settings(value) -> SoftSettings:
     if not isinstance(value, SoftSettings):
         raise ParameterError("soft", f"must be SoftSettings or a mapping of its fields, "
                                      f"got {value!r}")
-    for name in ("rounds", "spare", "conf_warmup", "detect_iter", "stage_cap"):
+    for name in ("rounds", "spare", "conf_warmup", "detect_iter", "stage_cap", "label_every"):
         check_count(getattr(value, name), f"soft.{name}", minimum=0)
     check_count(value.max_iter, "soft.max_iter")
     for name, (ok, what) in _RANGES.items():
@@ -219,8 +230,7 @@ def _clone_emission(conf, clone_symbol, counts, strength):
     prior = conf[clone_symbol]
     if counts is None or not np.isfinite(strength):
         return prior
-    emit = (counts + strength * prior) / (counts.sum(axis=1, keepdims=True) + strength)
-    return emit
+    return (counts + strength * prior) / (counts.sum(axis=1, keepdims=True) + strength)
 
 
 def _model(trans, emit, init, floor) -> SoftModel:
@@ -247,10 +257,9 @@ def _warm_counts(data: SoftData, labels, state_symbol, keep, n_symbols: int, n_a
     """Transition counts (A, S, S) of a warm start and the clones' symbols: every kept state a
     clone (renumbered) with the labelling's transitions between kept states, then ``spare`` clones
     of every K-means symbol with random rows."""
-    labels = np.asarray(labels, dtype=np.int64)
+    labels, n_kept = np.asarray(labels, dtype=np.int64), int(keep.sum())
     rename = np.full(state_symbol.size, -1, dtype=np.int64)
-    rename[keep] = np.arange(int(keep.sum()))
-    n_kept = int(keep.sum())
+    rename[keep] = np.arange(n_kept)
     clone_symbol = np.concatenate([state_symbol[keep],
                                    np.repeat(np.arange(n_symbols, dtype=np.int64), spare)])
     S, A = clone_symbol.size, n_actions
@@ -284,18 +293,16 @@ def soft_round(seq, labels, state_symbol, conf=None, *, spare: int = 0,
     readings are exact, and the :class:`SoftFit` holds ``labels`` and ``state_symbol``
     unchanged and ``info["stopped"] = "exact"``.
     """
-    s = settings
+    s, ns, data = settings, seq.n_symbols, _episode_data(seq)
     rng = np.random.default_rng(0) if rng is None else rng
-    ns = seq.n_symbols
     state_symbol = np.asarray(state_symbol, dtype=np.int64)
     keep = np.ones(state_symbol.size, bool) if keep is None else np.asarray(keep, bool)
-    data = _episode_data(seq)
     counts, clone_symbol = _warm_counts(data, labels, state_symbol, keep, ns, seq.n_actions,
                                         spare, rng)
     conf = (initial_confusion(seq.n_ids, ns, s.init_error, co_successors(seq, labels))
             if conf is None else np.asarray(conf, float))
-    em = _soft_em(seq, data, counts, clone_symbol, conf, s, learn_conf, exact_below)
-    trans, emit, conf, N, monitor = em
+    trans, emit, conf, N, monitor = _soft_em(seq, data, counts, clone_symbol, conf, s, learn_conf,
+                                             exact_below)
     info = {"em_iterations": monitor.iter, "em_loglik": monitor.history[-1],
             "clones": int(clone_symbol.size), "misread": misread_share(N, ns)}
     exact = exact_below is not None and info["misread"] < exact_below
@@ -314,17 +321,17 @@ def _soft_em(seq, data, counts, clone_symbol, conf, s, learn_conf, exact_below):
     """Soft-evidence Baum-Welch from ``counts`` and ``conf`` (:func:`soft_round`); returns
     ``(trans, emit, conf, N, monitor)``, ``N`` the last E-step's (true x read symbol) counts.
     With ``s.accelerate="squarem"``, after its first E-step (its first ``detect_iter`` with
-    ``exact_below``) the iterations are SQUAREM's cycles (:func:`_soft_squarem`)."""
+    ``exact_below``) the iterations are SQUAREM's cycles (:func:`_soft_squarem`); with
+    ``s.label_every``, the plain loop stops once its decoded path settles (:func:`_moved`)."""
     ns, S = seq.n_symbols, clone_symbol.size
-    init = np.full(S, 1.0 / S)
-    pseudo = s.row_prior / S
+    init, pseudo = np.full(S, 1.0 / S), s.row_prior / S
     monitor = ConvergenceMonitor(s.tol * seq.T, s.max_iter, min_iter=2, rtol=s.rtol or None)
-    accelerated = s.accelerate == "squarem"
+    accelerated, path = s.accelerate == "squarem", None
     plain = (s.detect_iter if exact_below is not None else 1) if accelerated else s.max_iter
     trans = _normalise_trans(counts, pseudo)
     emit = _clone_emission(conf, clone_symbol, None, s.clone_prior)
     while not monitor.converged and monitor.iter < plain:
-        stats, ll = _soft_estep(data, _model(trans, emit, init, s.floor), s, seq.n_ids)
+        stats, ll = _soft_estep(data, _model(trans, emit, init, s.floor), s, clone_symbol)
         monitor.report(ll)
         last = (stats.trans.copy(), stats.emit) if accelerated else None
         trans, emit, conf, N = _soft_mstep(stats, conf, clone_symbol, ns, s, pseudo,
@@ -333,6 +340,10 @@ def _soft_em(seq, data, counts, clone_symbol, conf, s, learn_conf, exact_below):
         if (exact_below is not None and monitor.iter == s.detect_iter
                 and misread_share(N, ns) < exact_below):
             break
+        if s.label_every and monitor.iter % s.label_every == 0 and not monitor.converged:
+            path, moved = _moved(data, _model(trans, emit, init, s.floor), path)
+            if moved < s.label_tol:
+                break
     else:
         if accelerated and not monitor.converged:
             trans, emit, conf, N = _soft_squarem(data, last, conf, clone_symbol, s, learn_conf,
@@ -341,12 +352,28 @@ def _soft_em(seq, data, counts, clone_symbol, conf, s, learn_conf, exact_below):
     return trans, emit, conf, N, monitor
 
 
-def _soft_estep(data, model, s, n_ids):
+def _moved(data, model, previous):
+    """``model``'s Viterbi path, the share of steps off the path ``previous`` (None: 1.0)."""
+    path, _ = soft_viterbi(data, _log(model), soft_offsets(data, model))
+    return path, 1.0 if previous is None else float(np.mean(path != previous))
+
+
+#: ``soft.read_share`` acts where the candidates are at least this share of the clones (gridroom
+#: 8 x 6 1.0, random_graph 60 0.85; the office 0.1-0.13, where it saved no time but moved ARIs)
+READ_DENSE = 0.5
+
+
+def _soft_estep(data, model, s, clone_symbol):
     """One soft E-step on ``model``: the expected counts (:class:`SoftStats`) and the
-    log-likelihood."""
-    A, S = model.trans.shape[0], model.trans.shape[1]
+    log-likelihood (``s.read_share`` > 0 and candidates dense, :data:`READ_DENSE`: the forward
+    pass :func:`soft_forward_read`)."""
+    A, S, n_ids = model.trans.shape[0], model.trans.shape[1], model.emit.shape[1]
     pos = soft_offsets(data, model)
-    alpha, log_c = soft_forward(data, model, pos, s.prune)
+    if s.read_share and pos[-1] >= READ_DENSE * S * data.read.size:
+        alpha, log_c = soft_forward_read(data, model, pos, s.prune, clone_symbol,
+                                         read_tables(model, clone_symbol, n_ids), s.read_share)
+    else:
+        alpha, log_c = soft_forward(data, model, pos, s.prune)
     stats = SoftStats(np.zeros((A, S, S)), np.zeros((S, n_ids)), np.zeros(S))
     soft_backward(data, model, pos, alpha, log_c, stats)
     return stats, float(log_c.sum())
@@ -383,7 +410,7 @@ def _soft_squarem(data, last, conf, clone_symbol, s, learn_conf, monitor, seq):
 
     def em_step(c):
         trans, emit, _, _ = mstep(c)
-        stats, ll = _soft_estep(data, _model(trans, emit, init, s.floor), s, n_ids)
+        stats, ll = _soft_estep(data, _model(trans, emit, init, s.floor), s, clone_symbol)
         monitor.report(ll)
         return np.concatenate([stats.trans.ravel(), stats.emit.ravel()]), None, ll
 
@@ -407,21 +434,6 @@ def misread_share(N, n_symbols: int) -> float:
     k = n_symbols
     total = float(N[:k, :k].sum())
     return 0.0 if total == 0 else float(1.0 - np.trace(N[:k, :k]) / total)
-
-
-def successor_surprise(seq, labels) -> float:
-    """The share of a labelling's transitions whose next symbol is not the one its (state,
-    action) is most often followed by: 0 when the states predict every next view, as in a
-    deterministic world mapped right; every misread raises it (a move from a well-known state
-    that once shows another view): a labelling at 0 leaves a soft round nothing to correct."""
-    t = np.flatnonzero(seq.masks()[1])
-    if t.size == 0:
-        return 0.0
-    key = labels[t] * seq.n_actions + seq.u[t]
-    pairs, count = np.unique(key * seq.n_ids + seq.sym[t + 1], return_counts=True)
-    top = np.zeros(int(key.max()) + 1)
-    np.maximum.at(top, pairs // seq.n_ids, count)
-    return float(1.0 - top.sum() / t.size)
 
 
 EVIDENCE = ("auto", "soft", "hard")

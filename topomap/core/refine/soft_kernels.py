@@ -31,6 +31,7 @@ from ..sums import sparse_pairwise_sum
 from .kernels import normalise_block, viterbi_buffers
 
 __all__ = ["SoftData", "SoftModel", "SoftStats", "soft_offsets", "soft_forward",
+           "soft_forward_read", "read_tables",
            "soft_backward", "soft_viterbi", "soft_candidates", "twin_pairs"]
 
 SoftData = namedtuple("SoftData", ["read", "u", "has_next"])
@@ -111,6 +112,85 @@ def soft_forward(data, model, pos, prune):
                 alpha[a0 + k] *= emit[cidx[c0 + k], r]
         log_c[t] = np.log(normalise_block(alpha, a0, n, prune))
     return alpha, log_c
+
+
+def read_tables(model, clone_symbol, n_ids: int):
+    """What :func:`soft_forward_read` needs of ``model``: ``to_symbol`` (A, S, n_ids), the
+    transition mass from every clone into the clones of every symbol, and ``reads`` (n_ids,
+    n_ids), the largest ``emit[c, r]`` over the clones ``c`` of symbol ``k`` at ``[k, r]``."""
+    A, S = model.trans.shape[0], model.trans.shape[1]
+    to_symbol = np.zeros((A, S, n_ids))
+    for k in np.unique(clone_symbol):
+        to_symbol[:, :, k] = model.trans[:, :, clone_symbol == k].sum(axis=2)
+    reads = np.zeros((n_ids, model.emit.shape[1]))
+    np.maximum.at(reads, clone_symbol, model.emit)
+    return to_symbol, reads
+
+
+@njit(cache=True)
+def soft_forward_read(data, model, pos, prune, clone_symbol, tables, share):
+    """:func:`soft_forward` where, at every step after an episode's first, the candidates of a
+    symbol ``k`` are set to 0 when ``k``'s share of the step's evidence -- the predicted mass of
+    its clones (``tables[0]``, :func:`read_tables`) times the largest chance one of them reads
+    ``read[t]`` (``tables[1]``) -- is below ``share`` of the sum over the symbols: the
+    confusions the forward message makes negligible are dropped, and the next step's sums and
+    the backward pass skip their clones."""
+    read, u, has_next = data.read, data.u, data.has_next
+    trans, emit, cptr, cidx = model.trans, model.emit, model.cptr, model.cidx
+    to_symbol, reads = tables
+    T = read.size
+    alpha, log_c = np.zeros(pos[T]), np.zeros(T)
+    mass = np.zeros(reads.shape[0])
+    for t in range(T):
+        a0, r = pos[t], read[t]
+        c0, n = cptr[r], pos[t + 1] - pos[t]
+        if t == 0 or not has_next[t - 1]:
+            for k in range(n):
+                c = cidx[c0 + k]
+                alpha[a0 + k] = model.init[c] * emit[c, r]
+            log_c[t] = np.log(normalise_block(alpha, a0, n, prune))
+            continue
+        p0, q0, a = pos[t - 1], cptr[read[t - 1]], u[t - 1]
+        mass[:] = 0.0
+        for i in range(a0 - p0):
+            ai = alpha[p0 + i]
+            if ai != 0.0:
+                ci = cidx[q0 + i]
+                for k in range(mass.size):
+                    mass[k] += ai * to_symbol[a, ci, k]
+        bar = 0.0
+        for k in range(mass.size):
+            mass[k] *= reads[k, r]
+            bar += mass[k]
+        bar *= share
+        _forward_sums(alpha, p0, a0, n, trans, a, cidx, q0, c0)
+        for k in range(n):
+            c = cidx[c0 + k]
+            alpha[a0 + k] = alpha[a0 + k] * emit[c, r] if mass[clone_symbol[c]] >= bar else 0.0
+        log_c[t] = np.log(normalise_block(alpha, a0, n, prune))
+    return alpha, log_c
+
+
+@njit(cache=True)
+def _forward_sums(alpha, p0, a0, n, trans, a, cidx, q0, c0):
+    """``alpha[a0 + k] += sum_i alpha[p0 + i] trans[a, cidx[q0 + i], cidx[c0 + k]]`` over the
+    nonzero messages of the step before (the sums of :func:`soft_forward`, in its order)."""
+    lo = cidx[c0]
+    if n > 0 and cidx[c0 + n - 1] - lo == n - 1:  # a run of clones: rows as slices
+        out = alpha[a0:a0 + n]
+        for i in range(a0 - p0):
+            ai = alpha[p0 + i]
+            if ai != 0.0:
+                row = trans[a, cidx[q0 + i], lo:lo + n]
+                for k in range(n):
+                    out[k] += ai * row[k]
+        return
+    for i in range(a0 - p0):
+        ai = alpha[p0 + i]
+        if ai != 0.0:
+            ci = cidx[q0 + i]
+            for k in range(n):
+                alpha[a0 + k] += ai * trans[a, ci, cidx[c0 + k]]
 
 
 def soft_backward(data, model, pos, alpha, log_c, stats):

@@ -1,7 +1,8 @@
 """The states the soft rounds work on (:mod:`topomap.core.refine.soft`): twin states -- one
 place read as two symbols -- found (:func:`twin_overlap`) and merged (:func:`merge_twins`), and
 the states a round keeps (:func:`keep_states`, :func:`min_steps_of`): small states that are only
-the residue of misreads go, rarely visited places stay."""
+the residue of misreads go, rarely visited places stay; and how far a labelling's states predict
+the next view (:func:`successor_surprise`)."""
 
 from __future__ import annotations
 
@@ -10,7 +11,7 @@ import numpy as np
 from .clones import compact_labels
 from .soft_kernels import twin_pairs
 
-__all__ = ["twin_overlap", "merge_twins", "min_steps_of", "keep_states"]
+__all__ = ["twin_overlap", "merge_twins", "min_steps_of", "keep_states", "successor_surprise"]
 
 
 def twin_overlap(labels, state_symbol, u, has_next, n_actions: int, n_symbols: int):
@@ -102,3 +103,18 @@ def keep_states(seq, labels, state_symbol, min_steps: int, twin: float) -> np.nd
                       & (sizes >= min_steps / 5))
         keep |= rare_place
     return keep
+
+
+def successor_surprise(seq, labels) -> float:
+    """The share of a labelling's transitions whose next symbol is not the one its (state,
+    action) is most often followed by: 0 when the states predict every next view, as in a
+    deterministic world mapped right; every misread raises it (a move from a well-known state
+    that once shows another view): a labelling at 0 leaves a soft round nothing to correct."""
+    t = np.flatnonzero(seq.masks()[1])
+    if t.size == 0:
+        return 0.0
+    key = labels[t] * seq.n_actions + seq.u[t]
+    pairs, count = np.unique(key * seq.n_ids + seq.sym[t + 1], return_counts=True)
+    top = np.zeros(int(key.max()) + 1)
+    np.maximum.at(top, pairs // seq.n_ids, count)
+    return float(1.0 - top.sum() / t.size)
