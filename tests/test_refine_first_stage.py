@@ -12,8 +12,8 @@ from topomap.core.refine import methods
 from topomap.core.refine.methods import EMRefinement
 from topomap.core.refine.sequence import SymbolSequence
 
-ROUGH = {"first_factor": 1, "first_iter": 25}
-PLAIN = {"first_factor": 0, "first_iter": 0}  # stage 1 as every round (the defaults)
+ROUGH = {"first_factor": 1, "first_iter": 25}  # the defaults
+PLAIN = {"first_factor": 0, "first_iter": 0}  # stage 1 as every round (the defaults' rough off)
 
 
 def ring(seed, T=3200):
@@ -95,10 +95,13 @@ def test_first_rtol_lets_stage_one_go_on_while_it_gains():
     assert plain[2] > 13 and on == plain and cut[2] == 12
 
 
-def test_the_first_stage_settings_are_named_in_the_provenance_only_when_set():
-    assert "first_" not in EMRefinement(**PLAIN).provenance()
-    assert ("start='split', first_factor=1, first_iter=25, first_rtol=0.001, settings="
-            in EMRefinement(start="split", first_rtol=1e-3, **ROUGH).provenance())
+def test_the_first_stage_settings_are_named_in_the_provenance_only_when_changed():
+    """The defaults (``ROUGH``) are not named, so a map.json names only what a config changed."""
+    assert "first_" not in EMRefinement().provenance()
+    assert "first_" not in EMRefinement(**ROUGH).provenance()
+    assert ("start='split', first_factor=0, first_iter=0, first_rtol=0.001, settings="
+            in EMRefinement(start="split", first_rtol=1e-3, **PLAIN).provenance())
+    assert "first_factor=2, settings=" in EMRefinement(first_factor=2).provenance()
 
 
 @pytest.mark.parametrize("params, message", [
@@ -109,3 +112,31 @@ def test_the_first_stage_settings_are_named_in_the_provenance_only_when_set():
 def test_bad_first_stage_settings_are_refused_by_name(params, message):
     with pytest.raises(ParameterError, match=f"^{message}"):
         EMRefinement(**params).check_params()
+
+
+def growth_prefixes(monkeypatch, changed: bool, **params):
+    """The prefix of every stage up to stage 3 on a 64,000-step ring, every EM round faked to
+    end with 8 states and the merges and splits after it to change something or nothing."""
+    def em_round(self, seq, *args, **kwargs):
+        return np.zeros(seq.T, dtype=np.int64), np.arange(8) % 6, 1
+
+    def restructure(self, seq, labels, state_symbol):
+        return (labels, state_symbol), (labels, state_symbol), changed
+
+    monkeypatch.setattr(EMRefinement, "_first_round", em_round)
+    monkeypatch.setattr(EMRefinement, "_warm_round", em_round)
+    monkeypatch.setattr(EMRefinement, "_restructure", restructure)
+    seq, _ = ring(0, T=64000)
+    stages = EMRefinement(evidence="hard", **params)._stages(seq, np.arange(6), 0)
+    return [n for n, _, _ in next(stages)[2]["stages"]]
+
+
+def test_growth_settles_on_two_full_stages_after_a_rough_one(monkeypatch):
+    """As many states at the end of two stages in a row: the next stage takes all steps.  After a
+    plain stage 1 that is stage 2 (2,000 and 4,000 steps); after a rough one, whose count is no
+    test, stages 2 and 3 (4,000 and 8,000), and only where merging and splitting the last one's
+    states change nothing; else the prefix doubles on to all 64,000 steps."""
+    assert growth_prefixes(monkeypatch, False, **PLAIN) == [2000, 4000, 64000]
+    assert growth_prefixes(monkeypatch, True, **PLAIN) == [2000, 4000, 64000]
+    assert growth_prefixes(monkeypatch, False) == [2000, 4000, 8000, 64000]
+    assert growth_prefixes(monkeypatch, True) == [2000, 4000, 8000, 16000, 32000, 64000]
