@@ -12,8 +12,8 @@ from topomap.core.refine import methods
 from topomap.core.refine.methods import EMRefinement
 from topomap.core.refine.sequence import SymbolSequence
 
-ROUGH = {"first_factor": 1, "first_iter": 25}  # the defaults
-PLAIN = {"first_factor": 0, "first_iter": 0}  # stage 1 as every round (the defaults' rough off)
+ROUGH = {"first_factor": 1, "first_iter": 25}
+PLAIN = {"first_factor": 0, "first_iter": 0}  # stage 1 as every round (the defaults)
 
 
 def ring(seed, T=3200):
@@ -95,13 +95,10 @@ def test_first_rtol_lets_stage_one_go_on_while_it_gains():
     assert plain[2] > 13 and on == plain and cut[2] == 12
 
 
-def test_the_first_stage_settings_are_named_in_the_provenance_only_when_changed():
-    """The defaults (``ROUGH``) are not named, so a map.json names only what a config changed."""
-    assert "first_" not in EMRefinement().provenance()
-    assert "first_" not in EMRefinement(**ROUGH).provenance()
-    assert ("start='split', first_factor=0, first_iter=0, first_rtol=0.001, settings="
-            in EMRefinement(start="split", first_rtol=1e-3, **PLAIN).provenance())
-    assert "first_factor=2, settings=" in EMRefinement(first_factor=2).provenance()
+def test_the_first_stage_settings_are_named_in_the_provenance_only_when_set():
+    assert "first_" not in EMRefinement(**PLAIN).provenance()
+    assert ("start='split', first_factor=1, first_iter=25, first_rtol=0.001, settings="
+            in EMRefinement(start="split", first_rtol=1e-3, **ROUGH).provenance())
 
 
 @pytest.mark.parametrize("params, message", [
@@ -138,5 +135,5 @@ def test_growth_settles_on_two_full_stages_after_a_rough_one(monkeypatch):
     states change nothing; else the prefix doubles on to all 64,000 steps."""
     assert growth_prefixes(monkeypatch, False, **PLAIN) == [2000, 4000, 64000]
     assert growth_prefixes(monkeypatch, True, **PLAIN) == [2000, 4000, 64000]
-    assert growth_prefixes(monkeypatch, False) == [2000, 4000, 8000, 64000]
-    assert growth_prefixes(monkeypatch, True) == [2000, 4000, 8000, 16000, 32000, 64000]
+    assert growth_prefixes(monkeypatch, False, **ROUGH) == [2000, 4000, 8000, 64000]
+    assert growth_prefixes(monkeypatch, True, **ROUGH) == [2000, 4000, 8000, 16000, 32000, 64000]

@@ -22,14 +22,13 @@ def ring(seed):
 def test_a_right_split_is_kept_in_two_short_rounds(seed):
     """The split labels every place of the ring apart: EM started from it has nothing to move,
     so stage 1 stops at its first convergence check (11 E-steps: the stop is checked from the
-    11th on) with the 8 places, and so does the one round on all steps; from random counts on
-    ``clone_factor`` clones per split state, stage 1 needs more.  (The default's rough stage 1,
-    one clone per split state + ``spare``, may stop as soon: seed 2 does.)"""
+    11th on) with the 8 places, and so does the one round on all steps; from random counts stage
+    1 needs more."""
     seq, places = ring(seed)
     fit = EMRefinement(start="split").fit(seq, np.asarray(RING), seed, split_labels=places)
     assert fit.n_states_ == 8 and same_partition(fit.labels_, places)
     assert fit.info_["stages"] == [(2000, 8, 11), (3000, 8, 11)]
-    plain = EMRefinement(first_factor=0, first_iter=0).fit(seq, np.asarray(RING), seed)
+    plain = EMRefinement().fit(seq, np.asarray(RING), seed)
     assert plain.info_["stages"][0][2] > 11
 
 

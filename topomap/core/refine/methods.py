@@ -93,10 +93,10 @@ class EMRefinement(CloneRefinement):
     ``start`` (:data:`STARTS`): what stage 1 starts from, random counts (default) or the split's
     labelling ``split_labels`` of :meth:`fit` (``"split"``, ``"split_budget"``, ``"auto"``:
     :meth:`_first_round`).  Where stage 1 is on a prefix of at most :data:`ROUGH` of the steps (the
-    growth stages refit every state on many more), it is *rough*: ``first_factor`` (default 1)
-    replaces ``clone_factor`` and its Baum-Welch stops after ``first_iter`` (default 25)
-    iterations unless the last still gained ``first_rtol`` x |log-likelihood|
-    (:func:`~topomap.core.refine.clones.capped_baum_welch`; each 0: off, both 0: as every round).
+    growth stages refit every state on many more), it is *rough*: ``first_factor`` replaces
+    ``clone_factor`` and its Baum-Welch stops after ``first_iter`` iterations unless the last
+    still gained ``first_rtol`` x |log-likelihood|
+    (:func:`~topomap.core.refine.clones.capped_baum_welch`; each 0, the default: off).
 
     ``evidence`` (:data:`~topomap.core.refine.soft.EVIDENCE`): ``"auto"`` (default) corrects
     misread symbols when the first soft round finds some (the first hard round stops before
@@ -119,8 +119,8 @@ class EMRefinement(CloneRefinement):
                  max_iter: int = 50, settle: float = 0.0, prune: float = 1e-4,
                  merge_threshold: float = 6.63, split_z: float = 3.09, spare: int = 2,
                  init_noise: float = 1.0, guard: bool = True, budget: str = "evidence",
-                 accelerate: str = "none", start: str = "random", first_factor: int = 1,
-                 first_iter: int = 25, first_rtol: float = float("inf"), evidence: str = "auto",
+                 accelerate: str = "none", start: str = "random", first_factor: int = 0,
+                 first_iter: int = 0, first_rtol: float = float("inf"), evidence: str = "auto",
                  soft: SoftSettings | Mapping = SoftSettings()):
         self.clone_factor = clone_factor
         self.prefix = prefix
@@ -169,7 +169,7 @@ class EMRefinement(CloneRefinement):
         changed += f"settle={self.settle!r}, " if self.settle else ""
         changed += "" if self.accelerate == "none" else f"accelerate={self.accelerate!r}, "
         changed += "" if self.start == "random" else f"start={self.start!r}, "
-        for k, default in (("first_factor", 1), ("first_iter", 25), ("first_rtol", float("inf"))):
+        for k, default in (("first_factor", 0), ("first_iter", 0), ("first_rtol", float("inf"))):
             changed += "" if getattr(self, k) == default else f"{k}={getattr(self, k)!r}, "
         changed += "" if self.evidence == "auto" else f"evidence={self.evidence!r}, "
         soft = self._provenance_soft()
