@@ -29,14 +29,18 @@ Columns, medians over the seeds: ARI and NMI against the true places, the states
 held-out log-likelihood per step (``TopologicalMap.score``, nats: a log-density, comparable
 between rows of one world and T) and the fit time (seconds; phase 1 included).  Every run is
 appended as JSON to ``--log``, with the load average and ``threads`` (the threads the compiled
-passes may use, ``NUMBA_NUM_THREADS``); runs already there are not repeated, so an interrupted
-benchmark resumes.  ``--figure`` draws ARI against fit time.
+passes may use, ``NUMBA_NUM_THREADS``) and the refinement's stages; runs already there are not
+repeated, so an interrupted benchmark resumes.  ``--figure`` draws ARI against fit time.
+``--versus KEY=VALUE ...`` fits every case a second time with other overrides, on the same data
+and in turn with the first (``--rounds`` times each): one process, so the two times compare
+under the same load.
 """
 
 from __future__ import annotations
 
 import argparse
 import importlib.util
+import itertools
 import json
 import os
 import statistics
@@ -115,6 +119,7 @@ def fit(registry, command: str, T: int, seed: int, method: str, data=None):
         "refine": t.get("refine"),
         "em_iterations": sum(st[2] for st in getattr(learner, "refine_info_", {}).get("stages",
                                                                                      [])),
+        "stages": [list(st) for st in getattr(learner, "refine_info_", {}).get("stages", [])],
     }, data
 
 
@@ -271,6 +276,11 @@ def main():
     ap.add_argument("--overrides", nargs="+", default=[], metavar="KEY=VALUE",
                     help="config overrides added to every world's command (e.g. "
                          "refine.settle=0.01); kept in each record, which they tell apart")
+    ap.add_argument("--versus", nargs="+", default=None, metavar="KEY=VALUE",
+                    help="also fit every case with these overrides instead of --overrides, the "
+                         "two in turn on the same data (one process: time ratios under load)")
+    ap.add_argument("--rounds", type=int, default=1,
+                    help="fit every case this many times (with --versus: in turn)")
     ap.add_argument("--log", default="benchmarks/results/bench_em.jsonl")
     ap.add_argument("--figure", default=None, help="write the ARI / fit time figure here")
     ap.add_argument("--report", action="store_true", help="only print the table of --log")
@@ -288,19 +298,20 @@ def main():
         registry = Registry.load()
         warm_up(registry)
         log.parent.mkdir(parents=True, exist_ok=True)
-        extra = " ".join(args.overrides)
-        have = {(r["world"], r["T"], r["seed"], r["method"], r.get("overrides", ""))
-                for r in done}
+        extras = [" ".join(args.overrides)] + ([" ".join(args.versus)] if args.versus else [])
+        have = {(r["world"], r["T"], r["seed"], r["method"], r.get("overrides", ""),
+                 r.get("round", 0)) for r in done}
         for world in args.worlds:
             for T in sorted(set(args.sizes) | ({OFFICE_T} if world == "office" else set())):
                 for seed in args.seeds:
                     data = None
-                    for method in args.methods:
-                        if (world, T, seed, method, extra) in have:
+                    for method, rnd, extra in itertools.product(
+                            args.methods, range(args.rounds), extras):
+                        if (world, T, seed, method, extra, rnd) in have:
                             continue
                         record, data = fit(registry, f"{WORLDS[world][1]} {extra}", T, seed,
                                            method, data)
-                        record.update(world=world, overrides=extra)
+                        record.update(world=world, overrides=extra, round=rnd)
                         done.append(record)
                         with log.open("a") as fh:
                             fh.write(json.dumps(record) + "\n")

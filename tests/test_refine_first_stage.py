@@ -109,3 +109,31 @@ def test_the_first_stage_settings_are_named_in_the_provenance_only_when_set():
 def test_bad_first_stage_settings_are_refused_by_name(params, message):
     with pytest.raises(ParameterError, match=f"^{message}"):
         EMRefinement(**params).check_params()
+
+
+def growth_prefixes(monkeypatch, changed: bool, **params):
+    """The prefix of every stage up to stage 3 on a 64,000-step ring, every EM round faked to
+    end with 8 states and the merges and splits after it to change something or nothing."""
+    def em_round(self, seq, *args, **kwargs):
+        return np.zeros(seq.T, dtype=np.int64), np.arange(8) % 6, 1
+
+    def restructure(self, seq, labels, state_symbol):
+        return (labels, state_symbol), (labels, state_symbol), changed
+
+    monkeypatch.setattr(EMRefinement, "_first_round", em_round)
+    monkeypatch.setattr(EMRefinement, "_warm_round", em_round)
+    monkeypatch.setattr(EMRefinement, "_restructure", restructure)
+    seq, _ = ring(0, T=64000)
+    stages = EMRefinement(evidence="hard", **params)._stages(seq, np.arange(6), 0)
+    return [n for n, _, _ in next(stages)[2]["stages"]]
+
+
+def test_growth_settles_on_two_full_stages_after_a_rough_one(monkeypatch):
+    """As many states at the end of two stages in a row: the next stage takes all steps.  After a
+    plain stage 1 that is stage 2 (2,000 and 4,000 steps); after a rough one, whose count is no
+    test, stages 2 and 3 (4,000 and 8,000), and only where merging and splitting the last one's
+    states change nothing; else the prefix doubles on to all 64,000 steps."""
+    assert growth_prefixes(monkeypatch, False, **PLAIN) == [2000, 4000, 64000]
+    assert growth_prefixes(monkeypatch, True, **PLAIN) == [2000, 4000, 64000]
+    assert growth_prefixes(monkeypatch, False, **ROUGH) == [2000, 4000, 8000, 64000]
+    assert growth_prefixes(monkeypatch, True, **ROUGH) == [2000, 4000, 8000, 16000, 32000, 64000]

@@ -61,7 +61,8 @@ class EMRefinement(CloneRefinement):
        states are merged and compound states split.
     2. Growth: the prefix doubles, each stage warm-started from the last one's states plus
        ``spare`` clones per symbol and ``init_noise`` x uniform random counts; once two stages end
-       with as many states (the structure has settled), the next stage takes all steps.
+       with as many states (the structure has settled), the next stage takes all steps (after a
+       rough stage 1, below: two growth stages, the last one's merges and splits changing none).
     3. On all steps, rounds repeat until EM's labelling is a fixpoint (nothing to merge or split),
        a round ends with the merged labelling of the round before (a split that EM and merging
        undo), or after ``max_rounds``.
@@ -92,9 +93,10 @@ class EMRefinement(CloneRefinement):
     ``start`` (:data:`STARTS`): what stage 1 starts from, random counts (default) or the split's
     labelling ``split_labels`` of :meth:`fit` (``"split"``, ``"split_budget"``, ``"auto"``:
     :meth:`_first_round`).  Where stage 1 is on a prefix of at most :data:`ROUGH` of the steps (the
-    growth stages refit every state on many more), ``first_factor`` replaces ``clone_factor`` and
-    its Baum-Welch stops after ``first_iter`` iterations unless the last still gained ``first_rtol``
-    x |log-likelihood| (:func:`~topomap.core.refine.clones.capped_baum_welch`; each 0: off).
+    growth stages refit every state on many more), it is *rough*: ``first_factor`` replaces
+    ``clone_factor`` and its Baum-Welch stops after ``first_iter`` iterations unless the last
+    still gained ``first_rtol`` x |log-likelihood|
+    (:func:`~topomap.core.refine.clones.capped_baum_welch`; each 0, the default: off).
 
     ``evidence`` (:data:`~topomap.core.refine.soft.EVIDENCE`): ``"auto"`` (default) corrects
     misread symbols when the first soft round finds some (the first hard round stops before
@@ -161,16 +163,14 @@ class EMRefinement(CloneRefinement):
     def provenance(self) -> str:
         """The text map.json stores as ``info["refine"]``: the refinement and its settings in the
         file's fixed form -- the EM round's knobs grouped as ``settings=EMSettings(...)`` (a
-        label of the file format, not a class), ``budget``, ``settle``, ``evidence`` and ``soft``
-        only when changed from their defaults."""
+        label of the file format, not a class), the other settings only where not the default."""
         rounds = ", ".join(f"{k}={getattr(self, k)!r}" for k in _EM_ROUND)
         changed = "" if self.budget == "evidence" else f"budget={self.budget!r}, "
         changed += f"settle={self.settle!r}, " if self.settle else ""
         changed += "" if self.accelerate == "none" else f"accelerate={self.accelerate!r}, "
         changed += "" if self.start == "random" else f"start={self.start!r}, "
-        changed += f"first_factor={self.first_factor!r}, " if self.first_factor else ""
-        changed += f"first_iter={self.first_iter!r}, " if self.first_iter else ""
-        changed += "" if self.first_rtol == float("inf") else f"first_rtol={self.first_rtol!r}, "
+        for k, default in (("first_factor", 0), ("first_iter", 0), ("first_rtol", float("inf"))):
+            changed += "" if getattr(self, k) == default else f"{k}={getattr(self, k)!r}, "
         changed += "" if self.evidence == "auto" else f"evidence={self.evidence!r}, "
         soft = self._provenance_soft()
         changed += f"{soft}, " if soft else ""
@@ -227,13 +227,14 @@ class EMRefinement(CloneRefinement):
         split_state_symbol = np.asarray(split_state_symbol)
         n_split = int(np.sum(split_state_symbol >= 0))
         n = min(max(self.prefix, self.prefix_visits * n_split), seq.T)
+        rough = n <= ROUGH * seq.T and self._first_settings(True) != self._first_settings(False)
         labels, state_symbol, iters = self._first_round(seq.head(n), split_state_symbol, rng,
-                                                        split_labels, rough=n <= ROUGH * seq.T)
-        stages = [(n, int(state_symbol.size), iters)]
-        cap = self._stage_cap(seq.head(n), labels)
+                                                        split_labels, rough=rough)
+        stages, cap = [(n, int(state_symbol.size), iters)], self._stage_cap(seq.head(n), labels)
         while n < seq.T:  # growth: the prefix doubles, or takes all steps once settled
-            _, split, _ = self._restructure(seq.head(n), labels, state_symbol)
-            settled = len(stages) > 1 and stages[-1][1] == stages[-2][1]
+            _, split, changed = self._restructure(seq.head(n), labels, state_symbol)
+            settled = (len(stages) > 1 + rough and stages[-1][1] == stages[-2][1]
+                       and not (rough and changed))
             n = seq.T if settled else min(2 * n, seq.T)
             labels, state_symbol, iters = self._warm_round(seq.head(n), *split, rng, cap=cap)
             stages.append((n, int(state_symbol.size), iters))
@@ -368,8 +369,8 @@ STARTS = ("random", "split", "split_budget", "auto")
 #: (about 0.2) take 1.4 x the E-steps
 SPLIT_TRUST = 0.02
 
-#: stage 1 is rough (``first_*``) on a prefix of at most this share of the steps.  FourRooms at
-#: 50,000 steps (stage 1 on 0.83 of them) lost ARI with it, the 12x12 room (0.58) kept it
+#: stage 1 is rough (``first_*``) on a prefix of at most this share of the steps (only then can two
+#: growth stages follow): FourRooms at 50,000 steps (0.83) lost ARI by it, not the 12x12 room (0.58)
 ROUGH = 2 / 3
 
 #: rounds on all steps at most after a warm start (``init``), and the EM iterations of each: the
@@ -441,9 +442,8 @@ class CSCGRefinement(CloneRefinement):
         labels, state_symbol, em, viterbi = fit_clones(
             lay, random_counts(lay, rng), float(self.pseudocount), max_iter=self.max_iter,
             tol=float(self.tol))
-        info = {"em_iterations": len(em), "em_loglik": em[-1],
-                "viterbi_iterations": len(viterbi), "viterbi_logp": viterbi[-1],
-                "clones": lay.n_clones}
+        info = {"em_iterations": len(em), "em_loglik": em[-1], "viterbi_iterations": len(viterbi),
+                "viterbi_logp": viterbi[-1], "clones": lay.n_clones}
         return CloneFit(labels, state_symbol, info)
 
 
