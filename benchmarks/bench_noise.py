@@ -188,6 +188,14 @@ def main():
         run_level("gridroom_8x6", 0.3, 0, ["em_soft"], registry, args.overrides)
     if args.side_by_side:
         return side_by_side(args, registry)
+    results = table(args, registry)
+    if args.figure:
+        draw(results, args.methods, Path(args.figure))
+
+
+def table(args, registry) -> dict:
+    """Print the table of ``args``' worlds, levels, seeds and methods; return its results
+    (``{world: [(symbol error, {method: ARI median})]}``) for the figure."""
     results = {}
     print(f"medians over seeds {args.seeds}; load average at start {os.getloadavg()[0]:.2f} "
           f"on {os.cpu_count()} cores" + "; overrides " * bool(args.overrides)
@@ -215,8 +223,7 @@ def main():
             print(f"| {world} | {sigma} | {err:.1%} | {cells} |", flush=True)
     print(f"total {time.perf_counter() - t_start:.0f} s; load average at end "
           f"{os.getloadavg()[0]:.2f}")
-    if args.figure:
-        draw(results, args.methods, Path(args.figure))
+    return results
 
 
 def soft_values(pairs) -> dict:

@@ -88,26 +88,7 @@ def soft_forward(data, model, pos, prune):
                 alpha[a0 + k] = model.init[c] * emit[c, r]
         else:
             p0 = pos[t - 1]
-            rp = read[t - 1]
-            q0 = cptr[rp]
-            a = u[t - 1]
-            lo = cidx[c0]
-            if n > 0 and cidx[c0 + n - 1] - lo == n - 1:  # a run of clones: rows as slices
-                out = alpha[a0:a0 + n]
-                for i in range(a0 - p0):
-                    ai = alpha[p0 + i]
-                    if ai != 0.0:
-                        row = trans[a, cidx[q0 + i], lo:lo + n]
-                        for k in range(n):
-                            out[k] += ai * row[k]
-            else:
-                for i in range(a0 - p0):
-                    ai = alpha[p0 + i]
-                    if ai == 0.0:
-                        continue
-                    ci = cidx[q0 + i]
-                    for k in range(n):
-                        alpha[a0 + k] += ai * trans[a, ci, cidx[c0 + k]]
+            _forward_sums(alpha, p0, a0, n, trans, u[t - 1], cidx, cptr[read[t - 1]], c0)
             for k in range(n):
                 alpha[a0 + k] *= emit[cidx[c0 + k], r]
         log_c[t] = np.log(normalise_block(alpha, a0, n, prune))
@@ -174,7 +155,8 @@ def soft_forward_read(data, model, pos, prune, clone_symbol, tables, share):
 @njit(cache=True)
 def _forward_sums(alpha, p0, a0, n, trans, a, cidx, q0, c0):
     """``alpha[a0 + k] += sum_i alpha[p0 + i] trans[a, cidx[q0 + i], cidx[c0 + k]]`` over the
-    nonzero messages of the step before (the sums of :func:`soft_forward`, in its order)."""
+    nonzero messages of the step before (rows as slices where the clones of the step are a
+    run), in the order of ``i``: the sums of :func:`soft_forward` and :func:`soft_forward_read`."""
     lo = cidx[c0]
     if n > 0 and cidx[c0 + n - 1] - lo == n - 1:  # a run of clones: rows as slices
         out = alpha[a0:a0 + n]
