@@ -1,6 +1,6 @@
-"""``EMRefinement(first="rough", first_factor=..., first_iter=..., first_rtol=...)``: a rougher
-first EM stage where it runs on a prefix, on the small worlds of test_refine.py whose answer is known (the
-aliased ring and the 4 x 3 grid)."""
+"""``EMRefinement(first="rough", first_factor=..., first_iter=..., first_rtol=...)``: a
+rougher first EM stage where it runs on a prefix, on the small worlds of test_refine.py whose
+answer is known (the aliased ring and the 4 x 3 grid)."""
 
 import numpy as np
 import pytest

@@ -125,8 +125,8 @@ class EMRefinement(CloneRefinement):
                  merge_threshold: float = 6.63, split_z: float = 3.09, spare: int = 2,
                  init_noise: float = 1.0, guard: bool = True, budget: str = "evidence",
                  accelerate: str = "none", start: str = "random", first: str = "auto",
-                 first_factor: int = 1, first_iter: int = 25, first_rtol: float = float("inf"), evidence: str = "auto",
-                 soft: SoftSettings | Mapping = SoftSettings()):
+                 first_factor: int = 1, first_iter: int = 25, first_rtol: float = float("inf"),
+                 evidence: str = "auto", soft: SoftSettings | Mapping = SoftSettings()):
         self.clone_factor = clone_factor
         self.prefix = prefix
         self.prefix_visits = prefix_visits
