@@ -135,6 +135,7 @@ def walks(case: str, seed: int, s: dict, cache: Path, n_train: int = 18_000):
 def _learner_row(learner, seconds, train, held, regions):
     return {"states": learner.map_.n_states, "fit_s": round(seconds, 2),
             "motion": getattr(learner, "motion_info_", None),
+            "ambiguity": getattr(learner, "symbol_ambiguity_", None),  # where the refinement ran
             **map_scores(learner.map_, learner.labels_, train, held, regions)}
 
 

@@ -332,7 +332,7 @@ def test_the_refinements_store_their_parameters_as_given():
     assert set(params) == {"clone_factor", "prefix", "prefix_visits", "max_rounds", "row_prior",
                            "tol", "max_iter", "settle", "prune", "merge_threshold", "split_z",
                            "spare", "init_noise", "guard", "budget", "accelerate", "start",
-                           "first_factor", "first_iter", "first_rtol", "evidence", "soft"}
+                           "first", "first_factor", "first_iter", "first_rtol", "evidence", "soft"}
     twin = clone(em)
     assert twin is not em and twin.get_params() == params
     assert CSCGRefinement(clones_per_symbol=5).set_params(tol=0.5).get_params() == {

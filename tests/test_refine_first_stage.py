@@ -1,6 +1,6 @@
-"""``EMRefinement(first_factor=..., first_iter=..., first_rtol=...)``: a rougher first EM stage
-where it runs on a prefix, on the small worlds of test_refine.py whose answer is known (the
-aliased ring and the 4 x 3 grid)."""
+"""``EMRefinement(first="rough", first_factor=..., first_iter=..., first_rtol=...)``: a
+rougher first EM stage where it runs on a prefix, on the small worlds of test_refine.py whose
+answer is known (the aliased ring and the 4 x 3 grid)."""
 
 import numpy as np
 import pytest
@@ -12,8 +12,8 @@ from topomap.core.refine import methods
 from topomap.core.refine.methods import EMRefinement
 from topomap.core.refine.sequence import SymbolSequence
 
-ROUGH = {"first_factor": 1, "first_iter": 25}
-PLAIN = {"first_factor": 0, "first_iter": 0}  # stage 1 as every round (the defaults)
+ROUGH = {"first": "rough", "first_factor": 1, "first_iter": 25}
+PLAIN = {"first_factor": 0, "first_iter": 0}  # stage 1 as every round, whatever ``first``
 
 
 def ring(seed, T=3200):
@@ -27,7 +27,7 @@ def grid(seed, T=4000):
 
 
 @pytest.mark.parametrize("seed", range(3))
-@pytest.mark.parametrize("rough", [ROUGH, {"first_factor": 1, "first_iter": 5}])
+@pytest.mark.parametrize("rough", [ROUGH, {"first": "rough", "first_factor": 1, "first_iter": 5}])
 def test_a_rough_first_stage_still_finds_every_place_of_the_ring(seed, rough):
     """The split found nothing (one state per symbol): stage 1 is on the first 2,000 of 3,200
     steps (at most ``ROUGH`` of them), so it is cut to ``first_iter`` E-steps on one clone per split state (+ spare); the
@@ -66,7 +66,7 @@ def test_the_first_factor_sizes_the_budget_of_a_stage_on_a_short_prefix_only(mon
     used = factors_used(monkeypatch)
     seq, _ = ring(0)
     for prefix in (2000, 2400, 3200):
-        EMRefinement(first_factor=1, prefix=prefix).fit(seq, np.arange(6), 0)
+        EMRefinement(first="rough", first_factor=1, prefix=prefix).fit(seq, np.arange(6), 0)
     EMRefinement(clone_factor=3, first_factor=0).fit(seq, np.arange(6), 0)
     assert methods.ROUGH == 2 / 3 and used == [1, 2, 2, 3]
 
@@ -77,7 +77,7 @@ def test_a_first_stage_on_most_steps_keeps_its_iterations(prefix):
     is the plain one, stage for stage."""
     seq, _ = ring(0)
     plain = EMRefinement(prefix=prefix, **PLAIN).fit(seq, np.arange(6), 0)
-    rough = EMRefinement(prefix=prefix, first_factor=1, first_iter=5).fit(seq, np.arange(6), 0)
+    rough = EMRefinement(prefix=prefix, first="rough", first_iter=5).fit(seq, np.arange(6), 0)
     assert plain.info_["stages"][0][0] == prefix and plain.info_["stages"][0][2] > 5
     assert rough.info_["stages"] == plain.info_["stages"]
 
@@ -90,14 +90,15 @@ def test_first_rtol_lets_stage_one_go_on_while_it_gains():
         return EMRefinement(**params).fit(seq, np.arange(6), 1).info_["stages"][0]
 
     plain = stage_one(**PLAIN)
-    on = stage_one(first_factor=0, first_iter=12, first_rtol=0.0)
-    cut = stage_one(first_factor=0, first_iter=12)
+    on = stage_one(first="rough", first_factor=0, first_iter=12, first_rtol=0.0)
+    cut = stage_one(first="rough", first_factor=0, first_iter=12)
     assert plain[2] > 13 and on == plain and cut[2] == 12
 
 
 def test_the_first_stage_settings_are_named_in_the_provenance_only_when_set():
-    assert "first_" not in EMRefinement(**PLAIN).provenance()
-    assert ("start='split', first_factor=1, first_iter=25, first_rtol=0.001, settings="
+    assert "first" not in EMRefinement().provenance()
+    assert "first_factor=0, first_iter=0, settings=" in EMRefinement(**PLAIN).provenance()
+    assert ("start='split', first='rough', first_rtol=0.001, settings="
             in EMRefinement(start="split", first_rtol=1e-3, **ROUGH).provenance())
 
 
@@ -105,6 +106,7 @@ def test_the_first_stage_settings_are_named_in_the_provenance_only_when_set():
     (dict(first_factor=-1), "first_factor must be a non-negative integer, got -1"),
     (dict(first_iter=2.5), "first_iter must be a non-negative integer, got 2.5"),
     (dict(first_rtol=-0.1), "first_rtol must be >= 0, got -0.1"),
+    (dict(first="fast"), "first must be one of auto, rough, plain, got 'fast'"),
 ])
 def test_bad_first_stage_settings_are_refused_by_name(params, message):
     with pytest.raises(ParameterError, match=f"^{message}"):

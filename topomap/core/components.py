@@ -12,6 +12,7 @@ from contextlib import contextmanager
 from sklearn.base import clone
 
 from .checks import ParameterError, check_count
+from .phase1.ambiguity import symbol_ambiguity
 from .phase1.clustering import FixedClusters, make_metric
 from .refine.methods import REFINEMENTS, CloneFit
 from .size import AutoStates
@@ -133,7 +134,7 @@ def make_refinement(refine):
 
 
 def fit_refinement(refinement, seq, split_state_symbol, random_state: int,
-                   init=None, split_labels=None) -> CloneFit:
+                   init=None, split_labels=None, ambiguity=None) -> CloneFit:
     """Fit ``refinement`` and return what it learned as a :class:`CloneFit`.
 
     A refinement's ``fit`` returns the refinement, its ``labels_``, ``state_symbol_`` and
@@ -141,11 +142,12 @@ def fit_refinement(refinement, seq, split_state_symbol, random_state: int,
     contract before 0.3) is still accepted, with a ``FutureWarning``, until 0.4.  ``init`` (a
     labelling to start from, :meth:`~topomap.core.refine.rounds.CloneRefinement.fit`) is given
     only when not None, so a refinement whose ``fit`` does not take it still works without;
-    ``split_labels`` (the split state of every step) only to a refinement whose ``fit`` takes
-    it."""
+    ``split_labels`` (the split state of every step) and ``ambiguity`` (:func:`symbol_hint`)
+    only to a refinement whose ``fit`` takes them."""
     extra = {} if init is None else {"init": init}
-    if split_labels is not None and "split_labels" in inspect.signature(refinement.fit).parameters:
-        extra["split_labels"] = split_labels
+    for name, value in (("split_labels", split_labels), ("ambiguity", ambiguity)):
+        if value is not None and name in inspect.signature(refinement.fit).parameters:
+            extra[name] = value
     out = refinement.fit(seq, split_state_symbol, random_state, **extra)
     if isinstance(out, CloneFit):
         warnings.warn(f"{type(refinement).__name__}.fit returned a CloneFit; since 0.3 a "
@@ -153,6 +155,21 @@ def fit_refinement(refinement, seq, split_state_symbol, random_state: int,
                       "(a CloneFit is refused from 0.4)", FutureWarning, stacklevel=3)
         return out
     return CloneFit(out.labels_, out.state_symbol_, dict(getattr(out, "info_", {})))
+
+
+def symbol_hint(learner, data, refinement):
+    """The ``ambiguity`` a refinement's ``fit`` is given: the share of steps whose symbol phase 1
+    may have misread (:func:`~topomap.core.phase1.ambiguity.symbol_ambiguity` under the phase-1
+    map's models of the symbols, seeded by ``random_state``), kept as the learner's
+    ``symbol_ambiguity_``; None (not computed) unless the refinement uses it (``first="auto"``
+    and a ``fit`` taking ``ambiguity``)."""
+    if getattr(refinement, "first", None) != "auto" or \
+            "ambiguity" not in inspect.signature(refinement.fit).parameters:
+        return None
+    ns, m = learner.n_clusters_, learner.map_phase1_
+    learner.symbol_ambiguity_ = symbol_ambiguity(data.X, learner.labels_phase1_, m.means[:ns],
+                                                 m.covariances[:ns], learner.random_state)
+    return learner.symbol_ambiguity_
 
 
 def refinement_label(refinement) -> str:

@@ -39,6 +39,7 @@ from .budget import BUDGETS
 from .clones import (Layout, capped_baum_welch, clone_budget, compact_labels, fit_clones,
                      init_from_path, random_counts, spread_states, states_to_clones,
                      viterbi_training)
+from .first_stage import FIRSTS, ROUGH, first_settings, rough_first
 from .rounds import CAP_SURPRISE, CloneFit, CloneRefinement, _check
 from .sequence import SymbolSequence
 from .soft import SoftSettings, soft_settings, successor_surprise
@@ -92,11 +93,15 @@ class EMRefinement(CloneRefinement):
     symbol sequences), ``"split"`` only ``clone_factor`` x its split states + ``spare``.
     ``start`` (:data:`STARTS`): what stage 1 starts from, random counts (default) or the split's
     labelling ``split_labels`` of :meth:`fit` (``"split"``, ``"split_budget"``, ``"auto"``:
-    :meth:`_first_round`).  Where stage 1 is on a prefix of at most :data:`ROUGH` of the steps (the
-    growth stages refit every state on many more), it is *rough*: ``first_factor`` replaces
-    ``clone_factor`` and its Baum-Welch stops after ``first_iter`` iterations unless the last
-    still gained ``first_rtol`` x |log-likelihood|
-    (:func:`~topomap.core.refine.clones.capped_baum_welch`; each 0, the default: off).
+    :meth:`_first_round`).  A *rough* stage 1 (:mod:`topomap.core.refine.first_stage`):
+    ``first_factor`` (default 1) replaces ``clone_factor`` and its Baum-Welch stops after
+    ``first_iter`` (default 25) iterations unless the last still gained ``first_rtol`` x
+    |log-likelihood| (:func:`~topomap.core.refine.clones.capped_baum_welch`; each 0: off).  It
+    applies only on a prefix of at most :data:`ROUGH` of the steps (the growth stages refit every
+    state on many more), and by ``first``: ``"auto"`` (default) where the ``ambiguity`` passed to
+    :meth:`fit` (the learner's estimate of the share of misread symbols) is below
+    :data:`~topomap.core.refine.first_stage.AMBIGUITY_BAR` (none given: never), ``"rough"``
+    always, ``"plain"`` never.  A rough fit's ``info_`` holds ``"first": "rough"``.
 
     ``evidence`` (:data:`~topomap.core.refine.soft.EVIDENCE`): ``"auto"`` (default) corrects
     misread symbols when the first soft round finds some (the first hard round stops before
@@ -119,9 +124,9 @@ class EMRefinement(CloneRefinement):
                  max_iter: int = 50, settle: float = 0.0, prune: float = 1e-4,
                  merge_threshold: float = 6.63, split_z: float = 3.09, spare: int = 2,
                  init_noise: float = 1.0, guard: bool = True, budget: str = "evidence",
-                 accelerate: str = "none", start: str = "random", first_factor: int = 0,
-                 first_iter: int = 0, first_rtol: float = float("inf"), evidence: str = "auto",
-                 soft: SoftSettings | Mapping = SoftSettings()):
+                 accelerate: str = "none", start: str = "random", first: str = "auto",
+                 first_factor: int = 1, first_iter: int = 25, first_rtol: float = float("inf"),
+                 evidence: str = "auto", soft: SoftSettings | Mapping = SoftSettings()):
         self.clone_factor = clone_factor
         self.prefix = prefix
         self.prefix_visits = prefix_visits
@@ -139,6 +144,7 @@ class EMRefinement(CloneRefinement):
         self.budget = budget
         self.accelerate = accelerate
         self.start = start
+        self.first = first
         self.first_factor = first_factor
         self.first_iter = first_iter
         self.first_rtol = first_rtol
@@ -158,6 +164,7 @@ class EMRefinement(CloneRefinement):
         _check(self.budget in BUDGETS, "budget", self.budget, f"one of {', '.join(BUDGETS)}")
         check_accelerate(self.accelerate)
         _check(self.start in STARTS, "start", self.start, f"one of {', '.join(STARTS)}")
+        _check(self.first in FIRSTS, "first", self.first, f"one of {', '.join(FIRSTS)}")
         super().check_params()
 
     def provenance(self) -> str:
@@ -169,7 +176,8 @@ class EMRefinement(CloneRefinement):
         changed += f"settle={self.settle!r}, " if self.settle else ""
         changed += "" if self.accelerate == "none" else f"accelerate={self.accelerate!r}, "
         changed += "" if self.start == "random" else f"start={self.start!r}, "
-        for k, default in (("first_factor", 0), ("first_iter", 0), ("first_rtol", float("inf"))):
+        for k, default in (("first", "auto"), ("first_factor", 1), ("first_iter", 25),
+                           ("first_rtol", float("inf"))):
             changed += "" if getattr(self, k) == default else f"{k}={getattr(self, k)!r}, "
         changed += "" if self.evidence == "auto" else f"evidence={self.evidence!r}, "
         soft = self._provenance_soft()
@@ -227,10 +235,11 @@ class EMRefinement(CloneRefinement):
         split_state_symbol = np.asarray(split_state_symbol)
         n_split = int(np.sum(split_state_symbol >= 0))
         n = min(max(self.prefix, self.prefix_visits * n_split), seq.T)
-        rough = n <= ROUGH * seq.T and self._first_settings(True) != self._first_settings(False)
+        rough = rough_first(self, n, seq.T, getattr(self, "ambiguity_", None))
         labels, state_symbol, iters = self._first_round(seq.head(n), split_state_symbol, rng,
                                                         split_labels, rough=rough)
         stages, cap = [(n, int(state_symbol.size), iters)], self._stage_cap(seq.head(n), labels)
+        first = {"first": "rough"} if rough else {}
         while n < seq.T:  # growth: the prefix doubles, or takes all steps once settled
             _, split, changed = self._restructure(seq.head(n), labels, state_symbol)
             settled = (len(stages) > 1 + rough and stages[-1][1] == stages[-2][1]
@@ -238,10 +247,11 @@ class EMRefinement(CloneRefinement):
             n = seq.T if settled else min(2 * n, seq.T)
             labels, state_symbol, iters = self._warm_round(seq.head(n), *split, rng, cap=cap)
             stages.append((n, int(state_symbol.size), iters))
-        yield labels, state_symbol, {"stages": list(stages)}
+        yield labels, state_symbol, {"stages": list(stages), **first}
         (labels, state_symbol), rounds = self._rounds_on_all_steps(seq, labels, state_symbol,
                                                                    rng, stages)
-        return CloneFit(labels, state_symbol, {"stages": stages, "rounds_on_all_steps": rounds})
+        return CloneFit(labels, state_symbol, {"stages": stages, "rounds_on_all_steps": rounds,
+                                               **first})
 
     def _stage_cap(self, prefix: SymbolSequence, labels):
         """``(soft.stage_cap, soft.stage_rtol)`` for the growth stages of a hard round whose
@@ -270,14 +280,14 @@ class EMRefinement(CloneRefinement):
         transitions (:func:`~topomap.core.refine.soft.successor_surprise`), else from random counts.
         From the split, the warm-started EM (``accelerate`` applies).  The hard rounds on the
         symbols a soft round corrected have no split labelling: random counts.  ``rough``: on a
-        short prefix (:meth:`_first_settings`)."""
+        short prefix (:func:`~topomap.core.refine.first_stage.first_settings`)."""
         from_split = self.start != "random" and split_labels is not None  # none: corrected
         if from_split:
             labels, state_symbol, _ = compact_labels(split_labels[0][:seq.T], split_labels[1])
             from_split = self.start != "auto" or successor_surprise(seq, labels) < SPLIT_TRUST
         if from_split and self.start in ("split", "auto"):
             return self._warm_round(seq, labels, state_symbol, rng)
-        factor, cap = self._first_settings(rough)
+        factor, cap = first_settings(self, rough)
         budget = BUDGETS[self.budget](split_state_symbol, seq, factor, self.spare)
         if not from_split:
             lay = seq.layout(budget)
@@ -287,13 +297,6 @@ class EMRefinement(CloneRefinement):
         path = spread_states(labels, state_symbol, budget, rng)
         return self._fit_layout(lay, init_from_path(lay, path, seq.T, rng, self.init_noise),
                                 cap=cap)
-
-    def _first_settings(self, rough: bool):
-        """Stage 1's clone factor and Baum-Welch cap (as for :meth:`_fit_layout`): ``first_*``
-        where ``rough`` (on a short prefix), each unless 0, else ``clone_factor`` and none."""
-        factor = self.first_factor if rough and self.first_factor else self.clone_factor
-        cap = (self.first_iter, float(self.first_rtol)) if rough and self.first_iter else None
-        return factor, cap
 
     def _warm_round(self, seq: SymbolSequence, labels, state_symbol, rng, max_iter=None,
                     cap=None):
@@ -368,10 +371,6 @@ STARTS = ("random", "split", "split_budget", "auto")
 #: the next view does not tell apart) loses ARI, 1.0 -> 0.82-0.92; the 8 x 6 and 12 x 12 rooms
 #: (about 0.2) take 1.4 x the E-steps
 SPLIT_TRUST = 0.02
-
-#: stage 1 is rough (``first_*``) on a prefix of at most this share of the steps (only then can two
-#: growth stages follow): FourRooms at 50,000 steps (0.83) lost ARI by it, not the 12x12 room (0.58)
-ROUGH = 2 / 3
 
 #: rounds on all steps at most after a warm start (``init``), and the EM iterations of each: the
 #: labelling it starts from has had its rounds already (the last map's), so a few short EM

@@ -14,6 +14,7 @@ import numpy as np
 from sklearn.base import BaseEstimator
 
 from ..checks import ParameterError
+from .first_stage import check_ambiguity
 from .sequence import SymbolSequence
 from .soft import SoftSettings, check_evidence, soft_round, soft_settings, successor_surprise
 from .soft_states import keep_states, merge_twins, min_steps_of
@@ -77,17 +78,22 @@ class CloneRefinement(BaseEstimator):
     name = ""
 
     def fit(self, seq: SymbolSequence, split_state_symbol=None, random_state: int = 0, *,
-            init=None, split_labels=None) -> Self:
+            init=None, split_labels=None, ambiguity=None) -> Self:
         """Refine ``seq``; ``split_state_symbol`` is the symbol of every split state
         (``map_.state_symbol``, -1 for GDS); ``init``, optional, a labelling ``(labels,
         state_symbol)`` of every step of ``seq`` (each state emitting one symbol id) the first
         hard round starts from instead (a warm start: :class:`EMRefinement` runs its rounds on
         all steps from it; :class:`CSCGRefinement` ignores it); ``split_labels``, optional, the
         split state of every step (``labels_split_``), the first EM stage starts from with
-        :class:`EMRefinement`'s ``start="split"``.  Sets ``labels_``,
+        :class:`EMRefinement`'s ``start="split"``; ``ambiguity``, optional, the share of steps
+        whose symbol phase 1 may have misread (the learner's estimate,
+        :func:`~topomap.core.phase1.ambiguity.symbol_ambiguity`), kept as ``ambiguity_``:
+        :class:`EMRefinement`'s ``first="auto"`` makes its first stage rough below
+        :data:`~topomap.core.refine.first_stage.AMBIGUITY_BAR`.  Sets ``labels_``,
         ``state_symbol_``, ``n_states_`` and ``info_`` (with ``evidence`` other than ``"hard"``
         also ``"soft"`` and ``"soft_rounds"``); returns ``self``."""
         self.check_params()
+        self.ambiguity_ = check_ambiguity(ambiguity)
         if init is not None:
             init = _checked_init(seq, *init)
         split = None if init is not None else self._checked_split(seq, split_labels)
