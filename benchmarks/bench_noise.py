@@ -8,6 +8,7 @@ and EM alone, as sensor noise grows.
     python benchmarks/bench_noise.py --worlds gridroom_8x6 --methods em_soft --accelerate squarem
     python benchmarks/bench_noise.py --worlds gridroom_8x6 --methods em_soft --overrides refine.start=auto
     python benchmarks/bench_noise.py --worlds gridroom_8x6 --levels 2 3 --side-by-side rs=read_share=0.001
+    python benchmarks/bench_noise.py --worlds gridroom_8x6 office --levels 1 2 --seeds 0 --candidates 1e-3 1e-6
 
 Each world is a ``topomap`` command (``WORLDS``); its noise is the Gaussian noise of the
 observations (``noise.sigma``; ``SIGMAS`` per world, chosen so that the symbol error spans about
@@ -34,7 +35,12 @@ ARI against symbol error, one line per method, into
 ``docs/img/noise.png`` (``--figure``).  ``--side-by-side NAME=KEY=VALUE[,KEY=VALUE]...`` instead
 fits ``em_soft`` with its default soft settings and with each variant's, in turn on every
 trajectory (the order rotated by the seed), and prints per variant the ARI, the E-steps (hard and
-soft forward passes) and the CPU seconds of every seed, and its CPU time over the default's.  The machine's load average is printed with the table:
+soft forward passes) and the CPU seconds of every seed, and its CPU time over the default's.
+``--candidates SHARE ...`` fits nothing past the split: it prints, per trajectory and share, how
+many symbols each step would keep as candidates if its evidence were its own observation's
+likelihood under phase 1's Gaussians (the symbols whose ``w_k N(o; mu_k, Sigma_k)`` is at least
+that share of the best one's), and on how many misread steps the true symbol (the one most steps
+of the place got) stays among them.  The machine's load average is printed with the table:
 fit times are wall-clock seconds.
 """
 
@@ -172,6 +178,8 @@ def main():
     ap.add_argument("--figure", default="docs/img/noise.png", help="'' for none")
     ap.add_argument("--side-by-side", nargs="+", default=[], metavar="NAME=KEY=VALUE[,...]",
                     help="em_soft with these soft settings beside the default, fit by fit")
+    ap.add_argument("--candidates", nargs="+", type=float, metavar="SHARE",
+                    help="per-step candidate symbols under phase 1's Gaussians (no refinement)")
     ap.add_argument("--from-table", nargs="+", metavar="FILE",
                     help="draw the figure from tables this script printed (no runs)")
     args = ap.parse_args()
@@ -183,6 +191,8 @@ def main():
         args.worlds, args.levels, args.seeds = QUICK["worlds"], QUICK["levels"], QUICK["seeds"]
     set_soft(args.soft, args.accelerate)
     registry = Registry.load()
+    if args.candidates:
+        return candidate_table(args, registry)
     # compile the kernels outside the timings
     if "em_soft" in args.methods or args.side_by_side:
         run_level("gridroom_8x6", 0.3, 0, ["em_soft"], registry, args.overrides)
@@ -237,6 +247,57 @@ def soft_values(pairs) -> dict:
         soft[key] = {"int": int, "float": float, "bool": lambda v: v.lower() == "true"}[
             kinds[key]](value)
     return soft
+
+
+def candidates(world: str, sigma: float, seed: int, shares, registry) -> list[dict]:
+    """Per share of ``shares``: the mean candidate symbols per step, the share of steps with one,
+    and the share of misread steps whose true symbol stays a candidate (``--candidates``)."""
+    from topomap.core.map.observations import log_density_chunks
+    overrides = [*shlex.split(WORLDS[world]), f"noise.sigma={sigma}", f"seed={seed}",
+                 "data.heldout_steps=0", "output.figures=false", "output.progress=false"]
+    cfg = _as_dict(compose(overrides, registry))
+    parts = registry.build(cfg)
+    (traj, _), _ = load_data(cfg, parts, registry)
+    learner = make_learner(cfg, parts)
+    learner.set_params(refine=None)
+    learner.fit_trajectory(traj)
+    ns, model, sym = learner.n_clusters_, learner.map_phase1_, learner.labels_phase1_
+    keep = sym < ns
+    s, places = sym[keep], traj.places[keep]
+    log_w = np.log(np.bincount(s, minlength=ns) / s.size)
+    X = np.asarray(traj.observations, dtype=np.float64)[keep]
+    joint = np.concatenate([lp for _, lp in log_density_chunks(X, model.means[:ns],
+                                                              model.covariances[:ns])]) + log_w
+    rel = joint - joint.max(axis=1, keepdims=True)
+    place_ids, place_of = np.unique(places, return_inverse=True)
+    top = np.zeros((place_ids.size, ns), dtype=np.int64)
+    np.add.at(top, (place_of, s), 1)
+    true = top.argmax(axis=1)[place_of]
+    misread = true != s
+    rows = []
+    for share in shares:
+        kept = rel >= np.log(share)
+        n = kept.sum(axis=1)
+        rows.append({"share": share, "K": ns, "err": float(misread.mean()),
+                     "candidates": float(n.mean()), "one": float(np.mean(n == 1)),
+                     "true_kept": float(kept[np.arange(true.size), true][misread].mean())
+                     if misread.any() else float("nan")})
+    return rows
+
+
+def candidate_table(args, registry) -> None:
+    """``--candidates``: one row per world, level, seed and share (:func:`candidates`)."""
+    print("| world | sigma | seed | misreads | share kept | candidate symbols per step (of K) | "
+          "steps with one candidate | misread steps whose true symbol stays a candidate |")
+    print("|---|---|---|---|---|---|---|---|")
+    for world in args.worlds:
+        for level in (args.levels if args.levels is not None else range(len(SIGMAS[world]))):
+            for seed in args.seeds:
+                for r in candidates(world, SIGMAS[world][level], seed, args.candidates,
+                                    registry):
+                    print(f"| {world} | {SIGMAS[world][level]} | {seed} | {r['err']:.1%} | "
+                          f"{r['share']:g} | {r['candidates']:.2f} of {r['K']} | {r['one']:.0%} "
+                          f"| {r['true_kept']:.1%} |", flush=True)
 
 
 def side_by_side(args, registry) -> None:
