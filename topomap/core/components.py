@@ -9,12 +9,15 @@ import inspect
 import warnings
 from contextlib import contextmanager
 
+import numpy as np
 from sklearn.base import clone
 
 from .checks import ParameterError, check_count
+from .map.observations import log_density_chunks
 from .phase1.ambiguity import symbol_ambiguity
 from .phase1.clustering import FixedClusters, make_metric
 from .refine.methods import REFINEMENTS, CloneFit
+from .refine.soft import soft_settings
 from .size import AutoStates
 from .split.criteria import CRITERIA
 from .split.stopping import TargetStates
@@ -134,7 +137,7 @@ def make_refinement(refine):
 
 
 def fit_refinement(refinement, seq, split_state_symbol, random_state: int,
-                   init=None, split_labels=None, ambiguity=None) -> CloneFit:
+                   init=None, split_labels=None, ambiguity=None, observed=None) -> CloneFit:
     """Fit ``refinement`` and return what it learned as a :class:`CloneFit`.
 
     A refinement's ``fit`` returns the refinement, its ``labels_``, ``state_symbol_`` and
@@ -142,10 +145,11 @@ def fit_refinement(refinement, seq, split_state_symbol, random_state: int,
     contract before 0.3) is still accepted, with a ``FutureWarning``, until 0.4.  ``init`` (a
     labelling to start from, :meth:`~topomap.core.refine.rounds.CloneRefinement.fit`) is given
     only when not None, so a refinement whose ``fit`` does not take it still works without;
-    ``split_labels`` (the split state of every step) and ``ambiguity`` (:func:`symbol_hint`)
-    only to a refinement whose ``fit`` takes them."""
+    ``split_labels`` (the split state of every step), ``ambiguity`` (:func:`symbol_hint`) and
+    ``observed`` (:func:`observation_hint`) only to a refinement whose ``fit`` takes them."""
     extra = {} if init is None else {"init": init}
-    for name, value in (("split_labels", split_labels), ("ambiguity", ambiguity)):
+    for name, value in (("split_labels", split_labels), ("ambiguity", ambiguity),
+                        ("observed", observed)):
         if value is not None and name in inspect.signature(refinement.fit).parameters:
             extra[name] = value
     out = refinement.fit(seq, split_state_symbol, random_state, **extra)
@@ -170,6 +174,34 @@ def symbol_hint(learner, data, refinement):
     learner.symbol_ambiguity_ = symbol_ambiguity(data.X, learner.labels_phase1_, m.means[:ns],
                                                  m.covariances[:ns], learner.random_state)
     return learner.symbol_ambiguity_
+
+
+def observation_hint(learner, data, refinement, steps=None):
+    """The ``observed`` a refinement's ``fit`` is given: None unless its soft rounds take each
+    step's evidence from its observation (``soft.observed`` > 0) and its ``fit`` takes
+    ``observed``; else a function returning the (steps, n_symbols) log-densities of the first
+    ``steps`` observations (None: all) under the phase-1 map's models of the symbols, computed
+    only when it is called (when a soft round runs)."""
+    soft = getattr(refinement, "soft", None)
+    if soft is None or "observed" not in inspect.signature(refinement.fit).parameters or \
+            soft_settings(soft).observed == 0:
+        return None
+    ns, m = learner.n_clusters_, learner.map_phase1_
+    X = data.X if steps is None else data.X[:steps]
+
+    def loglik():
+        chunks = log_density_chunks(np.asarray(X, dtype=np.float64), m.means[:ns],
+                                    m.covariances[:ns])
+        return np.concatenate([logp for _, logp in chunks])
+    return loglik
+
+
+def refinement_hints(learner, data, refinement, steps=None) -> dict:
+    """What a refinement's ``fit`` is given beside the symbols (:func:`fit_refinement`):
+    ``ambiguity`` (:func:`symbol_hint`) and ``observed`` (:func:`observation_hint`, of the first
+    ``steps`` steps)."""
+    return {"ambiguity": symbol_hint(learner, data, refinement),
+            "observed": observation_hint(learner, data, refinement, steps)}
 
 
 def refinement_label(refinement) -> str:

@@ -13,7 +13,7 @@ from sklearn.base import BaseEstimator
 
 from .checks import check_count
 from .components import (DEPRECATED, fit_refinement, make_components, make_refinement, naming,
-                         refinement_label, symbol_hint, warn_renamed, within_told_size)
+                         refinement_hints, refinement_label, warn_renamed, within_told_size)
 from .refining import bic_scores, heldout_scores, refined_from, resized, symbol_map
 from .online import OnlineState, Window
 from .online_pass import PassStart, start_map, warm_start, warm_starts, wider_pass
@@ -292,7 +292,7 @@ class MapLearner(MapMethods, BaseEstimator):
             self.labels_split_, self.map_split_ = start_map(self, data, init)
         with naming(self, "refine"):
             fit = fit_refinement(runner, seq, self._split_symbol(splitter), self.random_state,
-                                 init, self.labels_split_, symbol_hint(self, data, runner))
+                                 init, self.labels_split_, **refinement_hints(self, data, runner))
         if runner is not refinement:  # the last map's refinement found no misread symbols
             fit.info.update(soft="skipped", soft_from="the last map")
         if told is not None and self.refined_size == "told" and fit.n_states != told:
@@ -338,7 +338,7 @@ class MapLearner(MapMethods, BaseEstimator):
         with naming(self, "refine"):
             fit = fit_refinement(refinement, seq, self._split_symbol(splitter), self.random_state,
                                  split_labels=self.labels_split_[:cut],
-                                 ambiguity=symbol_hint(self, data, refinement))
+                                 **refinement_hints(self, data, refinement, cut))
         scores = heldout_scores(data, seq, fit, held, splitter.criterion, self.n_clusters_,
                                 covariance_type=self.covariance_type, reg_covar=self.reg_covar)
         chosen = max(sorted(scores), key=lambda n: scores[n])

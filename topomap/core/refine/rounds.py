@@ -15,6 +15,7 @@ from sklearn.base import BaseEstimator
 
 from ..checks import ParameterError
 from .first_stage import check_ambiguity
+from .observed import observed_evidence, observed_round
 from .sequence import SymbolSequence
 from .soft import SoftSettings, check_evidence, soft_round, soft_settings, successor_surprise
 from .soft_states import keep_states, merge_twins, min_steps_of
@@ -78,7 +79,7 @@ class CloneRefinement(BaseEstimator):
     name = ""
 
     def fit(self, seq: SymbolSequence, split_state_symbol=None, random_state: int = 0, *,
-            init=None, split_labels=None, ambiguity=None) -> Self:
+            init=None, split_labels=None, ambiguity=None, observed=None) -> Self:
         """Refine ``seq``; ``split_state_symbol`` is the symbol of every split state
         (``map_.state_symbol``, -1 for GDS); ``init``, optional, a labelling ``(labels,
         state_symbol)`` of every step of ``seq`` (each state emitting one symbol id) the first
@@ -89,7 +90,11 @@ class CloneRefinement(BaseEstimator):
         whose symbol phase 1 may have misread (the learner's estimate,
         :func:`~topomap.core.phase1.ambiguity.symbol_ambiguity`), kept as ``ambiguity_``:
         :class:`EMRefinement`'s ``first="auto"`` makes its first stage rough below
-        :data:`~topomap.core.refine.first_stage.AMBIGUITY_BAR`.  Sets ``labels_``,
+        :data:`~topomap.core.refine.first_stage.AMBIGUITY_BAR`; ``observed``, optional, the (T,
+        n_symbols) log-density of every step's observation under each symbol's model (or a
+        function returning it, called only if a soft round runs), which the soft rounds take
+        as evidence with ``soft.observed`` > 0 (:mod:`~topomap.core.refine.observed`; needed
+        then).  Sets ``labels_``,
         ``state_symbol_``, ``n_states_`` and ``info_`` (with ``evidence`` other than ``"hard"``
         also ``"soft"`` and ``"soft_rounds"``); returns ``self``."""
         self.check_params()
@@ -102,10 +107,10 @@ class CloneRefinement(BaseEstimator):
         else:
             hard = self._first_hard_round(seq, split_state_symbol, random_state, init, split)
             n_reference = None if split_state_symbol is None else len(split_state_symbol)
-            fit = self._soft_rounds(seq, hard, n_reference, random_state)
+            fit = self._soft_rounds(seq, hard, n_reference, random_state, observed)
             if fit.info["soft"] == "skipped" and hard.resume is not None:
                 # a hard round cut short, and nothing to correct: finish it, start again from it
-                fit = self._soft_rounds(seq, hard.resume(), n_reference, random_state)
+                fit = self._soft_rounds(seq, hard.resume(), n_reference, random_state, observed)
         self.labels_, self.state_symbol_, self.info_ = fit.labels, fit.state_symbol, fit.info
         self.n_states_ = fit.n_states
         return self
@@ -145,7 +150,8 @@ class CloneRefinement(BaseEstimator):
         short where its labelling still shows misreads, setting the fit's ``resume``)."""
         return self._hard_round(seq, split_state_symbol, random_state, init, split_labels)
 
-    def _soft_rounds(self, seq: SymbolSequence, hard_fit: CloneFit, n_reference, random_state):
+    def _soft_rounds(self, seq: SymbolSequence, hard_fit: CloneFit, n_reference, random_state,
+                     observed=None):
         """Hard and soft rounds in turn, from the hard round ``hard_fit`` on ``seq``:
 
         1. ``soft.rounds`` times: twin states merged, small states dropped, a soft round (over
@@ -165,22 +171,23 @@ class CloneRefinement(BaseEstimator):
         misread (:func:`~topomap.core.refine.soft.misread_share`) and corrects fewer.  Where
         misreads are many, the soft rounds stop by ``soft.rtol`` (:func:`_round_settings`).
         ``n_reference`` is the state count a fractional ``soft.min_steps`` refers to (the
-        split's; default: the hard round's)."""
+        split's; default: the hard round's); ``observed`` :meth:`fit`'s."""
         surprise = successor_surprise(seq, hard_fit.labels)
         s = _round_settings(soft_settings(self.soft), self.evidence, surprise)
         if surprise < s.detect:
             return _skipped(hard_fit, surprise, [])
         rng = np.random.default_rng(random_state)
+        ev = observed_evidence(seq, s.observed, observed)
         labels, state_symbol = hard_fit.labels, hard_fit.state_symbol
         n_ref = state_symbol.size if n_reference is None else int(n_reference)
         conf, rounds, read, explained = None, [], seq.sym, False
         for r in range(s.rounds):
             last = explained and _settled_map(seq, labels, state_symbol, conf, s, rng, n_ref,
-                                              read)
+                                              read, ev)
             if last:  # the last hard round explained its symbols, and they are re-read
                 return _soft_fit(hard_fit, surprise, [*rounds, last.info], last)
             soft, labels, state_symbol = _spare_soft_round(seq, labels, state_symbol, conf, s,
-                                                           rng, n_ref, r == 0)
+                                                           rng, n_ref, r == 0, ev)
             conf = soft.conf
             rounds.append(soft.info)
             if r == 0 and ("stopped" in soft.info
@@ -199,7 +206,7 @@ class CloneRefinement(BaseEstimator):
                               **({"hard_cut": True} if hard.resume is not None else {}))
             if settled:
                 break
-        soft = _last_soft_round(seq, labels, state_symbol, conf, s, rng, n_ref)
+        soft = _last_soft_round(seq, labels, state_symbol, conf, s, rng, n_ref, ev)
         rounds.append(soft.info)
         return _soft_fit(hard_fit, surprise, rounds, soft)
 
@@ -278,17 +285,17 @@ def _soft_fit(hard_fit: CloneFit, surprise: float, rounds, soft) -> CloneFit:
                     {**hard_fit.info, "soft": "on", "surprise": surprise, "soft_rounds": rounds})
 
 
-def _settled_map(seq, labels, state_symbol, conf, s, rng, n_ref, read):
+def _settled_map(seq, labels, state_symbol, conf, s, rng, n_ref, read, ev=None):
     """The last soft round (:func:`_last_soft_round`) if it re-reads all but fewer than
     ``SETTLE_REREAD`` x ``soft.detect`` of the steps as ``read``, the symbols the last hard round
     learned on (``reread`` in its record): it is the map; None otherwise (the cycles go on as if
     it had not run: it draws nothing from ``rng``)."""
-    last = _last_soft_round(seq, labels, state_symbol, conf, s, rng, n_ref)
+    last = _last_soft_round(seq, labels, state_symbol, conf, s, rng, n_ref, ev)
     last.info["reread"] = reread_share(last.sym, read)
     return last if last.info["reread"] < SETTLE_REREAD * s.detect else None
 
 
-def _spare_soft_round(seq, labels, state_symbol, conf, s, rng, n_ref, first: bool):
+def _spare_soft_round(seq, labels, state_symbol, conf, s, rng, n_ref, first: bool, ev=None):
     """A soft round of the cycles: twins merged, small states dropped (``soft.prune_every``),
     ``soft.spare`` clones per symbol; the ``first`` stops early on exact readings.  Returns the
     round (its info starting with ``states_in`` and ``twins_merged``) and the labelling with
@@ -296,17 +303,25 @@ def _spare_soft_round(seq, labels, state_symbol, conf, s, rng, n_ref, first: boo
     labels, state_symbol, n_merged = merge_twins(seq, labels, state_symbol, s.twin_merge)
     keep = keep_states(seq, labels, state_symbol,
                        min_steps_of(s, seq.T, n_ref) if s.prune_every else 0, s.twin)
-    soft = soft_round(seq, labels, state_symbol, conf, spare=s.spare, settings=s, rng=rng,
+    soft = _round(ev)(seq, labels, state_symbol, conf, spare=s.spare, settings=s, rng=rng,
                       keep=keep, exact_below=s.detect if first else None)
     soft.info = {"states_in": int(state_symbol.size), "twins_merged": n_merged, **soft.info}
     return soft, labels, state_symbol
 
 
-def _last_soft_round(seq, labels, state_symbol, conf, s, rng, n_ref):
+def _last_soft_round(seq, labels, state_symbol, conf, s, rng, n_ref, ev=None):
     """The map: twins merged, states under ``soft.min_steps`` dropped, a soft round without spare
     clones; its info holds ``states_in``, the states kept."""
     labels, state_symbol, _ = merge_twins(seq, labels, state_symbol, s.twin_merge)
     keep = keep_states(seq, labels, state_symbol, min_steps_of(s, seq.T, n_ref), s.twin)
-    soft = soft_round(seq, labels, state_symbol, conf, spare=0, settings=s, rng=rng, keep=keep)
+    soft = _round(ev)(seq, labels, state_symbol, conf, spare=0, settings=s, rng=rng, keep=keep)
     soft.info = {"states_in": int(keep.sum()), **soft.info}
     return soft
+
+
+def _round(ev):
+    """The soft round: with the confusion matrix (``ev`` None) or with the per-step evidence
+    ``ev`` (:func:`~topomap.core.refine.observed.observed_round`)."""
+    if ev is None:
+        return soft_round
+    return lambda *args, **kw: observed_round(*args, evidence=ev, **kw)

@@ -9,11 +9,13 @@ favours the diagonal; GDS ids are never confused), so a step may be explained by
 another symbol, which corrects the reading.
 
 This module holds the soft round (:func:`soft_round`: Baum-Welch with soft evidence, then
-Viterbi) and its pieces: the settings (:class:`SoftSettings`), the confusion matrix, the misread
-rate; merging twin states (:func:`merge_twins`) and choosing the states a round keeps
-(:func:`keep_states`) are :mod:`topomap.core.refine.soft_states`.  Soft EM cannot create
-structure and a hard refinement on misread symbols creates too much, so the two alternate; :mod:`topomap.core.refine.methods` sequences the hard and
-soft rounds.  Kernels: :mod:`topomap.core.refine.soft_kernels`.
+Viterbi) and its settings (:class:`SoftSettings`); the confusion matrix and the misread share are
+:mod:`topomap.core.refine.confusion`, evidence from each step's own observation in place of it
+:mod:`topomap.core.refine.observed`; merging twin states (:func:`merge_twins`) and choosing the
+states a round keeps (:func:`keep_states`) are :mod:`topomap.core.refine.soft_states`.  Soft EM
+cannot create structure and a hard refinement on misread symbols creates too much, so the two
+alternate; :mod:`topomap.core.refine.rounds` sequences the hard and soft rounds.  Kernels:
+:mod:`topomap.core.refine.soft_kernels`.
 """
 
 from __future__ import annotations
@@ -34,6 +36,8 @@ from .soft_kernels import (SoftData, SoftModel, SoftStats, soft_backward, soft_c
                            read_tables)
 from .soft_states import (keep_states, merge_twins, min_steps_of, successor_surprise,
                           twin_overlap)
+from .confusion import (co_successors, confusion_mstep, initial_confusion, misread_rate,
+                        misread_share)
 
 __all__ = ["SoftSettings", "soft_settings", "SoftFit", "EVIDENCE", "check_evidence", "soft_round",
            "misread_rate", "misread_share", "successor_surprise", "merge_twins", "keep_states",
@@ -83,7 +87,10 @@ class SoftSettings:
     decodes its model that often and stops once under ``label_tol`` of the steps moved.
     ``read_share`` (3e-4; 0: off): where candidates are dense (:data:`READ_DENSE`), a step's
     candidates of a symbol whose share of its evidence, given the forward message, is below it
-    stay 0 (:func:`~.soft_kernels.soft_forward_read`).
+    stay 0 (:func:`~.soft_kernels.soft_forward_read`).  ``observed`` (0: off): the soft rounds
+    take each step's evidence from its own observation instead of the confusion matrix -- the
+    likelihood of every symbol under phase 1's Gaussians, tempered by ``observed``
+    (:mod:`~topomap.core.refine.observed`).
     """
 
     rounds: int = 3
@@ -113,6 +120,7 @@ class SoftSettings:
     label_every: int = 0
     label_tol: float = 1e-3
     read_share: float = 3e-4
+    observed: float = 0.0
 
 
 #: the real-valued soft settings and what each must be
@@ -127,6 +135,7 @@ _RANGES = {
     "prune_loose": (lambda v: 0 <= v < 1, "in [0, 1)"), "loose_below": (lambda v: v >= 0, ">= 0"),
     "label_tol": (lambda v: 0 <= v <= 1, "in [0, 1]"),
     "read_share": (lambda v: 0 <= v < 1, "in [0, 1)"),
+    "observed": (lambda v: v >= 0 and v != float("inf"), ">= 0 and finite"),
 }
 
 
@@ -168,52 +177,6 @@ class SoftFit:
     conf: np.ndarray
     sym: np.ndarray
     info: dict
-
-
-def initial_confusion(n_ids: int, n_symbols: int, error: float, allowed=None) -> np.ndarray:
-    """``1 - error`` on the diagonal, ``error`` spread evenly over the other K-means symbols;
-    identity on GDS ids.  With ``allowed`` (n_symbols, n_symbols) bool, only the allowed pairs
-    get their share ``error / (n_symbols - 1)`` and the diagonal the rest of the row: symbols
-    never confused with another start without its clones as candidates."""
-    C = np.eye(n_ids)
-    if n_symbols > 1:
-        k = np.arange(n_symbols)
-        off = np.full((n_symbols, n_symbols), error / (n_symbols - 1))
-        off[k, k] = 0.0
-        if allowed is not None:
-            off = np.where(allowed, off, 0.0)
-        C[:n_symbols, :n_symbols] = off
-        C[k, k] = 1.0 - error if allowed is None else 1.0 - off.sum(axis=1)
-    return C
-
-
-def co_successors(seq, labels) -> np.ndarray:
-    """(n_symbols, n_symbols) bool: the pairs of K-means symbols that follow one (state, action)
-    of the labelling (each, at some step): the readings a misread can swap.  Where every
-    (state, action) is followed by one symbol, no pair is."""
-    t = np.flatnonzero(seq.masks()[1])
-    key = labels[t] * seq.n_actions + seq.u[t]
-    nxt = seq.sym[t + 1]
-    plain = nxt < seq.n_symbols
-    pairs = np.unique(key[plain] * seq.n_symbols + nxt[plain])
-    key, nxt = pairs // seq.n_symbols, pairs % seq.n_symbols
-    first = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
-    size = np.diff(np.r_[first, key.size])
-    allowed = np.zeros((seq.n_symbols, seq.n_symbols), dtype=bool)
-    for f, n in zip(first[size > 1].tolist(), size[size > 1].tolist()):
-        group = nxt[f:f + n]
-        allowed[np.ix_(group, group)] = True
-    return allowed
-
-
-def _confusion_mstep(N: np.ndarray, n_symbols: int, s: SoftSettings) -> np.ndarray:
-    """Confusion matrix from the expected (true symbol x read symbol) counts ``N``, with the
-    diagonal-favouring Dirichlet prior; GDS rows/columns stay the identity."""
-    C = np.eye(N.shape[0])
-    k = n_symbols
-    M = N[:k, :k] + s.conf_off + np.eye(k) * (s.conf_diag - s.conf_off)
-    C[:k, :k] = M / M.sum(axis=1, keepdims=True)
-    return C
 
 
 def _episode_data(seq) -> SoftData:
@@ -386,7 +349,7 @@ def _soft_mstep(stats, conf, clone_symbol, ns, s, pseudo, learn_conf):
     N = np.zeros((conf.shape[0], conf.shape[0]))
     np.add.at(N, clone_symbol, stats.emit)
     if learn_conf:
-        conf = _confusion_mstep(N, ns, s)
+        conf = confusion_mstep(N, ns, s)
     emit = _clone_emission(conf, clone_symbol, stats.emit, s.clone_prior)
     emit[clone_symbol >= ns] = conf[clone_symbol[clone_symbol >= ns]]  # GDS: never confused
     return trans, emit, conf, N
@@ -418,22 +381,6 @@ def _soft_squarem(data, last, conf, clone_symbol, s, learn_conf, monitor, seq):
     c, _, _, _ = squarem(em_step, counts, max_iter=s.max_iter - monitor.iter, tol=s.tol * seq.T,
                          rtol=s.rtol, min_iter=max(0, 2 - monitor.iter))
     return mstep(c)
-
-
-def misread_rate(conf, n_symbols: int) -> float:
-    """The share of steps read as another symbol: the mean off-diagonal mass of the K-means rows
-    of the confusion matrix ``conf`` (``conf_offdiag`` in a soft round's record of map.json)."""
-    return float(1.0 - np.mean(np.diag(conf)[:n_symbols]))
-
-
-def misread_share(N, n_symbols: int) -> float:
-    """The share of the K-means steps EM explains as misread: the off-diagonal part of the
-    expected (true symbol x read symbol) counts ``N`` of its last E-step.  Unlike
-    :func:`misread_rate` it holds no prior (whose ``conf_off`` pseudo-counts outweigh a symbol
-    seen a few dozen times: FourRooms' 450 symbols at 10,000 steps read 40 % from it alone)."""
-    k = n_symbols
-    total = float(N[:k, :k].sum())
-    return 0.0 if total == 0 else float(1.0 - np.trace(N[:k, :k]) / total)
 
 
 EVIDENCE = ("auto", "soft", "hard")

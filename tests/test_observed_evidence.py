@@ -1,0 +1,124 @@
+"""Soft evidence from each step's own observation (topomap.core.refine.observed,
+``refine.soft.observed``): the evidence on hand-made log-densities, the refinement on the
+misread ring walk with evidence that holds the true symbol or leaves it out, and the learner
+handing phase 1's log-densities on."""
+
+import numpy as np
+import pytest
+
+from topomap import MapLearner
+from topomap.core.checks import ParameterError
+from topomap.core.refine import observed
+from topomap.core.refine.methods import EMRefinement
+from topomap.core.refine.observed import SHARE, observed_evidence, step_evidence
+from topomap.core.refine.sequence import SymbolSequence
+from topomap.core.refine.structure import same_partition
+
+from test_soft_refine import RING, _ring_walk, _seq
+
+
+def test_step_evidence_is_the_tempered_likelihood_relative_to_the_best_symbol():
+    loglik = np.array([[0.0, -1.0], [-2.0, 0.0], [5.0, -100.0], [0.0, 0.0]])
+    sym = np.array([0, 1, 0, 2])  # the last step reads GDS id 2: its row is ignored
+    ev = step_evidence(loglik, sym, 2, 3, 2.0)
+    np.testing.assert_allclose(ev[0], [1.0, np.exp(-0.5), 0.0])
+    np.testing.assert_allclose(ev[1], [np.exp(-1.0), 1.0, 0.0])
+    # symbol 1 at step 2: (-105) / 2 = -52.5, far below log(SHARE): not a candidate
+    assert -105 / 2 < np.log(SHARE)
+    np.testing.assert_allclose(ev[2], [1.0, 0.0, 0.0])
+    np.testing.assert_array_equal(ev[3], [0.0, 0.0, 1.0])  # a GDS step keeps its id
+    # a higher temperature flattens the evidence
+    assert step_evidence(loglik, sym, 2, 3, 4.0)[0, 1] == pytest.approx(np.exp(-0.25))
+
+
+def _ring_loglik(sym, place, true_gap):
+    """Log-densities of the ring walk's steps: 0 for the symbol read, ``-true_gap`` for the
+    place's true symbol where it was misread, -30 for every other symbol."""
+    loglik = np.full((sym.size, 3), -30.0)
+    loglik[np.arange(sym.size), RING[place]] = -true_gap
+    loglik[np.arange(sym.size), sym] = 0.0
+    return loglik
+
+
+def test_evidence_that_holds_the_true_symbol_recovers_the_ring():
+    """Every misread step's evidence gives its place's true symbol 0.6 of the read one's weight
+    (tau 1): the soft rounds put every step, misread ones too, in its place's state."""
+    sym, u, lengths, place, wrong = _ring_walk()
+    seq = _seq(sym, u, lengths)
+    loglik = _ring_loglik(sym, place, -np.log(0.6))
+    fit = EMRefinement(evidence="soft", soft={"observed": 1.0}).fit(seq, RING, 0,
+                                                                     observed=loglik)
+    assert fit.n_states_ == RING.size and same_partition(fit.labels_, place)
+    np.testing.assert_array_equal(fit.state_symbol_[fit.labels_[wrong]], RING[place[wrong]])
+    assert all(r["evidence"] == "observed" for r in fit.info_["soft_rounds"])
+
+
+def test_evidence_without_the_true_symbol_cannot_correct_a_misread():
+    """The same walk, but each misread step's evidence leaves its true symbol out (its
+    likelihood 30 nats below the read one's, under SHARE): no clone of the true symbol may
+    explain it, so every misread step stays in a state of the symbol read."""
+    sym, u, lengths, place, wrong = _ring_walk()
+    seq = _seq(sym, u, lengths)
+    fit = EMRefinement(evidence="soft", soft={"observed": 1.0}).fit(
+        seq, RING, 0, observed=_ring_loglik(sym, place, 30.0))
+    np.testing.assert_array_equal(fit.state_symbol_[fit.labels_[wrong]], sym[wrong])
+
+
+def test_the_evidence_is_asked_for_only_when_a_soft_round_runs():
+    """The log-densities come as a function; the exact ring walk runs no soft round, so it is
+    never called, and the fit is the one without it."""
+    sym, u, lengths, _, _ = _ring_walk(misread=0.0)
+    seq = _seq(sym, u, lengths)
+    calls = []
+
+    def loglik():
+        calls.append(1)
+        return np.zeros((seq.T, 3))
+    fit = EMRefinement(soft={"observed": 6.0}).fit(seq, RING, 0, observed=loglik)
+    plain = EMRefinement().fit(seq, RING, 0)
+    assert calls == [] and fit.info_["soft"] == "skipped"
+    np.testing.assert_array_equal(fit.labels_, plain.labels_)
+
+
+def test_observed_off_ignores_the_log_densities():
+    sym, u, lengths, place, _ = _ring_walk()
+    seq = _seq(sym, u, lengths)
+    with_ll = EMRefinement().fit(seq, RING, 0, observed=_ring_loglik(sym, place, 30.0))
+    without = EMRefinement().fit(seq, RING, 0)
+    np.testing.assert_array_equal(with_ll.labels_, without.labels_)
+    assert with_ll.info_ == without.info_
+
+
+def test_bad_observed_input_is_refused_with_its_name():
+    seq = SymbolSequence.build([0, 1, 0, 1], [0, 0, 0, 0], [4], 1, 2)
+    with pytest.raises(ParameterError, match="soft.observed"):
+        observed_evidence(seq, 6.0, None)
+    with pytest.raises(ValueError, match=r"observed: must be \(4, 2\)"):
+        observed_evidence(seq, 6.0, np.zeros((4, 3)))
+    with pytest.raises(ValueError, match="observed: the log-densities must be finite"):
+        observed_evidence(seq, 6.0, np.full((4, 2), np.nan))
+    assert observed_evidence(seq, 0.0, None) is None
+    with pytest.raises(ParameterError, match="soft.observed"):
+        EMRefinement(soft={"observed": -1.0}).check_params()
+
+
+def test_a_round_past_the_memory_bound_is_refused(monkeypatch):
+    sym, u, lengths, place, _ = _ring_walk()
+    seq = _seq(sym, u, lengths)
+    monkeypatch.setattr(observed, "MAX_BYTES", 1000)
+    with pytest.raises(ParameterError, match="soft.observed.*GB"):
+        EMRefinement(evidence="soft", soft={"observed": 1.0}).fit(
+            seq, RING, 0, observed=_ring_loglik(sym, place, 1.0))
+
+
+def test_the_learner_hands_phase_1_log_densities_to_the_soft_rounds():
+    """A ring of 10 places with 3 aliased views in 2-D, read with noise that carries some views
+    across their cluster's boundary: the learner's soft rounds take the per-step evidence."""
+    sym, u, _, place, _ = _ring_walk(T=3000, misread=0.0, episodes=1)
+    centres = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
+    X = centres[sym] + np.random.default_rng(1).normal(0.0, 0.3, (sym.size, 2))
+    learner = MapLearner(n_clusters=3, n_states=10, refine=EMRefinement(
+        evidence="soft", soft={"observed": 6.0}), random_state=0).fit(X, u)
+    records = learner.refine_info_["soft_rounds"]
+    assert records and all(r["evidence"] == "observed" for r in records)
+    assert learner.labels_.shape == place.shape

@@ -1,0 +1,143 @@
+"""Soft evidence from each step's own observation (``refine.soft.observed``).
+
+The soft rounds of :mod:`topomap.core.refine.soft` weigh a clone of symbol ``k`` at a step read as
+``r`` by the confusion matrix, ``C[k, r]``: the same for every step read as ``r``.  But phase 1
+models every symbol by a Gaussian, so each step's observation ``o_t`` says by itself how likely
+each symbol is to have made it: an observation deep inside its cluster is read surely, one near
+the boundary of two clusters could be either.  With ``soft.observed = tau > 0`` a soft round takes
+that as the evidence of the step,
+
+    e_t(k) = (p(o_t | k) / max_j p(o_t | j)) ** (1 / tau),
+
+the symbols' likelihood relative to the best one, tempered by ``tau`` and kept as candidates where
+at least :data:`SHARE`; a GDS step keeps its GDS id.  The transitions are learned as in a
+confusion-matrix round; the evidence stays fixed.  ``tau`` > 1 flattens the evidence, so the
+map's transitions weigh more against a reading: phase 1's Gaussians, fitted to K-means clusters,
+are narrower than the noise that carries a view across a cluster's boundary
+(docs/refinement.md has ``tau`` measured).
+
+The kernels are :mod:`topomap.core.refine.soft_kernels`', each step its own "read symbol": the
+evidence of a round is a dense (clones, steps) table, at most :data:`MAX_BYTES`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..checks import ParameterError
+from .clones import compact_labels
+from .convergence import ConvergenceMonitor
+from .soft import (SoftFit, SoftSettings, _episode_data, _normalise_trans, _soft_estep,
+                   _warm_counts)
+from .soft_kernels import SoftData, SoftModel, soft_candidates, soft_offsets, soft_viterbi
+
+__all__ = ["SHARE", "MAX_BYTES", "step_evidence", "observed_evidence", "observed_round"]
+
+#: a symbol whose tempered evidence at a step is below this share of the best one's is not a
+#: candidate there (gridroom 8x6 at 9.8 % misreads: 3.1 of its 4 symbols per step at tau = 1,
+#: the true symbol of 99.5 % of the misread steps among them; ``bench_noise_floor.py``)
+SHARE = 1e-6
+
+#: the most memory a round's (clones x steps) evidence table may take
+MAX_BYTES = 2 * 1024 ** 3
+
+
+def step_evidence(loglik, sym, n_symbols: int, n_ids: int, temperature: float) -> np.ndarray:
+    """The (T, n_ids) evidence of every step (module docstring): ``loglik`` (T, n_symbols) the
+    log-density of each step's observation under each K-means symbol's model, ``sym`` (T,) the
+    symbols read (ids from ``n_symbols`` on are GDS ids: one-hot rows)."""
+    sym = np.asarray(sym)
+    ev = np.zeros((sym.size, n_ids))
+    plain = np.flatnonzero(sym < n_symbols)
+    rel = (loglik[plain] - loglik[plain].max(axis=1, keepdims=True)) / temperature
+    ev[plain, :n_symbols] = np.where(rel >= np.log(SHARE), np.exp(rel), 0.0)
+    gds = np.flatnonzero(sym >= n_symbols)
+    ev[gds, sym[gds]] = 1.0
+    return ev
+
+
+def observed_evidence(seq, temperature: float, observed):
+    """The evidence the soft rounds on ``seq`` take (:func:`step_evidence`), or None with
+    ``temperature`` 0 (the confusion matrix).  ``observed``: the (T, n_symbols) log-densities
+    of :meth:`~topomap.core.refine.rounds.CloneRefinement.fit`, or a function returning them
+    (called here, so only when a soft round runs)."""
+    if temperature == 0:
+        return None
+    if observed is None:
+        raise ParameterError("soft.observed", "needs each step's log-density under every "
+                                              "symbol's model: fit(..., observed=...) "
+                                              "(MapLearner passes it)")
+    loglik = np.asarray(observed() if callable(observed) else observed, dtype=np.float64)
+    if loglik.shape != (seq.T, seq.n_symbols):
+        raise ValueError(f"observed: must be ({seq.T}, {seq.n_symbols}) log-densities, one row "
+                         f"per step and a column per symbol, got shape {loglik.shape}")
+    if np.isnan(loglik).any() or np.isposinf(loglik).any():
+        raise ValueError("observed: the log-densities must be finite or -inf")
+    return step_evidence(loglik, seq.sym, seq.n_symbols, seq.n_ids, temperature)
+
+
+def observed_round(seq, labels, state_symbol, conf=None, *, evidence, spare: int = 0,
+                   settings: SoftSettings = SoftSettings(), rng=None, keep=None,
+                   exact_below: float | None = None) -> SoftFit:
+    """A soft round (:func:`~topomap.core.refine.soft.soft_round`, the same arguments and
+    result) with the per-step ``evidence`` (:func:`observed_evidence`) in place of the confusion
+    matrix, which is handed on unchanged (``conf``, the identity where None).  Its record says
+    ``"evidence": "observed"``; ``misread`` and ``conf_offdiag`` are the share of the K-means
+    steps EM explains by a clone of another symbol."""
+    s, ns, base = settings, seq.n_symbols, _episode_data(seq)
+    rng = np.random.default_rng(0) if rng is None else rng
+    state_symbol = np.asarray(state_symbol, dtype=np.int64)
+    keep = np.ones(state_symbol.size, bool) if keep is None else np.asarray(keep, bool)
+    counts, clone_symbol = _warm_counts(base, labels, state_symbol, keep, ns, seq.n_actions,
+                                        spare, rng)
+    S, T = clone_symbol.size, seq.T
+    if S * T * 8 > MAX_BYTES:
+        raise ParameterError("soft.observed", f"a round's evidence for {S} clones x {T} steps "
+                                              f"takes {S * T * 8 / 1024 ** 3:.1f} GB, over "
+                                              f"{MAX_BYTES / 1024 ** 3:.0f} GB: set it to 0 "
+                                              "(the confusion matrix) on logs this long")
+    data = SoftData(np.arange(T, dtype=np.int64), base.u, base.has_next)  # each step its own read
+    emit = np.ascontiguousarray(evidence[:, clone_symbol].T)
+    cptr, cidx = soft_candidates(emit)
+    trans, misread, monitor = _observed_em(seq, data, counts, emit, (cptr, cidx), clone_symbol,
+                                           s, exact_below)
+    conf = np.eye(seq.n_ids) if conf is None else conf
+    info = {"evidence": "observed", "em_iterations": monitor.iter,
+            "em_loglik": monitor.history[-1], "clones": int(S), "misread": misread}
+    if exact_below is not None and misread < exact_below and monitor.iter <= s.detect_iter:
+        return SoftFit(labels, state_symbol, conf, seq.sym, dict(info, stopped="exact"))
+    init = np.full(S, 1.0 / S)
+    model = SoftModel(trans, emit, init, cptr, cidx)
+    with np.errstate(divide="ignore"):
+        logs = SoftModel(np.log(trans), np.log(emit), np.log(init), cptr, cidx)
+    path, log_p = soft_viterbi(data, logs, soft_offsets(data, model))
+    labels, state_symbol, _ = compact_labels(path, clone_symbol)
+    new_sym = clone_symbol[path]
+    info.update(viterbi_logp=float(log_p), corrected=float(np.mean(new_sym != seq.sym)),
+                conf_offdiag=misread)
+    return SoftFit(labels, state_symbol, conf, new_sym, info)
+
+
+def _observed_em(seq, data, counts, emit, candidates, clone_symbol, s, exact_below):
+    """Baum-Welch on the transitions with the evidence ``emit`` fixed; returns the transitions,
+    the misread share of the last E-step and the convergence monitor.  Stops as the
+    confusion-matrix rounds do (``s.tol``, ``s.rtol``, ``s.max_iter``; with ``exact_below``
+    after ``s.detect_iter`` iterations explaining fewer steps as misread)."""
+    S, T, ns = clone_symbol.size, seq.T, seq.n_symbols
+    init, pseudo = np.full(S, 1.0 / S), s.row_prior / S
+    monitor = ConvergenceMonitor(s.tol * T, s.max_iter, min_iter=2, rtol=s.rtol or None)
+    trans = _normalise_trans(counts, pseudo)
+    plain = np.flatnonzero(seq.sym < ns)
+    other = clone_symbol[:, None] != seq.sym[None, plain]  # (S, plain steps)
+    dense = SoftSettings(prune=s.prune, read_share=0.0)  # no read tables: T read "symbols"
+    misread = 0.0
+    while not monitor.converged and monitor.iter < s.max_iter:
+        stats, ll = _soft_estep(data, SoftModel(trans, emit, init, *candidates), dense,
+                                clone_symbol)
+        monitor.report(ll)
+        occ = stats.emit[:, plain]
+        misread = float((occ * other).sum() / max(occ.sum(), 1e-300))
+        trans = _normalise_trans(stats.trans, pseudo)
+        if exact_below is not None and monitor.iter == s.detect_iter and misread < exact_below:
+            break
+    return trans, misread, monitor
