@@ -234,8 +234,8 @@ def soft_values(pairs) -> dict:
         key, _, value = pair.partition("=")
         if key not in kinds:
             raise SystemExit(f"{key!r} is not a soft setting ({', '.join(kinds)})")
-        soft[key] = {"int": int, "float": float, "bool": lambda v: v.lower() == "true"}[
-            kinds[key]](value)
+        soft[key] = {"int": int, "float": float, "str": str,
+                     "bool": lambda v: v.lower() == "true"}[kinds[key]](value)
     return soft
 
 

@@ -23,9 +23,13 @@ def test_step_evidence_is_the_tempered_likelihood_relative_to_the_best_symbol():
     ev = step_evidence(loglik, sym, 2, 3, 2.0)
     np.testing.assert_allclose(ev[0], [1.0, np.exp(-0.5), 0.0])
     np.testing.assert_allclose(ev[1], [np.exp(-1.0), 1.0, 0.0])
-    # symbol 1 at step 2: (-105) / 2 = -52.5, far below log(SHARE): not a candidate
+    # symbol 1 at step 2: -105 / 2 = -52.5, far below log(SHARE): not a candidate
     assert -105 / 2 < np.log(SHARE)
     np.testing.assert_allclose(ev[2], [1.0, 0.0, 0.0])
+    # the share bounds the tempered evidence: -20 nats is out at tau 1, in at tau 2 (-10)
+    ll = np.array([[0.0, -20.0]])
+    np.testing.assert_array_equal(step_evidence(ll, [0], 2, 2, 1.0), [[1, 0]])
+    np.testing.assert_allclose(step_evidence(ll, [0], 2, 2, 2.0), [[1, np.exp(-10)]])
     np.testing.assert_array_equal(ev[3], [0.0, 0.0, 1.0])  # a GDS step keeps its id
     # a higher temperature flattens the evidence
     assert step_evidence(loglik, sym, 2, 3, 4.0)[0, 1] == pytest.approx(np.exp(-0.25))
@@ -40,14 +44,16 @@ def _ring_loglik(sym, place, true_gap):
     return loglik
 
 
+ALL = {"observed": 1.0, "observed_in": "all"}  # every soft round on the per-step evidence
+
+
 def test_evidence_that_holds_the_true_symbol_recovers_the_ring():
     """Every misread step's evidence gives its place's true symbol 0.6 of the read one's weight
     (tau 1): the soft rounds put every step, misread ones too, in its place's state."""
     sym, u, lengths, place, wrong = _ring_walk()
     seq = _seq(sym, u, lengths)
     loglik = _ring_loglik(sym, place, -np.log(0.6))
-    fit = EMRefinement(evidence="soft", soft={"observed": 1.0}).fit(seq, RING, 0,
-                                                                     observed=loglik)
+    fit = EMRefinement(evidence="soft", soft=ALL).fit(seq, RING, 0, observed=loglik)
     assert fit.n_states_ == RING.size and same_partition(fit.labels_, place)
     np.testing.assert_array_equal(fit.state_symbol_[fit.labels_[wrong]], RING[place[wrong]])
     assert all(r["evidence"] == "observed" for r in fit.info_["soft_rounds"])
@@ -59,9 +65,24 @@ def test_evidence_without_the_true_symbol_cannot_correct_a_misread():
     explain it, so every misread step stays in a state of the symbol read."""
     sym, u, lengths, place, wrong = _ring_walk()
     seq = _seq(sym, u, lengths)
-    fit = EMRefinement(evidence="soft", soft={"observed": 1.0}).fit(
-        seq, RING, 0, observed=_ring_loglik(sym, place, 30.0))
-    np.testing.assert_array_equal(fit.state_symbol_[fit.labels_[wrong]], sym[wrong])
+    for soft in (ALL, {"observed": 1.0}):  # every round, or the last one alone (the default)
+        fit = EMRefinement(evidence="soft", soft=soft).fit(
+            seq, RING, 0, observed=_ring_loglik(sym, place, 30.0))
+        np.testing.assert_array_equal(fit.state_symbol_[fit.labels_[wrong]], sym[wrong])
+
+
+def test_by_default_only_the_last_soft_round_takes_the_per_step_evidence():
+    """``observed_in="last"``: the cycles run on the confusion matrix (their records as without
+    the evidence), the map's round on the per-step evidence."""
+    sym, u, lengths, place, _ = _ring_walk()
+    seq = _seq(sym, u, lengths)
+    loglik = _ring_loglik(sym, place, -np.log(0.6))
+    fit = EMRefinement(evidence="soft").fit(seq, RING, 0, observed=loglik)
+    plain = EMRefinement(evidence="soft", soft={"observed": 0.0}).fit(seq, RING, 0)
+    records, before = fit.info_["soft_rounds"], plain.info_["soft_rounds"]
+    assert [r.get("evidence") for r in records] == [None] * (len(records) - 1) + ["observed"]
+    assert records[:-1] == before[:-1]
+    assert same_partition(fit.labels_, place)
 
 
 def test_the_evidence_is_asked_for_only_when_a_soft_round_runs():
@@ -80,19 +101,20 @@ def test_the_evidence_is_asked_for_only_when_a_soft_round_runs():
     np.testing.assert_array_equal(fit.labels_, plain.labels_)
 
 
-def test_observed_off_ignores_the_log_densities():
+def test_observed_off_or_not_given_is_the_confusion_matrix():
     sym, u, lengths, place, _ = _ring_walk()
     seq = _seq(sym, u, lengths)
-    with_ll = EMRefinement().fit(seq, RING, 0, observed=_ring_loglik(sym, place, 30.0))
-    without = EMRefinement().fit(seq, RING, 0)
-    np.testing.assert_array_equal(with_ll.labels_, without.labels_)
-    assert with_ll.info_ == without.info_
+    off = EMRefinement(soft={"observed": 0.0})
+    with_ll = off.fit(seq, RING, 0, observed=_ring_loglik(sym, place, 30.0))
+    labels, info = with_ll.labels_.copy(), with_ll.info_
+    without = EMRefinement().fit(seq, RING, 0)  # on, but no log-densities given
+    np.testing.assert_array_equal(labels, without.labels_)
+    assert info == without.info_
 
 
 def test_bad_observed_input_is_refused_with_its_name():
     seq = SymbolSequence.build([0, 1, 0, 1], [0, 0, 0, 0], [4], 1, 2)
-    with pytest.raises(ParameterError, match="soft.observed"):
-        observed_evidence(seq, 6.0, None)
+    assert observed_evidence(seq, 6.0, None) is None
     with pytest.raises(ValueError, match=r"observed: must be \(4, 2\)"):
         observed_evidence(seq, 6.0, np.zeros((4, 3)))
     with pytest.raises(ValueError, match="observed: the log-densities must be finite"):
@@ -100,15 +122,19 @@ def test_bad_observed_input_is_refused_with_its_name():
     assert observed_evidence(seq, 0.0, None) is None
     with pytest.raises(ParameterError, match="soft.observed"):
         EMRefinement(soft={"observed": -1.0}).check_params()
+    with pytest.raises(ParameterError, match="soft.observed_in"):
+        EMRefinement(soft={"observed_in": "first"}).check_params()
 
 
-def test_a_round_past_the_memory_bound_is_refused(monkeypatch):
+def test_a_round_past_the_memory_bound_is_the_confusion_matrix_round(monkeypatch):
     sym, u, lengths, place, _ = _ring_walk()
     seq = _seq(sym, u, lengths)
     monkeypatch.setattr(observed, "MAX_BYTES", 1000)
-    with pytest.raises(ParameterError, match="soft.observed.*GB"):
-        EMRefinement(evidence="soft", soft={"observed": 1.0}).fit(
-            seq, RING, 0, observed=_ring_loglik(sym, place, 1.0))
+    fit = EMRefinement(evidence="soft", soft=ALL).fit(seq, RING, 0,
+                                                      observed=_ring_loglik(sym, place, 1.0))
+    plain = EMRefinement(evidence="soft", soft={"observed": 0.0}).fit(seq, RING, 0)
+    np.testing.assert_array_equal(fit.labels_, plain.labels_)
+    assert all(r["observed"] == "over MAX_BYTES" for r in fit.info_["soft_rounds"])
 
 
 def test_the_learner_hands_phase_1_log_densities_to_the_soft_rounds():
@@ -120,5 +146,5 @@ def test_the_learner_hands_phase_1_log_densities_to_the_soft_rounds():
     learner = MapLearner(n_clusters=3, n_states=10, refine=EMRefinement(
         evidence="soft", soft={"observed": 6.0}), random_state=0).fit(X, u)
     records = learner.refine_info_["soft_rounds"]
-    assert records and all(r["evidence"] == "observed" for r in records)
+    assert records and records[-1]["evidence"] == "observed"
     assert learner.labels_.shape == place.shape

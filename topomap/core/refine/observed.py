@@ -9,33 +9,39 @@ that as the evidence of the step,
 
     e_t(k) = (p(o_t | k) / max_j p(o_t | j)) ** (1 / tau),
 
-the symbols' likelihood relative to the best one, tempered by ``tau`` and kept as candidates where
-at least :data:`SHARE`; a GDS step keeps its GDS id.  The transitions are learned as in a
-confusion-matrix round; the evidence stays fixed.  ``tau`` > 1 flattens the evidence, so the
-map's transitions weigh more against a reading: phase 1's Gaussians, fitted to K-means clusters,
-are narrower than the noise that carries a view across a cluster's boundary
-(docs/refinement.md has ``tau`` measured).
+the symbols' likelihood relative to the best one, tempered by ``tau``; a symbol is a candidate
+where that is at least :data:`SHARE`, and a GDS step keeps its GDS id.  The transitions are learned as in a confusion-matrix round; the evidence stays
+fixed.  ``tau`` > 1 flattens the evidence, so the map's transitions weigh more against a reading:
+phase 1's Gaussians, fitted to K-means clusters, are narrower than the noise that carries a view
+across a cluster's boundary (docs/refinement.md has ``tau`` measured).
+
+By default (``soft.observed_in="last"``) only the last soft round, which gives the map, takes this
+evidence; the rounds before it, which correct the readings for the hard rounds that build the
+map's structure, keep the confusion matrix, which lets a pair of symbols that phase 1 cut one
+view into be read for each other.
 
 The kernels are :mod:`topomap.core.refine.soft_kernels`', each step its own "read symbol": the
-evidence of a round is a dense (clones, steps) table, at most :data:`MAX_BYTES`.
+evidence of a round is a dense (clones, steps) table, at most :data:`MAX_BYTES` (a round that
+would need more is the confusion matrix's, recorded ``"observed": "over MAX_BYTES"``).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from ..checks import ParameterError
 from .clones import compact_labels
 from .convergence import ConvergenceMonitor
 from .soft import (SoftFit, SoftSettings, _episode_data, _normalise_trans, _soft_estep,
-                   _warm_counts)
+                   _warm_counts, soft_round)
 from .soft_kernels import SoftData, SoftModel, soft_candidates, soft_offsets, soft_viterbi
 
 __all__ = ["SHARE", "MAX_BYTES", "step_evidence", "observed_evidence", "observed_round"]
 
-#: a symbol whose tempered evidence at a step is below this share of the best one's is not a
-#: candidate there (gridroom 8x6 at 9.8 % misreads: 3.1 of its 4 symbols per step at tau = 1,
-#: the true symbol of 99.5 % of the misread steps among them; ``bench_noise_floor.py``)
+#: a symbol whose tempered evidence at a step is below this is not a candidate there (cut on
+#: the likelihood itself, at tau = 1, gridroom 8x6 at 9.8 % misreads keeps 3.1 of its 4 symbols
+#: per step, the true symbol of 99.5 % of the misread steps among them,
+#: ``bench_noise_floor.py --candidates``; cut before tempering, the map of the office at 25.6 %
+#: misreads, seed 2, fell from 0.98 to 0.75)
 SHARE = 1e-6
 
 #: the most memory a round's (clones x steps) evidence table may take
@@ -57,16 +63,12 @@ def step_evidence(loglik, sym, n_symbols: int, n_ids: int, temperature: float) -
 
 
 def observed_evidence(seq, temperature: float, observed):
-    """The evidence the soft rounds on ``seq`` take (:func:`step_evidence`), or None with
-    ``temperature`` 0 (the confusion matrix).  ``observed``: the (T, n_symbols) log-densities
-    of :meth:`~topomap.core.refine.rounds.CloneRefinement.fit`, or a function returning them
-    (called here, so only when a soft round runs)."""
-    if temperature == 0:
+    """The evidence the soft rounds on ``seq`` take (:func:`step_evidence`), or None -- the
+    confusion matrix -- with ``temperature`` 0 or no ``observed``: the (T, n_symbols)
+    log-densities of :meth:`~topomap.core.refine.rounds.CloneRefinement.fit`, or a function
+    returning them (called here, so only when a soft round runs)."""
+    if temperature == 0 or observed is None:
         return None
-    if observed is None:
-        raise ParameterError("soft.observed", "needs each step's log-density under every "
-                                              "symbol's model: fit(..., observed=...) "
-                                              "(MapLearner passes it)")
     loglik = np.asarray(observed() if callable(observed) else observed, dtype=np.float64)
     if loglik.shape != (seq.T, seq.n_symbols):
         raise ValueError(f"observed: must be ({seq.T}, {seq.n_symbols}) log-densities, one row "
@@ -88,14 +90,14 @@ def observed_round(seq, labels, state_symbol, conf=None, *, evidence, spare: int
     rng = np.random.default_rng(0) if rng is None else rng
     state_symbol = np.asarray(state_symbol, dtype=np.int64)
     keep = np.ones(state_symbol.size, bool) if keep is None else np.asarray(keep, bool)
+    if (int(keep.sum()) + spare * ns) * seq.T * 8 > MAX_BYTES:  # (clones, steps) evidence
+        fit = soft_round(seq, labels, state_symbol, conf, spare=spare, settings=settings,
+                         rng=rng, keep=keep, exact_below=exact_below)  # needs no such table
+        fit.info["observed"] = "over MAX_BYTES"
+        return fit
     counts, clone_symbol = _warm_counts(base, labels, state_symbol, keep, ns, seq.n_actions,
                                         spare, rng)
     S, T = clone_symbol.size, seq.T
-    if S * T * 8 > MAX_BYTES:
-        raise ParameterError("soft.observed", f"a round's evidence for {S} clones x {T} steps "
-                                              f"takes {S * T * 8 / 1024 ** 3:.1f} GB, over "
-                                              f"{MAX_BYTES / 1024 ** 3:.0f} GB: set it to 0 "
-                                              "(the confusion matrix) on logs this long")
     data = SoftData(np.arange(T, dtype=np.int64), base.u, base.has_next)  # each step its own read
     emit = np.ascontiguousarray(evidence[:, clone_symbol].T)
     cptr, cidx = soft_candidates(emit)

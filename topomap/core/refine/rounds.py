@@ -93,8 +93,8 @@ class CloneRefinement(BaseEstimator):
         :data:`~topomap.core.refine.first_stage.AMBIGUITY_BAR`; ``observed``, optional, the (T,
         n_symbols) log-density of every step's observation under each symbol's model (or a
         function returning it, called only if a soft round runs), which the soft rounds take
-        as evidence with ``soft.observed`` > 0 (:mod:`~topomap.core.refine.observed`; needed
-        then).  Sets ``labels_``,
+        as evidence with ``soft.observed`` > 0 (:mod:`~topomap.core.refine.observed`; without
+        it they use the confusion matrix).  Sets ``labels_``,
         ``state_symbol_``, ``n_states_`` and ``info_`` (with ``evidence`` other than ``"hard"``
         also ``"soft"`` and ``"soft_rounds"``); returns ``self``."""
         self.check_params()
@@ -178,6 +178,7 @@ class CloneRefinement(BaseEstimator):
             return _skipped(hard_fit, surprise, [])
         rng = np.random.default_rng(random_state)
         ev = observed_evidence(seq, s.observed, observed)
+        cycle_ev = ev if s.observed_in == "all" else None  # "last": the map's round only
         labels, state_symbol = hard_fit.labels, hard_fit.state_symbol
         n_ref = state_symbol.size if n_reference is None else int(n_reference)
         conf, rounds, read, explained = None, [], seq.sym, False
@@ -187,7 +188,7 @@ class CloneRefinement(BaseEstimator):
             if last:  # the last hard round explained its symbols, and they are re-read
                 return _soft_fit(hard_fit, surprise, [*rounds, last.info], last)
             soft, labels, state_symbol = _spare_soft_round(seq, labels, state_symbol, conf, s,
-                                                           rng, n_ref, r == 0, ev)
+                                                           rng, n_ref, r == 0, cycle_ev)
             conf = soft.conf
             rounds.append(soft.info)
             if r == 0 and ("stopped" in soft.info

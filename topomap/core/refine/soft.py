@@ -87,10 +87,12 @@ class SoftSettings:
     decodes its model that often and stops once under ``label_tol`` of the steps moved.
     ``read_share`` (3e-4; 0: off): where candidates are dense (:data:`READ_DENSE`), a step's
     candidates of a symbol whose share of its evidence, given the forward message, is below it
-    stay 0 (:func:`~.soft_kernels.soft_forward_read`).  ``observed`` (0: off): the soft rounds
-    take each step's evidence from its own observation instead of the confusion matrix -- the
-    likelihood of every symbol under phase 1's Gaussians, tempered by ``observed``
-    (:mod:`~topomap.core.refine.observed`).
+    stay 0 (:func:`~.soft_kernels.soft_forward_read`).  ``observed`` (6; 0: off): the soft rounds
+    ``observed_in`` (``"last"``: the last, which gives the map; ``"all"``) take each step's
+    evidence from its own observation instead of the confusion matrix -- the likelihood of every
+    symbol under phase 1's Gaussians, tempered by ``observed``
+    (:mod:`~topomap.core.refine.observed`; a fit not given the observations' log-densities uses
+    the confusion matrix).
     """
 
     rounds: int = 3
@@ -120,8 +122,12 @@ class SoftSettings:
     label_every: int = 0
     label_tol: float = 1e-3
     read_share: float = 3e-4
-    observed: float = 0.0
+    observed: float = 6.0
+    observed_in: str = "last"
 
+
+#: the soft rounds that take each step's evidence from its observation (``soft.observed_in``)
+OBSERVED_IN = ("last", "all")
 
 #: the real-valued soft settings and what each must be
 _RANGES = {
@@ -159,6 +165,9 @@ def soft_settings(value) -> SoftSettings:
         v = getattr(value, name)
         if not (isinstance(v, numbers.Real) and not isinstance(v, bool) and ok(v)):
             raise ParameterError(f"soft.{name}", f"must be {what}, got {v!r}")
+    if value.observed_in not in OBSERVED_IN:
+        raise ParameterError("soft.observed_in", f"must be one of {', '.join(OBSERVED_IN)}, "
+                                                 f"got {value.observed_in!r}")
     if value.accelerate not in ACCELERATIONS:
         raise ParameterError("soft.accelerate", f"must be one of {', '.join(ACCELERATIONS)}, "
                                                 f"got {value.accelerate!r}")
