@@ -31,6 +31,9 @@ def test_step_evidence_is_the_tempered_likelihood_relative_to_the_best_symbol():
     np.testing.assert_array_equal(step_evidence(ll, [0], 2, 2, 1.0), [[1, 0]])
     np.testing.assert_allclose(step_evidence(ll, [0], 2, 2, 2.0), [[1, np.exp(-10)]])
     np.testing.assert_array_equal(ev[3], [0.0, 0.0, 1.0])  # a GDS step keeps its id
+    # a step no model gives a finite density keeps its symbol as read
+    lost = step_evidence(np.array([[-np.inf, -np.inf]]), [1], 2, 2, 6.0)
+    np.testing.assert_array_equal(lost, [[0.0, 1.0]])
     # a higher temperature flattens the evidence
     assert step_evidence(loglik, sym, 2, 3, 4.0)[0, 1] == pytest.approx(np.exp(-0.25))
 

@@ -10,8 +10,9 @@ that as the evidence of the step,
     e_t(k) = (p(o_t | k) / max_j p(o_t | j)) ** (1 / tau),
 
 the symbols' likelihood relative to the best one, tempered by ``tau``; a symbol is a candidate
-where that is at least :data:`SHARE`, and a GDS step keeps its GDS id.  The transitions are learned as in a confusion-matrix round; the evidence stays
-fixed.  ``tau`` > 1 flattens the evidence, so the map's transitions weigh more against a reading:
+where that is at least :data:`SHARE`, and a GDS step keeps its GDS id (so does a step whose
+observation no symbol's model gives a finite density: its symbol as read).  The transitions are
+learned as in a confusion-matrix round; the evidence stays fixed.  ``tau`` > 1 flattens the evidence, so the map's transitions weigh more against a reading:
 phase 1's Gaussians, fitted to K-means clusters, are narrower than the noise that carries a view
 across a cluster's boundary (docs/refinement.md has ``tau`` measured).
 
@@ -37,11 +38,10 @@ from .soft_kernels import SoftData, SoftModel, soft_candidates, soft_offsets, so
 
 __all__ = ["SHARE", "MAX_BYTES", "step_evidence", "observed_evidence", "observed_round"]
 
-#: a symbol whose tempered evidence at a step is below this is not a candidate there (cut on
-#: the likelihood itself, at tau = 1, gridroom 8x6 at 9.8 % misreads keeps 3.1 of its 4 symbols
-#: per step, the true symbol of 99.5 % of the misread steps among them,
-#: ``bench_noise_floor.py --candidates``; cut before tempering, the map of the office at 25.6 %
-#: misreads, seed 2, fell from 0.98 to 0.75)
+#: a symbol whose tempered evidence at a step is below this is not a candidate there.  At
+#: tau = 1 gridroom 8x6 at 9.8 % misreads keeps 3.1 of its 4 symbols per step, the true symbol
+#: of 99.5 % of the misread steps among them (``bench_noise_floor.py --candidates``); the same
+#: cut made before tempering lowered the office at 25.6 % misreads, seed 2, from 0.98 to 0.75
 SHARE = 1e-6
 
 #: the most memory a round's (clones x steps) evidence table may take
@@ -55,10 +55,11 @@ def step_evidence(loglik, sym, n_symbols: int, n_ids: int, temperature: float) -
     sym = np.asarray(sym)
     ev = np.zeros((sym.size, n_ids))
     plain = np.flatnonzero(sym < n_symbols)
-    rel = (loglik[plain] - loglik[plain].max(axis=1, keepdims=True)) / temperature
-    ev[plain, :n_symbols] = np.where(rel >= np.log(SHARE), np.exp(rel), 0.0)
-    gds = np.flatnonzero(sym >= n_symbols)
-    ev[gds, sym[gds]] = 1.0
+    with np.errstate(invalid="ignore"):  # a row of -inf: no candidate, its reading kept below
+        rel = (loglik[plain] - loglik[plain].max(axis=1, keepdims=True)) / temperature
+        ev[plain, :n_symbols] = np.where(rel >= np.log(SHARE), np.exp(rel), 0.0)
+    alone = np.flatnonzero((sym >= n_symbols) | (ev.sum(axis=1) == 0))
+    ev[alone, sym[alone]] = 1.0
     return ev
 
 
