@@ -8,7 +8,7 @@ import pytest
 
 from topomap import MapLearner
 from topomap.core.checks import ParameterError
-from topomap.core.refine import observed
+from topomap.core.refine import observed, rounds
 from topomap.core.refine.methods import EMRefinement
 from topomap.core.refine.observed import SHARE, observed_evidence, step_evidence
 from topomap.core.refine.sequence import SymbolSequence
@@ -68,19 +68,20 @@ def test_evidence_without_the_true_symbol_cannot_correct_a_misread():
     explain it, so every misread step stays in a state of the symbol read."""
     sym, u, lengths, place, wrong = _ring_walk()
     seq = _seq(sym, u, lengths)
-    for soft in (ALL, {"observed": 1.0}):  # every round, or the last one alone (the default)
+    for soft in (ALL, {"observed": 1.0, "observed_in": "last"}):  # every round, or the last
         fit = EMRefinement(evidence="soft", soft=soft).fit(
             seq, RING, 0, observed=_ring_loglik(sym, place, 30.0))
         np.testing.assert_array_equal(fit.state_symbol_[fit.labels_[wrong]], sym[wrong])
 
 
-def test_by_default_only_the_last_soft_round_takes_the_per_step_evidence():
+def test_last_takes_the_per_step_evidence_in_the_last_soft_round_only():
     """``observed_in="last"``: the cycles run on the confusion matrix (their records as without
     the evidence), the map's round on the per-step evidence."""
     sym, u, lengths, place, _ = _ring_walk()
     seq = _seq(sym, u, lengths)
     loglik = _ring_loglik(sym, place, -np.log(0.6))
-    fit = EMRefinement(evidence="soft").fit(seq, RING, 0, observed=loglik)
+    fit = EMRefinement(evidence="soft", soft={"observed_in": "last"}).fit(seq, RING, 0,
+                                                                           observed=loglik)
     plain = EMRefinement(evidence="soft", soft={"observed": 0.0}).fit(seq, RING, 0)
     records, before = fit.info_["soft_rounds"], plain.info_["soft_rounds"]
     assert [r.get("evidence") for r in records] == [None] * (len(records) - 1) + ["observed"]
@@ -151,3 +152,37 @@ def test_the_learner_hands_phase_1_log_densities_to_the_soft_rounds():
     records = learner.refine_info_["soft_rounds"]
     assert records and records[-1]["evidence"] == "observed"
     assert learner.labels_.shape == place.shape
+
+
+def test_pair_read_is_the_largest_confusion_between_two_k_means_symbols():
+    conf = np.array([[0.8, 0.15, 0.05], [0.4, 0.6, 0.0], [0.0, 0.0, 1.0]])
+    assert rounds.pair_read(conf, 2) == pytest.approx(0.4)  # the GDS row and column left out
+    assert rounds.pair_read(np.eye(3), 3) == 0.0
+
+
+def _auto_records(sym, u, lengths, split_symbol, n_symbols):
+    seq = SymbolSequence.build(sym, u, lengths, 3, n_symbols)
+    loglik = np.full((sym.size, n_symbols), -30.0)
+    loglik[np.arange(sym.size), sym] = 0.0
+    fit = EMRefinement(evidence="soft").fit(seq, split_symbol, 0, observed=loglik)  # "auto"
+    return fit.info_["soft_rounds"]
+
+
+def test_auto_takes_the_per_step_evidence_after_a_first_round_of_plain_misreads():
+    """The ring's misreads are spread over the other symbols (4 %): the first round's confusion
+    matrix reads no symbol as another often, so the rounds after it take the evidence."""
+    sym, u, lengths, place, _ = _ring_walk()
+    records = _auto_records(sym, u, lengths, RING, 3)
+    assert records[0]["paired"] < rounds.PAIRED_READ and "evidence" not in records[0]
+    assert len(records) > 1 and all(r["evidence"] == "observed" for r in records[1:])
+
+
+def test_auto_keeps_the_confusion_matrix_where_the_first_round_pairs_two_symbols(monkeypatch):
+    """The same walk with the first round's confusion matrix taken to pair two symbols (as on
+    the office, where phase 1 cuts some places' views in two: 0.20-0.50): only the last round
+    takes the per-step evidence."""
+    sym, u, lengths, place, _ = _ring_walk()
+    monkeypatch.setattr(rounds, "pair_read", lambda conf, n: rounds.PAIRED_READ)
+    records = _auto_records(sym, u, lengths, RING, 3)
+    assert records[0]["paired"] == rounds.PAIRED_READ
+    assert [r.get("evidence") for r in records[1:]] == [None] * (len(records) - 2) + ["observed"]

@@ -16,10 +16,12 @@ learned as in a confusion-matrix round; the evidence stays fixed.  ``tau`` > 1 f
 phase 1's Gaussians, fitted to K-means clusters, are narrower than the noise that carries a view
 across a cluster's boundary (docs/refinement.md has ``tau`` measured).
 
-By default (``soft.observed_in="last"``) only the last soft round, which gives the map, takes this
-evidence; the rounds before it, which correct the readings for the hard rounds that build the
-map's structure, keep the confusion matrix, which lets a pair of symbols that phase 1 cut one
-view into be read for each other.
+The first soft round always reads with the confusion matrix.  By default
+(``soft.observed_in="auto"``) the rounds after it take this evidence, unless that round's
+confusion matrix pairs two symbols often (:data:`~topomap.core.refine.rounds.PAIRED_READ`): a
+view phase 1 cut into two symbols, whose halves the Gaussians would keep apart as two places
+while the confusion matrix lets one clone explain both; then only the last round, which gives
+the map, takes it (``"last"`` always so; ``"all"``: every round, the first too).
 
 The kernels are :mod:`topomap.core.refine.soft_kernels`', each step its own "read symbol": the
 evidence of a round is a dense (clones, steps) table, at most :data:`MAX_BYTES` (a round that

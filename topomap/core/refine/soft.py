@@ -88,9 +88,10 @@ class SoftSettings:
     ``read_share`` (3e-4; 0: off): where candidates are dense (:data:`READ_DENSE`), a step's
     candidates of a symbol whose share of its evidence, given the forward message, is below it
     stay 0 (:func:`~.soft_kernels.soft_forward_read`).  ``observed`` (6; 0: off): the soft rounds
-    ``observed_in`` (``"last"``: the last, which gives the map; ``"all"``) take each step's
-    evidence from its own observation instead of the confusion matrix -- the likelihood of every
-    symbol under phase 1's Gaussians, tempered by ``observed``
+    ``observed_in`` (``"auto"``: all but the first, or only the last, which gives the map, where
+    the first finds a view phase 1 cut in two, :data:`~.rounds.PAIRED_READ`; ``"last"``;
+    ``"all"``) take each step's evidence from its own observation instead of the confusion
+    matrix -- the likelihood of every symbol under phase 1's Gaussians, tempered by ``observed``
     (:mod:`~topomap.core.refine.observed`; a fit not given the observations' log-densities uses
     the confusion matrix).
     """
@@ -123,11 +124,11 @@ class SoftSettings:
     label_tol: float = 1e-3
     read_share: float = 3e-4
     observed: float = 6.0
-    observed_in: str = "last"
+    observed_in: str = "auto"
 
 
 #: the soft rounds that take each step's evidence from its observation (``soft.observed_in``)
-OBSERVED_IN = ("last", "all")
+OBSERVED_IN = ("last", "auto", "all")
 
 #: the real-valued soft settings and what each must be
 _RANGES = {
