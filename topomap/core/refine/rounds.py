@@ -191,20 +191,17 @@ class CloneRefinement(BaseEstimator):
                                                            rng, n_ref, r == 0, cycle_ev)
             conf = soft.conf
             rounds.append(soft.info)
-            if r == 0 and ("stopped" in soft.info
-                           or max(soft.info["corrected"], soft.info["misread"]) < s.detect):
-                return _skipped(hard_fit, surprise, rounds)
-            if r == 0 and s.observed_in == "auto" and ev is not None:
-                rounds[-1]["paired"] = paired = pair_read(conf, seq.n_symbols)
-                cycle_ev = ev if paired < PAIRED_READ else None
-            if r > 0:
+            if r == 0:
+                nothing, cycle_ev = _after_first(soft, s, ev, seq.n_symbols)
+                if nothing:
+                    return _skipped(hard_fit, surprise, rounds)
+            else:
                 rounds[-1]["reread"] = reread_share(soft.sym, read)
                 if rounds[-1]["reread"] < SETTLE_REREAD * s.detect:
                     break  # the next hard round would read (nearly) the symbols the last one did
             read = soft.sym
             hard, explained = self._cycle_hard_round(seq, soft, random_state, s.detect)
-            settled = (hard.n_states == state_symbol.size
-                       and same_partition(hard.labels, labels))
+            settled = hard.n_states == state_symbol.size and same_partition(hard.labels, labels)
             labels, state_symbol = hard.labels, hard.state_symbol
             rounds[-1].update(hard_states=int(state_symbol.size),
                               **({"hard_cut": True} if hard.resume is not None else {}))
@@ -264,6 +261,20 @@ SETTLE_REREAD = 1.0
 #: office at 10.8-25.6 % misreads: 0.20-0.50 on every seed; gridroom 8x6 at 9.7-23.4 %,
 #: random_graph 60 at 8.2 % and the 12x12 room at 10.6 %: 0.09 at most)
 PAIRED_READ = 0.15
+
+
+def _after_first(soft, s: SoftSettings, ev, n_symbols: int):
+    """After the first soft round ``soft``: whether it found nothing to correct (stopped early
+    on exact readings, or it explains and corrects fewer than ``soft.detect`` of the steps as
+    misread), and the per-step evidence ``ev`` the rounds after it take as ``s.observed_in``
+    says (``"auto"``: unless the round's confusion matrix pairs two symbols at least
+    :data:`PAIRED_READ`, ``paired`` in its record)."""
+    if "stopped" in soft.info or max(soft.info["corrected"], soft.info["misread"]) < s.detect:
+        return True, None
+    if s.observed_in != "auto" or ev is None:
+        return False, ev if s.observed_in == "all" else None
+    soft.info["paired"] = paired = pair_read(soft.conf, n_symbols)
+    return False, ev if paired < PAIRED_READ else None
 
 
 def pair_read(conf, n_symbols: int) -> float:
