@@ -5,6 +5,7 @@ error naming the learner's own parameter (:func:`naming`)."""
 from __future__ import annotations
 
 import copy
+import functools
 import inspect
 import warnings
 from contextlib import contextmanager
@@ -181,7 +182,8 @@ def observation_hint(learner, data, refinement, steps=None):
     step's evidence from its observation (``soft.observed`` > 0) and its ``fit`` takes
     ``observed``; else a function returning the (steps, n_symbols) log-densities of the first
     ``steps`` observations (None: all) under the phase-1 map's models of the symbols, computed
-    only when it is called (when a soft round runs)."""
+    when it is first called (when a soft round runs) and kept for a second call (the soft
+    rounds run again after a first hard round cut short is finished)."""
     soft = getattr(refinement, "soft", None)
     if soft is None or "observed" not in inspect.signature(refinement.fit).parameters or \
             soft_settings(soft).observed == 0:
@@ -189,6 +191,7 @@ def observation_hint(learner, data, refinement, steps=None):
     ns, m = learner.n_clusters_, learner.map_phase1_
     X = data.X if steps is None else data.X[:steps]
 
+    @functools.cache
     def loglik():
         chunks = log_density_chunks(np.asarray(X, dtype=np.float64), m.means[:ns],
                                     m.covariances[:ns])
