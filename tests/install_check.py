@@ -1,0 +1,98 @@
+"""Install topomap as a user does -- from a built wheel into a fresh virtual environment -- and run
+it from a folder outside the checkout.
+
+    python tests/install_check.py [--keep]
+
+Builds the wheel (``pip wheel --no-deps``), makes a new venv in a temporary folder, installs
+``<wheel>[arena]`` and the plugin ``plugins/topomap-gtest`` (an entry point of group
+``topomap``), then from another temporary folder: imports every module of the installed package,
+runs ``python -c "from topomap import MapLearner"``, ``topomap`` (the paper's experiment),
+``topomap experiment=arena_two_rooms``, ``topomap --list-plugins`` (the plugin's split criterion
+must be listed) and ``topomap --cfg job experiment=<each preset>`` (every packaged config is
+found).  Exits 1 naming the first step that failed.  ``.ci/run`` runs it after the test suite.
+"""
+
+from __future__ import annotations
+
+import argparse
+import glob
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+#: imports every module of the installed package; a module whose optional library is not
+#: installed must fail only with that library's ImportError
+IMPORT_ALL = r"""
+import importlib, pkgutil, sys, topomap
+assert "site-packages" in topomap.__file__, topomap.__file__
+failed = []
+for mod in pkgutil.walk_packages(topomap.__path__, "topomap."):
+    try:
+        importlib.import_module(mod.name)
+    except ImportError as exc:
+        if exc.name is None or exc.name.split(".")[0] in ("topomap",):
+            failed.append(f"{mod.name}: {exc}")
+    except Exception as exc:
+        failed.append(f"{mod.name}: {type(exc).__name__}: {exc}")
+print(f"imported {sum(1 for _ in pkgutil.walk_packages(topomap.__path__, 'topomap.'))} modules")
+sys.exit("\n".join(failed) if failed else 0)
+"""
+
+
+def step(title: str, cmd: list[str], cwd: Path, env: dict, expect: str | None = None) -> None:
+    print(f"-- {title}: {' '.join(cmd)}", flush=True)
+    proc = subprocess.run(cmd, cwd=cwd, env=env, capture_output=True, text=True)
+    if proc.returncode != 0 or (expect is not None and expect not in proc.stdout):
+        sys.stdout.write(proc.stdout[-3000:])
+        sys.stderr.write(proc.stderr[-3000:])
+        why = f"exit {proc.returncode}" if proc.returncode else f"{expect!r} not in its output"
+        raise SystemExit(f"install check failed at '{title}': {why}")
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--keep", action="store_true", help="keep the temporary folders")
+    args = parser.parse_args(argv)
+    tmp = Path(tempfile.mkdtemp(prefix="topomap-install-"))
+    try:
+        wheels, venv, work = tmp / "wheels", tmp / "venv", tmp / "elsewhere"
+        work.mkdir()
+        env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "VIRTUAL_ENV")}
+        step("build the wheel", [sys.executable, "-m", "pip", "wheel", "-q", "--no-deps", "-w",
+                                 str(wheels), str(ROOT)], tmp, env)
+        (wheel,) = glob.glob(str(wheels / "topomap-*.whl"))
+        step("a fresh venv", [sys.executable, "-m", "venv", str(venv)], tmp, env)
+        bindir = venv / ("Scripts" if os.name == "nt" else "bin")
+        py = str(bindir / "python")
+        env["PATH"] = f"{bindir}{os.pathsep}{env.get('PATH', '')}"
+        step("install the wheel", [py, "-m", "pip", "install", "-q", f"{wheel}[arena]"], tmp, env)
+        step("install a plugin", [py, "-m", "pip", "install", "-q", "--no-deps",
+                                  str(ROOT / "plugins" / "topomap-gtest")], tmp, env)
+        step("import every module", [py, "-c", IMPORT_ALL], work, env)
+        step("import the learner", [py, "-c", "from topomap import MapLearner"], work, env)
+        step("the paper's experiment", ["topomap", "output.progress=false"], work, env)
+        step("a continuous world", ["topomap", "experiment=arena_two_rooms",
+                                    "output.progress=false", "output.figures=false"], work, env)
+        step("the plugin's entry point", ["topomap", "--list-plugins"], work, env,
+             expect="topomap_gtest")
+        for preset in sorted(p.stem for p in (ROOT / "conf" / "experiment").glob("*.yaml")):
+            step(f"the preset {preset}", ["topomap", "--cfg", "job", f"experiment={preset}"],
+                 work, env)
+        if not list((work / "outputs" / "runs").glob("*/*/map.json")):
+            raise SystemExit("install check failed: no map.json under outputs/runs/ of the folder")
+        print(f"install check passed ({wheel.rsplit('/', 1)[-1]})")
+        return 0
+    finally:
+        if args.keep:
+            print(f"kept {tmp}")
+        else:
+            shutil.rmtree(tmp, ignore_errors=True)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
