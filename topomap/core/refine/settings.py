@@ -113,14 +113,14 @@ class Growth:
     first_iter: int = 25
     """A rough stage 1's Baum-Welch stops after this many iterations (E-steps; 0: no cap)..."""
     first_rtol: float = INF
-    """... unless its last iteration gained more than this x the log-likelihood (``inf``: it
-    stops)."""
+    """... unless its last iteration gained more than this share of the log-likelihood; then
+    it goes on until one gains less (share; ``inf``: it stops)."""
     stage_cap: int = 0
     """Where stage 1's labelling shows many misreads, the growth stages' Baum-Welch stops after
     this many iterations (E-steps; 0: no cap)..."""
     stage_rtol: float = INF
-    """... unless its last iteration gained more than this x the log-likelihood, and then once
-    one gains less (``inf``: it stops)."""
+    """... unless its last iteration gained more than this share of the log-likelihood; then
+    it goes on until one gains less (share; ``inf``: it stops)."""
 
 
 @dataclass(frozen=True)
