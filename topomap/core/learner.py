@@ -12,8 +12,8 @@ from numpy.typing import ArrayLike
 from sklearn.base import BaseEstimator
 
 from .checks import check_count
-from .components import (DEPRECATED, fit_refinement, make_components, make_refinement, naming,
-                         refinement_hints, refinement_label, warn_renamed, within_told_size)
+from .components import (fit_refinement, fold_renamed, make_components, make_refinement, naming,
+                         refinement_hints, refinement_label, set_params, within_told_size)
 from .refining import bic_scores, heldout_scores, refined_from, resized, symbol_map
 from .online import OnlineState, Window
 from .online_pass import PassStart, start_map, warm_start, warm_starts, wider_pass
@@ -39,6 +39,8 @@ class MapLearner(MapMethods, BaseEstimator):
     adds one state per GDS id (never split).  Phase 2 repeatedly splits the state whose split
     gains the most, until the stopping rule fires.  A scikit-learn estimator: ``get_params``,
     ``set_params`` and ``sklearn.base.clone`` work, and ``fit`` never changes the parameters.
+    ``criterion`` and ``stopping``, the names of ``split`` and ``stop`` before 0.3, are still
+    taken (and by ``set_params``) with a ``FutureWarning`` until 0.4.
 
     Parameters
     ----------
@@ -79,7 +81,8 @@ class MapLearner(MapMethods, BaseEstimator):
         ``"cscg"`` is EM alone from phase 1 with CSCG's recipe, ignoring the split; or an
         estimator whose ``fit(sequence, split_state_symbol, random_state)`` returns itself with
         ``labels_``, ``state_symbol_`` and ``info_`` (a fit refines a clone of it).  None
-        (default): the paper's method alone.
+        (default): the paper's method alone.  Built-ins group their settings by stage
+        (:mod:`topomap.core.refine.settings`: ``EMRefinement(hard={"max_iter": 40})``).
     refined_size : "told" or "free"
         With a refinement and a told number of states (``n_states`` an int, or a
         :class:`~topomap.core.split.stopping.TargetStates` rule): ``"told"`` (default) brings the
@@ -105,9 +108,6 @@ class MapLearner(MapMethods, BaseEstimator):
         passes of :meth:`partial_fit` included (on the window's steps).  Used to log progress or
         record extra metrics.  ``labels`` of a split is the learner's working array, changed in
         place by later splits: copy it to keep it.
-    criterion, stopping : deprecated
-        The names of ``split`` and ``stop`` before 0.3: still accepted, with a
-        ``FutureWarning``, until 0.4.
 
     Attributes
     ----------
@@ -145,7 +145,7 @@ class MapLearner(MapMethods, BaseEstimator):
                  phase1: str = "auto", sample_size: int | None = None, refine=None,
                  refined_size: str = "told", motion: MotionSettings | str = MotionSettings(),
                  window: int = 20000, refit_every: int = 2000, random_state: int = 0,
-                 callbacks=(), criterion=DEPRECATED, stopping=DEPRECATED):
+                 callbacks=(), **renamed):
         self.n_clusters = n_clusters
         self.n_states = n_states
         self.clusters = clusters
@@ -164,8 +164,10 @@ class MapLearner(MapMethods, BaseEstimator):
         self.refit_every = refit_every
         self.random_state = random_state
         self.callbacks = callbacks
-        self.criterion = criterion
-        self.stopping = stopping
+        if renamed:  # criterion=, stopping= (before 0.3)
+            self.split, self.stop = fold_renamed(renamed, split, stop, stacklevel=2)
+
+    set_params = set_params
 
     # ------------------------------------------------------------------ the paper's method
     def fit(self, observations: ArrayLike, actions: ArrayLike, gds: ArrayLike | None = None,
@@ -178,7 +180,6 @@ class MapLearner(MapMethods, BaseEstimator):
         -1 for "no GDS", ``lengths`` the episode lengths when several episodes are concatenated.
         A fit forgets any earlier :meth:`partial_fit`.
         """
-        warn_renamed(self, stacklevel=2)
         data = check_fit_data(observations, actions, gds, lengths, n_actions, action_names,
                               gds_names)
         self._online = None
@@ -248,7 +249,6 @@ class MapLearner(MapMethods, BaseEstimator):
         map has bring a wider pass).  A call that fails changes nothing.  :meth:`fit` starts
         over.  Returns ``self``.
         """
-        warn_renamed(self, stacklevel=2)
         X, u, g, _ = check_sequences(observations, actions, gds, None, min_length=1)
         window, every = check_count(self.window, "window"), check_count(self.refit_every,
                                                                         "refit_every")
@@ -401,7 +401,6 @@ class MapLearner(MapMethods, BaseEstimator):
         create: at least ``min_clusters`` of the cluster-count policy (when it tells) plus
         ``n_gds``, the GDS the data is expected to hold.  ``fit`` checks again with the real
         counts."""
-        warn_renamed(self, stacklevel=2)
         clusters, _, _, stopping = make_components(self)
         least = getattr(clusters, "min_clusters", None)
         if least is not None:
