@@ -28,7 +28,7 @@ from .actions import make_action_rule
 from .checks import non_negative, positive, require_ratinabox
 from .floorplan import FLOORPLAN_SUFFIXES, load_floorplan
 from .layouts import LAYOUTS, Layout, builtin_layout
-from .motion import MOTION_PARAMETERS, Motion, random_motion
+from .kinematics import MOTION_PARAMETERS, Motion, random_motion
 from .paths import RecordedPath
 from .plot import plot_layout
 from .sensors import make_sensor
