@@ -56,7 +56,7 @@ from topomap.app.compose.command_line import compose
 from topomap.app.run.data import load_data
 from topomap.app.compose.registry import Registry
 from topomap.core.learner import MapLearner
-from topomap.core.metrics import adjusted_rand, nmi
+from topomap.metrics import adjusted_rand, nmi
 from topomap.core.split.threads import n_threads
 
 from bench_worlds import EMPTY16, FOURROOMS, GRID12, RG60

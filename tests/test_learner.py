@@ -6,7 +6,7 @@ import pytest
 
 from topomap import MapLearner, TopologicalMap
 from topomap.core.phase1.clustering import BICClusters, Cosine, FixedClusters, Standardized
-from topomap.core.metrics import adjusted_rand, compound_states, evaluate, purity
+from topomap.metrics import adjusted_rand, compound_states, evaluate, purity
 from topomap.core.split.criteria import EntropyCriterion
 from topomap.core.split.engine import merge_groups
 from topomap.core.split.stopping import MinGain, TargetStates

@@ -17,13 +17,14 @@ from importlib import resources
 
 from omegaconf import OmegaConf
 
+from ..results import OBJECTIVES, objective_direction
 from .kinds import KINDS
 from .schema_cache import renamed_of
 from .schemas import OutputConf, config_schema, fields_of, learner_schema, schema_of
 from .store import read_yaml_options
 
-__all__ = ["check_overrides", "check_config", "group_options", "default_choices",
-           "preset_overrides", "valid_keys", "renamed_keys"]
+__all__ = ["check_overrides", "check_config", "check_search_direction", "group_options",
+           "default_choices", "preset_overrides", "valid_keys", "renamed_keys"]
 
 
 def _keys_of(schema, prefix: str) -> set[str]:
@@ -368,3 +369,18 @@ def check_config(cfg, registry) -> None:
         valid = top | set().union(*(_keys_of(s, n) for n, s in sections.items()))
         comp = (cfg.get(section) or {}).get("component") if "." in key else None
         raise _unknown(key, valid, f" for {section}={comp}" if comp else "")
+
+
+def check_search_direction(multirun_cfg) -> None:
+    """Refuse (a ValueError naming ``hydra.sweeper.direction``) a search that would optimise its
+    objective the wrong way: the sweeper's ``direction`` against the objective's
+    (:data:`~topomap.app.results.OBJECTIVES`).  A grid has no direction: nothing to check."""
+    direction = OmegaConf.select(multirun_cfg, "hydra.sweeper.direction", default=None)
+    direction = getattr(direction, "name", direction)  # the plugin's Direction enum, or text
+    objective = OmegaConf.select(multirun_cfg, "objective", default=None)
+    objective = getattr(objective, "value", objective)
+    wanted = objective_direction(objective) if objective in OBJECTIVES else None
+    if isinstance(direction, str) and wanted and direction != wanted:
+        raise ValueError(f"hydra.sweeper.direction={direction}, but objective={objective} is "
+                         f"better when {'larger' if wanted == 'maximize' else 'smaller'}; give "
+                         f"hydra.sweeper.direction={wanted}")

@@ -77,7 +77,7 @@ class MotionSettings:
     ``holdout=0`` (or a held-out part under 100 steps) keeps the places unchecked.
 
     ``n_init``: the k-means++ starts of the view clusters (scikit-learn's ``KMeans`` on every
-    row, as :func:`topomap.core.position_scores.kmeans_view_scores`).  A map that falls back to
+    row, :func:`~topomap.core.phase1.clustering.view_clusters`).  A map that falls back to
     them gives every state one variance, pooled over the states and the features, times
     ``fallback_variance``: its Viterbi decoding then ranks states by the distance of a view to
     their means, as the nearest centre does, and at 0.01 (a tenth of a cluster's spread) that
