@@ -102,11 +102,11 @@ def test_the_learner_and_the_config_name_a_bad_setting_by_its_config_key():
     with pytest.raises(ParameterError, match="^refine.hard.max_iter must be a positive integer"):
         learner.check_params()
     from topomap.app.compose.command_line import compose
-    from topomap.app.run.experiment import prepare
+    from topomap.app.run.experiment import check_and_build
 
     cfg = compose(["refine=em", "refine.reading.floor=0.0"])
     with pytest.raises(ValueError, match=r"^refine.reading.floor must be in \(0, 1\), got 0.0"):
-        prepare(cfg)
+        check_and_build(cfg)
 
 
 # ---------------------------------------------------------------- the names of before 0.3
