@@ -159,3 +159,52 @@ def test_the_command_reads_odometry_and_the_truth(tmp_path, make_cfg):
     assert np.array_equal(saved.positions, traj.positions)
     assert np.array_equal(saved.odometry[:, :2], traj.odometry[:, :2])
     assert np.array_equal(saved.actions, traj.actions)
+
+
+# ------------------------------------------------------------- docs/examples/robot_bag.py
+
+def example():
+    import runpy
+    from pathlib import Path
+
+    pytest.importorskip("ratinabox")
+    return runpy.run_path(str(Path(__file__).resolve().parents[1] / "docs" / "examples" /
+                              "robot_bag.py"))
+
+
+def test_the_example_s_odometry_without_noise_is_the_path_from_the_robot_s_start():
+    wheel_odometry = example()["wheel_odometry"]
+    rng = np.random.default_rng(0)
+    # north 1 m, then west 1 m (dt = 1 s): seen from the start, facing +x, that is +x then +y
+    path = np.array([[0.0, 0.0], [0.0, 1.0], [-1.0, 1.0]])
+    np.testing.assert_allclose(wheel_odometry(path, 1.0, rng, 0, 0, 0),
+                               [[0, 0, 0], [1, 0, 0], [1, 1, math.pi / 2]], atol=1e-12)
+    # a gyro bias of 0.1 rad/s alone bends a straight drive east: headings 0.1, 0.2, 0.3 rad
+    east = np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.0], [3.0, 0.0]])
+    h = np.array([0.1, 0.2, 0.3])
+    expected = np.c_[np.r_[0, np.cumsum(np.cos(h))], np.r_[0, np.cumsum(np.sin(h))], [0, *h]]
+    np.testing.assert_allclose(wheel_odometry(east, 1.0, rng, 0, 0, 0.1), expected, atol=1e-12)
+
+
+def test_the_example_simulates_records_and_learns(tmp_path, make_cfg, capsys):
+    """``docs/examples/robot_bag.py``: the bags hold the robot's topics, the map is scored in
+    metres, and the printed command learns from the same bags."""
+    from topomap.app.run.experiment import run
+
+    scores = example()["main"]([str(tmp_path / "robot.bag"), "--steps", "800",
+                                "--heldout-steps", "300", "--clusters", "6", "--states", "8"])
+    assert set(scores) == {"map", "ceiling", "kmeans_views"}
+    assert scores["map"]["steps"] == 300
+    out = capsys.readouterr().out
+    assert "the odometry drifted" in out
+    back = read_rosbag(tmp_path / "robot.bag", "/scan", "/cmd_vel", odometry_topic="/odom",
+                       position_topic="/tf", position_frame="odom",
+                       position_child_frame="base_link")
+    assert len(back) == 800 and np.array_equal(back.positions, back.odometry[:, :2])
+    command = out.split("the same from the command line: topomap ")[1].split()
+    overrides = [w.strip("'") for w in command]
+    results = run(make_cfg([*overrides, "output.figures=false", "output.progress=false"]),
+                  tmp_path / "run")
+    assert results["position"]["heldout_steps"] == 300
+    saved = load_trajectory(tmp_path / "run" / "trajectory.npz")
+    assert saved.odometry.shape == (800, 3)

@@ -222,9 +222,8 @@ def write_rosbag(traj: Trajectory, path, *, version: int = 1, storage: str = "sq
     odometry_topic, tf_topic, cmd_vel_topic : str or None
         The odometry (``nav_msgs/Odometry``), its transform ``odom`` -> ``base_link``
         (``tf2_msgs/TFMessage``) and the actions as velocity commands (``geometry_msgs/Twist``,
-        :data:`~topomap.core.data.rosbag.messages.TWIST_OF_ACTION`; None by default).
-
-    A topic of None is not written, nor is a field the trajectory lacks.
+        :data:`~topomap.core.data.rosbag.messages.TWIST_OF_ACTION`; None by default).  A
+        topic of None is not written, nor is a field the trajectory lacks.
 
     Returns
     -------
