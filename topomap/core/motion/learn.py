@@ -39,7 +39,7 @@ def pooled_variances(tmap: TopologicalMap, X, labels, reg_covar: float,
     return replace(tmap, covariances=cov)
 
 
-def fit_places(learner, data, settings: MotionSettings, metric) -> bool:
+def fit_places(learner, data, settings: MotionSettings, metric, odometry=None) -> bool:
     """When ``data`` are continuous, replace ``learner``'s map and labels by places (as many
     states as its split map, observations in ``metric``'s space), record what was measured in
     ``motion_info_`` and the seconds in ``timings_["places"]``, and return True; else False."""
