@@ -11,7 +11,7 @@ the odometry, an (T, 3) array x [m], y [m], heading [rad] in the robot's own fra
 
 Every walk is cached as an npz (``--cache``); the same (plan, seed, robot) gives the same walk.
 
-Floor plans: ``robot_twin``, ``robot_three``, ``robot_office`` (``benchmarks/floorplans/``, at a
+Floor plans: ``robot_twin``, ``robot_alike``, ``robot_three``, ``robot_office`` (``benchmarks/floorplans/``, at a
 robot's scale) and the arena's layouts and rat floor plans scaled by :data:`RAT_TO_ROBOT` (1 m
 rooms become 2.5 m rooms, 0.3 m doors 0.75 m doors).
 """
@@ -28,7 +28,7 @@ from topomap import Trajectory
 
 HERE = Path(__file__).resolve().parent
 #: the robot floor plans (metres as they stand)
-ROBOT_PLANS = ("robot_twin", "robot_three", "robot_office")
+ROBOT_PLANS = ("robot_twin", "robot_alike", "robot_three", "robot_office")
 #: the arena's and the rat floor plans, scaled to a robot
 RAT_PLANS = ("two_rooms", "four_rooms", "corridor", "open", "alcoves", "l_rooms", "pillars",
              "three_rooms", "grid6", "ring", "sizes")
