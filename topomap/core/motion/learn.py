@@ -34,14 +34,14 @@ def fallback_reason(info: dict) -> str | None:
     not), in one line, from what :func:`~topomap.core.motion.check.choose_places` recorded."""
     if info.get("chosen") != "views":
         return None
+    check = info.get("check")
+    if isinstance(check, str):
+        return check
     if not info.get("odometry", True):
         return ("no odometry could be learned from the actions: walks that return to a view do "
                 f"not cancel their commands' moves (return ratios {info['return_ratios']}, at "
                 "most max_return kept); turn / forward commands move a robot differently with "
                 "its heading")
-    check = info.get("check")
-    if isinstance(check, str):
-        return check
     shares = check["mean_misplaced"]
     return (f"the held-out check placed the log's held-out parts no better with the places "
             f"(misplaced {shares['places']:.3f}) than with the view clusters "
@@ -68,7 +68,8 @@ def fit_places(learner, data, settings: MotionSettings, metric, odometry=None) -
     """When ``data`` are continuous, replace ``learner``'s map and labels by places (as many
     states as its split map, observations in ``metric``'s space), record what was measured in
     ``motion_info_`` and the seconds in ``timings_["places"]``, and return True; else False."""
-    if not is_continuous(settings, learner.labels_phase1_, data.lengths, data.gds):
+    if not is_continuous(settings, learner.labels_phase1_, data.lengths, data.gds,
+                         odometry is not None):
         return False
     if np.any(data.gds >= 0):
         raise ValueError("motion mode 'continuous' cuts places of plain steps: gds must be all -1")
@@ -88,10 +89,10 @@ def fit_places(learner, data, settings: MotionSettings, metric, odometry=None) -
                                  learner.map_split_.n_states, data.n_actions, build,
                                  n_init=learner.n_init, random_state=learner.random_state,
                                  method=learner.phase1)
+    names = dict(action_names=data.action_names, gds_names=data.gds_names,
+                 split_history=learner.split_history_)
+    m = build(data.X, data.u, labels, data.lengths, pooled=info["chosen"] == "views", **names)
     S = int(labels.max()) + 1
-    m = build(data.X, data.u, labels, data.lengths, pooled=info["chosen"] == "views",
-              action_names=data.action_names, gds_names=data.gds_names,
-              split_history=learner.split_history_)
     reason = fallback_reason(info)
     if reason is not None:
         info["reason"] = reason
