@@ -7,6 +7,9 @@
     python benchmarks/bench_continuous.py --curve --cases two_rooms alcoves   # error vs steps
     python benchmarks/bench_continuous.py --timing                      # the whole rat path
 
+Robots (a LiDAR in the robot's frame, turn / forward / stop commands, drifting wheel odometry)
+have their section in ``benchmarks/bench_robots.py`` (``benchmarks/notes/robots.md``).
+
 Cases (compass-aligned range beams plus Gaussian noise, compass actions; 10 Hz unless said):
 
 * ``two_rooms``, ``four_rooms``, ``corridor``, ``open`` (the arena's layouts) and ``alcoves``

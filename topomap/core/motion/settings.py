@@ -24,7 +24,7 @@ class MotionSettings:
 
     ``mode``: ``"auto"`` recognises such a log (:func:`is_continuous`: ``min_steps`` steps or
     more, no GDS, every phase-1 symbol entered twice on average, runs of one symbol ``min_run``
-    steps long on average) and cuts its places from views and odometry learned from the data;
+    steps long on average, or odometry given) and cuts its places from views and odometry learned from the data;
     ``"discrete"`` never does (the paper's map, refined as ``refine`` says); ``"continuous"``
     always does.  A continuous log gets no ``refine``: its places replace the refinement.
 
@@ -86,7 +86,7 @@ class MotionSettings:
     """
 
     mode: str = "auto"
-    min_run: float = 3.0
+    min_run: float = 1.6
     min_steps: int = 1000
     gates: tuple[float, ...] = (2.5, 3.0, 3.5)
     weight: float = 1.0
@@ -173,17 +173,20 @@ def mean_run(symbols, lengths) -> float:
     return float(symbols.size / np.count_nonzero(change))
 
 
-def is_continuous(settings: MotionSettings, symbols, lengths, gds) -> bool:
+def is_continuous(settings: MotionSettings, symbols, lengths, gds,
+                  odometry: bool = False) -> bool:
     """Whether a log whose phase-1 symbols are ``symbols`` is continuous under ``settings``:
     ``mode="continuous"``, or ``mode="auto"`` and ``min_steps`` steps or more, no GDS step, two
     symbols or more, each entered twice on average, and runs of ``min_run`` steps or more on
-    average (1.0-1.3 in every discrete world topomap ships; 13-16 at 10 Hz)."""
+    average (1.0-1.3 in every discrete world topomap ships; compass walkers 13-16 at 10 Hz; a
+    robot's egocentric scans 2.0-5.0 at 10 Hz, as they turn with it) -- or, ``odometry`` given,
+    whatever its runs: a log with odometry is a robot's, continuous motion."""
     if settings.mode != "auto":
         return settings.mode == "continuous"
     symbols = np.asarray(symbols)
     if symbols.size < settings.min_steps:
         return False
-    run = mean_run(symbols, lengths)
+    run = max(mean_run(symbols, lengths), settings.min_run if odometry else 0.0)
     if run < settings.min_run or not np.all(np.asarray(gds) < 0):
         return False  # a discrete world: decided without sorting its symbols
     n_symbols = np.unique(symbols).size
