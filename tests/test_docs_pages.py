@@ -50,7 +50,11 @@ def outside_fences(text: str) -> list[str]:
 
 
 def slug(heading: str) -> str:
-    """The anchor of a heading, as Python-Markdown's ``toc`` (and GitHub) make it."""
+    """The anchor of a heading, as Python-Markdown's ``toc`` (and GitHub) make it, or the one
+    the heading names (``{#anchor}``, the ``attr_list`` extension)."""
+    named = re.search(r"\{#([\w-]+)\}\s*$", heading)
+    if named:
+        return named.group(1)
     text = re.sub(r"\[([^\]]*)\]\([^)]*\)", r"\1", heading).replace("`", "").replace("*", "")
     text = unicodedata.normalize("NFKD", text).encode("ascii", "ignore").decode("ascii")
     text = re.sub(r"[^\w\s-]", "", text).strip().lower()
