@@ -17,6 +17,7 @@ from .checks import ParameterError, check_count
 from .map.observations import log_density_chunks
 from .phase1.ambiguity import symbol_ambiguity
 from .phase1.clustering import FixedClusters, make_metric
+from .phase1.heading import MODES as HEADING_MODES
 from .refine.methods import REFINEMENTS, CloneFit
 from .size import AutoStates
 from .split.criteria import CRITERIA
@@ -106,6 +107,9 @@ def make_components(learner):
     if learner.refined_size not in ("told", "free"):
         raise ParameterError("refined_size",
                              f"must be 'told' or 'free', got {learner.refined_size!r}")
+    if learner.heading not in HEADING_MODES:
+        raise ParameterError("heading", f"must be one of {', '.join(HEADING_MODES)}, got "
+                                        f"{learner.heading!r}")
     if learner.covariance_type not in ("diag", "full"):
         raise ParameterError("covariance_type",
                              f"must be 'diag' or 'full', got {learner.covariance_type!r}")
@@ -179,10 +183,22 @@ def symbol_hint(learner, data, refinement):
     if growth is None or growth.first != "auto" or \
             "ambiguity" not in inspect.signature(refinement.fit).parameters:
         return None
-    ns, m = learner.n_clusters_, learner.map_phase1_
-    learner.symbol_ambiguity_ = symbol_ambiguity(data.X, learner.labels_phase1_, m.means[:ns],
-                                                 m.covariances[:ns], learner.random_state)
+    labels, rows = _symbols_of(learner)
+    m = learner.map_phase1_
+    learner.symbol_ambiguity_ = symbol_ambiguity(data.X, labels, m.means[rows],
+                                                 m.covariances[rows], learner.random_state)
     return learner.symbol_ambiguity_
+
+
+def _symbols_of(learner):
+    """``(labels, rows)``: every step's K-means symbol (GDS steps ``ns + g``) and the phase-1
+    map's state of every symbol, whose observation model is the symbol's: the phase-1 labels
+    and states themselves, unless phase 1's states are (symbol, heading) pairs
+    (:mod:`~topomap.core.phase1.heading`)."""
+    headed = getattr(learner, "_headed", None)
+    if headed is None:
+        return learner.labels_phase1_, slice(0, learner.n_clusters_)
+    return headed.emitted(learner.labels_phase1_), headed.symbol_rows()
 
 
 def observation_hint(learner, data, refinement, steps=None):
@@ -196,14 +212,16 @@ def observation_hint(learner, data, refinement, steps=None):
     if reading is None or "observed" not in inspect.signature(refinement.fit).parameters or \
             reading.temperature == 0:
         return None
-    ns, m = learner.n_clusters_, learner.map_phase1_
+    (_, rows), m = _symbols_of(learner), learner.map_phase1_
     X = data.X if steps is None else data.X[:steps]
+    headed = getattr(learner, "_headed", None)
 
     @functools.cache
     def loglik():
-        chunks = log_density_chunks(np.asarray(X, dtype=np.float64), m.means[:ns],
-                                    m.covariances[:ns])
-        return np.concatenate([logp for _, logp in chunks])
+        chunks = log_density_chunks(np.asarray(X, dtype=np.float64), m.means[rows],
+                                    m.covariances[rows])
+        out = np.concatenate([logp for _, logp in chunks])
+        return out if headed is None else headed.observed(out)
     return loglik
 
 

@@ -18,6 +18,7 @@ from .refining import bic_scores, heldout_scores, refined_from, resized, symbol_
 from .online import OnlineState, Window
 from .online_pass import PassStart, start_map, warm_start, warm_starts, wider_pass
 from .phase1.clustering import cluster_observations
+from .phase1.heading import phase1_states
 from .phase1.start import phase1_labels, start_split, variance_beside
 from .size import AutoStates, probe_sizes, split_holdout
 from .map.model import TopologicalMap
@@ -92,6 +93,10 @@ class MapLearner(MapMethods, BaseEstimator):
     motion : MotionSettings, "auto", "discrete" or "continuous"
         How a log recorded at 10-50 Hz is mapped: places instead of a refinement, or why not
         (:class:`~topomap.core.motion.MotionSettings`, docs/continuous.md).
+    heading : {"auto", "on", "off"}
+        Phase 1's states as (symbol, heading) pairs, the heading integrated from actions that
+        turn the view (:mod:`topomap.core.phase1.heading`): ``"auto"`` where the data support
+        it, ``"on"`` wherever an action turns, ``"off"`` never (nor in :meth:`partial_fit`).
     window : int
         :meth:`partial_fit` only: the latest steps a wider pass re-learns the map's structure
         from (:mod:`topomap.core.online`).
@@ -119,6 +124,8 @@ class MapLearner(MapMethods, BaseEstimator):
         wider pass from the last map: the map its refinement started from)
     refine_info_ : dict -- the refinement's stages (with ``refine``)
     symbol_ambiguity_ : float -- the share of steps phase 1 may misread (``refine="em"``)
+    heading_ : dict -- whether phase 1's states hold a heading (``used``), why not
+        (``reason``), the turns (``turns``: headings turned by each action) and the measurements
     motion_info_ : dict -- what the places of a continuous log measured, the check's errors and
         which map was ``chosen`` (``"places"`` or ``"views"``; only on a continuous log)
     size_choice_ : dict -- with ``stop=auto``: the criterion, the chosen count and every score
@@ -143,7 +150,7 @@ class MapLearner(MapMethods, BaseEstimator):
                  covariance_type: str = "diag", reg_covar: float = 1e-3, n_init: int = 3,
                  phase1: str = "auto", sample_size: int | None = None, refine=None,
                  refined_size: str = "told", motion: MotionSettings | str = MotionSettings(),
-                 window: int = 20000, refit_every: int = 2000, random_state: int = 0,
+                 heading: str = "auto", window: int = 20000, refit_every: int = 2000, random_state: int = 0,
                  callbacks=(), **renamed):
         self.n_clusters = n_clusters
         self.n_states = n_states
@@ -159,6 +166,7 @@ class MapLearner(MapMethods, BaseEstimator):
         self.refine = refine
         self.refined_size = refined_size
         self.motion = motion
+        self.heading = heading
         self.window = window
         self.refit_every = refit_every
         self.random_state = random_state
@@ -199,8 +207,9 @@ class MapLearner(MapMethods, BaseEstimator):
         self._forget_fit()
         self.n_features_in_ = data.X.shape[1]
         t0 = time.perf_counter()
-        splitter = self._phase1(data, clusters, metric, criterion, stopping, symbols)
         told = stopping.n_states if isinstance(stopping, TargetStates) else None
+        splitter = self._phase1(data, clusters, metric, criterion, stopping, symbols,
+                                heading=self.heading if motion else "off", told=told)
         auto = stopping if isinstance(stopping, AutoStates) else None
         if auto is not None:
             stopping = TargetStates(self._choose_size(data, splitter, auto))
@@ -219,6 +228,8 @@ class MapLearner(MapMethods, BaseEstimator):
             "criterion": repr(criterion), "stopping": repr(stopping),
             "clusters": repr(clusters), "metric": getattr(metric, "name", repr(metric)),
         }
+        if self._headed is not None:
+            info["heading"] = self._headed.record(data.action_names)
         if hasattr(self, "size_choice_"):
             info["size_choice"] = {k: self.size_choice_[k] for k in ("criterion", "chosen")}
         root, first = splitter.roots(), self.map_phase1_  # symbols kept: phase 1's P(o|x)
@@ -288,8 +299,8 @@ class MapLearner(MapMethods, BaseEstimator):
         worse (both BICs and the map kept go into ``refine_info_``).  Refined states have no
         parent; ``map_.info["refined_from"]`` names, for each, the split state most of its steps
         held."""
-        ns = self.n_clusters_
-        seq = SymbolSequence.build(self.labels_phase1_, data.u, data.lengths, data.n_actions, ns)
+        ns, ids, emitted = self._alphabet()
+        seq = SymbolSequence.build(self.labels_phase1_, data.u, data.lengths, data.n_actions, ids)
         runner, init = warm_start(refinement, warm, seq.sym)
         if init is not None:  # EM starts from the last map's states, not from a split
             self.labels_split_, self.map_split_ = start_map(self, data, init)
@@ -299,8 +310,9 @@ class MapLearner(MapMethods, BaseEstimator):
         if runner is not refinement:  # the last map's refinement found no misread symbols
             fit.info.update(soft="skipped", soft_from="the last map")
         if told is not None and self.refined_size == "told" and fit.n_states != told:
-            fit = resized(fit, data, told, splitter.criterion, ns)
-        refined = symbol_map(data, slice(None), data.lengths, fit.labels, fit.state_symbol, ns,
+            fit = resized(fit, data, told, splitter.criterion, ids)
+        refined = symbol_map(data, slice(None), data.lengths, fit.labels,
+                             emitted(fit.state_symbol), ns,
                              covariance_type=self.covariance_type, reg_covar=self.reg_covar,
                              action_names=data.action_names, gds_names=data.gds_names,
                              split_history=self.split_history_, info=dict(self.map_split_.info))
@@ -327,8 +339,18 @@ class MapLearner(MapMethods, BaseEstimator):
 
     @staticmethod
     def _split_symbol(splitter: Splitter) -> np.ndarray:
-        """The symbol of every split state, -1 for GDS states: a refinement's second argument."""
-        return np.where(np.asarray(splitter.gds) < 0, splitter.symbol, -1)
+        """The symbol id of every split state -- its phase-1 state, a symbol or a (symbol,
+        heading) pair -- and -1 for GDS states: a refinement's second argument."""
+        return np.where(np.asarray(splitter.gds) < 0, splitter.roots(), -1)
+
+    def _alphabet(self):
+        """``(ns, ids, emitted)``: the K-means symbols, the symbol ids a refinement sees before
+        the GDS ones (the symbols, or the (symbol, heading) pairs) and the function giving the
+        K-means symbol (``ns + g`` for GDS ``g``) of such ids."""
+        ns, headed = self.n_clusters_, self._headed
+        if headed is None:
+            return ns, ns, lambda ids: ids
+        return ns, headed.n_pairs, headed.emitted
 
     def _choose_refined_size(self, data: FitData, splitter: Splitter, refinement,
                              rule: AutoStates) -> int:
@@ -336,22 +358,24 @@ class MapLearner(MapMethods, BaseEstimator):
         refined map to the sizes of :func:`topomap.core.size.refined_sizes` and keep the size
         whose map scores the held-out block best (``size_choice_["refined"]``)."""
         L, held, cut = split_holdout(data.u.size, data.lengths, rule.holdout)
+        ns, ids, emitted = self._alphabet()
         seq = SymbolSequence.build(self.labels_phase1_[:cut], data.u[:cut], L, data.n_actions,
-                                   self.n_clusters_)
+                                   ids)
         with naming(self, "refine"):
             fit = fit_refinement(refinement, seq, self._split_symbol(splitter), self.random_state,
                                  split_labels=self.labels_split_[:cut],
                                  **refinement_hints(self, data, refinement, cut))
-        scores = heldout_scores(data, seq, fit, held, splitter.criterion, self.n_clusters_,
+        scores = heldout_scores(data, seq, fit, held, splitter.criterion, ns, emitted,
                                 covariance_type=self.covariance_type, reg_covar=self.reg_covar)
         chosen = max(sorted(scores), key=lambda n: scores[n])
         self.size_choice_["refined"] = {"own": fit.n_states, "chosen": chosen, "scores": scores}
         return chosen
 
     def _phase1(self, data: FitData, clusters, metric, criterion, stopping,
-                symbols=None) -> Splitter:
-        """K-means symbols (or the ``symbols`` given), one state each, plus one state per GDS id,
-        never split (paper Section 3.2)."""
+                symbols=None, heading: str = "off", told: int | None = None) -> Splitter:
+        """K-means symbols (or the ``symbols`` given), one state each -- or one per (symbol,
+        heading) pair, as ``heading`` and the data say (:func:`phase1_states`; ``told``: the
+        states asked for) -- plus one state per GDS id, never split (paper Section 3.2)."""
         plain = data.gds < 0
         if plain.sum() < 1:
             raise ValueError("every step is labelled as a GDS; no observations are left to cluster")
@@ -372,14 +396,18 @@ class MapLearner(MapMethods, BaseEstimator):
         # the splitter works on its own copy: the symbols are kept as they are
         labels, gds_ids = phase1_labels(symbols, ns, data.gds)
         del symbols
+        labels, ns, symbol, self._headed, self.heading_ = phase1_states(heading, labels, ns,
+                                                                        data, told)
+        self.n_clusters_ = ns
         with naming(self, "stop"):
-            stopping.check(ns + gds_ids.size)
+            stopping.check(len(symbol) + gds_ids.size)
         self.labels_phase1_ = labels
         self.split_history_, self.entropies_ = [], []
         splitter, models = start_split(data, labels, ns, gds_ids, variance, criterion=criterion,
                                        recompute_all=self._recompute_all,
                                        covariance_type=self.covariance_type,
-                                       reg_covar=self.reg_covar)
+                                       reg_covar=self.reg_covar,
+                                       symbol=None if self._headed is None else symbol)
         m = self._make_map(data, splitter, models=models)
         self.entropies_.append(dict(m.entropies(), n_states=m.n_states, iteration=0))
         m = self.map_phase1_ = replace(m, entropy_history=self.entropies_)

@@ -65,16 +65,21 @@ def bic_scores(data, maps: dict) -> dict:
             for name, (m, x) in maps.items()}
 
 
-def heldout_scores(data, seq, fit, held, criterion, n_symbols: int, **map_kw) -> dict:
+def heldout_scores(data, seq, fit, held, criterion, n_symbols: int, emitted=None,
+                   **map_kw) -> dict:
     """``{n: score}``: the refinement ``fit`` of the first ``seq.T`` steps of ``data`` brought
     to every size of :func:`topomap.core.size.refined_sizes` (:func:`resize`, with the split's
     ``criterion``), each map's mean log-likelihood of the held-out steps after them (episode
-    lengths ``held``); ``map_kw``: the maps' ``covariance_type`` and ``reg_covar``."""
-    gds = state_gds(fit.state_symbol, n_symbols, np.unique(data.gds[data.gds >= 0]))
+    lengths ``held``); ``map_kw``: the maps' ``covariance_type`` and ``reg_covar``.  Where the
+    refinement's symbol ids (``seq.n_symbols`` before the GDS ones) are not the ``n_symbols``
+    K-means symbols, ``emitted`` gives the K-means symbol of an id (``n_symbols + g`` for GDS
+    ``g``)."""
+    gds = state_gds(fit.state_symbol, seq.n_symbols, np.unique(data.gds[data.gds >= 0]))
     cut, scores = seq.T, {}
     for n in refined_sizes(fit.n_states, int(np.unique(seq.sym).size)):
         labels, sym, _ = resize(fit.labels, fit.state_symbol, seq.u, data.n_actions, seq.masks(),
                                 n, gds, criterion)
+        sym = sym if emitted is None else emitted(sym)
         m = symbol_map(data, slice(0, cut), seq.lengths, labels, sym, n_symbols, **map_kw)
         scores[int(sym.size)] = float(m.score(data.X[cut:], data.u[cut:], gds=data.gds[cut:],
                                               lengths=held))

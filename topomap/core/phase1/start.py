@@ -42,13 +42,16 @@ def phase1_labels(symbols: np.ndarray, ns: int, gds: np.ndarray):
 
 
 def start_split(data, labels: np.ndarray, ns: int, gds_ids: np.ndarray, variance, *, criterion,
-                recompute_all: bool, covariance_type: str, reg_covar: float):
+                recompute_all: bool, covariance_type: str, reg_covar: float, symbol=None):
     """``(splitter, models)``: the :class:`~topomap.core.split.engine.Splitter` of the phase-1
     ``labels`` (``ns`` symbols, then one state per GDS id, never split) and the observation
     models of its states (:meth:`~topomap.core.map.model.TopologicalMap.state_models`),
-    estimated beside it; ``variance``: a function returning the data's feature variance."""
-    symbol = list(range(ns)) + [-1] * gds_ids.size
-    gds = [-1] * ns + gds_ids.tolist()
+    estimated beside it; ``variance``: a function returning the data's feature variance.
+    ``symbol``: the symbol of every phase-1 state before the GDS ones, where they are not the
+    symbols themselves (the (symbol, heading) pairs of :mod:`~topomap.core.phase1.heading`)."""
+    symbol = (list(range(ns)) if symbol is None else np.asarray(symbol).tolist()) \
+        + [-1] * gds_ids.size
+    gds = [-1] * (len(symbol) - gds_ids.size) + gds_ids.tolist()
     models = beside(TopologicalMap.state_models, data.X, labels, symbol, gds, covariance_type,
                     reg_covar, variance(), steps=labels.size)
     splitter = Splitter(labels, data.u, data.n_actions, *data.masks, symbol=symbol, gds=gds,
