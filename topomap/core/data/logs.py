@@ -90,7 +90,9 @@ def _npz_member(path: Path, name: str):
                 return None
             with z.open(info) as fh:
                 version = np.lib.format.read_magic(fh)
-                shape, fortran, dtype = np.lib.format._read_array_header(fh, version)
+                read = (np.lib.format.read_array_header_1_0 if version == (1, 0)
+                        else np.lib.format.read_array_header_2_0)
+                shape, fortran, dtype = read(fh)
                 header = fh.tell()
         with open(path, "rb") as raw:  # the member's data start: past its local file header
             raw.seek(info.header_offset + 26)
@@ -222,6 +224,25 @@ class Logs:
         if ids is not None:
             g = np.where(g >= 0, ids[np.maximum(g, 0)], -1)
         return X, u, g
+
+    def plain_rows(self, i: int, picks: np.ndarray):
+        """The float64 observations of log ``i``'s non-GDS rows at the sorted positions
+        ``picks`` (among those rows), read from the file alone where its observations are
+        stored without compression; None otherwise (read the chunks)."""
+        path = self.paths[i]
+        member = None if path is None or path.suffix.lower() != ".npz" else _npz_member(
+            path, "observations")
+        if member is None or len(member[1]) != 2 or self._remap.get(i, (None, None))[1] is not None:
+            return None
+        offset, shape, dtype, fortran = member
+        _, g = self._small(i, path)
+        rows = np.flatnonzero(g < 0)[picks]
+        X = np.memmap(path, dtype=dtype, mode="r", offset=offset, shape=shape,
+                      order="F" if fortran else "C")
+        out = np.array(X[rows], dtype=np.float64)
+        if not np.all(np.isfinite(out)):
+            raise ValueError(f"log {self.name(i)}: observations contain NaN or inf")
+        return out
 
     def _cache_index(self):
         return None if self._cache is None else self._cache[0]

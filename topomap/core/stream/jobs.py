@@ -53,6 +53,9 @@ class LogResult:
 def sample_job(logs, i: int, steps: int, picks: np.ndarray) -> np.ndarray:
     """The rows ``picks`` (sorted positions among log ``i``'s non-GDS rows) after ``metric``
     is applied later by the caller: raw float64 observation rows."""
+    direct = logs.plain_rows(i, picks)
+    if direct is not None:
+        return direct
     out, seen = [], 0
     for start, stop in logs.chunks(i, steps):
         X, _, g = logs.rows(i, start, stop)
@@ -71,41 +74,65 @@ def _symbols(codebook: Codebook, i: int, X: np.ndarray, seen: int) -> np.ndarray
         return codebook.fixed[first:first + X.shape[0]]
     Z = np.ascontiguousarray(codebook.metric.fit_transform(X), dtype=np.float64)
     out = np.empty(Z.shape[0], dtype=np.int64)
-    with threadpool_limits(limits=1, user_api="blas"), config_context(assume_finite=True):
+    with config_context(assume_finite=True):  # the rows were checked when read
         for a in range(0, Z.shape[0], PREDICT_ROWS):
             out[a:a + PREDICT_ROWS] = codebook.kmeans.predict(Z[a:a + PREDICT_ROWS])
     return out
+
+
+class _Gathered:
+    """What :func:`assign_job` gathers over a log's chunks."""
+
+    def __init__(self, steps: int, k: int, action_dtype):
+        self.raw = np.empty(steps, dtype=np.int16 if k < 2**15 else np.int32)
+        self.actions = np.empty(steps, dtype=action_dtype)
+        self.plain = self.gds = None
+        self.gds_steps, self.gds_ids, self.seen = [], [], 0
+
+    def add(self, codebook: Codebook, i: int, start: int, rows, full: bool) -> None:
+        """Chunk ``[start, ...)`` of log ``i`` (its ``rows``: observations, actions, GDS):
+        its symbols and actions written, its moments combined."""
+        X, u, g = rows
+        k = codebook.kmeans.cluster_centers_.shape[0]
+        stop = start + u.size
+        self.actions[start:stop] = u
+        plain = g < 0
+        everything = bool(plain.all())
+        sym = _symbols(codebook, i, X if everything else X[plain], self.seen)
+        self.raw[start:stop][plain] = sym
+        self.raw[start:stop][~plain] = -1
+        self.seen += sym.size
+        cm = chunk_moments(X if everything else X[plain], sym, k, full)
+        self.plain = cm if self.plain is None else combine(self.plain, cm)
+        if not everything:
+            where = np.flatnonzero(~plain)
+            keys, group = np.unique(g[where], return_inverse=True)
+            cg = (keys, chunk_moments(X[where], group, keys.size, full))
+            self.gds = cg if self.gds is None else keyed_combine(self.gds, cg)
+            self.gds_steps.append(where + start)
+            self.gds_ids.append(g[where])
 
 
 def assign_job(logs, i: int, steps: int, codebook: Codebook, full: bool,
                action_dtype=np.int64) -> LogResult:
     """Log ``i``'s symbols, actions (as ``action_dtype``), GDS steps and moments, chunk by
     chunk (``full``: (D, D) scatter matrices for full covariances)."""
-    k = codebook.kmeans.cluster_centers_.shape[0]
-    raw = np.empty(steps, dtype=np.int16 if k < 2**15 else np.int32)
-    actions = np.empty(steps, dtype=action_dtype)
-    plain_m = whole = gds_m = None
-    gds_steps, gds_ids, seen = [], [], 0
-    for start, stop in logs.chunks(i, steps):
-        X, u, g = logs.rows(i, start, stop)
-        actions[start:stop] = u
-        plain = g < 0
-        sym = _symbols(codebook, i, X[plain] if not plain.all() else X, seen)
-        seen += sym.size
-        raw[start:stop][plain] = sym
-        raw[start:stop][~plain] = -1
-        cm = chunk_moments(X[plain], sym, k, full)
-        plain_m = cm if plain_m is None else combine(plain_m, cm)
-        cw = chunk_moments(X, np.zeros(X.shape[0], dtype=np.int64), 1, False)
-        whole = cw if whole is None else combine(whole, cw)
-        if not plain.all():
-            where = np.flatnonzero(~plain)
-            keys, group = np.unique(g[where], return_inverse=True)
-            cg = (keys, chunk_moments(X[where], group, keys.size, full))
-            gds_m = cg if gds_m is None else keyed_combine(gds_m, cg)
-            gds_steps.append(where + start)
-            gds_ids.append(g[where])
-    if gds_m is None:
-        gds_m = (np.empty(0, dtype=np.int64), Moments.empty(0, whole.mean.shape[1], full))
+    got = _Gathered(steps, codebook.kmeans.cluster_centers_.shape[0], action_dtype)
+    with threadpool_limits(limits=1, user_api="blas"):  # as the in-memory fit assigns them
+        for start, stop in logs.chunks(i, steps):
+            got.add(codebook, i, start, logs.rows(i, start, stop), full)
+    D = got.plain.mean.shape[1]
+    gds = got.gds or (np.empty(0, dtype=np.int64), Moments.empty(0, D, full))
     cat = (lambda parts: np.concatenate(parts) if parts else np.empty(0, dtype=np.int64))
-    return LogResult(raw, actions, cat(gds_steps), cat(gds_ids), plain_m, gds_m, whole)
+    return LogResult(got.raw, got.actions, cat(got.gds_steps), cat(got.gds_ids), got.plain,
+                     gds, _whole(got.plain, gds[1], D))
+
+
+def _whole(plain: Moments, gds: Moments, D: int) -> Moments:
+    """The per-feature moments of all rows, from the groups' (in group order)."""
+    out = Moments.empty(1, D, False)
+    for m in (plain, gds):
+        for g in np.flatnonzero(m.n):
+            m2 = np.diagonal(m.m2[g]) if m.m2.ndim == 3 else m.m2[g]
+            out = combine(out, Moments(m.n[g:g + 1], m.mean[g:g + 1], m2[None]))
+    return out
