@@ -87,6 +87,59 @@ def read_logs(folder: Path, dtype=np.float64):
     return X, u, places, lengths
 
 
+# ---------------------------------------------------------------------- children
+def child_fit(kind: str, folder: str, ns: int, S: int, engine: str, workers: int, out: str):
+    """One fit of the logs of ``folder`` in this process: ``kind`` "stream" (``fit_stream``
+    on ``engine`` with ``workers``) or "memory" (``fit`` on every log read into float64 arrays,
+    ``lengths`` one per log); its labels saved to ``out`` (.npy), its record returned."""
+    import resource
+
+    from topomap import MapLearner
+
+    folder = Path(folder)
+    warm = sorted(folder.glob("log-*.npz"))[:1]
+    MapLearner(n_clusters=20, n_states=30).fit_stream(warm)  # compile
+    learner = MapLearner(n_clusters=ns, n_states=S, random_state=0)
+    if kind == "memory":
+        X, u, _, lengths = read_logs(folder)
+        MapLearner(n_clusters=20, n_states=30).fit(X[:2000], u[:2000])
+        t0, c0 = time.perf_counter(), time.process_time()
+        learner.fit(X, u, lengths=lengths)
+    else:
+        t0, c0 = time.perf_counter(), time.process_time()
+        learner.fit_stream(folder, engine=None if engine == "local" else engine,
+                           workers=workers or None)
+    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+    rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024 / 1e9
+    np.save(out, learner.labels_)
+    return {"kind": kind, "steps": int(learner.labels_.size), "engine": engine, "workers": workers, "time": wall, "cpu": cpu,
+            "fit_rss_gb": rss, **learner.timings_, **getattr(learner, "stream_info_", {}),
+            "S": learner.map_.n_states, "method": learner.phase1_method_}
+
+
+def compare(rows, folder: Path) -> None:
+    """ARI of every row's labels against the places of the logs of ``folder`` and against the
+    first row's labels, and whether they are the same labels (the rows' ``labels`` files)."""
+    from topomap.metrics import adjusted_rand
+
+    places = np.concatenate([np.load(p)["places"] for p in sorted(folder.glob("log-*.npz"))])
+    first = np.load(rows[0]["labels"])
+    for r in rows:
+        lab = np.load(r["labels"])
+        r["ari"] = adjusted_rand(places, lab)
+        r["ari_vs_first"] = adjusted_rand(first, lab)
+        r["same_labels"] = bool(np.array_equal(first, lab))
+
+
+def format_stream(r) -> str:
+    return (f"{r['kind']:6s} {r['engine']:5s} x{r['workers'] or 1} T={r.get('steps', 0):>11,} "
+            f"[{r['method']}] -> {r['S']} states | phase1 {r['phase1']:7.1f} s phase2 "
+            f"{r['phase2']:6.1f} s | fit {r['time']:7.1f} s (CPU {r['cpu']:6.1f} s) "
+            f"RSS {r['fit_rss_gb']:5.2f} GB | ARI {r.get('ari', float('nan')):.4f}, vs first "
+            f"{r.get('ari_vs_first', float('nan')):.4f}, same labels {r.get('same_labels')} "
+            f"| load {r['load']:.1f}")
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("action", choices=["write"])

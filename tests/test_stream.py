@@ -191,3 +191,20 @@ def test_chunks_of_a_log(tmp_path):
     assert np.array_equal(acts, u[8:16]) and np.all(gds == -1)
     assert np.array_equal(logs.plain_rows(0, np.array([1, 19])), X[[1, 19]])
     assert math.isclose(float(rows.sum()), float(X[8:16].sum()))
+
+
+def test_data_file_reads_a_folder_as_episodes(tmp_path):
+    # `data=file data.path=<folder>`: every log in name order, each an episode, places kept
+    from topomap.app.components.data import FromFile
+
+    X, u, places = ring(n_steps=300, seed=4)
+    folder = tmp_path / "logs"
+    folder.mkdir()
+    for name, (a, b) in (("b.npz", (100, 300)), ("a.npz", (0, 100))):
+        save_trajectory(Trajectory(X[a:b], u[a:b], places=places[a:b]), folder / name)
+    traj = FromFile(str(folder)).train(None, 0)
+    assert traj.lengths.tolist() == [100, 200]
+    assert np.array_equal(traj.observations, X) and np.array_equal(traj.places, places)
+    (folder / "c.npz").write_bytes(b"not a zip")
+    with pytest.raises(ValueError, match=r"c\.npz is not a valid \.npz file"):
+        FromFile(str(folder)).train(None, 0)

@@ -13,17 +13,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from sklearn import config_context
 from threadpoolctl import threadpool_limits
 
+from ..phase1.clustering import predict_rows
 from .moments import Moments, chunk_moments, combine, keyed_combine
 
-__all__ = ["Codebook", "LogResult", "sample_job", "assign_job", "PREDICT_ROWS"]
-
-#: rows assigned to their nearest centre at once: a multiple of scikit-learn's own blocks of 256
-#: rows, so that every row's symbol is the one a single ``predict`` over all rows gives
-PREDICT_ROWS = 256 * 256
-
+__all__ = ["Codebook", "LogResult", "sample_job", "assign_job"]
 
 @dataclass
 class Codebook:
@@ -73,11 +68,7 @@ def _symbols(codebook: Codebook, i: int, X: np.ndarray, seen: int) -> np.ndarray
         first = int(codebook.offsets[i]) + seen
         return codebook.fixed[first:first + X.shape[0]]
     Z = np.ascontiguousarray(codebook.metric.fit_transform(X), dtype=np.float64)
-    out = np.empty(Z.shape[0], dtype=np.int64)
-    with config_context(assume_finite=True):  # the rows were checked when read
-        for a in range(0, Z.shape[0], PREDICT_ROWS):
-            out[a:a + PREDICT_ROWS] = codebook.kmeans.predict(Z[a:a + PREDICT_ROWS])
-    return out
+    return predict_rows(codebook.kmeans, Z, finite=True)  # the rows were checked when read
 
 
 class _Gathered:

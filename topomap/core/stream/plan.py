@@ -96,3 +96,28 @@ def make_plan(logs, infos, n_actions, action_names, gds_names) -> Plan:
         raise ValueError(f"gds id {int(gds_ids.max())} is out of range: only {len(gnames)} "
                          "gds_names are given")
     return Plan(infos, A, acts, gnames, gds_ids.astype(np.int64))
+
+
+def read_logs(source, *, rosbag: dict | None = None):
+    """Every log of ``source`` (a folder or a list, as :class:`~topomap.core.data.logs.Logs`
+    takes) read into one :class:`~topomap.Trajectory` in memory, each log an episode (or its
+    own ``lengths``), names made consistent; places and positions kept when every log has
+    them.  What ``topomap data=file data.path=<folder>`` learns from."""
+    from ..data.logs import Logs
+    from ..data.trajectory import Trajectory
+
+    logs = Logs(source, rosbag=rosbag)
+    plan = make_plan(logs, [logs.survey(i) for i in range(len(logs))], None, None, None)
+    parts = [logs.rows(i, 0, info.steps) + (logs.load(i),) for i, info in enumerate(plan.infos)]
+    places = [p[3].places for p in parts]
+    positions = [p[3].positions for p in parts]
+    shapes = {q.shape[1] for q in positions if q is not None}
+    return Trajectory(
+        np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts]),
+        gds=np.concatenate([p[2] for p in parts]) if plan.gds_ids.size else None,
+        places=None if any(q is None for q in places) else np.concatenate(places),
+        positions=(np.concatenate(positions) if all(q is not None for q in positions)
+                   and len(shapes) == 1 else None),
+        lengths=plan.lengths if len(parts) > 1 or len(plan.lengths) > 1 else None,
+        action_names=plan.action_names, gds_names=plan.gds_names,
+        meta={"logs": [logs.name(i) for i in range(len(logs))]})
