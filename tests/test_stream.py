@@ -208,3 +208,14 @@ def test_data_file_reads_a_folder_as_episodes(tmp_path):
     (folder / "c.npz").write_bytes(b"not a zip")
     with pytest.raises(ValueError, match=r"c\.npz is not a valid \.npz file"):
         FromFile(str(folder)).train(None, 0)
+
+
+def test_a_generator_of_trajectories_and_mixed_logs(tmp_path):
+    X, u, _ = ring(n_steps=300, seed=6)
+    parts = [Trajectory(X[a:b], u[a:b]) for a, b in ((0, 120), (120, 300))]
+    b = MapLearner(n_clusters=5, n_states=6).fit_stream(t for t in parts)
+    a = MapLearner(n_clusters=5, n_states=6).fit(X, u, lengths=[120, 300 - 120])
+    _same_fit(a, b)
+    save_trajectory(parts[0], tmp_path / "a.npz")
+    with pytest.raises(ValueError, match="logs must be paths or Trajectory objects"):
+        MapLearner().fit_stream([tmp_path / "a.npz", parts[1]])

@@ -55,7 +55,12 @@ def log_paths(source) -> list[Path]:
         if not path.exists():
             raise ValueError(f"log {path} does not exist")
         return [path]
-    paths = [Path(p) for p in source]
+    try:
+        paths = [Path(p) for p in source]
+    except TypeError:
+        kinds = sorted({type(p).__name__ for p in source})
+        raise ValueError(f"logs must be paths or Trajectory objects (not mixed), got "
+                         f"{', '.join(kinds)}") from None
     if not paths:
         raise ValueError("the list of logs is empty")
     for p in paths:
@@ -107,8 +112,9 @@ class Logs:
 
     Parameters
     ----------
-    source : path, list of paths, or list of Trajectory
-        A folder of logs, one log, or a list of either in the order to learn them.
+    source : path, or an iterable of paths or of Trajectory
+        A folder of logs, one log, or several in the order to learn them (trajectories given
+        are held as they are: a folder or paths keep only one log in memory at a time).
     rosbag : dict, optional
         The arguments of :func:`topomap.read_rosbag` (topics, ...) for the bags among the logs.
     chunk_steps : int
@@ -116,11 +122,11 @@ class Logs:
     """
 
     def __init__(self, source, *, rosbag: dict | None = None, chunk_steps: int = CHUNK_STEPS):
-        items = list(source) if isinstance(source, (list, tuple)) else None
+        items = None if isinstance(source, (str, Path)) else list(source)
         if items and all(isinstance(t, Trajectory) for t in items):
             self.paths, self._given = [None] * len(items), items
         else:
-            self.paths, self._given = log_paths(source), None
+            self.paths, self._given = log_paths(source if items is None else items), None
         self.rosbag = dict(rosbag or {})
         self.chunk_steps = int(chunk_steps)
         self._cache: tuple[int, Trajectory] | None = None
