@@ -219,3 +219,20 @@ def test_a_generator_of_trajectories_and_mixed_logs(tmp_path):
     save_trajectory(parts[0], tmp_path / "a.npz")
     with pytest.raises(ValueError, match="logs must be paths or Trajectory objects"):
         MapLearner().fit_stream([tmp_path / "a.npz", parts[1]])
+
+
+def test_compact_labels_widen_past_int16():
+    # 32,767 states (all but 6 empty): the second split makes state 32,768, past int16; the
+    # labels become int32 and the splits stay those of the int64 engine
+    X, u, _ = ring(n_steps=600, n_places=8, aliased=[(1, 4), (2, 6)], seed=2)
+    labels = MapLearner(n_clusters=6, n_states=6).fit(X, u).labels_phase1_
+    S = 2**15 - 1
+    runs = []
+    for lab in (labels, labels.astype(np.int16)):
+        s = Splitter(lab, u, 2, *episode_masks(600, [600]), symbol=list(range(S)),
+                     gds=[-1] * S, obs_entropy=np.zeros(S), criterion=EntropyCriterion())
+        while (best := s.best()) is not None and s.n_states < S + 3:
+            s.apply(best)
+        runs.append(s.labels.copy())
+    assert runs[1].dtype == np.int32 and runs[1].max() == S + 2
+    assert np.array_equal(runs[0], runs[1])

@@ -212,7 +212,7 @@ class MapLearner(StreamFit, MapMethods, BaseEstimator):
             self._record_split(splitter, best)
         splitter.finish()
         t2 = time.perf_counter()
-        self.labels_ = self.labels_split_ = splitter.labels.astype(np.int64)
+        self.labels_ = self.labels_split_ = splitter.labels
         info = {
             "n_clusters": self.n_clusters_, "stop_reason": self.stop_reason_,
             "criterion": repr(criterion), "stopping": repr(stopping),

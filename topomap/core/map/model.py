@@ -96,8 +96,7 @@ class TopologicalMap:
         """
         X = as_float_observations(observations)
         u = np.asarray(actions, dtype=np.int64)
-        x = np.asarray(labels)  # any integer type (the split's int16 is not copied)
-        x = x if x.dtype.kind in "iu" else x.astype(np.int64)
+        x = np.asarray(labels, dtype=np.int64)
         T = X.shape[0]
         S = len(state_symbol)
         A = int(n_actions)

@@ -44,8 +44,7 @@ def phase1_labels(symbols: np.ndarray, ns: int, gds: np.ndarray):
 def start_split(data, labels: np.ndarray, ns: int, gds_ids: np.ndarray, variance, *, criterion,
                 recompute_all: bool, covariance_type: str, reg_covar: float):
     """``(splitter, models)``: the :class:`~topomap.core.split.engine.Splitter` of the phase-1
-    ``labels`` (``ns`` symbols, then one state per GDS id, never split; its working labels
-    int16 while the states fit: 2 bytes a step, not 8) and the observation
+    ``labels`` (``ns`` symbols, then one state per GDS id, never split) and the observation
     models of its states (:meth:`~topomap.core.map.model.TopologicalMap.state_models`),
     estimated beside it; ``variance``: a function returning the data's feature variance."""
     symbol = list(range(ns)) + [-1] * gds_ids.size
@@ -54,5 +53,5 @@ def start_split(data, labels: np.ndarray, ns: int, gds_ids: np.ndarray, variance
                     reg_covar, variance(), steps=labels.size)
     splitter = Splitter(labels, data.u, data.n_actions, *data.masks, symbol=symbol, gds=gds,
                         obs_entropy=np.zeros(0), criterion=criterion,
-                        recompute_all=recompute_all, compact=True)
+                        recompute_all=recompute_all)
     return splitter, models()

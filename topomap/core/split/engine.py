@@ -162,20 +162,16 @@ class SplitEngine:
 
     Parameters: ``labels`` (T,) int (copied), ``actions`` (T,) int, ``n_states``, ``n_actions``,
     ``has_prev`` / ``has_next`` from :func:`topomap.core.stats.episode_masks`.
-    ``compact``: keep the labels as int16 while the states fit (2 bytes a step, not 8).
-    Attributes: ``labels`` (T,) int64 -- or, given as int16 or int32 or ``compact``, a copy of
-    that type, widened when the states outgrow it --,
+    Attributes: ``labels`` (T,) int64 -- or, given as int16 or int32, a copy of that type,
+    widened when the states outgrow it (a streamed fit keeps 2 bytes a step, not 8) --,
     ``u`` the actions as given when they are int8, int16, int32 or int64, ``members[s]`` sorted
     steps of state ``s`` (int32 below 2**31 steps),
     ``state_counts`` (S,), ``action_counts`` (S, A), ``near`` (S,) the states next to the last
     split's moved steps.
     """
 
-    def __init__(self, labels, actions, n_states, n_actions, has_prev, has_next, *,
-                 compact: bool = False):
-        kept = np.int16 if compact and n_states < 2**15 else _kept_dtype(labels, (np.int16,
-                                                                                  np.int32))
-        self.labels = np.array(labels, dtype=kept)
+    def __init__(self, labels, actions, n_states, n_actions, has_prev, has_next):
+        self.labels = np.array(labels, dtype=_kept_dtype(labels, (np.int16, np.int32)))
         self.u = np.asarray(actions, dtype=_kept_dtype(actions, (np.int8, np.int16, np.int32)))
         self.S, self.A = int(n_states), int(n_actions)
         self.has_prev, self.has_next = has_prev, has_next
@@ -345,11 +341,10 @@ class Splitter:
     """
 
     def __init__(self, labels, actions, n_actions: int, has_prev, has_next, *, symbol, gds,
-                 obs_entropy, criterion, recompute_all: bool = False, compact: bool = False):
+                 obs_entropy, criterion, recompute_all: bool = False):
         self.symbol, self.gds = list(symbol), list(gds)
         self.parent = [-1] * len(self.symbol)
-        self.engine = SplitEngine(labels, actions, len(self.symbol), n_actions, has_prev, has_next,
-                                  compact=compact)
+        self.engine = SplitEngine(labels, actions, len(self.symbol), n_actions, has_prev, has_next)
         self.has_prev, self.has_next = has_prev, has_next
         self.obs_entropy = np.asarray(obs_entropy, dtype=np.float64)
         self.criterion = criterion
