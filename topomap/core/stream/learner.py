@@ -26,8 +26,8 @@ class StreamFit:
         every engine gives the same map.  ``chunk_steps``: steps read at once.
 
         The fit is the paper's two phases (phase 1 as ``phase1="full"`` or ``"sample"``; no
-        refinement, no ``n_states="auto"``, a metric of each row alone), kept in about 12 bytes
-        a step (:mod:`topomap.core.stream.fit`); ``labels_`` and ``labels_phase1_`` are int16
+        refinement, no ``n_states="auto"``, a metric of each row alone), in about 20 bytes a
+        step (:mod:`topomap.core.stream.fit`); ``labels_`` and ``labels_phase1_`` are int16
         (int32 past 32,767 states).  Given the same phase-1 symbols its states are those of
         :meth:`fit` on the logs concatenated with ``lengths``, step for step; the observation
         models differ by rounding only.  ``stream_info_`` says how many logs and steps were
