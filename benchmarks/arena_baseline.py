@@ -13,7 +13,7 @@ Cases (12 compass-aligned range beams, max range 3 m, plus N(0, 0.02^2) noise; 1
 
 Rows: the map after the split, the map refined with ``refine="em"``, the ceiling (the true places
 in topomap's model class) and K-means on the views (as many clusters as the map has states), each
-scored by :mod:`topomap.core.position_scores`: median and 90th-percentile error (metres) and the
+scored by :mod:`topomap.evaluation.metres`: median and 90th-percentile error (metres) and the
 share of held-out steps placed in the wrong region; fit times in seconds.  Results are appended as
 JSON lines to ``--log``.
 """
@@ -27,7 +27,7 @@ import time
 import numpy as np
 
 from topomap import MapLearner
-from topomap.core.position_scores import ceiling_scores, kmeans_view_scores, map_scores
+from topomap.evaluation.metres import ceiling_scores, kmeans_view_scores, map_scores
 from topomap.worlds.arena import ArenaWorld, RangeFinder
 from topomap.worlds.noise import GaussianNoise
 

@@ -37,7 +37,7 @@ TANNI_STEPS = 73_000
 def run_case(case: str) -> dict:
     """Run one case in this process; returns seconds and peak RSS (MiB)."""
     from topomap.worlds.arena import ArenaWorld, RangeFinder, builtin_layout
-    from topomap.worlds.arena.motion import isolated_global_rng
+    from topomap.worlds.arena.kinematics import isolated_global_rng
 
     if case == "agent":
         from ratinabox.Agent import Agent

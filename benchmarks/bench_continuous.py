@@ -7,6 +7,9 @@
     python benchmarks/bench_continuous.py --curve --cases two_rooms alcoves   # error vs steps
     python benchmarks/bench_continuous.py --timing                      # the whole rat path
 
+Robots (a LiDAR in the robot's frame, turn / forward / stop commands, drifting wheel odometry)
+have their section in ``benchmarks/bench_robots.py`` (``benchmarks/notes/robots.md``).
+
 Cases (compass-aligned range beams plus Gaussian noise, compass actions; 10 Hz unless said):
 
 * ``two_rooms``, ``four_rooms``, ``corridor``, ``open`` (the arena's layouts) and ``alcoves``
@@ -39,7 +42,7 @@ without the vote of three held-out quarters, ``votes=0``: the version before it)
 itself decodes it into, so that a state stands where the map puts its steps, not where they were
 cut; a state the decoding never takes keeps the rows it was cut from). ``views`` is seeded
 with ``random_state=0``. Scores
-(:mod:`topomap.core.position_scores`): median and 90th-percentile error, wrong-region share;
+(:mod:`topomap.evaluation.metres`): median and 90th-percentile error, wrong-region share;
 states; fit seconds; the peak RSS of the benchmark process so far (``rss_mib``: a bound on the
 route's own, see ``--timing`` for a fresh process). Every row is appended to ``--log`` (JSON lines)
 and a run skips the rows already there; the table printed is the median over the seeds of each case
@@ -61,7 +64,7 @@ import numpy as np
 
 from topomap import MapLearner, Trajectory
 from topomap.core.map.model import TopologicalMap
-from topomap.core.position_scores import (ceiling_scores, kmeans_view_scores, map_scores,
+from topomap.evaluation.metres import (ceiling_scores, kmeans_view_scores, map_scores,
                                           score_units)
 
 HERE = Path(__file__).resolve().parent

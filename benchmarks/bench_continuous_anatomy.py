@@ -51,7 +51,8 @@ import bench_continuous as bc
 from topomap.core.motion import MotionSettings
 from topomap.core.motion.check import view_purity
 from topomap.core.motion.places import view_clusters
-from topomap.core.position_scores import _majority, _unit_means
+from topomap.core.stats import label_means
+from topomap.evaluation.metres import _majority
 
 WINDOW_S = 60.0
 
@@ -86,8 +87,8 @@ def anatomy(case: str, setting: str, seed: int, cache: Path) -> dict:
     states = learner.map_.predict(held.observations, held.actions)
     km = KMeans(S, n_init=4, random_state=0).fit(train.observations)
     kh = km.predict(held.observations)
-    placed = {"places": _unit_means(learner.labels_, train.positions, learner.map_.n_states)[states],
-              "views": _unit_means(km.labels_, train.positions, S)[kh]}
+    placed = {"places": label_means(learner.labels_, train.positions, learner.map_.n_states)[states],
+              "views": label_means(km.labels_, train.positions, S)[kh]}
     n = max(learner.map_.n_states, S)
     regions = _regions(rt, rh, held.positions, (learner.labels_, km.labels_), (states, kh),
                        placed, n)
@@ -112,13 +113,13 @@ def probes(learner, train, held, S, states, placed, dt) -> dict:
     """The four probes of the module docstring on one fit that kept its places."""
     m, X, Xh, uh = learner.map_, train.observations, held.observations, held.actions
     vl = view_clusters(X, S, MotionSettings().n_init, 0)
-    centres = _unit_means(vl, X, S)
+    centres = label_means(vl, X, S)
     vh = pairwise_distances_argmin(Xh, centres)
     cluster_of = _majority(learner.labels_, vl, m.n_states)
     G = m.predict_proba(Xh, uh)
     mass = np.zeros((Xh.shape[0], S))
     np.add.at(mass.T, cluster_of, G.T)
-    viewed = _unit_means(vl, train.positions, S)[vh]
+    viewed = label_means(vl, train.positions, S)[vh]
     out = {"purity": round(view_purity(learner.labels_, vl), 3)}
     for name, hedge in (("unsure", mass.max(axis=1) < 0.99), ("differs", cluster_of[states] != vh)):
         mixed = np.where(hedge[:, None], viewed, placed["places"])
@@ -130,7 +131,7 @@ def probes(learner, train, held, S, states, placed, dt) -> dict:
     labels = np.where(small[learner.labels_], m.n_states + vl, learner.labels_)
     labels = np.unique(labels, return_inverse=True)[1]
     pooled = bc._own_gaussians(X, train.actions, labels, m.n_actions)
-    spots = _unit_means(labels, train.positions, pooled.n_states)
+    spots = label_means(labels, train.positions, pooled.n_states)
     out["pooled_small"] = {"handed_back": int(small.sum()), "states": pooled.n_states,
                            "median": _median(spots[pooled.predict(Xh, uh)], held.positions)}
     return out
@@ -177,14 +178,14 @@ def weights(case: str, setting: str, seed: int, cache: Path, ws) -> dict:
     _, train, held, ns, S = bc.walks(case, seed, s, cache)
     km = KMeans(S, n_init=4, random_state=0).fit(train.observations)
     row = {"case": case, "setting": bc.setting_name(s), "seed": seed,
-           "views": _median(_unit_means(km.labels_, train.positions, S)[
+           "views": _median(label_means(km.labels_, train.positions, S)[
                km.predict(held.observations)], held.positions)}
     vl = view_clusters(train.observations, S, MotionSettings().n_init, 0)
     for w in ws:
         learner, _ = bc._fit(train, n_clusters=ns, n_states=S, random_state=0, refine="em",
                              motion=MotionSettings(holdout=0, weight=w, loose_weight=w))
         m, labels = learner.map_, learner.labels_
-        spots = _unit_means(labels, train.positions, m.n_states)
+        spots = label_means(labels, train.positions, m.n_states)
         r = {"places": _median(spots[m.predict(held.observations, held.actions)],
                                held.positions),
              "purity": round(view_purity(labels, vl), 3)}

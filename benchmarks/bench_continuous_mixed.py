@@ -49,7 +49,7 @@ from topomap.core.motion.check import (_state_means, held_out_frame, misplaced_r
                                        misplaced_steps)
 from topomap.core.motion.learn import pooled_variances
 from topomap.core.motion.places import cut_places, view_clusters
-from topomap.core.position_scores import _unit_means
+from topomap.core.stats import label_means
 from topomap.core.size import split_holdout
 
 #: the check's ``far`` (cell extents) and wider ones: the pooled misplaced shares at each
@@ -91,7 +91,7 @@ def cluster_gains(learner, X, u, P, n: int, vl) -> tuple[np.ndarray, np.ndarray,
             far[name] = misplaced_rows(placed[joined], frame[joined], st.far)
             for f in FARS:
                 shares[f][name] += misplaced_steps(placed[joined], frame[joined], f)
-            truth[name].append(np.linalg.norm(_unit_means(labels, P[:cut], int(labels.max()) + 1)
+            truth[name].append(np.linalg.norm(label_means(labels, P[:cut], int(labels.max()) + 1)
                                               [decoded] - P[cut:end], axis=1))
         c = vl[cut:end][joined]
         np.add.at(gain, c, far["views"].astype(int) - far["places"].astype(int))
@@ -128,10 +128,10 @@ def mixed(case: str, setting: str, seed: int, cache: Path) -> dict:
     world, train, held, ns, S = bc.walks(case, seed, s, cache)
     learner, _ = bc._fit(train, n_clusters=ns, n_states=S, random_state=0, refine="em")
     X, u, m = train.observations, train.actions, learner.map_
-    spots = _unit_means(learner.labels_, train.positions, m.n_states)
+    spots = label_means(learner.labels_, train.positions, m.n_states)
     vl = view_clusters(X, m.n_states, MotionSettings().n_init, 0)
-    vspots = _unit_means(vl, train.positions, m.n_states)
-    nearest = pairwise_distances_argmin(held.observations, _unit_means(vl, X, m.n_states))
+    vspots = label_means(vl, train.positions, m.n_states)
+    nearest = pairwise_distances_argmin(held.observations, label_means(vl, X, m.n_states))
     row = {"case": case, "setting": bc.setting_name(s), "seed": seed,
            "chosen": learner.motion_info_["chosen"],
            "default": _median(spots[m.predict(held.observations, held.actions)], held.positions),
@@ -154,7 +154,7 @@ def mixed(case: str, setting: str, seed: int, cache: Path) -> dict:
         labels = np.where(bad[vl], m.n_states + vl, places)
         labels = np.unique(labels, return_inverse=True)[1]
         mm = bc._own_gaussians(X, u, labels, m.n_actions)
-        ms = _unit_means(labels, train.positions, mm.n_states)
+        ms = label_means(labels, train.positions, mm.n_states)
         row[name] = {"median": _median(ms[mm.predict(held.observations, held.actions)],
                                        held.positions),
                      "handed_back": int(bad.sum()), "share": round(float(bad[vl].mean()), 3),

@@ -56,7 +56,7 @@ from topomap.app.compose.command_line import compose
 from topomap.app.run.data import load_data
 from topomap.app.compose.registry import Registry
 from topomap.core.learner import MapLearner
-from topomap.core.metrics import adjusted_rand, nmi
+from topomap.metrics import adjusted_rand, nmi
 from topomap.core.split.threads import n_threads
 
 from bench_worlds import EMPTY16, FOURROOMS, GRID12, RG60
@@ -275,7 +275,7 @@ def main():
                     help="the authors' chmm_actions.py: fit it too and print it beside split+em")
     ap.add_argument("--overrides", nargs="+", default=[], metavar="KEY=VALUE",
                     help="config overrides added to every world's command (e.g. "
-                         "refine.settle=0.01); kept in each record, which they tell apart")
+                         "refine.hard.settle=0.01); kept in each record, which they tell apart")
     ap.add_argument("--versus", nargs="+", default=None, metavar="KEY=VALUE",
                     help="also fit every case with these overrides instead of --overrides, the "
                          "two in turn on the same data (one process: time ratios under load)")

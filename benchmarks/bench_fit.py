@@ -20,7 +20,7 @@ import tracemalloc
 import numpy as np
 
 from topomap import MapLearner
-from topomap.core.metrics import adjusted_rand
+from topomap.metrics import adjusted_rand
 
 SIZES = {
     "small": dict(T=2_000, D=15, ns=20, n_places=30, n_actions=17),

@@ -4,10 +4,10 @@ and EM alone, as sensor noise grows.
     python benchmarks/bench_noise.py                 # every world, every noise level, seeds 0-2
     python benchmarks/bench_noise.py --quick         # gridroom 8x6 and random_graph 60, 3 levels, seed 0
     python benchmarks/bench_noise.py --worlds gridroom_8x6 --seeds 0 1 2 --methods split em_hard em_soft
-    python benchmarks/bench_noise.py --worlds gridroom_8x6 --methods em_soft --soft stage_cap=15 rtol=0.001
+    python benchmarks/bench_noise.py --worlds gridroom_8x6 --methods em_soft --soft growth.stage_cap=15 rtol=0.001
     python benchmarks/bench_noise.py --worlds gridroom_8x6 --methods em_soft --accelerate squarem
-    python benchmarks/bench_noise.py --worlds gridroom_8x6 --methods em_soft --overrides refine.start=auto
-    python benchmarks/bench_noise.py --worlds gridroom_8x6 --levels 2 3 --side-by-side rs=read_share=0.001
+    python benchmarks/bench_noise.py --worlds gridroom_8x6 --methods em_soft --overrides refine.growth.start=auto
+    python benchmarks/bench_noise.py --worlds gridroom_8x6 --levels 2 3 --side-by-side rs=reading.read_share=0.001
 
 Each world is a ``topomap`` command (``WORLDS``); its noise is the Gaussian noise of the
 observations (``noise.sigma``; ``SIGMAS`` per world, chosen so that the symbol error spans about
@@ -27,11 +27,14 @@ table shows how misreads multiply states.  Reported: medians over the seeds of t
 ARI (states against the true places), states, fit seconds (phase 1 + split + refinement;
 simulation and scoring excluded) and the process's CPU seconds over the fit, then the ARI of every
 seed.  ``--overrides`` adds config overrides to every world's command; those of ``refine.*``
-instead set the same parameters of every refinement method that has them (``refine.start=auto``
-the EM methods', ``refine.soft.rtol=0.001`` the soft settings of all four, the rest of ``soft``
-as the config's), each method keeping its own ``evidence``.  Prints a Markdown table and draws
-ARI against symbol error, one line per method, into
-``docs/img/noise.png`` (``--figure``).  ``--side-by-side NAME=KEY=VALUE[,KEY=VALUE]...`` instead
+instead set the same parameters of every refinement method that has them
+(``refine.growth.start=auto`` the EM methods', ``refine.soft.rtol=0.001`` the soft settings of
+all four, the rest of ``soft`` as the config's), each method keeping its own ``evidence``.
+Prints a Markdown table and draws ARI against symbol error, one line per method, into
+``docs/img/noise.png`` (``--figure``).  ``--soft`` and ``--side-by-side`` take settings as
+``GROUP.FIELD=VALUE`` (``reading.read_share=0.001``; a bare ``FIELD`` is a ``soft`` field, or
+an old soft setting's name, :data:`~topomap.core.refine.renamed.SOFT_FIELDS`).
+``--side-by-side NAME=KEY=VALUE[,KEY=VALUE]...`` instead
 fits ``em_soft`` with its default soft settings and with each variant's, in turn on every
 trajectory (the order rotated by the seed), and prints per variant the ARI, the E-steps (hard and
 soft forward passes) and the CPU seconds of every seed, and its CPU time over the default's.  The machine's load average is printed with the table:
@@ -54,10 +57,11 @@ from topomap.app.compose.command_line import compose
 from topomap.app.run.data import load_data
 from topomap.app.run.experiment import _as_dict, make_learner
 from topomap.app.compose.registry import Registry
-from topomap.core import metrics as M
+from topomap import metrics as M
 from topomap.core.refine.accelerate import ACCELERATIONS
 from topomap.core.refine.methods import CSCGRefinement, EMRefinement
-from topomap.core.refine.soft import SoftSettings
+from topomap.core.refine.renamed import SOFT_FIELDS
+from topomap.core.refine.settings import Growth, Reading, SoftRounds
 
 TEN_K = "data.n_steps=10000"
 WORLDS = {
@@ -163,12 +167,12 @@ def main():
     ap.add_argument("--quick", action="store_true",
                     help=f"{QUICK['worlds']}, levels {QUICK['levels']}, seed 0")
     ap.add_argument("--soft", nargs="+", default=[], metavar="KEY=VALUE",
-                    help="soft settings of em_soft and cscg_soft (e.g. stage_cap=15)")
+                    help="settings of em_soft and cscg_soft (e.g. growth.stage_cap=15)")
     ap.add_argument("--accelerate", default="none", choices=ACCELERATIONS,
-                    help="EM's acceleration in em_hard and em_soft (refine.accelerate)")
+                    help="EM's acceleration in em_hard and em_soft (refine.hard.accelerate)")
     ap.add_argument("--overrides", nargs="+", default=[], metavar="KEY=VALUE",
                     help="config overrides added to every world's command (e.g. "
-                         "refine.start=auto: the refinements' own parameters)")
+                         "refine.growth.start=auto: the refinements' own parameters)")
     ap.add_argument("--figure", default="docs/img/noise.png", help="'' for none")
     ap.add_argument("--side-by-side", nargs="+", default=[], metavar="NAME=KEY=VALUE[,...]",
                     help="em_soft with these soft settings beside the default, fit by fit")
@@ -227,22 +231,28 @@ def table(args, registry) -> dict:
 
 
 def soft_values(pairs) -> dict:
-    """The soft settings ``KEY=VALUE`` of ``pairs``, each value read as its setting's type."""
-    kinds = {f.name: f.type for f in fields(SoftSettings)}
-    soft = {}
+    """The settings ``GROUP.FIELD=VALUE`` of ``pairs`` (groups ``soft``, ``reading``,
+    ``growth``; a bare ``FIELD`` of ``soft``, or an old soft setting's name), each value read as
+    its setting's type: ``{group: {field: value}}``."""
+    kinds = {f"{g}.{f.name}": f.type for g, cls in
+             (("soft", SoftRounds), ("reading", Reading), ("growth", Growth)) for f in fields(cls)}
+    groups = {}
     for pair in pairs:
         key, _, value = pair.partition("=")
+        key = key if "." in key else SOFT_FIELDS.get(key, f"soft.{key}")
         if key not in kinds:
-            raise SystemExit(f"{key!r} is not a soft setting ({', '.join(kinds)})")
-        soft[key] = {"int": int, "float": float, "str": str,
-                     "bool": lambda v: v.lower() == "true"}[kinds[key]](value)
-    return soft
+            raise SystemExit(f"{key!r} is not a setting ({', '.join(kinds)})")
+        group, name = key.split(".")
+        groups.setdefault(group, {})[name] = {
+            "int": int, "float": float, "str": str,
+            "bool": lambda v: v.lower() == "true"}[kinds[key]](value)
+    return groups
 
 
 def side_by_side(args, registry) -> None:
     """``--side-by-side``: ``em_soft`` with the default soft settings and each variant's, in
     turn on every trajectory; one row per world, level and variant."""
-    from topomap.core.refine import clones, soft as soft_module
+    from topomap.core.refine import clones, evidence as evidence_module
     variants = [("default", {})] + [(v.split("=", 1)[0], soft_values(v.split("=", 1)[1].split(",")))
                                     for v in args.side_by_side]
     count = {"hard": 0, "soft": 0}
@@ -253,8 +263,8 @@ def side_by_side(args, registry) -> None:
             return fn(*a)
         return run
     clones.clone_forward = counted("hard", clones.clone_forward)
-    soft_module.soft_forward = counted("soft", soft_module.soft_forward)
-    soft_module.soft_forward_read = counted("soft", soft_module.soft_forward_read)
+    evidence_module.soft_forward = counted("soft", evidence_module.soft_forward)
+    evidence_module.soft_forward_read = counted("soft", evidence_module.soft_forward_read)
     print(f"load average at start {os.getloadavg()[0]:.2f}; variants {variants}")
     print("| world | level | symbol error | variant | ARI median | ARI per seed | hard + soft "
           "E-steps per seed | CPU s per seed | CPU / default |")
@@ -265,7 +275,7 @@ def side_by_side(args, registry) -> None:
             for seed in args.seeds:
                 k = seed % len(variants)
                 for name, soft in variants[k:] + variants[:k]:
-                    METHODS["em_soft"] = lambda soft=soft: EMRefinement(evidence="auto", soft=soft)
+                    METHODS["em_soft"] = lambda soft=soft: EMRefinement(evidence="auto", **soft)
                     count.update(hard=0, soft=0)
                     out = run_level(world, SIGMAS[world][level], seed, ["em_soft"], registry,
                                     args.overrides)["em_soft"]
@@ -282,18 +292,20 @@ def side_by_side(args, registry) -> None:
 
 
 def set_soft(pairs, accelerate: str = "none") -> None:
-    """The soft methods of ``METHODS`` with the soft settings ``KEY=VALUE`` of ``pairs`` (each
-    value read as its setting's type), and EM's ``accelerate`` in ``em_hard`` and ``em_soft``."""
+    """The soft methods of ``METHODS`` with the settings ``GROUP.FIELD=VALUE`` of ``pairs``
+    (:func:`soft_values`), and EM's ``hard.accelerate`` in ``em_hard`` and ``em_soft``."""
+    hard = {"hard": {"accelerate": accelerate}}
     if accelerate != "none":
         print(f"accelerate: {accelerate}")
-        METHODS["em_hard"] = lambda: EMRefinement(evidence="hard", accelerate=accelerate)
-        METHODS["em_soft"] = lambda: EMRefinement(evidence="auto", accelerate=accelerate)
+        METHODS["em_hard"] = lambda: EMRefinement(evidence="hard", **hard)
+        METHODS["em_soft"] = lambda: EMRefinement(evidence="auto", **hard)
     if not pairs:
         return
-    soft = soft_values(pairs)
-    print(f"soft settings: {soft}")
-    METHODS["em_soft"] = lambda: EMRefinement(evidence="auto", soft=soft, accelerate=accelerate)
-    METHODS["cscg_soft"] = lambda: CSCGRefinement(evidence="auto", soft=soft)
+    groups = soft_values(pairs)
+    print(f"soft settings: {groups}")
+    METHODS["em_soft"] = lambda: EMRefinement(evidence="auto", **groups, **hard)
+    METHODS["cscg_soft"] = lambda: CSCGRefinement(
+        evidence="auto", **{g: v for g, v in groups.items() if g != "growth"})
 
 
 def read_tables(files):

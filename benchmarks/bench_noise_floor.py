@@ -38,7 +38,7 @@ from topomap.app.compose.command_line import compose
 from topomap.app.compose.registry import Registry
 from topomap.app.run.data import load_data
 from topomap.app.run.experiment import _as_dict, make_learner
-from topomap.core import metrics as M
+from topomap import metrics as M
 from topomap.core.refine.methods import EMRefinement
 
 

@@ -19,7 +19,7 @@ from topomap.app.compose.command_line import compose
 from topomap.app.run.data import load_data
 from topomap.app.run.experiment import make_learner
 from topomap.app.compose.registry import Registry
-from topomap.core.metrics import evaluate
+from topomap.metrics import evaluate
 
 
 def main():

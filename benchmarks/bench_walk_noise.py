@@ -22,7 +22,7 @@ import numpy as np
 from sklearn.cluster import KMeans
 
 import bench_continuous as bc
-from topomap.core.position_scores import _unit_means
+from topomap.core.stats import label_means
 
 
 def walk_noise(case: str, setting: int, seed: int, cache: Path, draws: int = 2000) -> dict:
@@ -30,9 +30,9 @@ def walk_noise(case: str, setting: int, seed: int, cache: Path, draws: int = 200
     _, train, held, ns, S = bc.walks(case, seed, s, cache, 18_000)
     learner, _ = bc._fit(train, n_clusters=ns, n_states=S, random_state=0, refine="em")
     states = learner.map_.predict(held.observations, held.actions)
-    placed = _unit_means(learner.labels_, train.positions, learner.map_.n_states)[states]
+    placed = label_means(learner.labels_, train.positions, learner.map_.n_states)[states]
     km = KMeans(S, n_init=4, random_state=0).fit(train.observations)
-    viewed = _unit_means(km.labels_, train.positions, S)[km.predict(held.observations)]
+    viewed = label_means(km.labels_, train.positions, S)[km.predict(held.observations)]
     ep = np.linalg.norm(placed - held.positions, axis=1)
     ev = np.linalg.norm(viewed - held.positions, axis=1)
     block = int(round(30 / s["dt"]))

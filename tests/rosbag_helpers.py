@@ -12,11 +12,14 @@ pytest.importorskip("rosbags")
 
 from rosbags.rosbag1 import Writer as Writer1
 from rosbags.rosbag2 import StoragePlugin, Writer as Writer2
-from rosbags.typesys import Stores, get_typestore
+from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
 #: format name -> (ROS version, ROS 2 storage)
 FORMATS = {"ros1": (1, "sqlite3"), "sqlite3": (2, "sqlite3"), "mcap": (2, "mcap")}
 STORES = {1: get_typestore(Stores.ROS1_NOETIC), 2: get_typestore(Stores.ROS2_HUMBLE)}
+# ROS 1's standard typestore lacks tf2_msgs/TFMessage: its definition, as in ROS's tf2_msgs
+STORES[1].register(get_types_from_msg("geometry_msgs/TransformStamped[] transforms\n",
+                                      "tf2_msgs/msg/TFMessage"))
 
 
 @pytest.fixture(params=list(FORMATS))
@@ -56,12 +59,12 @@ def write_bag(path: Path, fmt: str, records) -> Path:
     return path
 
 
-def header(store, seq: int = 0):
-    """A header stamped at zero (ROS 1 headers have a seq)."""
+def header(store, seq: int = 0, frame: str = "laser"):
+    """A header in ``frame`` stamped at zero (ROS 1 headers have a seq)."""
     Header, Time = store.types["std_msgs/msg/Header"], store.types["builtin_interfaces/msg/Time"]
     if "seq" in Header.__dataclass_fields__:
-        return Header(seq=seq, stamp=Time(sec=0, nanosec=0), frame_id="laser")
-    return Header(stamp=Time(sec=0, nanosec=0), frame_id="laser")
+        return Header(seq=seq, stamp=Time(sec=0, nanosec=0), frame_id=frame)
+    return Header(stamp=Time(sec=0, nanosec=0), frame_id=frame)
 
 
 def scan(ranges, range_max: float = 10.0):
@@ -123,3 +126,48 @@ def simple_records(n: int = 5, actions=("a", "b")):
         records.append(("/scan", float(k), scan([k, k, k])))
         records.append(("/action", k + 0.5, string(actions[k % len(actions)])))
     return records
+
+
+def _pose(store, x: float, y: float, yaw: float):
+    """A geometry_msgs/Pose at (x, y, 0) turned ``yaw`` radians about z."""
+    t = store.types
+    return t["geometry_msgs/msg/Pose"](
+        position=t["geometry_msgs/msg/Point"](x=x, y=y, z=0.0),
+        orientation=t["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=math.sin(yaw / 2),
+                                                      w=math.cos(yaw / 2)))
+
+
+def odometry_msg(x: float, y: float, yaw: float = 0.0, frame: str = "odom",
+                 child: str = "base_link"):
+    """Builder of a nav_msgs/Odometry in ``frame`` at (x, y) facing ``yaw``."""
+    def build(store):
+        t = store.types
+        V = t["geometry_msgs/msg/Vector3"]
+        tw = t["geometry_msgs/msg/Twist"](linear=V(x=0.0, y=0.0, z=0.0),
+                                          angular=V(x=0.0, y=0.0, z=0.0))
+        return t["nav_msgs/msg/Odometry"](
+            header=header(store, frame=frame), child_frame_id=child,
+            pose=t["geometry_msgs/msg/PoseWithCovariance"](pose=_pose(store, x, y, yaw),
+                                                           covariance=np.zeros(36)),
+            twist=t["geometry_msgs/msg/TwistWithCovariance"](twist=tw, covariance=np.zeros(36)))
+    return build
+
+
+def pose_msg(x: float, y: float, yaw: float = 0.0, frame: str = "map"):
+    """Builder of a geometry_msgs/PoseStamped in ``frame`` at (x, y) facing ``yaw``."""
+    return lambda store: store.types["geometry_msgs/msg/PoseStamped"](
+        header=header(store, frame=frame), pose=_pose(store, x, y, yaw))
+
+
+def tf_msg(*transforms):
+    """Builder of a tf2_msgs/TFMessage of ``(parent, child, x, y)`` transforms (no rotation)."""
+    def build(store):
+        t = store.types
+        return t["tf2_msgs/msg/TFMessage"](transforms=[
+            t["geometry_msgs/msg/TransformStamped"](
+                header=header(store, frame=parent), child_frame_id=child,
+                transform=t["geometry_msgs/msg/Transform"](
+                    translation=t["geometry_msgs/msg/Vector3"](x=x, y=y, z=0.0),
+                    rotation=t["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0)))
+            for parent, child, x, y in transforms])
+    return build

@@ -15,7 +15,7 @@ from topomap import TopologicalMap, Trajectory, load_trajectory, save_trajectory
 from topomap.app.results import FIGURE_FILES, OUTPUT_FILES, PATH_FIGURES
 from topomap.app.run.experiment import run
 from topomap.app.run.outputs import own_files
-from topomap.core.position_scores import map_scores
+from topomap.evaluation.metres import map_scores
 
 pytest.importorskip("ratinabox")
 

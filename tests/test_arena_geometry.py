@@ -9,7 +9,7 @@ pytest.importorskip("ratinabox")
 
 from topomap.worlds.arena import Layout, RangeFinder, builtin_layout  # noqa: E402
 from topomap.worlds.arena.geometry import ray_distances  # noqa: E402
-from topomap.worlds.arena.motion import Motion  # noqa: E402
+from topomap.worlds.arena.kinematics import Motion  # noqa: E402
 from topomap.worlds.arena.world import Arena  # noqa: E402
 
 SQUARE = Layout("square", [[0, 0], [1, 0], [1, 1], [0, 1]])

@@ -13,7 +13,7 @@ pytest.importorskip("ratinabox")
 from topomap.core.data.rosbag import twist_action  # noqa: E402
 from topomap.worlds.arena import (ArenaWorld, BoundaryVectorCells, CompassActions,  # noqa: E402
                                   ObjectVectorCells, RangeFinder, TurnActions, floorplan_from_dict)
-from topomap.worlds.arena.motion import Motion  # noqa: E402
+from topomap.worlds.arena.kinematics import Motion  # noqa: E402
 from topomap.worlds.explorers import active_explorer, RandomExplorer  # noqa: E402
 
 

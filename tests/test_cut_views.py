@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from sklearn.cluster import KMeans
 
-from topomap.core.metrics import adjusted_rand
+from topomap.metrics import adjusted_rand
 from topomap.core.phase1.clustering import (Euclidean, FixedClusters, _kmeans,
                                             cluster_observations, first_appearance_order)
 from topomap.core.phase1.repair import cut_pairs, repair_cut_views, rms_spreads

@@ -15,7 +15,7 @@ from matplotlib.figure import Figure
 from topomap import MapLearner
 from topomap.app import plots
 from topomap.app.report.figure import plot_sweep_line
-from topomap.core.metrics import compound_states
+from topomap.metrics import compound_states
 from topomap.core.data.trajectory import Trajectory
 
 

@@ -50,18 +50,25 @@ def test_the_command_prints_one_line_instead_of_hydras_message(args, line, tmp_p
     assert not (tmp_path / "outputs").exists()
 
 
-def test_the_soft_settings_are_typed_config_keys_under_refine():
-    """``refine.soft.<key>``, derived from the refinement's ``soft`` default
-    (:class:`~topomap.core.refine.soft.SoftSettings`): every field, its default, its type."""
+def test_the_settings_groups_are_typed_config_keys_under_refine():
+    """``refine.<group>.<key>``, derived from the refinement's defaults
+    (:mod:`topomap.core.refine.settings`): every field, its default, its type."""
     from dataclasses import asdict
 
-    from topomap.core.refine.soft import SoftSettings
+    from topomap.core.refine.settings import (CSCGRounds, Growth, HardRounds, Reading,
+                                              SoftRounds)
 
-    cfg = compose(["refine=em", "refine.soft.conf_warmup=10"])
-    assert dict(cfg.refine.soft) == dict(asdict(SoftSettings()), conf_warmup=10)
-    assert dict(compose(["refine=cscg"]).refine.soft) == asdict(SoftSettings())
-    with pytest.raises(ValueError, match="did you mean refine.soft.conf_warmup"):
-        compose(["refine=em", "refine.soft.warmup=10"])
-    with pytest.raises(Exception) as err:  # Hydra's error, from OmegaConf's type check
-        compose(["refine=em", "refine.soft.conf_warmup=abc"])
-    assert "refine.soft.conf_warmup" in str(err.value) + str(err.value.__cause__)
+    cfg = compose(["refine=em", "refine.reading.conf_warmup=10", "refine.hard.max_iter=40"])
+    assert dict(cfg.refine.reading) == dict(asdict(Reading()), conf_warmup=10)
+    assert dict(cfg.refine.hard) == dict(asdict(HardRounds()), max_iter=40)
+    assert (dict(cfg.refine.soft), dict(cfg.refine.growth)) == (asdict(SoftRounds()),
+                                                                asdict(Growth()))
+    cscg = compose(["refine=cscg"]).refine
+    assert set(cscg) == {"component", "evidence", "hard", "soft", "reading"}
+    assert dict(cscg.hard) == asdict(CSCGRounds()) and dict(cscg.soft) == asdict(SoftRounds())
+    with pytest.raises(ValueError, match="did you mean refine.reading.conf_warmup"):
+        compose(["refine=em", "refine.reading.warmup=10"])
+    with pytest.raises(ValueError, match="^refine.hard.max_iter=abc is not an integer$"):
+        compose(["refine=em", "refine.hard.max_iter=abc"])
+    with pytest.raises(ValueError, match="^refine.reading.temperature=hot is not a number$"):
+        compose(["refine=em", "refine.reading.temperature=hot"])

@@ -142,26 +142,101 @@ def test_a_sweep_job_that_is_interrupted_says_so_and_ends_the_sweep(tmp_path, ma
 
 
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
-def test_while_a_sweep_runs_an_interrupt_carries_the_sweep_and_its_end_gives_the_handlers_back(
-        tmp_path, sig, capsys):
-    """Ctrl-C or SIGTERM during a sweep is a KeyboardInterrupt that carries the sweep (whoever
-    catches it writes the report); once the sweep ends, the signals are handled as before."""
-    from omegaconf import OmegaConf
-
-    from topomap.app.report.callback import SweepInterrupted, SweepReport
+def test_an_interrupt_is_raised_and_recorded_and_its_handlers_are_given_back(sig):
+    """Ctrl-C or SIGTERM raises Interrupted where the program stands; when that exception is
+    dropped (Python drops one raised in a destructor), the record raises it again at the next
+    check; giving the handlers back restores the earlier ones and forgets the record."""
+    from topomap.app.run import interrupts
 
     if threading.current_thread() is not threading.main_thread():
         pytest.skip("signals reach the main thread only")
-    config = OmegaConf.create({"hydra": {"sweep": {"dir": str(tmp_path)}}})
-    callback = SweepReport(figure=False)
     before = signal.getsignal(sig)
-    callback.on_multirun_start(config)
+    replaced = interrupts.take_interrupts()
     try:
-        with pytest.raises(KeyboardInterrupt) as caught:
+        interrupts.stop_if_interrupted()  # nothing received: goes on
+        with pytest.raises(interrupts.Interrupted, match=f"signal {sig.name}"):
             signal.raise_signal(sig)
-        assert isinstance(caught.value, SweepInterrupted)
-        assert caught.value.write_report() == tmp_path / "summary.csv"
-        assert "topomap: sweep of 0 jobs" in capsys.readouterr().out
+        assert interrupts.interrupted() == sig.name
+        with pytest.raises(KeyboardInterrupt, match=f"signal {sig.name}"):
+            interrupts.stop_if_interrupted()  # and again, at every later check
     finally:
-        callback.on_multirun_end(config)
-    assert signal.getsignal(sig) is before
+        interrupts.give_back(replaced)
+    assert signal.getsignal(sig) is before and interrupts.interrupted() is None
+
+
+def test_a_run_interrupted_where_the_exception_was_dropped_leaves_none_of_its_files(
+        tmp_path, make_cfg, monkeypatch):
+    """A signal received while the figures were drawn, its exception dropped: the run's files
+    never move into its folder."""
+    from topomap.app.run import interrupts
+
+    monkeypatch.setattr(interrupts, "_received", ["SIGINT"])
+    with pytest.raises(interrupts.Interrupted):
+        experiment.run(small_cfg(make_cfg), tmp_path / "out")
+    assert list((tmp_path / "out").iterdir()) == []
+
+
+FIGURES_PLUGIN = '''
+"""Test plugin: job 0 of a sweep gets SIGINT while it draws its figures, {where}."""
+import os
+import signal
+
+from hydra.core.hydra_config import HydraConfig
+
+from topomap.app import plots
+
+_draw = plots.write_figures
+
+
+def _wait_for_the_handler():
+    for _ in range(200_000):  # Python runs the signal's handler between these steps
+        pass
+
+
+class SignalsWhenCollected:
+    def __del__(self):
+        os.kill(os.getpid(), signal.SIGINT)
+        _wait_for_the_handler()
+
+
+def write_figures(*args, **kwargs):
+    if HydraConfig.get().job.num == 0:
+        if {in_destructor}:
+            SignalsWhenCollected()  # collected at once: the interrupt is raised in __del__
+        else:
+            os.kill(os.getpid(), signal.SIGINT)
+            _wait_for_the_handler()
+    return _draw(*args, **kwargs)
+
+
+plots.write_figures = write_figures
+'''
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("in_destructor", [False, True], ids=["plain", "in-a-destructor"])
+def test_ctrl_c_while_a_job_draws_its_figures_ends_the_sweep(tmp_path, in_destructor):
+    """SIGINT lands while job 0 draws its figures; where it lands inside a destructor (as in
+    matplotlib's weak-reference callbacks) Python drops the exception ("Exception ignored in"),
+    yet the sweep stops there: status 130, job 0 interrupted with none of its files, job 1 not
+    started, the report written."""
+    plugin = tmp_path / "figures_interrupted.py"
+    plugin.write_text(FIGURES_PLUGIN.format(
+        in_destructor=in_destructor,
+        where="inside a destructor, where Python drops the exception" if in_destructor
+        else "in plain code"))
+    sweep = tmp_path / "sweep"
+    r = subprocess.run([sys.executable, "-m", "topomap", "-m", *SMALL, "output.figures=true",
+                        "stop.n_states=8,9", f"hydra.sweep.dir={sweep}", f"plugins=[{plugin}]"],
+                       cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    assert r.returncode == 130, r.stdout + r.stderr
+    assert ("Exception ignored in" in r.stderr) == in_destructor, r.stderr
+    assert r.stderr.strip().splitlines()[-1] == \
+        f"topomap: interrupted; sweep report in {sweep / 'summary.csv'}", r.stderr
+    with open(sweep / "summary.csv", newline="") as fh:
+        rows = {row["job"]: row for row in csv.DictReader(fh)}
+    assert [(rows[j]["stop.n_states"], rows[j]["status"]) for j in "01"] == [
+        ("8", "interrupted"), ("9", "not started")]
+    assert sorted(p.name for p in (sweep / "0").iterdir()) == [".hydra", "status.json",
+                                                              "topomap.log"]
+    assert not (sweep / "1").exists()

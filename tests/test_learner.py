@@ -6,7 +6,7 @@ import pytest
 
 from topomap import MapLearner, TopologicalMap
 from topomap.core.phase1.clustering import BICClusters, Cosine, FixedClusters, Standardized
-from topomap.core.metrics import adjusted_rand, compound_states, evaluate, purity
+from topomap.metrics import adjusted_rand, compound_states, evaluate, purity
 from topomap.core.split.criteria import EntropyCriterion
 from topomap.core.split.engine import merge_groups
 from topomap.core.split.stopping import MinGain, TargetStates
@@ -170,15 +170,20 @@ def test_the_old_names_criterion_and_stopping_still_work_with_a_warning():
 
     X, u, _ = ring(n_steps=600, n_places=8, aliased=[(1, 5), (3, 7)])
     new = MapLearner(n_clusters=6, split=EntropyCriterion(), stop=MinGain(0.5)).fit(X, u)
-    old = MapLearner(n_clusters=6, criterion=EntropyCriterion(), stopping=MinGain(0.5))
     with pytest.warns(FutureWarning, match="stopping= was renamed stop="):
-        old.fit(X, u)
+        old = MapLearner(n_clusters=6, criterion=EntropyCriterion(), stopping=MinGain(0.5))
+    old.fit(X, u)
     assert np.array_equal(old.labels_, new.labels_)
     assert old.map_.info["stopping"] == new.map_.info["stopping"] == repr(MinGain(0.5))
-    assert isinstance(clone(old).get_params()["stopping"], MinGain)
-    assert MapLearner().get_params()["criterion"] == "deprecated"
+    # get_params lists the new names only; a clone keeps the values given under the old ones
+    assert "criterion" not in old.get_params() and "stopping" not in old.get_params()
+    assert isinstance(clone(old).get_params()["stop"], MinGain)
+    with pytest.warns(FutureWarning, match="criterion= was renamed split="):
+        assert MapLearner().set_params(criterion="entropy").get_params()["split"] == "entropy"
     with pytest.raises(ValueError, match="^stopping is the deprecated name of stop: give stop"):
-        MapLearner(stop=MinGain(0.5), stopping=MinGain(0.5)).fit(X, u)
+        MapLearner(stop=MinGain(0.5), stopping=MinGain(0.5))
+    with pytest.raises(TypeError, match="unexpected keyword argument 'stoping'"):
+        MapLearner(stoping=MinGain(0.5))
 
 
 def test_reevaluating_only_neighbours_of_a_split_changes_nothing(monkeypatch):

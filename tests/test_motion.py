@@ -466,7 +466,11 @@ def test_a_log_too_short_to_tell_is_not_continuous():
     assert not continuous(np.zeros(1200, int))                  # one symbol: one run
     assert not continuous(np.repeat([0, 1, 2], 400))            # 3 runs < 2 x 3 symbols
     assert continuous(np.tile(np.repeat([0, 1, 2], 4), 100))    # 300 runs of 4 steps
-    assert not continuous(np.tile(np.repeat([0, 1, 2], 2), 200))  # runs of 2 steps
+    assert continuous(np.tile(np.repeat([0, 1, 2], 2), 200))    # runs of 2 steps (a robot)
+    assert not continuous(np.tile([0, 1, 2], 400))              # runs of 1 step (a grid)
+    assert is_continuous(auto, np.tile([0, 1, 2], 400), [1200], gds, odometry=True)
+    assert not is_continuous(auto, np.tile([0, 1, 2], 400), [1200], np.r_[0, gds[1:]],
+                             odometry=True)                     # odometry, but a GDS step
     assert not continuous(np.tile(np.repeat([0, 1, 2], 4), 100),
                           MotionSettings(min_steps=1201))        # too short a log
     assert not continuous(np.tile(np.repeat([0, 1, 2], 4), 100),

@@ -1,5 +1,5 @@
 """Soft evidence from each step's own observation (topomap.core.refine.observed,
-``refine.soft.observed``): the evidence on hand-made log-densities, the refinement on the
+``refine.reading.temperature``): the evidence on hand-made log-densities, the refinement on the
 misread ring walk with evidence that holds the true symbol or leaves it out, and the learner
 handing phase 1's log-densities on."""
 
@@ -26,7 +26,7 @@ def test_step_evidence_is_the_tempered_likelihood_relative_to_the_best_symbol():
     # symbol 1 at step 2: -105 / 2 = -52.5, far below log(SHARE): not a candidate
     assert -105 / 2 < np.log(SHARE)
     np.testing.assert_allclose(ev[2], [1.0, 0.0, 0.0])
-    # the share bounds the tempered evidence: -20 nats is out at tau 1, in at tau 2 (-10)
+    # the share bounds the tempered evidence: -20 nats is out at temperature 1, in at 2 (-10)
     ll = np.array([[0.0, -20.0]])
     np.testing.assert_array_equal(step_evidence(ll, [0], 2, 2, 1.0), [[1, 0]])
     np.testing.assert_allclose(step_evidence(ll, [0], 2, 2, 2.0), [[1, np.exp(-10)]])
@@ -47,16 +47,16 @@ def _ring_loglik(sym, place, true_gap):
     return loglik
 
 
-ALL = {"observed": 1.0, "observed_in": "all"}  # every soft round on the per-step evidence
+ALL = {"temperature": 1.0, "observed_in": "all"}  # every soft round on the per-step evidence
 
 
 def test_evidence_that_holds_the_true_symbol_recovers_the_ring():
     """Every misread step's evidence gives its place's true symbol 0.6 of the read one's weight
-    (tau 1): the soft rounds put every step, misread ones too, in its place's state."""
+    (temperature 1): the soft rounds put every step, misread ones too, in its place's state."""
     sym, u, lengths, place, wrong = _ring_walk()
     seq = _seq(sym, u, lengths)
     loglik = _ring_loglik(sym, place, -np.log(0.6))
-    fit = EMRefinement(evidence="soft", soft=ALL).fit(seq, RING, 0, observed=loglik)
+    fit = EMRefinement(evidence="soft", reading=ALL).fit(seq, RING, 0, observed=loglik)
     assert fit.n_states_ == RING.size and same_partition(fit.labels_, place)
     np.testing.assert_array_equal(fit.state_symbol_[fit.labels_[wrong]], RING[place[wrong]])
     assert all(r["evidence"] == "observed" for r in fit.info_["soft_rounds"])
@@ -68,8 +68,8 @@ def test_evidence_without_the_true_symbol_cannot_correct_a_misread():
     explain it, so every misread step stays in a state of the symbol read."""
     sym, u, lengths, place, wrong = _ring_walk()
     seq = _seq(sym, u, lengths)
-    for soft in (ALL, {"observed": 1.0, "observed_in": "last"}):  # every round, or the last
-        fit = EMRefinement(evidence="soft", soft=soft).fit(
+    for reading in (ALL, {"temperature": 1.0, "observed_in": "last"}):  # every round, or the last
+        fit = EMRefinement(evidence="soft", reading=reading).fit(
             seq, RING, 0, observed=_ring_loglik(sym, place, 30.0))
         np.testing.assert_array_equal(fit.state_symbol_[fit.labels_[wrong]], sym[wrong])
 
@@ -80,9 +80,9 @@ def test_last_takes_the_per_step_evidence_in_the_last_soft_round_only():
     sym, u, lengths, place, _ = _ring_walk()
     seq = _seq(sym, u, lengths)
     loglik = _ring_loglik(sym, place, -np.log(0.6))
-    fit = EMRefinement(evidence="soft", soft={"observed_in": "last"}).fit(seq, RING, 0,
-                                                                           observed=loglik)
-    plain = EMRefinement(evidence="soft", soft={"observed": 0.0}).fit(seq, RING, 0)
+    fit = EMRefinement(evidence="soft", reading={"observed_in": "last"}).fit(seq, RING, 0,
+                                                                              observed=loglik)
+    plain = EMRefinement(evidence="soft", reading={"temperature": 0.0}).fit(seq, RING, 0)
     records, before = fit.info_["soft_rounds"], plain.info_["soft_rounds"]
     assert [r.get("evidence") for r in records] == [None] * (len(records) - 1) + ["observed"]
     assert records[:-1] == before[:-1]
@@ -99,7 +99,7 @@ def test_the_evidence_is_asked_for_only_when_a_soft_round_runs():
     def loglik():
         calls.append(1)
         return np.zeros((seq.T, 3))
-    fit = EMRefinement(soft={"observed": 6.0}).fit(seq, RING, 0, observed=loglik)
+    fit = EMRefinement(reading={"temperature": 6.0}).fit(seq, RING, 0, observed=loglik)
     plain = EMRefinement().fit(seq, RING, 0)
     assert calls == [] and fit.info_["soft"] == "skipped"
     np.testing.assert_array_equal(fit.labels_, plain.labels_)
@@ -108,7 +108,7 @@ def test_the_evidence_is_asked_for_only_when_a_soft_round_runs():
 def test_observed_off_or_not_given_is_the_confusion_matrix():
     sym, u, lengths, place, _ = _ring_walk()
     seq = _seq(sym, u, lengths)
-    off = EMRefinement(soft={"observed": 0.0})
+    off = EMRefinement(reading={"temperature": 0.0})
     with_ll = off.fit(seq, RING, 0, observed=_ring_loglik(sym, place, 30.0))
     labels, info = with_ll.labels_.copy(), with_ll.info_
     without = EMRefinement().fit(seq, RING, 0)  # on, but no log-densities given
@@ -124,19 +124,19 @@ def test_bad_observed_input_is_refused_with_its_name():
     with pytest.raises(ValueError, match="observed: the log-densities must be finite"):
         observed_evidence(seq, 6.0, np.full((4, 2), np.nan))
     assert observed_evidence(seq, 0.0, None) is None
-    with pytest.raises(ParameterError, match="soft.observed"):
-        EMRefinement(soft={"observed": -1.0}).check_params()
-    with pytest.raises(ParameterError, match="soft.observed_in"):
-        EMRefinement(soft={"observed_in": "first"}).check_params()
+    with pytest.raises(ParameterError, match="^reading.temperature must be >= 0 and finite"):
+        EMRefinement(reading={"temperature": -1.0}).check_params()
+    with pytest.raises(ParameterError, match="^reading.observed_in must be one of last, auto, all"):
+        EMRefinement(reading={"observed_in": "first"}).check_params()
 
 
 def test_a_round_past_the_memory_bound_is_the_confusion_matrix_round(monkeypatch):
     sym, u, lengths, place, _ = _ring_walk()
     seq = _seq(sym, u, lengths)
     monkeypatch.setattr(observed, "MAX_BYTES", 1000)
-    fit = EMRefinement(evidence="soft", soft=ALL).fit(seq, RING, 0,
-                                                      observed=_ring_loglik(sym, place, 1.0))
-    plain = EMRefinement(evidence="soft", soft={"observed": 0.0}).fit(seq, RING, 0)
+    fit = EMRefinement(evidence="soft", reading=ALL).fit(seq, RING, 0,
+                                                         observed=_ring_loglik(sym, place, 1.0))
+    plain = EMRefinement(evidence="soft", reading={"temperature": 0.0}).fit(seq, RING, 0)
     np.testing.assert_array_equal(fit.labels_, plain.labels_)
     assert all(r["observed"] == "over MAX_BYTES" for r in fit.info_["soft_rounds"])
 
@@ -148,7 +148,7 @@ def test_the_learner_hands_phase_1_log_densities_to_the_soft_rounds():
     centres = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
     X = centres[sym] + np.random.default_rng(1).normal(0.0, 0.3, (sym.size, 2))
     learner = MapLearner(n_clusters=3, n_states=10, refine=EMRefinement(
-        evidence="soft", soft={"observed": 6.0}), random_state=0).fit(X, u)
+        evidence="soft", reading={"temperature": 6.0}), random_state=0).fit(X, u)
     records = learner.refine_info_["soft_rounds"]
     assert records and records[-1]["evidence"] == "observed"
     assert learner.labels_.shape == place.shape

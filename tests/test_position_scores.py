@@ -1,4 +1,5 @@
-"""Scores in metres, on cases whose answers are worked out by hand."""
+"""Scores in metres, and what they share with the learner, on cases whose answers are worked
+out by hand."""
 
 from __future__ import annotations
 
@@ -6,8 +7,11 @@ import numpy as np
 import pytest
 
 from topomap import TopologicalMap, Trajectory
-from topomap.core.position_scores import (ceiling_scores, kmeans_view_scores, map_scores,
-                                          placement_scores, split_places, true_places)
+from topomap.core.phase1.clustering import view_clusters
+from topomap.core.stats import label_means, majority_share
+from topomap.evaluation.metres import (ceiling_scores, kmeans_view_scores, map_scores,
+                                       placement_scores, split_places, true_places)
+from topomap.metrics import purity
 
 
 def test_placement_scores_by_hand():
@@ -103,3 +107,34 @@ def test_scores_need_positions():
     held = Trajectory(train.observations, train.actions)
     with pytest.raises(ValueError, match="held-out trajectory has no positions"):
         kmeans_view_scores(2, train, held)
+
+
+# ---------------------------------------------------------------- what the scores share with the learner
+def test_label_means_by_hand():
+    means = label_means([0, 1, 0, 2], np.array([[1.0, 10], [5, 50], [3, 30], [7, 70]]), 4)
+    assert means[:3].tolist() == [[2.0, 20.0], [5.0, 50.0], [7.0, 70.0]]
+    assert np.isnan(means[3]).all()  # no step carries label 3
+
+
+def test_purity_is_the_majority_share():
+    """Label 0 holds places 0, 0, 1 (2 in its majority), label 1 places 1, 1 (2): 4 of 5."""
+    places, states = [0, 0, 1, 1, 1], [0, 0, 0, 1, 1]
+    assert majority_share(places, states) == 0.8 == purity(places, states)
+
+
+def test_view_clusters_are_numbered_by_first_appearance():
+    """Three groups of views far apart, met in the order c, a, b: clusters 0, 1, 2."""
+    a, b, c = [0.0, 0.0], [10.0, 0.0], [0.0, 10.0]
+    Z = np.array([c, c, a, a, b, b, a, c]) + 0.01 * np.arange(8)[:, None]
+    assert view_clusters(Z, 3, 4, 0).tolist() == [0, 0, 1, 1, 2, 2, 1, 0]
+
+
+def test_the_old_name_of_the_scores_in_metres_warns_and_gives_the_same_functions():
+    import importlib
+
+    from topomap.evaluation import metres
+
+    old = importlib.import_module("topomap.core.position_scores")
+    with pytest.warns(FutureWarning, match="topomap.core.position_scores is now "
+                                           "topomap.evaluation.metres"):
+        assert old.position_scores is metres.position_scores

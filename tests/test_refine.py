@@ -7,7 +7,7 @@ from sklearn.metrics import adjusted_rand_score
 from topomap.core.checks import ParameterError
 from topomap.core.refine.methods import CSCGRefinement, EMRefinement
 from topomap.core.refine.sequence import SymbolSequence
-from topomap.core.refine.soft import SoftSettings
+from topomap.core.refine.settings import CSCGRounds, Growth, HardRounds, Reading, SoftRounds
 from topomap.core.refine.structure import merge_states, same_partition, split_compounds
 from topomap.core.stats import episode_masks
 from topomap.worlds import GridRoom, RandomExplorer
@@ -64,7 +64,7 @@ def test_refine_recovers_every_cell_of_a_small_grid(seed, accelerate):
     """The split is given as many states per symbol as there are cells (its usual size)."""
     sym, u, places = grid_walk(4000, seed)
     fit = refine_fit(sym, u, [4000], 4, 3, ROOM.place_symbols, random_state=seed,
-                     accelerate=accelerate)
+                     hard={"accelerate": accelerate})
     assert adjusted_rand_score(places, fit.labels_) == 1.0 and fit.n_states_ == 12
 
 
@@ -73,7 +73,7 @@ def test_accelerated_refinement_keeps_the_first_stage_plain():
     runs the same EM iterations to the same labelling, so both fits start their growth from the
     same states."""
     sym, u, _ = grid_walk(4000, 0)
-    plain, fast = (refine_fit(sym, u, [4000], 4, 3, ROOM.place_symbols, accelerate=a)
+    plain, fast = (refine_fit(sym, u, [4000], 4, 3, ROOM.place_symbols, hard={"accelerate": a})
                    for a in ("none", "squarem"))
     assert plain.info_["stages"][0] == fast.info_["stages"][0]
     assert plain.info_["stages"][1:] != fast.info_["stages"][1:]  # the later rounds did change
@@ -89,7 +89,7 @@ def test_cscg_nearly_recovers_the_ring():
     """EM alone with CSCG's recipe (20 clones per symbol here, its 70 by default: the same
     answer on this ring at a tenth of the time); it may leave a duplicate or two."""
     sym, u, places = ring_walk(3000, RING, 1)
-    fit = cscg_fit(sym, u, [3000], 2, 6, random_state=1, clones_per_symbol=20)
+    fit = cscg_fit(sym, u, [3000], 2, 6, random_state=1, hard={"clones_per_symbol": 20})
     assert adjusted_rand_score(places, fit.labels_) > 0.9
 
 
@@ -245,7 +245,7 @@ def test_soft_settings_reach_the_refinement_and_the_map_file_label():
 
     sym, u, _ = ring_walk(3000, RING, 0)
     learner = MapLearner(n_clusters=6, n_states=6, refine=EMRefinement(
-        evidence="soft", soft={"rounds": 1, "conf_warmup": 100})).fit(noisy(sym, 6), u)
+        evidence="soft", soft={"rounds": 1}, reading={"conf_warmup": 100})).fit(noisy(sym, 6), u)
     rounds = learner.refine_info_["soft_rounds"]
     assert len(rounds) == 2  # one soft round and a hard one after it, then the last soft round
     assert [r["conf_offdiag"] for r in rounds] == [0.0, 0.0]
@@ -259,7 +259,7 @@ def test_the_learner_refines_a_clone_and_never_changes_its_refine():
     from topomap import MapLearner
 
     sym, u, _ = ring_walk(3000, RING, 0)
-    refine = EMRefinement(max_rounds=3)
+    refine = EMRefinement(hard={"max_rounds": 3})
     learner = MapLearner(n_clusters=6, n_states=6, refine=refine).fit(noisy(sym, 6), u)
     assert learner.refine is refine and not hasattr(refine, "labels_")
     assert learner.map_.info["refine"] == refine.provenance()
@@ -315,7 +315,8 @@ def test_a_refined_map_is_the_same_bytes_for_the_same_seed(refine, tmp_path):
 
     sym, u, _ = ring_walk(2000, RING, 3)
     X = noisy(sym, 6, 3)
-    component = "em" if refine == "em" else CSCGRefinement(clones_per_symbol=4, max_iter=30)
+    component = "em" if refine == "em" else CSCGRefinement(hard={"clones_per_symbol": 4,
+                                                                   "max_iter": 30})
     paths = [MapLearner(n_clusters=6, n_states=6, refine=component, random_state=1).fit(X, u)
              .map_.save(tmp_path / f"map{i}.json") for i in range(2)]
     assert paths[0].read_bytes() == paths[1].read_bytes()
@@ -325,84 +326,105 @@ def test_a_refined_map_is_the_same_bytes_for_the_same_seed(refine, tmp_path):
 def test_the_refinements_store_their_parameters_as_given():
     from sklearn.base import clone
 
-    em = EMRefinement(prefix=np.int64(3000), tol=0, guard=False)
-    assert type(em.prefix) is np.int64 and type(em.tol) is int and em.guard is False
+    growth, hard = {"prefix": np.int64(3000)}, HardRounds(tol=0)
+    em = EMRefinement(growth=growth, hard=hard, guard=False)
+    assert em.growth is growth and em.hard is hard and em.guard is False
     params = em.get_params()
-    assert params["clone_factor"] == 2 and params["prefix"] is em.prefix
-    assert set(params) == {"clone_factor", "prefix", "prefix_visits", "max_rounds", "row_prior",
-                           "tol", "max_iter", "settle", "prune", "merge_threshold", "split_z",
-                           "spare", "init_noise", "guard", "budget", "accelerate", "start",
-                           "first", "first_factor", "first_iter", "first_rtol", "evidence", "soft"}
+    assert params == {"evidence": "auto", "guard": False, "hard": hard, "growth": growth,
+                      "soft": SoftRounds(), "reading": Reading()}
     twin = clone(em)
     assert twin is not em and twin.get_params() == params
-    assert CSCGRefinement(clones_per_symbol=5).set_params(tol=0.5).get_params() == {
-        "clones_per_symbol": 5, "pseudocount": 2e-3, "max_iter": 1000, "tol": 0.5,
-        "evidence": "auto", "soft": SoftSettings()}
+    assert type(em.settings().growth.prefix) is np.int64 and em.settings().hard.tol == 0
+    assert CSCGRefinement(hard={"clones_per_symbol": 5}).set_params(
+        reading={"floor": 0.5}).get_params() == {
+        "hard": {"clones_per_symbol": 5}, "evidence": "auto", "soft": SoftRounds(),
+        "reading": {"floor": 0.5}}
 
 
 def test_the_repr_is_the_estimators_and_the_provenance_the_form_map_json_stores():
     assert repr(EMRefinement()) == "EMRefinement()"
-    assert repr(EMRefinement(prefix=500, soft={"rounds": 2})) == (
-        "EMRefinement(prefix=500, soft={'rounds': 2})")
+    assert repr(EMRefinement(growth={"prefix": 500}, soft={"rounds": 2})) == (
+        "EMRefinement(growth={'prefix': 500}, soft={'rounds': 2})")
+    # the defaults' text: info["refine"] of the reference configs' maps written before the
+    # settings were grouped by stage (benchmarks/reference_maps.py), the same bytes since
     assert EMRefinement().provenance() == (
         "EMRefinement(clone_factor=2, prefix=2000, prefix_visits=40, max_rounds=8, guard=True, "
         "settings=EMSettings(row_prior=0.5, tol=1e-06, max_iter=50, prune=0.0001, "
         "merge_threshold=6.63, split_z=3.09, spare=2, init_noise=1.0))")
-    assert CSCGRefinement(clones_per_symbol=4, tol=0).provenance() == (
+    assert CSCGRefinement().provenance() == (
+        "CSCGRefinement(clones_per_symbol=70, pseudocount=0.002, max_iter=1000, tol=0.0)")
+    assert CSCGRefinement(hard={"clones_per_symbol": 4, "tol": 0}).provenance() == (
         "CSCGRefinement(clones_per_symbol=4, pseudocount=0.002, max_iter=1000, tol=0.0)")
     # a stopping rule switched on is named, and only then
     assert ("guard=True, settle=0.01, settings=EMSettings(row_prior=0.5, tol=1e-06, max_iter=50, "
-            "prune=" in EMRefinement(settle=0.01).provenance())
+            "prune=" in EMRefinement(hard={"settle": 0.01}).provenance())
     assert "guard=True, accelerate='squarem', settings=EMSettings(" in EMRefinement(
-        accelerate="squarem").provenance()
-    # soft settings changed from their defaults are named, the others not
+        hard={"accelerate": "squarem"}).provenance()
+    # the soft rounds', the reading's and the growth caps' settings changed from their defaults
+    # are named, by their names of before 0.3 and in the old SoftSettings' order
     assert ("evidence='soft', soft=SoftSettings(conf_warmup=10), settings=EMSettings("
-            in EMRefinement(evidence="soft", soft={"conf_warmup": 10}).provenance())
-    assert CSCGRefinement(soft=SoftSettings(rounds=1)).provenance().endswith(
+            in EMRefinement(evidence="soft", reading={"conf_warmup": 10}).provenance())
+    assert ("guard=True, soft=SoftSettings(rounds=2, conf_diag=5.0, stage_cap=15, "
+            "observed=0.0), settings=EMSettings(" in EMRefinement(
+                reading={"temperature": 0.0, "conf_diag": 5.0}, growth={"stage_cap": 15},
+                soft={"rounds": 2}).provenance())
+    assert CSCGRefinement(soft=SoftRounds(rounds=1)).provenance().endswith(
         "tol=0.0, soft=SoftSettings(rounds=1))")
 
 
 @pytest.mark.parametrize("cls, params, message", [
-    (EMRefinement, dict(clone_factor=0), "clone_factor must be a positive integer, got 0"),
-    (EMRefinement, dict(prefix=2.5), "prefix must be a positive integer, got 2.5"),
-    (EMRefinement, dict(max_rounds=True), "max_rounds must be a positive integer, got True"),
-    (EMRefinement, dict(max_iter=0), "max_iter must be a positive integer, got 0"),
-    (EMRefinement, dict(prefix_visits=-1), "prefix_visits must be a non-negative integer, got -1"),
-    (EMRefinement, dict(spare=-2), "spare must be a non-negative integer, got -2"),
-    (EMRefinement, dict(row_prior=0.0), "row_prior must be > 0, got 0.0"),
-    (EMRefinement, dict(tol=-1e-3), "tol must be >= 0, got -0.001"),
-    (EMRefinement, dict(prune=1.0), r"prune must be in \[0, 1\), got 1.0"),
-    (EMRefinement, dict(settle=-0.1), r"settle must be in \[0, 1\], got -0.1"),
-    (EMRefinement, dict(accelerate="fast"), "accelerate must be one of none, squarem, got 'fast'$"),
-    (CSCGRefinement, dict(clones_per_symbol=0), "clones_per_symbol must be a positive integer"),
-    (CSCGRefinement, dict(max_iter=0), "max_iter must be a positive integer, got 0"),
-    (CSCGRefinement, dict(pseudocount=float("nan")), "pseudocount must be > 0, got nan"),
-    (CSCGRefinement, dict(tol=-1.0), "tol must be >= 0, got -1.0"),
-    (EMRefinement, dict(soft={"conf_warmup": -1}),
-     "soft.conf_warmup must be a non-negative integer, got -1"),
-    (CSCGRefinement, dict(soft={"floor": 0.0}), r"soft.floor must be in \(0, 1\), got 0.0"),
+    (EMRefinement, dict(growth={"clone_factor": 0}),
+     "growth.clone_factor must be a positive integer, got 0"),
+    (EMRefinement, dict(growth={"prefix": 2.5}),
+     "growth.prefix must be a positive integer, got 2.5"),
+    (EMRefinement, dict(hard={"max_rounds": True}),
+     "hard.max_rounds must be a positive integer, got True"),
+    (EMRefinement, dict(hard={"max_iter": 0}), "hard.max_iter must be a positive integer, got 0"),
+    (EMRefinement, dict(growth={"prefix_visits": -1}),
+     "growth.prefix_visits must be a non-negative integer, got -1"),
+    (EMRefinement, dict(hard={"spare": -2}), "hard.spare must be a non-negative integer, got -2"),
+    (EMRefinement, dict(hard={"row_prior": 0.0}), "hard.row_prior must be > 0, got 0.0"),
+    (EMRefinement, dict(hard={"tol": -1e-3}), "hard.tol must be >= 0, got -0.001"),
+    (EMRefinement, dict(hard={"prune": 1.0}), r"hard.prune must be in \[0, 1\), got 1.0"),
+    (EMRefinement, dict(hard={"settle": -0.1}), r"hard.settle must be in \[0, 1\], got -0.1"),
+    (EMRefinement, dict(hard={"init_noise": "x"}), "hard.init_noise must be >= 0, got 'x'"),
+    (EMRefinement, dict(hard={"accelerate": "fast"}),
+     "hard.accelerate must be one of none, squarem, got 'fast'$"),
+    (CSCGRefinement, dict(hard={"clones_per_symbol": 0}),
+     "hard.clones_per_symbol must be a positive integer"),
+    (CSCGRefinement, dict(hard={"max_iter": 0}), "hard.max_iter must be a positive integer, got 0"),
+    (CSCGRefinement, dict(hard={"pseudocount": float("nan")}),
+     "hard.pseudocount must be > 0, got nan"),
+    (CSCGRefinement, dict(hard=CSCGRounds(tol=-1.0)), "hard.tol must be >= 0, got -1.0"),
+    (EMRefinement, dict(reading={"conf_warmup": -1}),
+     "reading.conf_warmup must be a non-negative integer, got -1"),
+    (CSCGRefinement, dict(reading={"floor": 0.0}), r"reading.floor must be in \(0, 1\), got 0.0"),
     (EMRefinement, dict(soft={"warmup": 3}), "soft.warmup is not a soft setting; the settings "
-                                              "are rounds, min_steps"),
-    (EMRefinement, dict(soft=3), "soft must be SoftSettings or a mapping of its fields, got 3"),
+                                              "are rounds, spare"),
+    (EMRefinement, dict(soft=3), "soft must be SoftRounds or a mapping of its fields, got 3"),
+    (EMRefinement, dict(growth=Growth(budget="all")),
+     "growth.budget must be one of split, evidence, got 'all'"),
+    (EMRefinement, dict(evidence="fuzzy"), "evidence must be one of auto, soft, hard"),
 ])
 def test_bad_parameters_are_refused_by_name(cls, params, message):
-    """Checked by ``check_params`` (and ``fit``), not by ``__init__``; the error names the core
-    parameter, the app says it as its config key."""
+    """Checked by ``check_params`` (and ``fit``), not by ``__init__``; the error names the
+    group and its field, in one line; the app says it as its config key
+    (``refine.hard.max_iter``)."""
     refinement = cls(**params)  # stored as given
     with pytest.raises(ParameterError, match=f"^{message}") as err:
         refinement.check_params()
     assert err.value.param.split(".")[0] == next(iter(params))
-    assert "refine." not in str(err.value)
+    assert "refine." not in str(err.value) and "\n" not in str(err.value)
     assert str(err.value.renamed(f"refine.{err.value.param}")).startswith("refine.")
 
 
 def test_parameters_set_after_construction_are_checked_by_fit():
     sym, u, _ = ring_walk(300, RING, 0)
     seq = SymbolSequence.build(sym, u, [300], 2, 6)
-    with pytest.raises(ParameterError, match="clone_factor must be a positive integer"):
-        EMRefinement().set_params(clone_factor=0).fit(seq, np.arange(6))
-    with pytest.raises(ParameterError, match="pseudocount must be > 0"):
-        CSCGRefinement().set_params(pseudocount=-1.0).fit(seq)
+    with pytest.raises(ParameterError, match="growth.clone_factor must be a positive integer"):
+        EMRefinement().set_params(growth={"clone_factor": 0}).fit(seq, np.arange(6))
+    with pytest.raises(ParameterError, match="hard.pseudocount must be > 0"):
+        CSCGRefinement().set_params(hard=CSCGRounds(pseudocount=-1.0)).fit(seq)
 
 
 def test_a_sequence_head_keeps_the_episodes_it_covers():

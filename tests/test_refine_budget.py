@@ -27,7 +27,7 @@ def test_a_view_shared_by_k_places_gets_at_least_k_clones(k):
     assert place_lower_bound(sym, u, [sym.size], k + 1)[0] == k
     assert evidence_budget(split, seq, 2, 2)[0] >= k
     assert split_budget(split, seq, 2, 2)[0] == 4
-    fit = EMRefinement(budget="evidence").fit(seq, split, 0)
+    fit = EMRefinement(growth={"budget": "evidence"}).fit(seq, split, 0)
     assert adjusted_rand_score(places, fit.labels_) == 1.0
     assert np.sum(fit.state_symbol_ == 0) == k
 
@@ -55,8 +55,9 @@ def test_gds_ids_keep_one_clone_under_the_evidence_budget():
 
 
 def test_unknown_budget_is_refused():
-    with pytest.raises(ValueError, match="^budget must be one of split, evidence, got 'nope'"):
-        EMRefinement(budget="nope").check_params()
+    with pytest.raises(ValueError,
+                       match="^growth.budget must be one of split, evidence, got 'nope'"):
+        EMRefinement(growth={"budget": "nope"}).check_params()
 
 
 @pytest.mark.parametrize("dims", [(3, 4, 5), (2**40, 2**40, 3)])

@@ -1,4 +1,4 @@
-"""``EMRefinement(first="rough", first_factor=..., first_iter=..., first_rtol=...)``: a
+"""``EMRefinement(growth={"first": "rough", "first_factor": ..., "first_iter": ...})``: a
 rougher first EM stage where it runs on a prefix, on the small worlds of test_refine.py whose
 answer is known (the aliased ring and the 4 x 3 grid)."""
 
@@ -12,8 +12,9 @@ from topomap.core.refine import methods
 from topomap.core.refine.methods import EMRefinement
 from topomap.core.refine.sequence import SymbolSequence
 
+#: growth settings: a rough stage 1, and stage 1 as every round whatever ``first``
 ROUGH = {"first": "rough", "first_factor": 1, "first_iter": 25}
-PLAIN = {"first_factor": 0, "first_iter": 0}  # stage 1 as every round, whatever ``first``
+PLAIN = {"first_factor": 0, "first_iter": 0}
 
 
 def ring(seed, T=3200):
@@ -34,7 +35,7 @@ def test_a_rough_first_stage_still_finds_every_place_of_the_ring(seed, rough):
     growth stage and the rounds on all steps still find the 8 places.  (Baum-Welch judges its
     own stop from the 11th E-step on: a stage of 5 E-steps was cut.)"""
     seq, places = ring(seed)
-    fit = EMRefinement(**rough).fit(seq, np.arange(6), seed)
+    fit = EMRefinement(growth=rough).fit(seq, np.arange(6), seed)
     n, _, iters = fit.info_["stages"][0]
     assert n == 2000 and iters <= rough["first_iter"] and (iters == 5) is (rough["first_iter"] == 5)
     assert fit.n_states_ == 8 and adjusted_rand_score(places, fit.labels_) == 1.0
@@ -44,7 +45,7 @@ def test_a_rough_first_stage_still_finds_every_place_of_the_ring(seed, rough):
 def test_a_rough_first_stage_still_finds_every_cell_of_the_grid(seed):
     """The split's usual size (a state per cell): stage 1 on the first 2,000 of 4,000 steps."""
     seq, places = grid(seed)
-    fit = EMRefinement(**ROUGH).fit(seq, ROOM.place_symbols, seed)
+    fit = EMRefinement(growth=ROUGH).fit(seq, ROOM.place_symbols, seed)
     assert fit.info_["stages"][0][0] == 2000 and fit.info_["stages"][0][2] <= 25
     assert fit.n_states_ == 12 and adjusted_rand_score(places, fit.labels_) == 1.0
 
@@ -66,8 +67,9 @@ def test_the_first_factor_sizes_the_budget_of_a_stage_on_a_short_prefix_only(mon
     used = factors_used(monkeypatch)
     seq, _ = ring(0)
     for prefix in (2000, 2400, 3200):
-        EMRefinement(first="rough", first_factor=1, prefix=prefix).fit(seq, np.arange(6), 0)
-    EMRefinement(clone_factor=3, first_factor=0).fit(seq, np.arange(6), 0)
+        EMRefinement(growth={"first": "rough", "first_factor": 1, "prefix": prefix}).fit(
+            seq, np.arange(6), 0)
+    EMRefinement(growth={"clone_factor": 3, "first_factor": 0}).fit(seq, np.arange(6), 0)
     assert methods.ROUGH == 2 / 3 and used == [1, 2, 2, 3]
 
 
@@ -76,8 +78,9 @@ def test_a_first_stage_on_most_steps_keeps_its_iterations(prefix):
     """A prefix of more than ``ROUGH`` of the steps (3/4, all): stage 1 is not cut, and the fit
     is the plain one, stage for stage."""
     seq, _ = ring(0)
-    plain = EMRefinement(prefix=prefix, **PLAIN).fit(seq, np.arange(6), 0)
-    rough = EMRefinement(prefix=prefix, first="rough", first_iter=5).fit(seq, np.arange(6), 0)
+    plain = EMRefinement(growth={"prefix": prefix, **PLAIN}).fit(seq, np.arange(6), 0)
+    rough = EMRefinement(growth={"prefix": prefix, "first": "rough", "first_iter": 5}).fit(
+        seq, np.arange(6), 0)
     assert plain.info_["stages"][0][0] == prefix and plain.info_["stages"][0][2] > 5
     assert rough.info_["stages"] == plain.info_["stages"]
 
@@ -87,7 +90,7 @@ def test_first_rtol_lets_stage_one_go_on_while_it_gains():
     ``tol``), the plain stop: stage 1 runs as long as without a cap; ``inf``: it stops there."""
     seq, _ = ring(1)
     def stage_one(**params):
-        return EMRefinement(**params).fit(seq, np.arange(6), 1).info_["stages"][0]
+        return EMRefinement(growth=params).fit(seq, np.arange(6), 1).info_["stages"][0]
 
     plain = stage_one(**PLAIN)
     on = stage_one(first="rough", first_factor=0, first_iter=12, first_rtol=0.0)
@@ -97,20 +100,20 @@ def test_first_rtol_lets_stage_one_go_on_while_it_gains():
 
 def test_the_first_stage_settings_are_named_in_the_provenance_only_when_set():
     assert "first" not in EMRefinement().provenance()
-    assert "first_factor=0, first_iter=0, settings=" in EMRefinement(**PLAIN).provenance()
-    assert ("start='split', first='rough', first_rtol=0.001, settings="
-            in EMRefinement(start="split", first_rtol=1e-3, **ROUGH).provenance())
+    assert "first_factor=0, first_iter=0, settings=" in EMRefinement(growth=PLAIN).provenance()
+    assert ("start='split', first='rough', first_rtol=0.001, settings=" in EMRefinement(
+        growth={"start": "split", "first_rtol": 1e-3, **ROUGH}).provenance())
 
 
 @pytest.mark.parametrize("params, message", [
-    (dict(first_factor=-1), "first_factor must be a non-negative integer, got -1"),
-    (dict(first_iter=2.5), "first_iter must be a non-negative integer, got 2.5"),
-    (dict(first_rtol=-0.1), "first_rtol must be >= 0, got -0.1"),
-    (dict(first="fast"), "first must be one of auto, rough, plain, got 'fast'"),
+    (dict(first_factor=-1), "growth.first_factor must be a non-negative integer, got -1"),
+    (dict(first_iter=2.5), "growth.first_iter must be a non-negative integer, got 2.5"),
+    (dict(first_rtol=-0.1), "growth.first_rtol must be >= 0, got -0.1"),
+    (dict(first="fast"), "growth.first must be one of auto, rough, plain, got 'fast'"),
 ])
 def test_bad_first_stage_settings_are_refused_by_name(params, message):
     with pytest.raises(ParameterError, match=f"^{message}"):
-        EMRefinement(**params).check_params()
+        EMRefinement(growth=params).check_params()
 
 
 def growth_prefixes(monkeypatch, changed: bool, **params):
@@ -126,7 +129,9 @@ def growth_prefixes(monkeypatch, changed: bool, **params):
     monkeypatch.setattr(EMRefinement, "_warm_round", em_round)
     monkeypatch.setattr(EMRefinement, "_restructure", restructure)
     seq, _ = ring(0, T=64000)
-    stages = EMRefinement(evidence="hard", **params)._stages(seq, np.arange(6), 0)
+    em = EMRefinement(evidence="hard", growth=params)
+    em.settings_ = em.check_params()  # as fit sets it
+    stages = em._stages(seq, np.arange(6), 0)
     return [n for n, _, _ in next(stages)[2]["stages"]]
 
 

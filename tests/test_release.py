@@ -74,10 +74,10 @@ def test_topomap_metrics_is_a_module_of_its_own_and_import_topomap_loads_the_cor
     module planted in ``sys.modules``), and ``import topomap`` loads no app layer."""
     code = ("import sys, topomap\n"
             "from topomap.metrics import adjusted_rand, evaluate\n"
-            "from topomap.core import metrics as core\n"
+            "from topomap.evaluation import partitions\n"
             "assert topomap.metrics.__name__ == 'topomap.metrics', topomap.metrics.__name__\n"
-            "assert adjusted_rand is core.adjusted_rand and evaluate is core.evaluate\n"
-            "assert sys.modules['topomap.core.metrics'] is core\n"
+            "assert adjusted_rand is partitions.adjusted_rand and evaluate is partitions.evaluate\n"
+            "assert sys.modules['topomap.evaluation.partitions'] is partitions\n"
             "print(sorted({'hydra', 'pluggy', 'omegaconf'} & set(sys.modules)))\n")
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert r.returncode == 0, r.stderr

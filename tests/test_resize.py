@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from topomap import MapLearner
-from topomap.core.metrics import adjusted_rand
+from topomap.metrics import adjusted_rand
 from topomap.core.refine.resize import _merge_loss, _pairs, _relabel, merge_to, resize, split_to
 from topomap.core.split.criteria import EntropyCriterion
 from topomap.core.stats import count_tables, episode_masks

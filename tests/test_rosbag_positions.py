@@ -74,6 +74,6 @@ def test_position_errors_name_the_topic(tmp_path, fmt):
         read_rosbag(path, "/scan", "/action", position_topic="/label")
     with pytest.raises(ValueError, match="no position topic /where; its topics are"):
         read_rosbag(path, "/scan", "/action", position_topic="/where")
-    with pytest.raises(ValueError, match="observation, action, GDS and position topics must "
-                                         "differ"):
+    with pytest.raises(ValueError, match="observation, action, GDS, position and odometry "
+                                         "topics must differ"):
         read_rosbag(path, "/scan", "/action", position_topic="/scan")

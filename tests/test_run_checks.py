@@ -9,7 +9,7 @@ import time
 import pytest
 
 from topomap.app.run import checks
-from topomap.app.run.experiment import prepare
+from topomap.app.run.experiment import check_and_build
 from topomap.app.run.outputs import LOCK_FILE, OutputDirInUse, locked_output_dir
 
 SMALL = ["data.n_steps=300", "data.heldout_steps=0", "output.progress=false",
@@ -31,7 +31,7 @@ def topomap(args, cwd, timeout=300, **kw):
 def test_a_bad_run_setting_is_refused_naming_its_key(override, message, make_cfg):
     extra = ["evaluate=navigation"] if override.startswith("evaluate") else []
     with pytest.raises(ValueError, match=message):
-        prepare(make_cfg([*extra, override]))
+        check_and_build(make_cfg([*extra, override]))
 
 
 def test_a_told_size_above_half_the_steps_is_refused_before_the_walk(make_cfg, monkeypatch):
@@ -40,8 +40,8 @@ def test_a_told_size_above_half_the_steps_is_refused_before_the_walk(make_cfg, m
     cfg = ["env=gridroom", "refine=em", "data.n_steps=2000"]
     with pytest.raises(ValueError, match=r"^stop.n_states=1001 is more than half of the 2000 "
                                          r"steps.*give at most stop.n_states=1000"):
-        prepare(make_cfg([*cfg, "stop.n_states=1001"]))
-    prepare(make_cfg([*cfg, "stop.n_states=1000"]))
+        check_and_build(make_cfg([*cfg, "stop.n_states=1001"]))
+    check_and_build(make_cfg([*cfg, "stop.n_states=1000"]))
 
 
 def test_a_walk_that_cannot_fit_in_memory_is_refused_with_what_it_needs(make_cfg, monkeypatch):
@@ -51,8 +51,8 @@ def test_a_walk_that_cannot_fit_in_memory_is_refused_with_what_it_needs(make_cfg
     with pytest.raises(ValueError, match=r"^data.n_steps=10000000 needs at least 3 GiB for the "
                                          r"walk alone \(20000000 steps, held-out walk included, "
                                          r"of 15 features\) and 1 GiB"):
-        prepare(make_cfg(["data.n_steps=10000000"]))
-    prepare(make_cfg(["data.n_steps=3000000", "data.heldout_steps=0"]))  # 0.45 GiB
+        check_and_build(make_cfg(["data.n_steps=10000000"]))
+    check_and_build(make_cfg(["data.n_steps=3000000", "data.heldout_steps=0"]))  # 0.45 GiB
 
 
 def test_a_folder_held_by_a_run_is_refused_to_another(tmp_path):
@@ -100,6 +100,36 @@ def test_of_two_runs_started_into_one_folder_one_is_refused(tmp_path):
         or f"the output folder {folder} holds another run's outputs" in line), line
     assert json.loads((folder / "metrics.json").read_text())["config"]["seed"] == 0
     assert "seed: 0" in (folder / ".hydra" / "config.yaml").read_text()
+
+
+COUNTED = """
+import atexit, sys
+from topomap.app.run import experiment
+calls = []
+checked = experiment.check_and_build
+def counted(*args, **kwargs):
+    calls.append(1)
+    return checked(*args, **kwargs)
+experiment.check_and_build = counted
+atexit.register(lambda: print(f"checked {{len(calls)}} time(s)", file=sys.stderr))
+sys.argv = ["topomap", *{args!r}]
+from topomap.app.cli import main
+main()
+"""
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("extra", [[], ["env=gridroom", "refine=em", "clusters.ns=4"]])
+def test_a_run_checks_its_config_and_builds_its_components_once(tmp_path, extra):
+    """The command checks the config before Hydra makes the run's folder; the run takes that
+    check over instead of making it again."""
+    args = [*SMALL, *extra, f"hydra.run.dir={tmp_path / 'run'}"]
+    env = dict(os.environ, TOPOMAP_DISABLE_PLUGIN_AUTOLOAD="1")
+    r = subprocess.run([sys.executable, "-c", COUNTED.format(args=args)], cwd=tmp_path, env=env,
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    assert r.stderr.splitlines()[-1] == "checked 1 time(s)"
+    assert (tmp_path / "run" / "map.json").is_file()
 
 
 @pytest.mark.slow
@@ -159,16 +189,19 @@ def test_a_sweeper_or_launcher_without_its_plugin_names_the_extra(override, pack
                               f'"topomap[{extra}]"')
 
 
-def test_a_slurm_sweep_without_slurm_stops_before_its_first_job(monkeypatch, make_cfg):
+def test_a_slurm_sweep_without_slurm_stops_before_its_first_job(monkeypatch, make_cfg,
+                                                                 tmp_path):
     import shutil
 
-    from topomap.app.report.callback import SweepReport
+    from topomap.app.cli import check_sweep
 
-    cfg = make_cfg(["hydra/launcher=slurm"], hydra=True)
+    cfg = make_cfg(["hydra/launcher=slurm", f"hydra.sweep.dir={tmp_path}"], hydra=True)
     monkeypatch.setattr(shutil, "which", lambda name: None)
-    with pytest.raises(SystemExit, match="hydra/launcher=slurm submits the jobs with SLURM's "
+    with pytest.raises(ValueError, match="hydra/launcher=slurm submits the jobs with SLURM's "
                                          "sbatch, which is not on this machine's PATH"):
-        SweepReport().on_multirun_start(config=cfg)
+        check_sweep(cfg)
+    monkeypatch.setattr(shutil, "which", lambda name: f"/usr/bin/{name}")
+    check_sweep(cfg)  # goes on
 
 
 # ---------------------------------------------------------------- what a run says in its log

@@ -10,9 +10,10 @@ from topomap.core.refine import methods, rounds
 from topomap.core.refine.methods import CSCGRefinement, EMRefinement
 from topomap.core.refine import soft_kernels
 from topomap.core.refine.sequence import SymbolSequence
-from topomap.core.refine.soft import (SoftSettings, co_successors, initial_confusion,
-                                      misread_share, soft_round, successor_surprise,
-                                      twin_overlap)
+from topomap.core.refine.settings import Reading, SoftRounds
+from topomap.core.refine.soft import (co_successors, initial_confusion, misread_share,
+                                      soft_round, successor_surprise)
+from topomap.core.refine.soft_states import twin_overlap
 from topomap.core.refine.soft_kernels import (SoftData, SoftModel, SoftStats, soft_backward,
                                               soft_candidates, soft_forward, soft_offsets,
                                               soft_viterbi)
@@ -123,6 +124,12 @@ def _seq(sym, u, lengths):
     return SymbolSequence.build(sym, u, lengths, 3, 3)
 
 
+def _checked(est):
+    """``est`` with its checked settings, as ``fit`` sets them (for its rounds called alone)."""
+    est.settings_ = est.check_params()
+    return est
+
+
 def test_soft_refinement_recovers_ring_with_misreads():
     sym, u, lengths, place, wrong = _ring_walk()
     seq = _seq(sym, u, lengths)
@@ -154,10 +161,10 @@ def test_a_hard_round_cut_short_finishes_as_the_whole_round():
     predict), so the first hard round stops there; finishing it gives the whole round."""
     sym, u, lengths, _, _ = _ring_walk()
     seq = _seq(sym, u, lengths)
-    est = EMRefinement()
+    est = _checked(EMRefinement())
     cut = est._first_hard_round(seq, RING, 0)
     assert cut.info["cut"] and cut.info["rounds_on_all_steps"] == 0
-    assert successor_surprise(seq, cut.labels) >= methods.CUT_SURPRISE * SoftSettings().detect
+    assert successor_surprise(seq, cut.labels) >= methods.CUT_SURPRISE * Reading().detect
     whole = est._hard_round(seq, RING, 0)
     assert whole.info["rounds_on_all_steps"] >= 1
     resumed = cut.resume()
@@ -266,7 +273,7 @@ def test_a_soft_round_that_corrected_hardly_any_step_leaves_its_hard_round_whole
                                                                                 corrected):
     """As above (the soft round's symbols forced back to the ones read, so the hard round on
     them would be cut), but the soft round's record says it corrected ``corrected`` of the
-    steps: 0 is below ``CUT_CORRECTED`` x ``soft.detect`` (5 x 0.002 = 0.01), so the surprise
+    steps: 0 is below ``CUT_CORRECTED`` x ``reading.detect`` (5 x 0.002 = 0.01), so the surprise
     left is not taken for misreads and the hard round runs whole (no cut round asked for, no
     ``hard_cut``); 0.5 is above, and the round is cut as before."""
     fit, cycle_rounds = _refit_with_nothing_corrected(monkeypatch, corrected)
@@ -347,13 +354,13 @@ def test_misread_share_is_the_off_diagonal_share_of_the_symbol_counts():
 
 def test_exact_readings_stop_a_soft_round_early():
     sym, u, lengths, place, _ = _ring_walk(misread=0.0)
-    s = SoftSettings()
-    fit = soft_round(_seq(sym, u, lengths), place, RING, settings=s, exact_below=s.detect)
-    assert fit.info["stopped"] == "exact" and fit.info["em_iterations"] <= s.detect_iter
+    r = Reading()
+    fit = soft_round(_seq(sym, u, lengths), place, RING, reading=r, exact_below=r.detect)
+    assert fit.info["stopped"] == "exact" and fit.info["em_iterations"] <= r.detect_iter
     np.testing.assert_array_equal(fit.labels, place)
     np.testing.assert_array_equal(fit.sym, sym)
     sym, u, lengths, place, _ = _ring_walk(misread=0.06, seed=1)
-    noisy = soft_round(_seq(sym, u, lengths), place, RING, settings=s, exact_below=s.detect)
+    noisy = soft_round(_seq(sym, u, lengths), place, RING, reading=r, exact_below=r.detect)
     assert "stopped" not in noisy.info and noisy.info["misread"] > 0.03
 
 
@@ -364,9 +371,9 @@ def test_squarem_soft_round_corrects_as_plain_em_in_fewer_e_steps(misread):
     in fewer E-steps (``max_iter`` high enough that neither stops by it)."""
     sym, u, lengths, place, _ = _ring_walk(misread=misread, seed=1)
     seq = _seq(sym, u, lengths)
-    hard = EMRefinement(evidence="hard")._hard_round(seq, RING, 0)
+    hard = _checked(EMRefinement(evidence="hard"))._hard_round(seq, RING, 0)
     fits = [soft_round(seq, hard.labels, hard.state_symbol,
-                       settings=SoftSettings(accelerate=acc, max_iter=200))
+                       soft=SoftRounds(accelerate=acc, max_iter=200))
             for acc in ("none", "squarem")]
     plain, fast = (np.mean(f.sym != RING[place]) for f in fits)
     assert fast <= plain + 0.002
@@ -380,9 +387,11 @@ def test_squarem_soft_round_still_stops_early_on_exact_readings():
     ``detect`` (``tol`` 0: EM, which still gains on them, has no other stop before
     ``max_iter``)."""
     sym, u, lengths, place, _ = _ring_walk(misread=0.001)
-    s = SoftSettings(accelerate="squarem", tol=0.0)
-    fit = soft_round(_seq(sym, u, lengths), place, RING, settings=s, exact_below=s.detect)
-    assert fit.info["stopped"] == "exact" and fit.info["em_iterations"] == s.detect_iter
+    r = Reading()
+    fit = soft_round(_seq(sym, u, lengths), place, RING, soft=SoftRounds(accelerate="squarem",
+                                                                         tol=0.0),
+                     reading=r, exact_below=r.detect)
+    assert fit.info["stopped"] == "exact" and fit.info["em_iterations"] == r.detect_iter
 
 
 def test_bad_soft_acceleration_rejected():
@@ -394,7 +403,7 @@ def test_soft_round_learns_confusion():
     sym, u, lengths, place, wrong = _ring_walk(misread=0.06, seed=1)
     seq = _seq(sym, u, lengths)
     # the true map as a warm start: one state per place
-    fit = soft_round(seq, place, RING, settings=SoftSettings())
+    fit = soft_round(seq, place, RING)
     # 6 % of steps misread, each to one of the two other symbols: off-diagonal mass ~0.06
     assert 0.03 < fit.info["conf_offdiag"] < 0.09
     assert np.mean(fit.sym != RING[place]) < 0.01  # the readings are corrected
@@ -402,7 +411,7 @@ def test_soft_round_learns_confusion():
 
 def test_cscg_soft_evidence_runs():
     sym, u, lengths, place, _ = _ring_walk(T=3000, misread=0.04)
-    fit = CSCGRefinement(clones_per_symbol=8, max_iter=100, evidence="soft").fit(
+    fit = CSCGRefinement(hard={"clones_per_symbol": 8, "max_iter": 100}, evidence="soft").fit(
         _seq(sym, u, lengths), RING, 0)
     assert fit.info_["soft"] == "on" and fit.labels_.size == sym.size
 
@@ -426,7 +435,7 @@ def test_gds_stay_exact_after_the_confusion_matrix_is_learned():
         sym[place == p] = g
     seq = SymbolSequence.build(sym, u, lengths, 3, 3)
     state_symbol = np.array([gds_place.get(p, RING[p]) for p in range(RING.size)])
-    fit = soft_round(seq, place, state_symbol, settings=SoftSettings())
+    fit = soft_round(seq, place, state_symbol)
     C = fit.conf
     np.testing.assert_array_equal(C[3:, :], np.eye(5)[3:])
     np.testing.assert_array_equal(C[:, 3:], np.eye(5)[:, 3:])
@@ -594,16 +603,17 @@ def test_capped_baum_welch_goes_on_only_while_it_gains_the_share_asked():
 def test_the_growth_stages_are_capped_only_where_the_prefix_shows_misreads(
         misread, evidence, stage_cap, capped):
     """The cap comes with many misreads on the first stage's prefix (12 % of the steps: its
-    successor surprise at least ``CAP_SURPRISE`` x ``soft.detect``), never with exact symbols,
-    few misreads (4 %), ``evidence="hard"``, ``soft.stage_cap`` 0 or a cap at ``max_iter`` or
-    above."""
+    successor surprise at least ``CAP_SURPRISE`` x ``reading.detect``), never with exact
+    symbols, few misreads (4 %), ``evidence="hard"``, ``growth.stage_cap`` 0 or a cap at
+    ``hard.max_iter`` or above."""
     sym, u, lengths, _, _ = _ring_walk(misread=misread)
     seq = _seq(sym, u, lengths)
-    est = EMRefinement(evidence=evidence, soft={"stage_cap": stage_cap, "stage_rtol": 0.01})
+    est = _checked(EMRefinement(evidence=evidence,
+                                growth={"stage_cap": stage_cap, "stage_rtol": 0.01}))
     rng = np.random.default_rng(0)
     prefix = seq.head(2000)
     labels, _, _ = est._first_round(prefix, RING, rng)
-    surprise = successor_surprise(prefix, labels) / SoftSettings().detect
+    surprise = successor_surprise(prefix, labels) / Reading().detect
     assert (surprise >= methods.CAP_SURPRISE) is (misread > 0.1)
     assert (est._stage_cap(prefix, labels) == (stage_cap, 0.01)) is capped
 
@@ -614,16 +624,16 @@ def test_capped_growth_stages_on_the_ring():
     without the cap (the map of a clean walk never changes)."""
     sym, u, lengths, _, _ = _ring_walk(misread=0.12)
     seq = _seq(sym, u, lengths)
-    soft = {"stage_cap": 3, "stage_rtol": 1.0}
-    free = EMRefinement(soft={"stage_cap": 0})._first_hard_round(seq, RING, 0)
-    capped = EMRefinement(soft=soft)._first_hard_round(seq, RING, 0)
+    growth = {"stage_cap": 3, "stage_rtol": 1.0}
+    free = _checked(EMRefinement(growth={"stage_cap": 0}))._first_hard_round(seq, RING, 0)
+    capped = _checked(EMRefinement(growth=growth))._first_hard_round(seq, RING, 0)
     assert max(iters for _, _, iters in free.info["stages"][1:]) > 3
     assert [iters for _, _, iters in capped.info["stages"][1:]] == [3] * (
         len(capped.info["stages"]) - 1)
     sym, u, lengths, _, _ = _ring_walk(misread=0.0)
     seq = _seq(sym, u, lengths)
     exact = EMRefinement().fit(seq, RING, 0)
-    exact_capped = EMRefinement(soft=soft).fit(seq, RING, 0)
+    exact_capped = EMRefinement(growth=growth).fit(seq, RING, 0)
     np.testing.assert_array_equal(exact_capped.labels_, exact.labels_)
     assert exact_capped.info_ == exact.info_
 
@@ -634,7 +644,7 @@ def test_a_soft_round_stops_by_its_relative_tolerance(monkeypatch):
     from topomap.core.refine import soft as soft_module
     sym, u, lengths, _, _ = _ring_walk(misread=0.12)
     seq = _seq(sym, u, lengths)
-    hard = EMRefinement(evidence="hard")._hard_round(seq, RING, 0)
+    hard = _checked(EMRefinement(evidence="hard"))._hard_round(seq, RING, 0)
     monitors = []
 
     class Recorded(soft_module.ConvergenceMonitor):
@@ -644,20 +654,20 @@ def test_a_soft_round_stops_by_its_relative_tolerance(monkeypatch):
 
     monkeypatch.setattr(soft_module, "ConvergenceMonitor", Recorded)
     soft_round(seq, hard.labels, hard.state_symbol,
-               settings=SoftSettings(tol=0.0, max_iter=20, rtol=0.0))
+               soft=SoftRounds(tol=0.0, max_iter=20, rtol=0.0))
     h = np.array(monitors[-1].history)
     share = np.diff(h) / np.abs(h[:-1])  # share[j - 1]: the gain of iteration j + 1
     rtol = float(np.median(share[2:]))
     stop = next(j for j in range(2, h.size) if h[j] <= h[j - 1] + rtol * abs(h[j - 1]))
     fit = soft_round(seq, hard.labels, hard.state_symbol,
-                     settings=SoftSettings(tol=0.0, max_iter=20, rtol=rtol))
+                     soft=SoftRounds(tol=0.0, max_iter=20, rtol=rtol))
     assert fit.info["em_iterations"] == stop + 1 < 20
 
 
 @pytest.mark.parametrize("misread", [0.04, 0.12])
 def test_the_soft_rounds_stop_by_rtol_only_where_misreads_are_many(misread):
     """``soft.rtol`` applies where the hard round's labelling shows many misreads (surprise at
-    least ``CAP_SURPRISE`` x ``soft.detect``: 12 % of the ring's steps misread); with 4 % the
+    least ``CAP_SURPRISE`` x ``reading.detect``: 12 % of the ring's steps misread); with 4 % the
     fit is the one without it."""
     sym, u, lengths, _, _ = _ring_walk(misread=misread)
     seq = _seq(sym, u, lengths)
@@ -665,11 +675,11 @@ def test_the_soft_rounds_stop_by_rtol_only_where_misreads_are_many(misread):
     loose = EMRefinement(soft={"rtol": 0.5}).fit(seq, RING, 0)
     first = [fit.info_["soft_rounds"][0]["em_iterations"] for fit in (plain, loose)]
     if misread < 0.1:
-        assert plain.info_["surprise"] < rounds.CAP_SURPRISE * SoftSettings().detect
+        assert plain.info_["surprise"] < rounds.CAP_SURPRISE * Reading().detect
         np.testing.assert_array_equal(loose.labels_, plain.labels_)
         assert loose.info_ == plain.info_
     else:
-        assert plain.info_["surprise"] >= rounds.CAP_SURPRISE * SoftSettings().detect
+        assert plain.info_["surprise"] >= rounds.CAP_SURPRISE * Reading().detect
         assert first[1] == 3 < first[0]  # stopped at the first iteration it judges
 
 
@@ -677,9 +687,9 @@ def _prunes_of_the_soft_rounds(monkeypatch, seq, soft):
     """The fit of the ring with ``soft`` and the ``prune`` every soft round of it ran with."""
     prunes, soft_round_of = [], rounds.soft_round
 
-    def recorded_soft(*args, settings, **kwargs):
-        prunes.append(settings.prune)
-        return soft_round_of(*args, settings=settings, **kwargs)
+    def recorded_soft(*args, soft, **kwargs):
+        prunes.append(soft.prune)
+        return soft_round_of(*args, soft=soft, **kwargs)
 
     monkeypatch.setattr(rounds, "soft_round", recorded_soft)
     return EMRefinement(soft=soft).fit(seq, RING, 0), prunes

@@ -1,16 +1,17 @@
 """The soft rounds' optional shortcuts: the forward pass that drops the confusions its message
-makes negligible (``soft.read_share``) and the stop once the decoded path settles
+makes negligible (``reading.read_share``) and the stop once the decoded path settles
 (``soft.label_every`` / ``soft.label_tol``)."""
 
 import numpy as np
 import pytest
 
 from topomap.core.refine.methods import EMRefinement
-from topomap.core.refine.soft import SoftSettings, soft_round
+from topomap.core.refine.settings import SoftRounds
+from topomap.core.refine.soft import soft_round
 from topomap.core.refine.soft_kernels import (SoftData, SoftModel, read_tables, soft_candidates,
                                               soft_forward, soft_forward_read, soft_offsets)
 
-from test_soft_refine import RING, _gapped, _ring_walk, _seq, _tiny
+from test_soft_refine import RING, _checked, _gapped, _ring_walk, _seq, _tiny
 
 TINY_SYMBOL = np.array([0, 0, 1])    # the clones of _tiny
 GAPPED_SYMBOL = np.array([0, 1, 0, 1])
@@ -58,8 +59,8 @@ def test_a_symbol_below_the_share_of_the_evidence_is_dropped():
 def test_a_small_share_leaves_the_ring_fit_as_it_was():
     """On the ring with 12 % misreads a share of 1e-9 drops nothing that counts: the same map."""
     seq = _seq(*_ring_walk(misread=0.12)[:3])
-    plain = EMRefinement(soft={"read_share": 0.0}).fit(seq, RING, 0)
-    fit = EMRefinement(soft={"read_share": 1e-9}).fit(seq, RING, 0)
+    plain = EMRefinement(reading={"read_share": 0.0}).fit(seq, RING, 0)
+    fit = EMRefinement(reading={"read_share": 1e-9}).fit(seq, RING, 0)
     np.testing.assert_array_equal(fit.labels_, plain.labels_)
     assert fit.n_states_ == plain.n_states_
 
@@ -69,21 +70,22 @@ def test_a_soft_round_stops_once_its_path_settles():
     no two paths differ at every step; ``label_tol=0`` only on a path that did not move."""
     sym, u, lengths, _, _ = _ring_walk(misread=0.12)
     seq = _seq(sym, u, lengths)
-    hard = EMRefinement(evidence="hard")._hard_round(seq, RING, 0)
+    hard = _checked(EMRefinement(evidence="hard"))._hard_round(seq, RING, 0)
     run = {tol: soft_round(seq, hard.labels, hard.state_symbol,
-                           settings=SoftSettings(tol=0.0, max_iter=20, label_every=2,
-                                                 label_tol=tol))
+                           soft=SoftRounds(tol=0.0, max_iter=20, label_every=2,
+                                           label_tol=tol))
            for tol in (0.0, 1.0)}
     assert run[1.0].info["em_iterations"] == 4
     assert run[0.0].info["em_iterations"] > 4
 
 
-@pytest.mark.parametrize("soft, field", [({"read_share": 1.0}, "soft.read_share"),
-                                         ({"label_tol": -0.1}, "soft.label_tol"),
-                                         ({"label_every": -1}, "soft.label_every")])
-def test_bad_soft_shortcuts_rejected(soft, field):
-    with pytest.raises(ValueError, match=field):
-        EMRefinement(soft=soft).fit(_seq(*_ring_walk(T=30)[:3]), RING, 0)
+@pytest.mark.parametrize("group, value, field", [
+    ("reading", {"read_share": 1.0}, "reading.read_share"),
+    ("soft", {"label_tol": -0.1}, "soft.label_tol"),
+    ("soft", {"label_every": -1}, "soft.label_every")])
+def test_bad_soft_shortcuts_rejected(group, value, field):
+    with pytest.raises(ValueError, match=f"^{field}"):
+        EMRefinement(**{group: value}).fit(_seq(*_ring_walk(T=30)[:3]), RING, 0)
 
 
 def _ring_model(floor_off):
@@ -100,12 +102,12 @@ def _ring_model(floor_off):
 def test_the_share_acts_only_where_candidates_are_dense(monkeypatch, floor_off, dense):
     """``read_share`` runs :func:`soft_forward_read` only where a step's candidates are at least
     ``READ_DENSE`` of the clones on average (1 of 3 is not, 3 of 3 is)."""
-    from topomap.core.refine import soft as soft_module
+    from topomap.core.refine import evidence
     calls = []
-    monkeypatch.setattr(soft_module, "soft_forward_read",
+    monkeypatch.setattr(evidence, "soft_forward_read",
                         lambda *a: calls.append(1) or soft_forward(*a[:4]))
     sym, u, _, _, _ = _ring_walk(T=60)
     data = SoftData(sym.astype(np.int64), u.astype(np.int64), np.r_[np.ones(59, bool), False])
-    soft_module._soft_estep(data, _ring_model(floor_off), SoftSettings(read_share=1e-3),
-                            np.arange(3))
+    evidence.soft_estep(data, _ring_model(floor_off), np.arange(3), prune=1e-6,
+                        read_share=1e-3)
     assert bool(calls) == dense

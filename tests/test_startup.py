@@ -57,7 +57,7 @@ def test_help_and_the_config_load_no_numba_nor_scikit_learn(args, tmp_path):
 
 def test_a_kept_config_equals_the_derived_one(tmp_path, monkeypatch):
     """Every built-in component's config read back from the cache file is the one its
-    signature gives: same fields, types and defaults."""
+    signature gives: same fields, types and defaults, and the same keys of before a rename."""
     from topomap.app.compose import schema_cache
     from topomap.app.compose.registry import Registry
     from topomap.app.compose.schemas import fields_of, learner_schema, schema_of
@@ -82,6 +82,8 @@ def test_a_kept_config_equals_the_derived_one(tmp_path, monkeypatch):
         assert [(f.name, str(f.type)) for f in dataclasses.fields(a)] == \
                [(f.name, str(f.type)) for f in dataclasses.fields(b)], key
         assert repr(fields_of(a)) == repr(fields_of(b)), key
+        assert schema_cache.renamed_of(a) == schema_cache.renamed_of(b), key
+    assert schema_cache.renamed_of(kept[("refine", "em")])["max_iter"] == "hard.max_iter"
 
 
 def test_a_changed_source_file_is_a_new_cache_key(tmp_path, monkeypatch):

@@ -9,7 +9,7 @@ import pytest
 from topomap import MapLearner, Trajectory, save_trajectory
 from topomap.core.checks import ParameterError
 from topomap.core.data.logs import Logs
-from topomap.core.metrics import adjusted_rand
+from topomap.metrics import adjusted_rand
 from topomap.core.split.engine import Splitter
 from topomap.core.split.criteria import EntropyCriterion
 from topomap.core.stats import episode_masks

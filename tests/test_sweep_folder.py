@@ -36,8 +36,7 @@ def job_folder(sweep, num, overrides, metrics_config=None, status="completed"):
 
 def grid(*overrides):
     return OmegaConf.create({"hydra": {
-        "sweeper": {"_target_": "hydra._internal.core_plugins.basic_sweeper.BasicSweeper",
-                    "params": None},
+        "sweeper": {"params": None}, "runtime": {"choices": {"hydra/sweeper": "basic"}},
         "overrides": {"task": list(overrides)}}})
 
 

@@ -259,18 +259,20 @@ def test_optuna_presets_maximise_and_the_paper_preset_searches_its_knobs(make_cf
 
 
 def test_a_search_the_wrong_way_stops_before_its_first_job():
+    from topomap.app.compose.config_checks import check_search_direction
+
     report = SweepReport()
     for objective in ("heldout_loglik", "ari"):
         config = OmegaConf.create({"objective": objective,
                                    "hydra": {"sweeper": {"direction": "minimize"}}})
-        with pytest.raises(SystemExit, match=f"hydra.sweeper.direction=minimize, but "
+        with pytest.raises(ValueError, match=f"^hydra.sweeper.direction=minimize, but "
                                              f"objective={objective} is better when larger"):
-            report.on_multirun_start(config=config)
+            check_search_direction(config)
         config.hydra.sweeper.direction = "maximize"
-        report.on_multirun_start(config=config)  # goes on
+        check_search_direction(config)  # goes on
         assert report.metric_of(config) == objective
     grid = OmegaConf.create({"objective": "ari", "hydra": {"sweeper": {"params": None}}})
-    report.on_multirun_start(config=grid)
+    check_search_direction(grid)
     assert report.metric_of(grid) == "ari" and SweepReport("nmi").metric_of(grid) == "nmi"
 
 

@@ -51,9 +51,10 @@ def test_the_sample_is_seeded_and_gds_steps_are_left_out():
     assert symbol_ambiguity(X, symbols, means, cov, sample=200) == pytest.approx(by_hand)
 
 
-def fit(ambiguity=None, **params):
+def fit(ambiguity=None, **growth):
+    """``refine=em``'s record of the ring with the ``growth`` settings given."""
     seq, _ = ring(0)
-    return EMRefinement(**params).fit(seq, np.arange(6), 0, ambiguity=ambiguity).info_
+    return EMRefinement(growth=growth).fit(seq, np.arange(6), 0, ambiguity=ambiguity).info_
 
 
 def test_the_first_stage_is_rough_only_below_the_bar():
@@ -81,15 +82,15 @@ def test_a_bad_estimate_is_refused_by_name(ambiguity):
 
 
 def test_a_bad_first_is_refused_by_name():
-    with pytest.raises(ParameterError, match="^first must be one of auto, rough, plain"):
+    with pytest.raises(ParameterError, match="^growth.first must be one of auto, rough, plain"):
         fit(first="yes")
 
 
-def ring_learner(sigma, **params):
+def ring_learner(sigma, **growth):
     """The ring's 6 symbols as one-hot observations with Gaussian noise ``sigma``."""
     sym, u, places = ring_walk(3200, RING, 0)
     X = np.eye(6)[sym] + np.random.default_rng(0).normal(0, sigma, (sym.size, 6))
-    learner = MapLearner(n_clusters=6, n_states=8, refine=EMRefinement(**params))
+    learner = MapLearner(n_clusters=6, n_states=8, refine=EMRefinement(growth=growth))
     return learner.fit(X, u, n_actions=2)
 
 

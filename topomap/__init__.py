@@ -8,6 +8,8 @@ The package has three floors, each importing only the ones below it:
 
 * :mod:`topomap.core` -- the learning core (numpy, scikit-learn, numba; no Hydra, no simulator);
 * :mod:`topomap.worlds` -- simulated worlds, sensor noise and explorers, producing trajectories;
+* :mod:`topomap.evaluation` -- beside the worlds, how good a learned map is: its states against
+  true places (public as :mod:`topomap.metrics`) and against true positions, in metres;
 * :mod:`topomap.app` -- the ``topomap`` command: Hydra configs, plugins, experiments, sweeps.
 
 ``import topomap`` loads nothing heavy: each public name is imported on first use (the learner

@@ -7,27 +7,33 @@
     topomap --list-plugins                    # every component by kind, with its plugin
     topomap --version                         # topomap's version (with Hydra's and Python's)
 
-The line from the command to the work, each step once: :func:`main` reads the plugins named on the
-command line (with Hydra's own parsers), loads the :class:`~topomap.app.compose.registry.Registry`,
-screens the command line and stores every component's typed config
-(:func:`~topomap.app.compose.command_line.prepare`); Hydra composes the config of each job and
-:func:`~topomap.app.run.experiment.run` takes it from there: the config is checked, the
-components are built, the map is learned, evaluated and written.
+The line from the command to the work, each step once: :func:`main` takes Ctrl-C and SIGTERM
+(:mod:`~topomap.app.run.interrupts`), reads the plugins named on the command line (with Hydra's
+own parsers), loads the :class:`~topomap.app.compose.registry.Registry`, screens the command line
+and stores every component's typed config
+(:func:`~topomap.app.compose.command_line.screen_command_line`).  A single run's config is then
+checked and its components built (:func:`~topomap.app.run.experiment.check_and_build`), a
+sweep's plan checked (:func:`check_sweep`), before Hydra makes a folder; Hydra composes the
+config of each job and :func:`~topomap.app.run.experiment.run` takes it from there: the map is
+learned, evaluated and written.  A sweep that ends before Hydra ends it (Ctrl-C, a search whose
+every trial failed) gets its report here
+(:func:`~topomap.app.report.callback.report_early_end`).
 """
 
 from __future__ import annotations
 
 import logging
 import sys
+from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
     from .compose.registry import Registry
 
 log = logging.getLogger("topomap")
 
-__all__ = ["main", "list_plugins", "version_line"]
+__all__ = ["main", "list_plugins", "version_line", "check_sweep"]
 
 
 def list_plugins(registry: Registry, file=None) -> None:
@@ -88,6 +94,9 @@ def _summary(results: dict, out) -> str:
                  f"states {trace('compound_states', 'd')}{label}")
     if results.get("position"):
         line += " | " + _metres(results["position"])
+    motion = results.get("motion") or {}
+    if motion.get("reason"):
+        line += f" | the map is the view clusters, not places: {motion['reason']}"
     nav = results.get("navigation")
     if nav:
         ratio = "-" if nav["path_ratio"] is None else f"{nav['path_ratio']:.2f}"
@@ -115,10 +124,10 @@ def optimising(sweeper) -> bool:
     return sweeper is not None and "direction" in sweeper
 
 
-def _task(cfg, registry: Registry, new_folder: bool = False):
+def _task(cfg, registry: Registry, plan: Plan):
     """One run (or one job of a sweep) of the composed config ``cfg``; returns the run's
     ``objective`` (:data:`~topomap.app.results.OBJECTIVES`) for a sweeper to optimise, None for
-    a failed job.  ``new_folder``: the command made the run's folder (:func:`_checked_run`)."""
+    a failed job.  ``plan``: what the command checked before Hydra made the folder."""
     from hydra.core.hydra_config import HydraConfig
 
     from .run.job import run_job
@@ -134,22 +143,22 @@ def _task(cfg, registry: Registry, new_folder: bool = False):
         if results is None:
             return None
     else:
-        results = _single_run(cfg, out, registry, new_folder)
+        results = _single_run(cfg, out, registry, plan)
     print(f"topomap: {_summary(results, out)}\ntopomap: outputs in {out}")
     return (results.get("objective") or {}).get("value")
 
 
-def _single_run(cfg, out, registry: Registry, new_folder: bool = False) -> dict:
+def _single_run(cfg, out, registry: Registry, plan: Plan) -> dict:
     """``topomap <overrides>`` without ``-m``: the run's results; an interrupted run, or one
     failed by something else than its settings or data, leaves ``status.json`` in its folder
-    saying so; a run failed by its settings or data removes the folder it made (``new_folder``)
-    and ends the command with one line on stderr."""
+    saying so; a run failed by its settings or data removes the folder it made
+    (``plan.new_folder``) and ends the command with one line on stderr."""
     from .run.experiment import run
     from .run.job import write_status
     from .run.outputs import OutputDirInUse, remove_new_folder
 
     try:
-        return run(cfg, out, registry=registry, on_replaced=_restart_log)
+        return run(cfg, out, registry=registry, checked=plan.checked, on_replaced=_restart_log)
     except OutputDirInUse as exc:  # another run's folder: leave it as it is
         sys.exit(f"topomap: error: {exc}")
     except KeyboardInterrupt:
@@ -158,7 +167,7 @@ def _single_run(cfg, out, registry: Registry, new_folder: bool = False) -> dict:
         print(f"topomap: interrupted; {out}/status.json says so", file=sys.stderr)
         sys.exit(INTERRUPTED)
     except ValueError as exc:
-        if not (new_folder and remove_new_folder(out)):
+        if not (plan.new_folder and remove_new_folder(out)):
             write_status(out, "failed", exc)
         sys.exit(f"topomap: error: {exc}")
     except Exception as exc:
@@ -187,15 +196,24 @@ def _restart_log(out) -> None:
 INTERRUPTED = 130
 
 
-def _interrupted(exc: KeyboardInterrupt) -> None:
+def _interrupted(plan: Plan) -> None:
     """After Ctrl-C or SIGTERM outside a single run's own handling: a sweep writes its report
     (with the interrupted job and the jobs that did not start); then one line, exit 130."""
-    from .report.callback import SweepInterrupted
-
-    where = exc.write_report() if isinstance(exc, SweepInterrupted) else None
+    where = _report_early_end(plan)
     print("topomap: interrupted" + (f"; sweep report in {where}" if where else ""),
           file=sys.stderr)
     sys.exit(INTERRUPTED)
+
+
+def _report_early_end(plan: Plan) -> Path | None:
+    """The report of a sweep that ended before Hydra ended it (interrupted, or a search whose
+    every trial failed), unless it was written; its summary's path (None: no sweep, or no
+    report)."""
+    if plan.mode != "sweep":
+        return None
+    from .report.callback import report_early_end, written_report
+
+    return written_report(plan.folder) or report_early_end(plan.folder, plan.config)
 
 
 def version_line() -> str:
@@ -219,54 +237,97 @@ def _user_configs(argv) -> bool:
     return any(a in flags or a.startswith(tuple(f + "=" for f in flags)) for a in argv)
 
 
-#: Hydra's flags that print or inspect rather than run
-_NOT_A_RUN = ("cfg", "help", "hydra_help", "info", "shell_completion", "experimental_rerun")
-
-
 def _pin(argv, key: str, value: str) -> None:
     """Give Hydra ``key=value`` (quoted) in place of any ``key=`` of the command line."""
     quoted = "'" + value.replace("\\", "\\\\").replace("'", "\\'") + "'"
     sys.argv[1:] = [a for a in argv if not a.startswith(f"{key}=")] + [f"{key}={quoted}"]
 
 
-def _checked_run(argv, registry: Registry):
-    """For ``topomap <overrides>`` (one run): everything checked before Hydra makes the run's
-    folder (:func:`~topomap.app.run.experiment.prepare`), and that folder chosen now and given
-    to Hydra (``hydra.run.dir``), so that it can be held (:func:`~topomap.app.run.outputs.
-    locked_output_dir`) before Hydra writes ``.hydra/`` into it.  For a sweep, its folder is
-    chosen now too (``hydra.sweep.dir``).  Returns ``(mode, folder, config)``: ``mode`` is
-    ``"run"`` or ``"sweep"``, None for a command that does not run (``--cfg``, ...) or brings
-    config folders of its own."""
-    from hydra._internal.utils import get_args_parser
+@dataclass
+class Plan:
+    """What the command line asks for, checked before Hydra makes a folder (:func:`_plan`).
+
+    ``mode`` is ``"run"`` or ``"sweep"``, None for a command that does not run (``--cfg``, ...)
+    or brings config folders of its own; ``folder`` the run's or the sweep's folder; ``config``
+    the config composed (Hydra's part included: for a sweep, the values its jobs share);
+    ``checked`` a single run's checked config and components
+    (:class:`~topomap.app.run.experiment.CheckedRun`), handed to the run; ``new_folder``
+    whether the command made the run's folder."""
+
+    mode: str | None = None
+    folder: Path | None = None
+    config: Any = None
+    checked: Any = None
+    new_folder: bool = False
+
+
+def _plan(argv, registry: Registry) -> Plan:
+    """For ``topomap <overrides>`` (one run): everything checked and every component built
+    before Hydra makes the run's folder (:func:`~topomap.app.run.experiment.check_and_build`,
+    once: the run takes it over), and that folder chosen now and given to Hydra
+    (``hydra.run.dir``), so that it can be held (:func:`~topomap.app.run.outputs.
+    locked_output_dir`) before Hydra writes ``.hydra/`` into it.  For a sweep, its plan is
+    checked (:func:`check_sweep`) and its folder chosen now too (``hydra.sweep.dir``)."""
     from hydra.core.override_parser.overrides_parser import OverridesParser
     from hydra.errors import HydraException
-    from omegaconf import OmegaConf
+    from omegaconf import OmegaConf, open_dict
 
-    from .compose.command_line import compose
+    from .compose.command_line import NOT_A_RUN, compose, hydra_arguments
 
-    args, _ = get_args_parser().parse_known_args(list(argv))
-    if any(getattr(args, flag, None) for flag in _NOT_A_RUN) or _user_configs(argv):
-        return None, None, None
+    args = hydra_arguments(argv)
+    if any(getattr(args, flag, None) for flag in NOT_A_RUN) or _user_configs(argv):
+        return Plan()
     overrides = list(args.overrides or [])
+    shared = overrides
     if args.multirun:  # the values every job shares: the sweep's folder and logger
-        overrides = [o.input_line for o in OverridesParser.create().parse_overrides(overrides)
-                     if not o.is_sweep_override()]
+        parsed = OverridesParser.create().parse_overrides(overrides)
+        shared = [o.input_line for o in parsed if not o.is_sweep_override()]
+        task = [o.input_line for o in parsed if not o.is_hydra_override()]
     try:
-        cfg = compose(overrides, registry, return_hydra_config=True)
+        cfg = compose(shared, registry, screened=True, return_hydra_config=True)
     except HydraException:  # Hydra says what is wrong, in its own words, when it composes
-        return None, None, None
+        return Plan()
     if args.multirun:
-        folder = str(cfg.hydra.sweep.dir)
-        _pin(argv, "hydra.sweep.dir", folder)
-        return "sweep", Path(folder), OmegaConf.to_container(cfg.logger, resolve=True)
-    from .run.experiment import prepare
+        folder = Path(str(cfg.hydra.sweep.dir))
+        with open_dict(cfg):  # its folder chosen once; its overrides, as Hydra keeps them
+            cfg.hydra.sweep.dir = str(folder)
+            cfg.hydra.overrides.task = task
+        check_sweep(cfg)
+        _pin(argv, "hydra.sweep.dir", str(folder))
+        return Plan("sweep", folder, cfg)
+    from .run.experiment import check_and_build
 
     folder = str(cfg.hydra.run.dir)
     plain = OmegaConf.to_container(cfg, resolve=False)
     plain.pop("hydra")
-    prepare(OmegaConf.create(plain), registry)
+    checked = check_and_build(OmegaConf.create(plain), registry)
     _pin(argv, "hydra.run.dir", folder)
-    return "run", Path(folder), bool(cfg.output.overwrite)
+    return Plan("run", Path(folder), cfg, checked)
+
+
+def check_sweep(multirun_cfg) -> None:
+    """Refuse (a ValueError naming the key) a sweep before its first job: a search the wrong
+    way (:func:`~topomap.app.compose.config_checks.check_search_direction`), SLURM's launcher on
+    a machine without ``sbatch``, a folder that holds another sweep's jobs
+    (:func:`~topomap.app.report.jobs.check_sweep_folder`; with ``output.resume=true``, those of
+    the same sweep go on)."""
+    import shutil
+
+    from omegaconf import OmegaConf
+
+    from .compose.config_checks import check_search_direction
+    from .report.jobs import check_sweep_folder
+
+    check_search_direction(multirun_cfg)
+    launcher = str(OmegaConf.select(multirun_cfg, "hydra.launcher._target_", default="") or "")
+    if launcher.endswith("SlurmLauncher") and shutil.which("sbatch") is None:
+        raise ValueError("hydra/launcher=slurm submits the jobs with SLURM's sbatch, which is not "
+                         "on this machine's PATH: start the sweep on a machine of the cluster, or "
+                         "run it here with hydra/launcher=submitit_local")
+    sweep_dir = OmegaConf.select(multirun_cfg, "hydra.sweep.dir", default=None)
+    if sweep_dir is not None:
+        check_sweep_folder(Path(str(sweep_dir)), multirun_cfg,
+                           bool(OmegaConf.select(multirun_cfg, "output.resume", default=False)))
 
 
 def _log_sweep(registry: Registry, sweep_dir: Path, logger_cfg) -> None:
@@ -287,41 +348,60 @@ def main() -> None:
         return
     import hydra
 
-    from .compose.command_line import CONFIG_MODULE, overrides_of, prepare
+    from .compose.command_line import CONFIG_MODULE, overrides_of, screen_command_line
     from .compose.registry import Registry
-    from .run.interrupts import interrupt_on_sigterm
+    from .run.interrupts import take_interrupts
 
-    interrupt_on_sigterm()
+    take_interrupts()
     if argv and argv[0] in ("--list-plugins", "plugins"):
         list_plugins(Registry.load(argv[1:]))
         return
+    plan = Plan()
     try:
-        registry = prepare(overrides_of(argv), user_configs=_user_configs(argv))
-        mode, folder, extra = _checked_run(argv, registry)
+        registry = screen_command_line(overrides_of(argv), user_configs=_user_configs(argv))
+        plan = _plan(argv, registry)
     except ValueError as exc:
         sys.exit(f"topomap: error: {exc}")
-    except KeyboardInterrupt as exc:
-        _interrupted(exc)
-    new_folder = False
+    except KeyboardInterrupt:
+        _interrupted(plan)
 
     @hydra.main(version_base="1.3", config_path=f"pkg://{CONFIG_MODULE}", config_name="config")
     def topomap(cfg):
-        return _task(cfg, registry, new_folder)
+        return _task(cfg, registry, plan)
 
     try:
-        if mode == "run":
-            from .run.outputs import locked_output_dir
-
-            with locked_output_dir(folder, extra) as new_folder:
-                topomap()
-            return
-        topomap()
-        if mode == "sweep":
-            _log_sweep(registry, folder, extra)
+        _launch(topomap, plan, registry)
     except ValueError as exc:  # the folder is another run's; the logger's store
         sys.exit(f"topomap: error: {exc}")
-    except KeyboardInterrupt as exc:
-        _interrupted(exc)
+    except KeyboardInterrupt:
+        _interrupted(plan)
+    except SystemExit as exc:  # a search whose every trial failed, say: its report, then why
+        if exc.code not in (None, 0):
+            _report_early_end(plan)
+        raise
+
+
+def _launch(topomap, plan: Plan, registry: Registry) -> None:
+    """Hydra's part of :func:`main`: the run, in the folder held for it, or the sweep, then its
+    report's files to the logger; an interrupt whose exception was dropped where it landed
+    ends the command here (:func:`~topomap.app.run.interrupts.stop_if_interrupted`)."""
+    from .run.interrupts import stop_if_interrupted
+
+    if plan.mode == "run":
+        from .run.outputs import locked_output_dir
+
+        with locked_output_dir(plan.folder, bool(plan.config.output.overwrite)) as new_folder:
+            plan.new_folder = new_folder
+            topomap()
+        stop_if_interrupted()
+        return
+    topomap()
+    stop_if_interrupted()
+    if plan.mode == "sweep":
+        from omegaconf import OmegaConf
+
+        _log_sweep(registry, plan.folder, OmegaConf.to_container(plan.config.logger,
+                                                                 resolve=True))
 
 
 if __name__ == "__main__":

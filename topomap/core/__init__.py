@@ -1,4 +1,4 @@
-"""The learning core: trajectories, the paper's two phases, the refinement, the map, metrics.
+"""The learning core: trajectories, the paper's two phases, the refinement, the map.
 
 It needs numpy, scikit-learn, numba (the compiled kernels), threadpoolctl and networkx (the
 map's graphs and plans), and ``rosbags`` only to read or write ROS bags; nothing here imports
@@ -23,8 +23,8 @@ module              its one job
 ``online``          what :meth:`MapLearner.partial_fit` keeps between calls
 ``learner``         :class:`MapLearner`, the estimator that runs the phases
 ``map_methods``     inference the map and the learner share (hmmlearn's names)
-``metrics``         learned states against ground-truth places (ARI, NMI, purity, ...)
-``position_scores`` learned states against true positions, in metres, with two yardsticks
+``position_scores`` the scores in metres' old name, kept until 0.4 (now
+                    :mod:`topomap.evaluation.metres`)
 ``stats``, ``sums`` counts, entropies and state matching shared by the rooms; numpy's
                     pairwise sums, compiled
 ``checks``          :class:`~topomap.core.checks.ParameterError`: errors naming a parameter

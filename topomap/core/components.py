@@ -11,28 +11,25 @@ import warnings
 from contextlib import contextmanager
 
 import numpy as np
-from sklearn.base import clone
+from sklearn.base import BaseEstimator, clone
 
 from .checks import ParameterError, check_count
 from .map.observations import log_density_chunks
 from .phase1.ambiguity import symbol_ambiguity
 from .phase1.clustering import FixedClusters, make_metric
 from .refine.methods import REFINEMENTS, CloneFit
-from .refine.soft import soft_settings
 from .size import AutoStates
 from .split.criteria import CRITERIA
 from .split.stopping import TargetStates
 
 __all__ = ["make_components", "make_refinement", "fit_refinement", "refinement_label", "naming",
-           "within_told_size", "renamed_params", "warn_renamed", "DEPRECATED", "RENAMED"]
+           "within_told_size", "fold_renamed", "set_params", "RENAMED"]
 
 #: the learner's own parameter behind a parameter of a component it makes itself
 #: (``FixedClusters(n_clusters)``, ``TargetStates(n_states)``)
 _MADE_FROM = {("clusters", "ns"): "n_clusters", ("stop", "n_states"): "n_states"}
-#: the default of a deprecated parameter: not given
-DEPRECATED = "deprecated"
-#: deprecated learner parameters: their new names and the new names' defaults (given, a
-#: deprecated parameter warns and stands for the new one)
+#: the learner's parameters renamed in 0.3 (accepted until 0.4): their new names and the new
+#: names' defaults
 RENAMED = {"criterion": ("split", "entropy"), "stopping": ("stop", None)}
 
 
@@ -44,9 +41,6 @@ def naming(learner, arg: str, **own: str):
     (``n_clusters``), and ``own[param]`` for a setting passed on under another name
     (``method`` is ``phase1``)."""
     given = getattr(learner, arg)
-    old = next((o for o, (n, _) in RENAMED.items() if n == arg), None)
-    if given is None and old is not None and getattr(learner, old) is not DEPRECATED:
-        given = getattr(learner, old)  # passed under its deprecated name
     try:
         yield
     except ParameterError as err:
@@ -59,28 +53,35 @@ def naming(learner, arg: str, **own: str):
         raise err.renamed(name) from err.__cause__
 
 
-def renamed_params(learner) -> dict:
-    """``{"split": ..., "stop": ...}``: the learner's ``split`` and ``stop``, or the deprecated
-    ``criterion`` / ``stopping`` when given instead (given beside the new name set too, a
-    :class:`ParameterError`)."""
-    out = {}
-    for old, (new, default) in RENAMED.items():
-        value, given = getattr(learner, new), getattr(learner, old)
-        if not (isinstance(given, str) and given == DEPRECATED):
-            if value is not default and value != default:
-                raise ParameterError(old, f"is the deprecated name of {new}: give {new} only")
-            value = given
+def fold_renamed(old: dict, split, stop, stacklevel: int):
+    """The learner's ``(split, stop)`` given as ``split`` and ``stop``, with the values given
+    under their names of before 0.3 (``old``: ``criterion``, ``stopping``) in their place, a
+    ``FutureWarning`` for each (``stacklevel`` counted from the caller); a
+    :class:`ParameterError` when the new name is given too, a ``TypeError`` for any other
+    name."""
+    out = {"split": split, "stop": stop}
+    for name, value in old.items():
+        if name not in RENAMED:
+            raise TypeError(f"MapLearner got an unexpected keyword argument {name!r}")
+        new, default = RENAMED[name]
+        warnings.warn(f"MapLearner's {name}= was renamed {new}= in 0.3 and goes in 0.4; pass "
+                      f"{new}= instead", FutureWarning, stacklevel=stacklevel + 1)
+        given = out.get(new, default)
+        if given is not default and given != default:
+            raise ParameterError(name, f"is the deprecated name of {new}: give {new} only")
         out[new] = value
-    return out
+    return out["split"], out["stop"]
 
 
-def warn_renamed(learner, stacklevel: int) -> None:
-    """A ``FutureWarning`` for every deprecated parameter ``learner`` was given."""
-    for old, (new, _) in RENAMED.items():
-        given = getattr(learner, old)
-        if not (isinstance(given, str) and given == DEPRECATED):
-            warnings.warn(f"MapLearner's {old}= was renamed {new}= in 0.3 and goes in 0.4; "
-                          f"pass {new}= instead", FutureWarning, stacklevel=stacklevel + 1)
+def set_params(learner, **params):
+    """:class:`~topomap.MapLearner`'s ``set_params``: scikit-learn's, ``criterion`` and
+    ``stopping`` (the names of ``split`` and ``stop`` before 0.3) accepted until 0.4 with a
+    ``FutureWarning``."""
+    old = {k: params.pop(k) for k in RENAMED if k in params}
+    if old:
+        params["split"], params["stop"] = fold_renamed(
+            old, params.get("split", learner.split), params.get("stop", learner.stop), 2)
+    return BaseEstimator.set_params(learner, **params)
 
 
 def make_components(learner):
@@ -88,16 +89,15 @@ def make_components(learner):
     ``metric``, ``split`` and ``stop``), its other settings checked; a stopping rule may keep
     state during a fit (e.g. its limit), so a fit works on a copy and the parameter itself is
     never changed."""
-    params = renamed_params(learner)
     with naming(learner, "clusters"):
         clusters = (learner.clusters if learner.clusters is not None
                     else FixedClusters(learner.n_clusters))
-    if params["stop"] is not None:
-        stopping = copy.deepcopy(params["stop"])
+    if learner.stop is not None:
+        stopping = copy.deepcopy(learner.stop)
     else:
         stopping = (AutoStates() if learner.n_states == "auto"
                     else TargetStates(learner.n_states))
-    criterion = params["split"]
+    criterion = learner.split
     if isinstance(criterion, str):
         if criterion not in CRITERIA:
             raise ParameterError("split", f"{criterion!r} is unknown; choose one of "
@@ -162,13 +162,21 @@ def fit_refinement(refinement, seq, split_state_symbol, random_state: int,
     return CloneFit(out.labels_, out.state_symbol_, dict(getattr(out, "info_", {})))
 
 
+def _settings(refinement):
+    """A built-in refinement's checked settings (:mod:`topomap.core.refine.settings`), None for
+    a refinement without ``settings()``."""
+    settings = getattr(refinement, "settings", None)
+    return settings() if callable(settings) else None
+
+
 def symbol_hint(learner, data, refinement):
     """The ``ambiguity`` a refinement's ``fit`` is given: the share of steps whose symbol phase 1
     may have misread (:func:`~topomap.core.phase1.ambiguity.symbol_ambiguity` under the phase-1
     map's models of the symbols, seeded by ``random_state``), kept as the learner's
-    ``symbol_ambiguity_``; None (not computed) unless the refinement uses it (``first="auto"``
-    and a ``fit`` taking ``ambiguity``)."""
-    if getattr(refinement, "first", None) != "auto" or \
+    ``symbol_ambiguity_``; None (not computed) unless the refinement uses it
+    (``growth.first="auto"`` and a ``fit`` taking ``ambiguity``)."""
+    growth = getattr(_settings(refinement), "growth", None)
+    if growth is None or growth.first != "auto" or \
             "ambiguity" not in inspect.signature(refinement.fit).parameters:
         return None
     ns, m = learner.n_clusters_, learner.map_phase1_
@@ -179,14 +187,14 @@ def symbol_hint(learner, data, refinement):
 
 def observation_hint(learner, data, refinement, steps=None):
     """The ``observed`` a refinement's ``fit`` is given: None unless its soft rounds take each
-    step's evidence from its observation (``soft.observed`` > 0) and its ``fit`` takes
+    step's evidence from its observation (``reading.temperature`` > 0) and its ``fit`` takes
     ``observed``; else a function returning the (steps, n_symbols) log-densities of the first
     ``steps`` observations (None: all) under the phase-1 map's models of the symbols, computed
     when it is first called (when a soft round runs) and kept for a second call (the soft
     rounds run again after a first hard round cut short is finished)."""
-    soft = getattr(refinement, "soft", None)
-    if soft is None or "observed" not in inspect.signature(refinement.fit).parameters or \
-            soft_settings(soft).observed == 0:
+    reading = getattr(_settings(refinement), "reading", None)
+    if reading is None or "observed" not in inspect.signature(refinement.fit).parameters or \
+            reading.temperature == 0:
         return None
     ns, m = learner.n_clusters_, learner.map_phase1_
     X = data.X if steps is None else data.X[:steps]

@@ -12,8 +12,8 @@ from numpy.typing import ArrayLike
 from sklearn.base import BaseEstimator
 
 from .checks import check_count
-from .components import (DEPRECATED, fit_refinement, make_components, make_refinement, naming,
-                         refinement_hints, refinement_label, warn_renamed, within_told_size)
+from .components import (fit_refinement, fold_renamed, make_components, make_refinement, naming,
+                         refinement_hints, refinement_label, set_params, within_told_size)
 from .refining import bic_scores, heldout_scores, refined_from, resized, symbol_map
 from .online import OnlineState, Window
 from .online_pass import PassStart, start_map, warm_start, warm_starts, wider_pass
@@ -22,6 +22,7 @@ from .phase1.start import phase1_labels, start_split, variance_beside
 from .size import AutoStates, probe_sizes, split_holdout
 from .map.model import TopologicalMap
 from .map_methods import MapMethods
+from .motion.inputs import check_odometry
 from .stream.learner import StreamFit
 from .motion.learn import fit_places
 from .motion.settings import MotionSettings, motion_settings
@@ -40,6 +41,8 @@ class MapLearner(StreamFit, MapMethods, BaseEstimator):
     adds one state per GDS id (never split).  Phase 2 repeatedly splits the state whose split
     gains the most, until the stopping rule fires.  A scikit-learn estimator: ``get_params``,
     ``set_params`` and ``sklearn.base.clone`` work, and ``fit`` never changes the parameters.
+    ``criterion`` and ``stopping``, the names of ``split`` and ``stop`` before 0.3, are still
+    taken (and by ``set_params``) with a ``FutureWarning`` until 0.4.
 
     Parameters
     ----------
@@ -80,17 +83,16 @@ class MapLearner(StreamFit, MapMethods, BaseEstimator):
         ``"cscg"`` is EM alone from phase 1 with CSCG's recipe, ignoring the split; or an
         estimator whose ``fit(sequence, split_state_symbol, random_state)`` returns itself with
         ``labels_``, ``state_symbol_`` and ``info_`` (a fit refines a clone of it).  None
-        (default): the paper's method alone.
+        (default): the paper's method alone.  Built-ins group their settings by stage
+        (:mod:`topomap.core.refine.settings`: ``EMRefinement(hard={"max_iter": 40})``).
     refined_size : "told" or "free"
         With a refinement and a told number of states (``n_states`` an int, or a
         :class:`~topomap.core.split.stopping.TargetStates` rule): ``"told"`` (default) brings the
         refined map to that number (:mod:`topomap.core.refine.resize`: the least costly merges of
         same-symbol states, or further splits); ``"free"`` keeps the number the refinement chose.
     motion : MotionSettings, "auto", "discrete" or "continuous"
-        How a log recorded at 10-50 Hz is mapped (:class:`~topomap.core.motion.MotionSettings`,
-        docs/continuous.md): ``"auto"`` recognises one and gives it, instead of any refinement,
-        places cut from views and learned odometry -- or the view clusters, where a held-out
-        check on the log places its last quarter better with them; ``"discrete"`` never does.
+        How a log recorded at 10-50 Hz is mapped: places instead of a refinement, or why not
+        (:class:`~topomap.core.motion.MotionSettings`, docs/continuous.md).
     window : int
         :meth:`partial_fit` only: the latest steps a wider pass re-learns the map's structure
         from (:mod:`topomap.core.online`).
@@ -106,9 +108,6 @@ class MapLearner(StreamFit, MapMethods, BaseEstimator):
         passes of :meth:`partial_fit` included (on the window's steps).  Used to log progress or
         record extra metrics.  ``labels`` of a split is the learner's working array, changed in
         place by later splits: copy it to keep it.
-    criterion, stopping : deprecated
-        The names of ``split`` and ``stop`` before 0.3: still accepted, with a
-        ``FutureWarning``, until 0.4.
 
     Attributes
     ----------
@@ -146,7 +145,7 @@ class MapLearner(StreamFit, MapMethods, BaseEstimator):
                  phase1: str = "auto", sample_size: int | None = None, refine=None,
                  refined_size: str = "told", motion: MotionSettings | str = MotionSettings(),
                  window: int = 20000, refit_every: int = 2000, random_state: int = 0,
-                 callbacks=(), criterion=DEPRECATED, stopping=DEPRECATED):
+                 callbacks=(), **renamed):
         self.n_clusters = n_clusters
         self.n_states = n_states
         self.clusters = clusters
@@ -165,28 +164,31 @@ class MapLearner(StreamFit, MapMethods, BaseEstimator):
         self.refit_every = refit_every
         self.random_state = random_state
         self.callbacks = callbacks
-        self.criterion = criterion
-        self.stopping = stopping
+        if renamed:  # criterion=, stopping= (before 0.3)
+            self.split, self.stop = fold_renamed(renamed, split, stop, stacklevel=2)
+
+    set_params = set_params
 
     # ------------------------------------------------------------------ the paper's method
     def fit(self, observations: ArrayLike, actions: ArrayLike, gds: ArrayLike | None = None,
-            lengths: ArrayLike | None = None, *, n_actions: int | None = None,
-            action_names: Sequence[str] | None = None,
+            lengths: ArrayLike | None = None, *, odometry: ArrayLike | None = None,
+            n_actions: int | None = None, action_names: Sequence[str] | None = None,
             gds_names: Sequence[str] | None = None) -> Self:
         """Learn the map.  Returns ``self``.
 
         ``observations`` (T, D), ``actions`` (T,) ints in ``[0, n_actions)``, ``gds`` (T,) ints with
-        -1 for "no GDS", ``lengths`` the episode lengths when several episodes are concatenated.
+        -1 for "no GDS", ``lengths`` the episode lengths when several episodes are concatenated,
+        ``odometry`` (T, 3) the robot's dead reckoning (:mod:`topomap.core.motion.inputs`).
         A fit forgets any earlier :meth:`partial_fit`.
         """
-        warn_renamed(self, stacklevel=2)
         data = check_fit_data(observations, actions, gds, lengths, n_actions, action_names,
                               gds_names)
+        odometry = check_odometry(odometry, data.u.size, data.lengths)
         self._online = None
-        return self._fit(data)
+        return self._fit(data, odometry=odometry)
 
     def _fit(self, data: FitData, symbols: np.ndarray | None = None, motion: bool = True,
-             warm: PassStart | None = None) -> Self:
+             warm: PassStart | None = None, odometry: np.ndarray | None = None) -> Self:
         """Phase 1, the split, the map and the refinement on checked ``data``, forgetting what an
         earlier fit (or pass) learned.  ``symbols``: the K-means symbol of every non-GDS step,
         given instead of running K-means (a wider pass of :meth:`partial_fit` gives the
@@ -224,7 +226,7 @@ class MapLearner(StreamFit, MapMethods, BaseEstimator):
         self.map_ = self.map_split_ = self._make_map(
             data, splitter, info, models=(first.means[root], first.covariances[root]))
         self.timings_ = {"phase1": t1 - t0, "phase2": t2 - t1}
-        continuous = places is not None and fit_places(self, data, places, metric)
+        continuous = places is not None and fit_places(self, data, places, metric, odometry)
         if warm is not None and not warm.refines(data.u.size, splitter.n_states):
             refinement = None  # too few steps per state: the pass keeps the split
         if refinement is not None and not continuous:
@@ -236,7 +238,7 @@ class MapLearner(StreamFit, MapMethods, BaseEstimator):
         return self
 
     def partial_fit(self, observations, actions, gds=None, *, new_episode: bool = False,
-                    n_actions=None, action_names=None, gds_names=None):
+                    odometry=None, n_actions=None, action_names=None, gds_names=None):
         """Learn from the next steps of the walk (scikit-learn's incremental convention).
 
         Each call continues the walk of the calls before it (``new_episode=True`` starts a new
@@ -247,10 +249,11 @@ class MapLearner(StreamFit, MapMethods, BaseEstimator):
         ``window`` steps (:mod:`topomap.core.online` says what is kept).  ``n_actions``,
         ``action_names`` and ``gds_names`` may be given with any call (more actions than the
         map has bring a wider pass).  A call that fails changes nothing.  :meth:`fit` starts
-        over.  Returns ``self``.
+        over.  ``odometry`` is checked as :meth:`fit`'s (wider passes do not use it).  Returns
+        ``self``.
         """
-        warn_renamed(self, stacklevel=2)
         X, u, g, _ = check_sequences(observations, actions, gds, None, min_length=1)
+        check_odometry(odometry, X.shape[0])
         window, every = check_count(self.window, "window"), check_count(self.refit_every,
                                                                         "refit_every")
         state = getattr(self, "_online", None) or OnlineState(Window(window))
@@ -402,7 +405,6 @@ class MapLearner(StreamFit, MapMethods, BaseEstimator):
         create: at least ``min_clusters`` of the cluster-count policy (when it tells) plus
         ``n_gds``, the GDS the data is expected to hold.  ``fit`` checks again with the real
         counts."""
-        warn_renamed(self, stacklevel=2)
         clusters, _, _, stopping = make_components(self)
         least = getattr(clusters, "min_clusters", None)
         if least is not None:
@@ -439,12 +441,3 @@ class MapLearner(StreamFit, MapMethods, BaseEstimator):
         shows the last fit's refinement, size choice or split map as its own."""
         for name in self._learned():
             delattr(self, name)
-
-    def fit_trajectory(self, traj):
-        """Fit on a :class:`topomap.Trajectory`, carrying its names and episode lengths."""
-        return self.fit(traj.observations, traj.actions, gds=traj.gds, lengths=traj.lengths,
-                        n_actions=traj.n_actions, action_names=traj.action_names,
-                        gds_names=traj.gds_names)
-
-    def fit_predict(self, observations, actions, gds=None, lengths=None, **kwargs) -> np.ndarray:
-        return self.fit(observations, actions, gds, lengths, **kwargs).labels_

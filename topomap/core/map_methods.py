@@ -1,12 +1,19 @@
 """The learner's methods that apply its learned map (``map_``) to new sequences: scikit-learn's
 ``predict`` and ``score`` and hmmlearn's ``predict_proba``, ``score_samples``, ``decode`` and
-``sample``, each the :class:`~topomap.core.map.model.TopologicalMap` method of the same name."""
+``sample``, each the :class:`~topomap.core.map.model.TopologicalMap` method of the same name; and
+the fit conveniences ``fit_trajectory`` and ``fit_predict``.
+
+``predict`` and ``score`` take the robot's ``odometry`` as ``fit`` does, checked
+(:func:`topomap.core.motion.inputs.check_odometry`): a map localises a walk from its views and
+actions alone, and the decoding does not use the odometry."""
 
 from __future__ import annotations
 
 import numpy as np
 from numpy.typing import ArrayLike
 from sklearn.utils.validation import check_is_fitted
+
+from .motion.inputs import check_odometry
 
 __all__ = ["MapMethods"]
 
@@ -16,20 +23,30 @@ class MapMethods:
     scikit-learn's ``NotFittedError`` before :meth:`fit` (or :meth:`partial_fit`)."""
 
     def predict(self, observations: ArrayLike, actions: ArrayLike, gds: ArrayLike | None = None,
-                lengths: ArrayLike | None = None) -> np.ndarray:
+                lengths: ArrayLike | None = None, *,
+                odometry: ArrayLike | None = None) -> np.ndarray:
         """The most likely state of every step of a new sequence (Viterbi on the learned map:
-        :meth:`TopologicalMap.predict <topomap.core.map.model.TopologicalMap.predict>`).
+        :meth:`TopologicalMap.predict <topomap.core.map.model.TopologicalMap.predict>`);
+        ``odometry`` is checked, not used (see the module docstring).
         Raises scikit-learn's ``NotFittedError`` before :meth:`fit` (or :meth:`partial_fit`)."""
         check_is_fitted(self, "map_")
+        self._check_odometry(odometry, observations, lengths)
         return self.map_.predict(observations, actions, gds=gds, lengths=lengths)
 
     def score(self, observations: ArrayLike, actions: ArrayLike, gds: ArrayLike | None = None,
-              lengths: ArrayLike | None = None) -> float:
+              lengths: ArrayLike | None = None, *, odometry: ArrayLike | None = None) -> float:
         """Mean log-likelihood per step (nats; a log-density) of a new sequence under the learned
-        map (:meth:`TopologicalMap.score <topomap.core.map.model.TopologicalMap.score>`).
+        map (:meth:`TopologicalMap.score <topomap.core.map.model.TopologicalMap.score>`);
+        ``odometry`` is checked, not used.
         Raises scikit-learn's ``NotFittedError`` before :meth:`fit` (or :meth:`partial_fit`)."""
         check_is_fitted(self, "map_")
+        self._check_odometry(odometry, observations, lengths)
         return self.map_.score(observations, actions, gds=gds, lengths=lengths)
+
+    @staticmethod
+    def _check_odometry(odometry, observations, lengths) -> None:
+        if odometry is not None:
+            check_odometry(odometry, len(observations), lengths)
 
     def predict_proba(self, observations: ArrayLike, actions: ArrayLike,
                       gds: ArrayLike | None = None,
@@ -68,3 +85,12 @@ class MapMethods:
         seed = self.random_state if random_state is None else random_state
         return self.map_.sample(n_samples, actions, seed, currstate=currstate)
 
+    def fit_trajectory(self, traj):
+        """Fit on a :class:`topomap.Trajectory`, carrying its names, episode lengths and
+        odometry (when it has one)."""
+        return self.fit(traj.observations, traj.actions, gds=traj.gds, lengths=traj.lengths,
+                        odometry=getattr(traj, "odometry", None), n_actions=traj.n_actions,
+                        action_names=traj.action_names, gds_names=traj.gds_names)
+
+    def fit_predict(self, observations, actions, gds=None, lengths=None, **kwargs) -> np.ndarray:
+        return self.fit(observations, actions, gds, lengths, **kwargs).labels_

@@ -1,4 +1,5 @@
-"""Counts and entropies shared by the phases and the map, and matching two labellings' states.
+"""Counts and entropies shared by the phases and the map, and matching two labellings' states:
+the per-label means and the majority share the learner and the scores both use.
 
 Everything the method measures of the discrete model is a function of integer counts: how often
 each state occurs, takes each action, and reaches each next state; entropies are in bits.  Where a
@@ -13,8 +14,9 @@ from numba import njit
 
 from .sums import sparse_pairwise_sum
 
-__all__ = ["majority_match", "xlogx", "weighted_entropy", "conditional_entropy", "sparse_conditional_entropy",
-           "normalise", "episode_masks", "count_tables"]
+__all__ = ["majority_match", "majority_share", "label_means", "xlogx", "weighted_entropy",
+           "conditional_entropy", "sparse_conditional_entropy", "normalise", "episode_masks",
+           "count_tables"]
 
 _SHIFT = np.int64(32)
 _MASK = np.int64((1 << 32) - 1)
@@ -131,3 +133,26 @@ def majority_match(a, b, n_a: int, n_b: int) -> np.ndarray:
         out[code // n_b] = code % n_b
     return out
 
+
+def majority_share(truth, labels) -> float:
+    """The share of steps whose label's most common ``truth`` value is their own (``truth``,
+    ``labels``: (T,) ids of the same steps): 1 where every label holds one value of ``truth``;
+    the purity of ``labels`` against ``truth`` (:func:`topomap.metrics.purity`)."""
+    from sklearn.metrics.cluster import contingency_matrix
+
+    truth = np.asarray(truth)
+    table = contingency_matrix(truth, labels)  # rows: truth values, columns: labels
+    return float(table.max(axis=0).sum() / truth.size)
+
+
+def label_means(labels, values, n_labels: int) -> np.ndarray:
+    """(n_labels, D): the mean of the rows of ``values`` ((T, D)) that carry each label
+    (``labels``: (T,) ids in ``[0, n_labels)``), summed in step order; NaN for a label no row
+    carries."""
+    labels = np.asarray(labels, dtype=np.int64)
+    values = np.asarray(values, dtype=np.float64)
+    counts = np.bincount(labels, minlength=n_labels).astype(np.float64)
+    sums = np.column_stack([np.bincount(labels, weights=values[:, k], minlength=n_labels)
+                            for k in range(values.shape[1])])
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return sums / counts[:, None]

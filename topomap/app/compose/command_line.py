@@ -1,15 +1,16 @@
 """The command line before Hydra composes it, and the config it composes.
 
 What must happen before Hydra composes the config of ``topomap <overrides>``, each once
-(:func:`prepare`): the plugins the overrides name (:func:`plugins_named`) are loaded into the
-:class:`~topomap.app.compose.registry.Registry`, the command line is screened in topomap's words
-(:func:`~topomap.app.compose.config_checks.check_overrides`) and every component's typed config
-is stored (:func:`~topomap.app.compose.store.store_configs`).  :func:`compose` gives the config
+(:func:`screen_command_line`): the plugins the overrides name (:func:`plugins_named`) are loaded
+into the :class:`~topomap.app.compose.registry.Registry`, the command line is screened in
+topomap's words (:func:`~topomap.app.compose.config_checks.check_overrides`) and every
+component's typed config is stored (:func:`~topomap.app.compose.store.store_configs`).  :func:`compose` gives the config
 Hydra composes from it (Hydra's compose API; for notebooks and tests).
 
-One private Hydra API remains: :func:`overrides_of` reads the command line with Hydra's own
-argument parser (``hydra._internal.utils.get_args_parser``), for Hydra has no public one, and
-a parser of our own would have to follow every flag Hydra adds (which of them take a value).
+This module holds the one private Hydra API topomap uses: :func:`hydra_arguments` reads the
+command line with Hydra's own argument parser (``hydra._internal.utils.get_args_parser``), for
+Hydra has no public one, and a parser of our own would have to follow every flag Hydra adds
+(which of them take a value).  ``tests/test_hydra_private.py`` fails if Hydra changes it.
 """
 
 from __future__ import annotations
@@ -18,18 +19,29 @@ from .config_checks import check_overrides
 from .registry import Registry
 from .store import store_configs
 
-__all__ = ["CONFIG_MODULE", "overrides_of", "plugins_named", "prepare", "compose"]
+__all__ = ["CONFIG_MODULE", "NOT_A_RUN", "hydra_arguments", "overrides_of", "plugins_named",
+           "screen_command_line", "compose"]
 
 #: the package of topomap's Hydra configs (``conf/``)
 CONFIG_MODULE = "topomap.conf"
 
+#: Hydra's flags that print or inspect rather than run (attributes of :func:`hydra_arguments`)
+NOT_A_RUN = ("cfg", "help", "hydra_help", "info", "shell_completion", "experimental_rerun")
 
-def overrides_of(argv) -> list[str]:
-    """The overrides (``key=value`` words) of a command line, as Hydra's own parser reads it."""
+
+def hydra_arguments(argv):
+    """The command line ``argv`` as Hydra's own parser reads it (an ``argparse.Namespace``:
+    ``overrides``, ``multirun``, the flags of :data:`NOT_A_RUN`, ...); the words it does not
+    know are left out."""
     from hydra._internal.utils import get_args_parser
 
     args, _ = get_args_parser().parse_known_args(list(argv))
-    return list(args.overrides or [])
+    return args
+
+
+def overrides_of(argv) -> list[str]:
+    """The overrides (``key=value`` words) of a command line, as Hydra's own parser reads it."""
+    return list(hydra_arguments(argv).overrides or [])
 
 
 def plugins_named(overrides) -> list[str]:
@@ -51,7 +63,8 @@ def plugins_named(overrides) -> list[str]:
     return []
 
 
-def prepare(overrides, registry: Registry | None = None, *, user_configs: bool = False) -> Registry:
+def screen_command_line(overrides, registry: Registry | None = None, *,
+                        user_configs: bool = False) -> Registry:
     """What must happen before Hydra composes the config of ``topomap <overrides>``: the registry
     (of the plugins the overrides name, unless given), the command line screened
     (:func:`~topomap.app.compose.config_checks.check_overrides`: Hydra would refuse an unknown key or a preset
@@ -64,13 +77,16 @@ def prepare(overrides, registry: Registry | None = None, *, user_configs: bool =
     return registry
 
 
-def compose(overrides=(), registry: Registry | None = None, *, return_hydra_config=False):
+def compose(overrides=(), registry: Registry | None = None, *, screened: bool = False,
+            return_hydra_config=False):
     """The composed config of ``topomap <overrides>`` (Hydra's compose API; for notebooks and
-    tests).  The registry's component configs are stored first (:func:`prepare`)."""
+    tests).  The command line is screened and the registry's component configs are stored
+    first (:func:`screen_command_line`), unless ``screened``: that was done with ``registry``."""
     from hydra import compose as hydra_compose
     from hydra import initialize_config_module
 
-    prepare(overrides, registry)
+    if not (screened and registry is not None):
+        screen_command_line(overrides, registry)
     with initialize_config_module(version_base="1.3", config_module=CONFIG_MODULE):
         return hydra_compose(config_name="config", overrides=list(overrides),
                              return_hydra_config=return_hydra_config)

@@ -17,12 +17,14 @@ from importlib import resources
 
 from omegaconf import OmegaConf
 
+from ..results import OBJECTIVES, objective_direction
 from .kinds import KINDS
+from .schema_cache import renamed_of
 from .schemas import OutputConf, config_schema, fields_of, learner_schema, schema_of
 from .store import read_yaml_options
 
-__all__ = ["check_overrides", "check_config", "group_options", "default_choices",
-           "preset_overrides", "valid_keys"]
+__all__ = ["check_overrides", "check_config", "check_search_direction", "group_options",
+           "default_choices", "preset_overrides", "valid_keys", "renamed_keys"]
 
 
 def _keys_of(schema, prefix: str) -> set[str]:
@@ -43,6 +45,20 @@ def valid_keys(registry) -> set[str]:
     for kind, _, comp, _ in registry.items():
         keys |= _keys_of(schema_of(comp), kind)
     return keys
+
+
+def renamed_keys(registry) -> set[str]:
+    """Every key of before a rename that some component's config still accepts
+    (``refine.max_iter``, ``refine.soft.observed``; :func:`~topomap.app.compose.schema_cache.
+    renamed_of`): the component's factory takes it with a warning naming the new key."""
+    return {f"{kind}.{old}" for kind, _, comp, _ in registry.items()
+            for old in renamed_of(schema_of(comp))}
+
+
+def _has_key(schema, key: str) -> bool:
+    """Whether a component's config ``schema`` has ``key``, or accepts it as a key of before a
+    rename."""
+    return key in fields_of(schema) or key in renamed_of(schema)
 
 
 def _unknown(key: str, valid, where: str = "") -> ValueError:
@@ -72,13 +88,14 @@ def check_overrides(overrides, registry, *, user_configs: bool = False) -> None:
     except Exception:  # a syntax error: Hydra reports it with its own message
         return
     valid = valid_keys(registry)
+    renamed = renamed_keys(registry)
     groups = set(KINDS) | {"experiment"}
     for override in parsed:
         _check_hydra_plugin(override)
     for override in parsed:
         key = override.key_or_group
         if (override.is_delete() or "/" in key or key.split(".")[0] == "hydra"
-                or key in groups or key in valid):
+                or key in groups or key in valid or key in renamed):
             continue
         raise _unknown(key, valid)
     user_configs = user_configs or any(o.key_or_group.startswith("hydra.searchpath")
@@ -189,11 +206,11 @@ def _check_component_keys(parsed, chosen: dict, registry) -> None:
         told = group in chosen
         selected = chosen.get(group) or [preset.get(group) or defaults.get(group)]
         for option in selected:
-            if option is not None and (option not in registry.names(group) or key in fields_of(
-                    schema_of(registry.get(group, option)))):
+            if option is not None and (option not in registry.names(group) or _has_key(
+                    schema_of(registry.get(group, option)), key)):
                 continue
             owners = [n for n in registry.names(group)
-                      if key in fields_of(schema_of(registry.get(group, n)))]
+                      if _has_key(schema_of(registry.get(group, n)), key)]
             if not owners:
                 continue  # no component has it: the unknown-key check speaks
             more = f" (and {', '.join(f'{group}={n}' for n in owners[1:])})" if owners[1:] else ""
@@ -210,24 +227,30 @@ def _check_component_keys(parsed, chosen: dict, registry) -> None:
 
 def _schema_of_key(key: str, chosen: dict, registry) -> list:
     """The config dataclasses that hold ``key`` for the components the command line selects
-    (several in a sweep of a group), and the key's field name in them."""
+    (several in a sweep of a group), and the key's field name in them; for a key of a nested
+    settings config (``refine.hard.max_iter``), that config's dataclass."""
     from .schemas import OutputConf
 
     section, dot, name = key.partition(".")
     if not dot:
         return [(config_schema(), section)]
-    if "." in name:
-        return []  # a nested settings config: OmegaConf checks it
+    group, dot, name = name.rpartition(".")
+    if "." in group:
+        return []  # deeper than a nested settings config: OmegaConf checks it
     if section == "learner":
-        return [(learner_schema(), name)]
-    if section == "output":
-        return [(OutputConf, name)]
-    if section not in KINDS:
+        schemas = [learner_schema()]
+    elif section == "output":
+        schemas = [OutputConf]
+    elif section in KINDS:
+        options = chosen.get(section) or [default_choices().get(section)]
+        schemas = [schema_of(registry.get(section, o)) for o in options
+                   if o in registry.names(section)]
+    else:
         return []
-    defaults = default_choices()
-    options = chosen.get(section) or [defaults.get(section)]
-    return [(schema_of(registry.get(section, o)), name) for o in options
-            if o in registry.names(section)]
+    if group:  # a field of a nested settings config (refine.hard.max_iter)
+        schemas = [f.type for schema in schemas for f in dataclasses.fields(schema)
+                   if f.name == group and dataclasses.is_dataclass(f.type)]
+    return [(schema, name) for schema in schemas]
 
 
 def _describe(typ) -> str:
@@ -338,7 +361,7 @@ def check_config(cfg, registry) -> None:
         if isinstance(cfg.get(kind), dict) and "component" in cfg[kind]:
             sections[kind] = schema_of(registry.get(kind, cfg[kind]["component"]))
     for section, schema in sections.items():
-        allowed = set(fields_of(schema))
+        allowed = set(fields_of(schema)) | set(renamed_of(schema))
         extra += [f"{section}.{k}" for k in cfg.get(section) or {} if k not in allowed]
     if extra:
         key = extra[0]
@@ -346,3 +369,18 @@ def check_config(cfg, registry) -> None:
         valid = top | set().union(*(_keys_of(s, n) for n, s in sections.items()))
         comp = (cfg.get(section) or {}).get("component") if "." in key else None
         raise _unknown(key, valid, f" for {section}={comp}" if comp else "")
+
+
+def check_search_direction(multirun_cfg) -> None:
+    """Refuse (a ValueError naming ``hydra.sweeper.direction``) a search that would optimise its
+    objective the wrong way: the sweeper's ``direction`` against the objective's
+    (:data:`~topomap.app.results.OBJECTIVES`).  A grid has no direction: nothing to check."""
+    direction = OmegaConf.select(multirun_cfg, "hydra.sweeper.direction", default=None)
+    direction = getattr(direction, "name", direction)  # the plugin's Direction enum, or text
+    objective = OmegaConf.select(multirun_cfg, "objective", default=None)
+    objective = getattr(objective, "value", objective)
+    wanted = objective_direction(objective) if objective in OBJECTIVES else None
+    if isinstance(direction, str) and wanted and direction != wanted:
+        raise ValueError(f"hydra.sweeper.direction={direction}, but objective={objective} is "
+                         f"better when {'larger' if wanted == 'maximize' else 'smaller'}; give "
+                         f"hydra.sweeper.direction={wanted}")

@@ -213,6 +213,9 @@ class Registry:
             raise ValueError(f"{kind} config has no 'component' field naming the component")
         comp = self.get(kind, name)
         params.update(extra)
+        from .schemas import moved_keys, schema_of  # keys of before a rename: their keys now
+
+        params = moved_keys(kind, schema_of(comp), params)
         try:
             return comp.load_factory()(**params)
         except ParameterError as err:  # named by the factory's parameter: say the config key

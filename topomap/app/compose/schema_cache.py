@@ -25,7 +25,7 @@ from dataclasses import field, make_dataclass
 from pathlib import Path
 from typing import Any, Optional
 
-__all__ = ["cached_schema", "cache_file", "source_stamp", "CACHE_ENV"]
+__all__ = ["cached_schema", "cache_file", "source_stamp", "renamed_of", "CACHE_ENV"]
 
 #: the folder of the cache file; "" keeps none (default: ``$XDG_CACHE_HOME/topomap`` or
 #: ``~/.cache/topomap``)
@@ -33,6 +33,13 @@ CACHE_ENV = "TOPOMAP_CACHE_DIR"
 _PRIMITIVES = {"int": int, "float": float, "bool": bool, "str": str}
 _memo: dict[str, type] = {}
 _stored: dict | None = None
+
+
+def renamed_of(schema) -> dict:
+    """The keys of a component's config before a rename and their keys now (``{"max_iter":
+    "hard.max_iter"}``; "" for a key that no longer does anything): the factory's
+    ``renamed_params``, which the config accepts until they go (the factory warns)."""
+    return dict(getattr(schema, "__renamed__", None) or {})
 
 
 def source_stamp(root=None) -> str:
@@ -157,12 +164,14 @@ def cached_schema(key: str, derive) -> type:
     if encoded is not None:
         try:
             schema = make_dataclass(encoded["class"], _decode_fields(encoded["fields"]))
+            schema.__renamed__ = dict(encoded.get("renamed", {}))
         except (KeyError, TypeError, AttributeError):
             encoded = None
     if encoded is None:
         schema = derive()
         try:
-            _write(key, {"class": schema.__name__, "fields": _encode_fields(schema)})
+            _write(key, {"class": schema.__name__, "fields": _encode_fields(schema),
+                         "renamed": renamed_of(schema)})
         except TypeError:  # a type or default JSON cannot hold: derived every time
             pass
     _memo[key] = schema

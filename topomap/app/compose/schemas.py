@@ -16,25 +16,28 @@ and the composed config against these schemas, naming the nearest valid key.
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import inspect
 import typing
+import warnings
 from contextlib import contextmanager
 from dataclasses import MISSING as _NO_DEFAULT
 from dataclasses import dataclass, field, make_dataclass
 from enum import Enum
 from typing import Any, Optional
 
-from omegaconf import II, MISSING
+from omegaconf import II, MISSING, OmegaConf
+from omegaconf.errors import ValidationError
 
 from ...core.checks import ParameterError
 from ..results import OBJECTIVES
 from .kinds import KINDS, parts_of
-from .schema_cache import cached_schema
+from .schema_cache import cached_schema, renamed_of
 
 __all__ = ["Config", "RunConf", "Objective", "LearnerConf", "OutputConf", "RUNTIME_ARGS", "schema_of",
            "settings_schema", "learner_schema", "config_schema", "learner_key", "config_keys",
-           "fields_of"]
+           "fields_of", "moved_keys"]
 
 #: factory arguments the app passes itself; never config fields
 RUNTIME_ARGS = frozenset({"extra_actions"})
@@ -108,7 +111,9 @@ def _parameters(factory, exclude=()):
 def schema_of(component) -> type:
     """The typed config dataclass of a registered component (derived unless it brings one).
     A factory named by its import path (topomap's own) is not imported: its config is kept
-    between commands (:func:`~topomap.app.compose.schema_cache.cached_schema`)."""
+    between commands (:func:`~topomap.app.compose.schema_cache.cached_schema`).  A factory's
+    ``renamed_params`` (``{"max_iter": "hard.max_iter"}``, the keys of before a rename) come
+    with it (:func:`~topomap.app.compose.schema_cache.renamed_of`)."""
     if component.config is not None:
         if not (dataclasses.is_dataclass(component.config)
                 and "component" in {f.name for f in dataclasses.fields(component.config)}):
@@ -117,15 +122,65 @@ def schema_of(component) -> type:
         return component.config
 
     def derive():
+        factory = component.load_factory()
         fields = [("component", str, field(default=component.name))]
         fields += [_field(n, _config_type(a, d), d)
-                   for n, a, d in _parameters(component.load_factory(), parts_of(component.kind))]
+                   for n, a, d in _parameters(factory, parts_of(component.kind))]
         cls_name = "".join(w.title() for w in f"{component.kind}_{component.name}".split("_"))
-        return make_dataclass(f"{cls_name}Conf", fields)
+        schema = make_dataclass(f"{cls_name}Conf", fields)
+        schema.__renamed__ = dict(getattr(factory, "renamed_params", None) or {})
+        return schema
 
     if isinstance(component.factory, str):
         return cached_schema(f"{component.kind}/{component.name}={component.factory}", derive)
     return derive()
+
+
+def moved_keys(kind: str, schema, params: dict) -> dict:
+    """A component's config ``params`` (a plain mapping; ``schema`` its typed config) with the
+    keys of before a rename (:func:`~topomap.app.compose.schema_cache.renamed_of`) moved to
+    their keys now, each value typed as its new key is (``refine.tol=0`` gives
+    ``hard.tol`` 0.0, as ``refine.hard.tol=0`` does), a ``FutureWarning`` naming the new key
+    for each; a ``ValueError`` when the new key is given another value too."""
+    renamed = renamed_of(schema)
+    given = [(old, new) for old, new in renamed.items() if _get(params, old) is not _ABSENT]
+    if not given:
+        return params
+    out, typed = copy.deepcopy(dict(params)), OmegaConf.structured(schema)
+    for old, new in given:
+        parent, _, key = old.rpartition(".")
+        value = (out[parent] if parent else out).pop(key)
+        if not new:
+            warnings.warn(f"{kind}.{old} has no effect (it never had) and goes in 0.4; leave it "
+                          "out", FutureWarning, stacklevel=3)
+            continue
+        warnings.warn(f"{kind}.{old} was renamed {kind}.{new} in 0.3; the old key goes in 0.4",
+                      FutureWarning, stacklevel=3)
+        default = OmegaConf.select(typed, new)
+        try:
+            OmegaConf.update(typed, new, value)
+            value = OmegaConf.select(typed, new)
+        except ValidationError:  # the component names the field and the problem
+            pass
+        group, _, name = new.rpartition(".")
+        target = out.setdefault(group, {}) if group else out
+        if target.get(name, default) not in (default, value):
+            raise ValueError(f"{kind}.{old} is the old key of {kind}.{new}: give {kind}.{new} "
+                             "only")
+        target[name] = value
+    return out
+
+
+_ABSENT = object()
+
+
+def _get(params, path: str):
+    """The value at the dotted ``path`` of nested mappings, or ``_ABSENT``."""
+    for key in path.split("."):
+        if not isinstance(params, dict) or key not in params:
+            return _ABSENT
+        params = params[key]
+    return params
 
 
 def learner_schema() -> type:

@@ -16,6 +16,7 @@ from pathlib import Path
 from omegaconf import OmegaConf
 
 from .optuna import store_optuna_sweeper
+from .schema_cache import renamed_of
 from .schemas import config_schema, schema_of
 
 __all__ = ["store_configs", "read_yaml_options"]
@@ -75,6 +76,20 @@ def _share_config_store(store_class) -> None:
         store_class.__deepcopy__ = lambda self, memo: self
 
 
+def _open_renamed(node, renamed: dict):
+    """A component's config ``node`` open to the keys of before a rename (``renamed``, e.g.
+    ``max_iter`` and ``soft.observed``): the config nodes that held them take keys they do not
+    declare, which the factory then moves to their new places with a warning.  Other unknown
+    keys are still refused, before Hydra composes
+    (:func:`~topomap.app.compose.config_checks.check_overrides`) and after
+    (:func:`~topomap.app.compose.config_checks.check_config`)."""
+    node = OmegaConf.structured(node)
+    for old in renamed:
+        parent = old.rpartition(".")[0]
+        OmegaConf.set_struct(OmegaConf.select(node, parent) if parent else node, False)
+    return node
+
+
 def store_configs(registry) -> None:
     """Put the top-level schema and every component's config into Hydra's ConfigStore."""
     from hydra.core.config_store import ConfigStore
@@ -93,6 +108,8 @@ def store_configs(registry) -> None:
     for kind, name, comp, provider in registry.items():
         text = files.pop((kind, name), (None,))[0]
         node = schema_of(comp) if text is None else _merge_yaml(schema_of(comp), text, name)
+        if renamed_of(schema_of(comp)):
+            node = _open_renamed(node, renamed_of(schema_of(comp)))
         cs.store(group=kind, name=name, node=node, provider=provider)
     for (group, option), (text, package, provider) in files.items():
         cs.store(group=group, name=option, node=OmegaConf.create(text), package=package,

@@ -4,13 +4,18 @@
 study in :class:`SweepStudy`: Optuna's in-memory storage that writes every finished trial to
 ``<sweep dir>/study.json`` as the search goes, and starts from the trials of an earlier search's
 file when told (``hydra.sweeper.storage.resume_from=<its sweep folder>``), so that its sampler
-goes on from what they found.  (Optuna's SQLite storage is not used: the Optuna that the Hydra
-sweeper plugin requires, 2.x, cannot create its tables under SQLAlchemy 2.)
+goes on from what they found.  It also watches the trials: when every one of a search's
+``n_trials`` has failed, it ends the search with one line saying why the first failed, and the
+``topomap`` command writes the sweep's report
+(:func:`~topomap.app.report.callback.report_early_end`).  (Optuna's SQLite storage is not
+used: the Optuna that the Hydra sweeper plugin requires, 2.x, cannot create its tables under
+SQLAlchemy 2.)
 """
 
 from __future__ import annotations
 
 import json
+import logging
 import os
 from pathlib import Path
 
@@ -45,7 +50,9 @@ class SweepStudy(InMemoryStorage):
         super().__init__()
         self.n_trials = n_trials
         optuna.logging.set_verbosity(optuna.logging.WARNING)  # the sweep logs the study itself
+        logging.getLogger("alembic").setLevel(logging.WARNING)  # Optuna's database migrations
         self.path = Path(folder) / STUDY_FILE
+        self.path.parent.mkdir(parents=True, exist_ok=True)  # the study is kept in the sweep's
         self.earlier: list[dict] = []
         if resume_from not in (None, ""):
             source = Path(resume_from) / STUDY_FILE

@@ -31,7 +31,7 @@ def pairs(labels, places, **kw):
 
 def compound_mask(labels, places, n_states: int) -> np.ndarray:
     """Which of ``n_states`` states hold steps of more than one ground-truth place (the strict
-    reading of :func:`topomap.core.metrics.compound_states`)."""
+    reading of :func:`topomap.metrics.compound_states`)."""
     rows = pairs(labels, places)
     return np.bincount(rows[:, 0], minlength=n_states)[:n_states] > 1
 

@@ -1,40 +1,44 @@
-"""The sweep report as a Hydra callback: written when a multirun ends, or when it is interrupted.
+"""The sweep report as a Hydra callback: written when a multirun ends, or when it ends early.
 
 :class:`SweepReport` is registered in ``conf/config.yaml`` as ``hydra.callbacks.sweep_report``:
 when the multirun ends it writes the report into the sweep folder and prints it
-(:mod:`topomap.app.report.summary`); before the first job it stops a search that would optimise
-its objective the wrong way.  While the sweep runs, Ctrl-C and SIGTERM raise
-:class:`SweepInterrupted`: a :class:`KeyboardInterrupt` that carries the sweep, so that whoever
-ends the process (the ``topomap`` command) writes the report with the interrupted job and those
-that did not start.
+(:mod:`topomap.app.report.summary`).  A sweep that ends before Hydra ends the multirun -- Ctrl-C
+or SIGTERM, or a search whose every trial failed -- never calls it: the ``topomap`` command then
+writes the same report with :func:`report_early_end` (the interrupted job and those that did
+not start are rows of it).
 """
 
 from __future__ import annotations
 
 import logging
-import os
-import shutil
-import signal
 import sys
-import threading
 from pathlib import Path
 
 from hydra.experimental.callback import Callback
 from omegaconf import OmegaConf
 
-from ..results import OBJECTIVES, check_metric, objective_direction
-from .jobs import check_sweep_folder
+from ..results import check_metric
 from .summary import Report, print_report, write_report
 
 log = logging.getLogger("topomap")
 
-__all__ = ["SweepReport", "SweepInterrupted"]
+__all__ = ["SweepReport", "report_early_end", "written_report"]
 
-#: the signals that end a sweep (Ctrl-C and a kill), raised as :class:`SweepInterrupted`
-INTERRUPTS = (signal.SIGINT, signal.SIGTERM)
 #: what a grid's report shows when no job has an ARI (no places: arena runs, robot logs), the
 #: first column some job has
 GRID_FALLBACK = ("pos_error", "heldout_loglik")
+
+#: the file Hydra's basic sweeper keeps the multirun config in, in the sweep folder
+MULTIRUN_FILE = "multirun.yaml"
+
+#: sweep folder (resolved) -> the summary of its report, for the reports this process wrote
+_written: dict[Path, Path] = {}
+
+
+def written_report(sweep_dir) -> Path | None:
+    """The summary of the report of the sweep in ``sweep_dir`` that this process wrote, None if
+    it wrote none."""
+    return _written.get(Path(sweep_dir).resolve())
 
 
 class SweepReport(Callback):
@@ -58,7 +62,6 @@ class SweepReport(Callback):
         if metric is not None:
             check_metric(metric, "hydra.callbacks.sweep_report.metric")
         self.metric, self.figure, self.strict = metric, bool(figure), bool(strict)
-        self._replaced: dict = {}  # the signal handlers the sweep's own replace while it runs
 
     def metric_of(self, config) -> str:
         """The column the report shows for the multirun ``config``."""
@@ -70,69 +73,7 @@ class SweepReport(Callback):
             return str(getattr(objective, "value", objective))  # an Objective, or its name
         return "ari"
 
-    def on_multirun_start(self, config, **kwargs) -> None:
-        """Stop a search before its first job when it would optimise the wrong way: the
-        sweeper's ``direction`` against the objective's (:data:`~topomap.app.results.OBJECTIVES`);
-        then make Ctrl-C and SIGTERM raise :class:`SweepInterrupted` until the sweep ends."""
-        direction = OmegaConf.select(config, "hydra.sweeper.direction", default=None)
-        direction = getattr(direction, "name", direction)  # the plugin's Direction enum, or text
-        objective = OmegaConf.select(config, "objective", default=None)
-        objective = getattr(objective, "value", objective)
-        wanted = objective_direction(objective) if objective in OBJECTIVES else None
-        if isinstance(direction, str) and wanted and direction != wanted:
-            sys.exit(f"topomap: error: hydra.sweeper.direction={direction}, but "
-                     f"objective={objective} is better when "
-                     f"{'larger' if wanted == 'maximize' else 'smaller'}; give "
-                     f"hydra.sweeper.direction={wanted}")
-        launcher = str(OmegaConf.select(config, "hydra.launcher._target_", default="") or "")
-        if launcher.endswith("SlurmLauncher") and shutil.which("sbatch") is None:
-            sys.exit("topomap: error: hydra/launcher=slurm submits the jobs with SLURM's sbatch, "
-                     "which is not on this machine's PATH: start the sweep on a machine of the "
-                     "cluster, or run it here with hydra/launcher=submitit_local")
-        sweep_dir = OmegaConf.select(config, "hydra.sweep.dir", default=None)
-        try:
-            if sweep_dir is not None:
-                check_sweep_folder(Path(str(sweep_dir)), config,
-                                   bool(OmegaConf.select(config, "output.resume", default=False)))
-        except ValueError as exc:
-            sys.exit(f"topomap: error: {exc}")
-        self._watch_search(config)
-        if threading.current_thread() is threading.main_thread():  # where Python takes signals
-
-            def interrupted(signum, frame):
-                raise SweepInterrupted(f"signal {signal.Signals(signum).name}", self, config)
-
-            self._replaced = {sig: signal.signal(sig, interrupted) for sig in INTERRUPTS}
-
-    def _watch_search(self, config) -> None:
-        """Before a search (an optimising sweeper with ``n_trials``): its folder made (its study
-        is kept there) and its trials counted (:meth:`on_job_end`)."""
-        sweeper = OmegaConf.select(config, "hydra.sweeper", default=None)
-        trials = OmegaConf.select(config, "hydra.sweeper.n_trials", default=None)
-        self._search = None
-        if sweeper is None or "direction" not in sweeper or not isinstance(trials, int):
-            return
-        self._search = {"config": config, "trials": trials, "returns": [], "pid": os.getpid()}
-        Path(str(config.hydra.sweep.dir)).mkdir(parents=True, exist_ok=True)
-        logging.getLogger("alembic").setLevel(logging.WARNING)  # the study's database
-
-    def on_job_end(self, config, job_return, **kwargs) -> None:
-        """After the last trial of a search of which no trial completed: the report (every
-        trial a row), written now -- the sweep ends without :meth:`on_multirun_end`, the study
-        saying why (:class:`~topomap.app.compose.study.SweepStudy`)."""
-        search = getattr(self, "_search", None)
-        if search is None or os.getpid() != search["pid"]:  # a launcher's worker process
-            return
-        ok = getattr(job_return.status, "name", "") == "COMPLETED"
-        search["returns"].append(job_return.return_value if ok else None)
-        if len(search["returns"]) == search["trials"] and all(
-                v is None for v in search["returns"]):
-            self.on_multirun_end(search["config"])
-
     def on_multirun_end(self, config, **kwargs) -> None:
-        for sig, handler in self._replaced.items():
-            signal.signal(sig, handler)
-        self._replaced = {}
         report = self.write(Path(str(config.hydra.sweep.dir)), config)
         if report.failed:
             log.warning("%d of %d jobs did not complete; their errors are in %s",
@@ -148,22 +89,30 @@ class SweepReport(Callback):
         report = write_report(sweep_dir, metric=metric, figure=self.figure, multirun_cfg=config,
                               fallback=GRID_FALLBACK if grid else ())
         print_report(report)
+        _written[Path(sweep_dir).resolve()] = report.summary
         return report
 
 
-class SweepInterrupted(KeyboardInterrupt):
-    """Ctrl-C or SIGTERM while a sweep runs: a :class:`KeyboardInterrupt` (a job writes
-    ``interrupted`` into its ``status.json`` and raises it again) that carries the sweep, for
-    :meth:`write_report` once it has ended the sweep."""
+def report_early_end(sweep_dir, config) -> Path | None:
+    """Write and print the report of a sweep that ended before Hydra ended its multirun, as
+    each :class:`SweepReport` among the callbacks of its multirun ``config`` would have; returns
+    the summary's path, None when no callback reports (or the sweep made no folder).  The
+    config Hydra's basic sweeper saved in the folder (``multirun.yaml``, with the plan of every
+    job) is read in place of ``config`` where it exists."""
+    sweep_dir = Path(sweep_dir)
+    if not sweep_dir.is_dir():
+        return None
+    if (sweep_dir / MULTIRUN_FILE).is_file():
+        config = OmegaConf.load(sweep_dir / MULTIRUN_FILE)
+    from hydra.utils import get_class, instantiate
 
-    def __init__(self, message: str, callback: SweepReport, config):
-        super().__init__(message)
-        self.callback, self.config = callback, config
-
-    def write_report(self) -> Path:
-        """Write and print the report of the interrupted sweep (the interrupted job and those
-        that did not start are rows of it); returns the summary's path."""
-        config, sweep_dir = self.config, Path(str(self.config.hydra.sweep.dir))
-        if (sweep_dir / "multirun.yaml").is_file():  # the job config Hydra saved, with the plan
-            config = OmegaConf.load(sweep_dir / "multirun.yaml")
-        return self.callback.write(sweep_dir, config).summary
+    summary = None
+    for callback in (OmegaConf.select(config, "hydra.callbacks", default=None) or {}).values():
+        target = OmegaConf.select(callback, "_target_", default=None)
+        try:
+            reports = target is not None and issubclass(get_class(str(target)), SweepReport)
+        except Exception:  # a callback that cannot be imported here reports nothing
+            reports = False
+        if reports:
+            summary = instantiate(callback).write(sweep_dir, config).summary
+    return summary

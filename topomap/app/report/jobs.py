@@ -18,9 +18,9 @@ from ..results import CACHE_DIR, METRICS_FILE, STATUS_FILE
 __all__ = ["Job", "read_jobs", "swept_keys", "planned_jobs", "not_started", "STATUSES",
            "check_sweep_folder"]
 
-#: the ``_target_`` of Hydra's basic sweeper in a multirun config (a name read in the config: the
-#: sweeper itself, a private class of Hydra's, is not imported)
-BASIC_SWEEPER = "hydra._internal.core_plugins.basic_sweeper.BasicSweeper"
+#: the option of Hydra's ``hydra/sweeper`` group that runs a grid (Hydra's default), as the
+#: multirun config records the choices made (``hydra.runtime.choices``)
+BASIC_SWEEPER = "basic"
 
 #: the status of a job in the report: completed, failed or interrupted (its ``status.json``
 #: says so), incomplete (no status: still running, killed or lost) or not started (a job of
@@ -239,7 +239,8 @@ def planned_jobs(multirun_cfg) -> list[dict[str, str]] | None:
 
     if multirun_cfg is None:
         return None
-    if OmegaConf.select(multirun_cfg, "hydra.sweeper._target_", default=None) != BASIC_SWEEPER:
+    choices = OmegaConf.select(multirun_cfg, "hydra.runtime.choices", default=None) or {}
+    if choices.get("hydra/sweeper") != BASIC_SWEEPER:
         return None
     task = OmegaConf.select(multirun_cfg, "hydra.overrides.task", default=None)
     params = OmegaConf.select(multirun_cfg, "hydra.sweeper.params", default=None)

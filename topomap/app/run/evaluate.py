@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...core import metrics as M
-from ...core import position_scores as positions
+from ...core.data.trajectory import Trajectory
 from ...core.learner import MapLearner
 from ...core.progress import report
-from ...core.data.trajectory import Trajectory
+from ...evaluation import metres as positions
+from ...evaluation import partitions as M
 
 from ..results import METRICS, OBJECTIVES
 
@@ -108,7 +108,7 @@ def _regions(env):
 
 def position_entry(learner: MapLearner, traj: Trajectory, heldout: Trajectory | None,
                    env=None, held: str = "the held-out recording") -> dict | None:
-    """Scores in metres of the held-out walk (:mod:`topomap.core.position_scores`: the map's,
+    """Scores in metres of the held-out walk (:mod:`topomap.evaluation.metres`: the map's,
     the ceiling's and K-means on the views', each with the median and 90th-percentile error and,
     where the world has regions, the wrong-region share), with which walk was held out (as the
     world says in ``heldout.meta``, else ``held``) and the regions; None unless both walks have

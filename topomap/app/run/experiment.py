@@ -31,7 +31,8 @@ from .progress import Progress
 
 log = logging.getLogger("topomap")
 
-__all__ = ["run", "prepare", "Experiment", "learn", "localize", "make_learner"]
+__all__ = ["run", "check_and_build", "CheckedRun", "Experiment", "learn", "localize",
+           "make_learner"]
 
 
 @dataclass(frozen=True)
@@ -47,14 +48,24 @@ class Experiment:
     cache_dir: Path | None = None
 
 
-def prepare(cfg, registry: Registry | None = None) -> tuple[dict, Registry, Parts]:
+@dataclass(frozen=True)
+class CheckedRun:
+    """A run's config once every check has passed (:func:`check_and_build`): the config as a
+    plain dict, the registry, and the components built from it."""
+
+    cfg: dict
+    registry: Registry
+    parts: Parts
+
+
+def check_and_build(cfg, registry: Registry | None = None) -> CheckedRun:
     """Every check a run makes before it touches its folder: the config
     (:func:`~topomap.app.compose.config_checks.check_config`), every component built from it
     (:meth:`Registry.build <topomap.app.compose.registry.Registry.build>`: each checks its
     parameters), the learner's settings and what the data will need
-    (:func:`~topomap.app.run.checks.check_before_data`).  Returns the config as a plain dict,
-    the registry and the built components.  The ``topomap`` command calls it before Hydra makes
-    the run's folder, so a bad setting leaves nothing behind."""
+    (:func:`~topomap.app.run.checks.check_before_data`).  The ``topomap`` command calls it
+    before Hydra makes the run's folder, so a bad setting leaves nothing behind, and hands the
+    result to :func:`run`."""
     cfg = _as_dict(cfg)
     registry = registry or Registry.load(cfg.get("plugins") or ())
     check_config(cfg, registry)
@@ -69,16 +80,19 @@ def prepare(cfg, registry: Registry | None = None) -> tuple[dict, Registry, Part
         check_before_data(cfg, parts)
     if hasattr(parts.logger, "check"):  # a store that cannot be reached: before any data
         parts.logger.check()
-    return cfg, registry, parts
+    return CheckedRun(cfg, registry, parts)
 
 
-def run(cfg, output_dir, *, registry: Registry | None = None, cache_dir=None,
-        needs_objective: bool = False, on_replaced=None, folder_key: str = "hydra.run.dir") -> dict:
+def run(cfg, output_dir, *, registry: Registry | None = None, checked: CheckedRun | None = None,
+        cache_dir=None, needs_objective: bool = False, on_replaced=None,
+        folder_key: str = "hydra.run.dir") -> dict:
     """Run one experiment described by ``cfg`` and write its outputs into ``output_dir``.
 
-    Everything is checked first (:func:`prepare`), before any data is read; then
-    ``task=learn`` (the default) learns a map (:func:`learn`) and ``task=localize`` applies the
-    saved ``map`` to the data (:func:`localize`).  Returns the metrics dict.
+    Everything is checked first (:func:`check_and_build`), before any data is read, unless
+    ``checked`` holds that check of the same config (the ``topomap`` command made it before
+    Hydra made the run's folder); then ``task=learn`` (the default) learns a map (:func:`learn`)
+    and ``task=localize`` applies the saved ``map`` to the data (:func:`localize`).  Returns the
+    metrics dict.
 
     A folder that holds another run's outputs is refused
     (:class:`~topomap.app.run.outputs.OutputDirInUse`) unless ``output.overwrite`` is true,
@@ -88,24 +102,26 @@ def run(cfg, output_dir, *, registry: Registry | None = None, cache_dir=None,
     cannot give it is an error before learning.  ``folder_key``: the config key that chose the
     folder, for the error.
     """
-    overwrite = bool((_as_dict(cfg).get("output") or {}).get("overwrite", False))
+    cfg = _as_dict(cfg)
+    overwrite = bool((cfg.get("output") or {}).get("overwrite", False))
     claim_output_dir(output_dir, overwrite, check_only=True, key=folder_key)
-    cfg, registry, parts = prepare(cfg, registry)
-    for err in registry.errors:
+    if checked is None or checked.cfg != cfg:
+        checked = check_and_build(cfg, registry)
+    for err in checked.registry.errors:
         log.warning("%s", err)
     replaced = claim_output_dir(output_dir, overwrite)
     if replaced and on_replaced is not None:
         on_replaced(output_dir)
-    experiment = Experiment(cfg, parts, registry, Path(output_dir),
+    experiment = Experiment(checked.cfg, checked.parts, checked.registry, Path(output_dir),
                             None if cache_dir is None else Path(cache_dir))
-    if cfg.get("task", "learn") == "localize":
+    if checked.cfg.get("task", "learn") == "localize":
         return localize(experiment)
     return learn(experiment, needs_objective)
 
 
 def learn(experiment: Experiment, needs_objective: bool = False) -> dict:
     """Learn a map: data -> learner -> evaluation -> outputs (the settings were checked by
-    :func:`prepare`, before any data is simulated); every file is written atomically."""
+    :func:`check_and_build`, before any data is simulated); every file is written atomically."""
     cfg, parts, registry = experiment.cfg, experiment.parts, experiment.registry
     plugin_metrics: dict = {}
     shown = cfg["output"].get("progress", True) and sys.stderr.isatty()
@@ -138,6 +154,7 @@ def _write_learned(experiment: Experiment, traj, learner, results, *, timings, p
     results.update({
         "split_history": learner.split_history_, "entropy_trace": learner.entropies_,
         "stop_reason": learner.stop_reason_, "timings": {**timings, **learner.timings_},
+        "motion": _motion(learner),
         "size_choice": getattr(learner, "size_choice_", None), "resized": _resized(learner),
         "mapping": _mapping(traj, results),
         "versions": versions(), "config": cfg, "plugin_metrics": plugin_metrics, "units": UNITS,
@@ -151,6 +168,15 @@ def _write_learned(experiment: Experiment, traj, learner, results, *, timings, p
         sweep_dir = None if cache_dir is None else cache_dir.parent  # <sweep>/.cache
         parts.logger.log_run(RunRecord(experiment.output_dir, cfg, results,
                                        start_dir=start_dir(), sweep_dir=sweep_dir))
+
+
+def _motion(learner) -> dict | None:
+    """What the map of a continuous log is (``"places"`` or ``"views"``, the view clusters) and,
+    where it is the view clusters, why (``motion_info_["reason"]``); None for other logs."""
+    info = getattr(learner, "motion_info_", None)
+    if not info:
+        return None
+    return {"chosen": info.get("chosen"), "reason": info.get("reason")}
 
 
 def localize(experiment: Experiment) -> dict:

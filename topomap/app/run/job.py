@@ -18,6 +18,7 @@ from pathlib import Path
 
 from ..results import CACHE_DIR, METRICS_FILE, STATUS_FILE
 from .experiment import run
+from .interrupts import stop_if_interrupted
 from .outputs import OutputDirInUse, write_json
 
 log = logging.getLogger("topomap")
@@ -31,7 +32,9 @@ def run_job(cfg, output_dir, *, sweep_dir, registry=None, needs_objective=False)
     Trajectories are shared through ``<sweep_dir>/.cache``.  Any exception is logged and written to
     ``output_dir/status.json`` (``{"status": "failed", "error": ..., "traceback": ...}``) rather than
     raised, so the other jobs and the sweep report are not lost.  An interrupt (Ctrl-C, SIGTERM)
-    is written as ``{"status": "interrupted"}`` and raised again: it ends the sweep.
+    is written as ``{"status": "interrupted"}`` and raised again: it ends the sweep; one
+    received before the job starts (its exception dropped where it landed,
+    :mod:`~topomap.app.run.interrupts`) ends it there.
     ``status.json`` also holds the job's wall time, process id and host.  A job folder that holds
     another run's outputs is left as it is (the error is logged).
     """
@@ -43,6 +46,7 @@ def run_job(cfg, output_dir, *, sweep_dir, registry=None, needs_objective=False)
                  "run again", out)
         return done
     try:
+        stop_if_interrupted()
         results = run(cfg, out, registry=registry, cache_dir=Path(sweep_dir) / CACHE_DIR,
                       needs_objective=needs_objective, folder_key="hydra.sweep.dir")
     except OutputDirInUse as exc:

@@ -18,7 +18,7 @@ from ...core.data.atomic import atomic_write
 from ...core.data.trajectory import save_trajectory
 from ..results import (FIGURE_FILES, LOCALIZE_FILES, MAPPING_FIGURES, METRICS_FILE, OUTPUT_FILES,
                        PATH_FIGURES, STATUS_FILE)
-from .interrupts import held_signals
+from .interrupts import held_signals, stop_if_interrupted
 
 __all__ = ["write_outputs", "write_localization", "versions", "write_json", "staged",
            "own_files", "claim_output_dir", "locked_output_dir", "remove_new_folder",
@@ -123,12 +123,15 @@ def staged(out):
     """A hidden folder inside ``out`` to write a run's files into.  When the block succeeds
     they move into ``out`` together (``metrics.json`` last, signals held meanwhile), so that
     ``out`` never holds some of a run's files without the rest; when it fails, or is
-    interrupted, the folder is removed and ``out`` is left as it was."""
+    interrupted -- also by a signal whose exception was dropped where it landed, while the
+    figures were drawn, say (:func:`~topomap.app.run.interrupts.stop_if_interrupted`) -- the
+    folder is removed and ``out`` is left as it was."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     stage = Path(tempfile.mkdtemp(prefix=STAGE_PREFIX, dir=out))
     try:
         yield stage
+        stop_if_interrupted()
         names = sorted((p.name for p in stage.iterdir()),
                        key=lambda n: (_LAST.index(n) if n in _LAST else -1, n))
         with held_signals():

@@ -1,5 +1,6 @@
-"""The ``.csv`` (or gzip-compressed ``.csv.gz``) trajectory file: a header row ``o0,...,o{D-1},action[,gds][,place][,x,y[,z]]
-[,episode]`` and one row per step (``docs/file-formats.md``), read into the fields of a
+"""The ``.csv`` (or gzip-compressed ``.csv.gz``) trajectory file: a header row
+``o0,...,o{D-1},action[,gds][,place][,x,y[,z]][,odom_x,odom_y,odom_theta][,episode]`` and one
+row per step (``docs/file-formats.md``), read into the fields of a
 :class:`~topomap.core.data.trajectory.Trajectory` (:func:`read_csv`); a spreadsheet's UTF-8
 byte-order mark is dropped, actions may be ids or names."""
 
@@ -11,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .odometry import ODOMETRY_COLUMNS, csv_odometry
 from .positions import POSITION_COLUMNS, csv_positions
 
 __all__ = ["read_csv"]
@@ -33,14 +35,15 @@ def _check_csv_header(header: list[str], path: Path) -> list[int]:
     import difflib
 
     obs_cols = [i for i, h in enumerate(header) if h.startswith("o") and h[1:].isdigit()]
-    known = ["action", "gds", "place", "episode", *POSITION_COLUMNS]
+    known = ["action", "gds", "place", "episode", *POSITION_COLUMNS, *ODOMETRY_COLUMNS]
     unknown = [h for i, h in enumerate(header) if i not in obs_cols and h not in known]
     if unknown:
         close = difflib.get_close_matches(unknown[0], known, n=1, cutoff=0.6)
         hint = f"; did you mean {close[0]!r}?" if close else ""
         raise ValueError(
             f"trajectory file {path}: unknown column(s) {', '.join(map(repr, unknown))}{hint} "
-            "(expected o0..o{D-1}, action and optionally gds, place, x, y, z, episode)")
+            "(expected o0..o{D-1}, action and optionally gds, place, x, y, z, odom_x, odom_y, "
+            "odom_theta, episode)")
     if not obs_cols:
         raise ValueError(f"trajectory file {path} has no observation columns o0, o1, ...")
     expected = [f"o{i}" for i in range(len(obs_cols))]
@@ -107,6 +110,9 @@ def read_csv(path: Path) -> dict:
     positions = csv_positions(header, col, path)
     if positions is not None:
         kwargs["positions"] = positions
+    odometry = csv_odometry(header, col, path)
+    if odometry is not None:
+        kwargs["odometry"] = odometry
     if "episode" in col:
         kwargs["episode"] = col["episode"]
     return kwargs

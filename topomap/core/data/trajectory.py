@@ -1,18 +1,21 @@
 """Trajectories: what a robot saw and did, step by step, and the files that hold them.
 
 A :class:`Trajectory` is the learner's input: ``T`` observation vectors, the action taken at each
-step, optionally the globally distinctive state (GDS) recognised at each step and, for simulated or
-annotated data, the ground truth (place id and position).  Several episodes may be stored back to
-back; ``lengths`` gives their sizes and no transition is counted across an episode boundary.
+step, optionally the globally distinctive state (GDS) recognised at each step and the robot's own
+odometry, and, for simulated or annotated data, the ground truth (place id and position).  Several
+episodes may be stored back to back; ``lengths`` gives their sizes and no transition is counted
+across an episode boundary.
 
 Two file formats are read and written (``docs/file-formats.md`` describes them in full):
 
 ``.npz``
     arrays ``observations`` (T, D) float, ``actions`` (T,) int and optionally ``gds`` (T,) int,
-    ``places`` (T,) int, ``positions`` (T, 2 or 3) float, ``lengths`` (E,) int, ``action_names``
-    and ``gds_names`` (string arrays).  Loaded with ``allow_pickle=False``.
+    ``places`` (T,) int, ``positions`` (T, 2 or 3) float, ``odometry`` (T, 3) float, ``lengths``
+    (E,) int, ``action_names`` and ``gds_names`` (string arrays).  Loaded with
+    ``allow_pickle=False``.
 ``.csv``
-    a header row ``o0,...,o{D-1},action[,gds][,place][,x,y[,z]][,episode]`` and one row per step;
+    a header row ``o0,...,o{D-1},action[,gds][,place][,x,y[,z]][,odom_x,odom_y,odom_theta]
+    [,episode]`` and one row per step;
     actions given by name (``north``) get ids in order of first appearance, the names kept.
 """
 
@@ -27,6 +30,7 @@ import numpy as np
 from ..stats import episode_masks
 from .atomic import atomic_write
 from .csv_file import read_csv
+from .odometry import ODOMETRY_COLUMNS, check_odometry
 from .positions import POSITION_COLUMNS, check_positions
 
 __all__ = ["Trajectory", "load_trajectory", "save_trajectory", "check_sequences",
@@ -205,11 +209,19 @@ class Trajectory:
     places : (T,) int array or None
         Ground-truth place id of each step.
     positions : (T, 2) or (T, 3) float array or None
-        Ground-truth position of each step (metres: x, y and optionally z).
+        Ground-truth position of each step (metres: x, y and optionally z), used only to score a
+        map.
     lengths : (E,) int array or None
         Episode lengths (None: a single episode).
     action_names, gds_names : list of str or None
         The names of the actions and of the GDS ids.
+    meta : dict
+        Where the steps came from (a world's or a bag's description); not saved in files.
+    odometry : (T, 3) float array or None
+        The robot's own dead reckoning at each step: x, y (metres) and heading (radians) in its
+        odometry frame.  It drifts: input to learning, never the score
+        (:mod:`~topomap.core.data.odometry`; a move of more than ``MAX_ODOMETRY_STEP`` metres
+        between two steps of an episode is refused).
     """
 
     observations: np.ndarray
@@ -221,6 +233,7 @@ class Trajectory:
     action_names: list[str] | None = None
     gds_names: list[str] | None = None
     meta: dict = field(default_factory=dict)
+    odometry: np.ndarray | None = None
 
     def __post_init__(self):
         X, u, g, L = check_sequences(
@@ -234,6 +247,8 @@ class Trajectory:
             self.places = _as_int_array(self.places, "places", T)
         if self.positions is not None:
             self.positions = check_positions(self.positions, T)
+        if self.odometry is not None:
+            self.odometry = check_odometry(self.odometry, T, self.lengths)
         if self.action_names is not None:
             self.action_names = _as_names(self.action_names, "action_names")
             if u.max() >= len(self.action_names):
@@ -260,7 +275,7 @@ class Trajectory:
 
 
 _REQUIRED = ("observations", "actions")
-_OPTIONAL = ("gds", "places", "positions", "lengths", "action_names", "gds_names")
+_OPTIONAL = ("gds", "places", "positions", "odometry", "lengths", "action_names", "gds_names")
 
 
 def _checked(traj: Trajectory, path: Path) -> Trajectory:
@@ -315,6 +330,9 @@ def save_trajectory(traj: Trajectory, path, *, compress: bool | None = None) -> 
         if traj.positions is not None:
             header += POSITION_COLUMNS[:traj.positions.shape[1]]
             cols.append(traj.positions)
+        if traj.odometry is not None:
+            header += ODOMETRY_COLUMNS
+            cols.append(traj.odometry)
         if traj.lengths is not None:
             header.append("episode")
             cols.append(np.repeat(np.arange(traj.lengths.size), traj.lengths)[:, None])

@@ -35,8 +35,8 @@ from __future__ import annotations
 import numpy as np
 from sklearn.metrics import pairwise_distances_argmin
 
-from ..metrics import purity
 from ..size import split_holdout
+from ..stats import majority_share
 from .odometry import odometric_positions, reckoned_steps
 from .places import Places, cut_places
 from .settings import MotionSettings
@@ -119,9 +119,9 @@ def view_purity(places, views) -> float:
     """The share of steps whose place's view cluster -- the one most of the place's steps have
     -- is their own (``places``, ``views``: (T,) labels): 1 where every
     place lies within one view cluster, low where the places cut across the views, the odometry
-    and not the view deciding where a step belongs: :func:`topomap.core.metrics.purity` of the
-    places with the view clusters as the truth."""
-    return purity(views, places)
+    and not the view deciding where a step belongs: the purity of the places with the view
+    clusters as the truth (:func:`~topomap.core.stats.majority_share`)."""
+    return majority_share(views, places)
 
 
 def pooled_shares(folds: list) -> dict:

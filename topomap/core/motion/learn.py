@@ -12,6 +12,7 @@ the same stream as before.  Nothing here runs on a log that is not continuous.
 from __future__ import annotations
 
 import time
+import warnings
 from dataclasses import asdict, replace
 
 import numpy as np
@@ -20,7 +21,31 @@ from ..map.model import TopologicalMap
 from .check import choose_places
 from .settings import MotionSettings, is_continuous
 
-__all__ = ["fit_places", "pooled_variances"]
+__all__ = ["fit_places", "pooled_variances", "fallback_reason", "ContinuousFallbackWarning"]
+
+
+class ContinuousFallbackWarning(UserWarning):
+    """A continuous log whose places gave way to the view clusters: the map is K-means on the
+    views (the yardstick), and the warning says why (``motion_info_["reason"]``)."""
+
+
+def fallback_reason(info: dict) -> str | None:
+    """Why the places of a continuous log gave way to the view clusters (None where they did
+    not), in one line, from what :func:`~topomap.core.motion.check.choose_places` recorded."""
+    if info.get("chosen") != "views":
+        return None
+    check = info.get("check")
+    if isinstance(check, str):
+        return check
+    if not info.get("odometry", True):
+        return ("no odometry could be learned from the actions: walks that return to a view do "
+                f"not cancel their commands' moves (return ratios {info['return_ratios']}, at "
+                "most max_return kept); turn / forward commands move a robot differently with "
+                "its heading")
+    shares = check["mean_misplaced"]
+    return (f"the held-out check placed the log's held-out parts no better with the places "
+            f"(misplaced {shares['places']:.3f}) than with the view clusters "
+            f"({shares['views']:.3f})")
 
 
 def pooled_variances(tmap: TopologicalMap, X, labels, reg_covar: float,
@@ -39,11 +64,12 @@ def pooled_variances(tmap: TopologicalMap, X, labels, reg_covar: float,
     return replace(tmap, covariances=cov)
 
 
-def fit_places(learner, data, settings: MotionSettings, metric) -> bool:
+def fit_places(learner, data, settings: MotionSettings, metric, odometry=None) -> bool:
     """When ``data`` are continuous, replace ``learner``'s map and labels by places (as many
     states as its split map, observations in ``metric``'s space), record what was measured in
     ``motion_info_`` and the seconds in ``timings_["places"]``, and return True; else False."""
-    if not is_continuous(settings, learner.labels_phase1_, data.lengths, data.gds):
+    if not is_continuous(settings, learner.labels_phase1_, data.lengths, data.gds,
+                         odometry is not None):
         return False
     if np.any(data.gds >= 0):
         raise ValueError("motion mode 'continuous' cuts places of plain steps: gds must be all -1")
@@ -63,10 +89,15 @@ def fit_places(learner, data, settings: MotionSettings, metric) -> bool:
                                  learner.map_split_.n_states, data.n_actions, build,
                                  n_init=learner.n_init, random_state=learner.random_state,
                                  method=learner.phase1)
+    names = dict(action_names=data.action_names, gds_names=data.gds_names,
+                 split_history=learner.split_history_)
+    m = build(data.X, data.u, labels, data.lengths, pooled=info["chosen"] == "views", **names)
     S = int(labels.max()) + 1
-    m = build(data.X, data.u, labels, data.lengths, pooled=info["chosen"] == "views",
-              action_names=data.action_names, gds_names=data.gds_names,
-              split_history=learner.split_history_)
+    reason = fallback_reason(info)
+    if reason is not None:
+        info["reason"] = reason
+        warnings.warn(f"continuous log: the map's states are the view clusters (K-means on the "
+                      f"views), not places: {reason}", ContinuousFallbackWarning, stacklevel=4)
     learner.motion_info_ = info
     learner.entropies_.append(dict(m.entropies(), n_states=S, stage="places",
                                    iteration=len(learner.split_history_) + 1))

@@ -16,11 +16,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sklearn.cluster import KMeans
-from threadpoolctl import threadpool_limits
-
-from ..phase1.clustering import (FixedClusters, cluster_observations, first_appearance_order,
-                                 make_metric)
+from ..phase1.clustering import (FixedClusters, cluster_observations, make_metric,
+                                 view_clusters)
 from .odometry import (action_vectors, cell_extent, dead_reckoning, odometric_positions,
                        reckoned_steps)
 from .settings import MotionSettings, mean_run
@@ -48,18 +45,6 @@ def _kmeans(F, k, n_init, random_state, method):
     that repeat, not on the continuous views places are cut from)."""
     return cluster_observations(F, FixedClusters(k), make_metric("euclidean"), n_init=n_init,
                                 random_state=random_state, method=method, repair=False)[0]
-
-
-def view_clusters(Z, k: int, n_init: int, random_state) -> np.ndarray:
-    """(T,) K-means on the views ``Z``, ``k`` clusters numbered by first appearance: scikit-learn's
-    ``KMeans`` on every row, ``n_init`` k-means++ starts -- the clustering
-    :func:`topomap.core.position_scores.kmeans_view_scores` scores, so that the view clusters a
-    map falls back to are that yardstick's own."""
-    with threadpool_limits(limits=1, user_api="blas"):
-        labels = KMeans(int(k), n_init=int(n_init), random_state=random_state).fit(Z).labels_
-    labels = np.asarray(labels, dtype=np.int64)
-    rename, _ = first_appearance_order(labels, int(k))
-    return rename[labels]
 
 
 def _view_spread(Z, fsym, k) -> float:

@@ -66,6 +66,7 @@ __all__ = [
     "METRICS",
     "make_metric",
     "cluster_observations",
+    "view_clusters",
     "METHODS",
     "choose_method",
 ]
@@ -234,6 +235,19 @@ def first_appearance_order(labels, k):
             rename[labels[t]] = n
             n += 1
     return rename, n
+
+
+def view_clusters(Z, k: int, n_init: int, random_state) -> np.ndarray:
+    """(T,) K-means on the views ``Z`` (T, D), ``k`` clusters numbered by first appearance:
+    scikit-learn's ``KMeans`` on every row, ``n_init`` k-means++ starts (BLAS on one thread).
+    The one clustering of the views into as many clusters as a map has states: the view
+    clusters a continuous log's map falls back to (:mod:`topomap.core.motion`) and the
+    yardstick "K-means on the views" (:func:`topomap.evaluation.metres.kmeans_view_scores`)."""
+    with threadpool_limits(limits=1, user_api="blas"):
+        labels = KMeans(int(k), n_init=int(n_init), random_state=random_state).fit(Z).labels_
+    labels = np.asarray(labels, dtype=np.int64)
+    rename, _ = first_appearance_order(labels, int(k))
+    return rename[labels]
 
 
 def _kmeans(ns, n_init, random_state, sample_weight=None):

@@ -48,8 +48,9 @@ def co_successors(seq, labels) -> np.ndarray:
 
 def confusion_mstep(N: np.ndarray, n_symbols: int, s) -> np.ndarray:
     """Confusion matrix from the expected (true symbol x read symbol) counts ``N``, with the
-    diagonal-favouring Dirichlet prior (``s.conf_diag``, ``s.conf_off`` of the soft settings
-    ``s``); GDS rows/columns stay the identity."""
+    diagonal-favouring Dirichlet prior (``s.conf_diag``, ``s.conf_off`` of the reading settings
+    ``s``, :class:`~topomap.core.refine.settings.Reading`); GDS rows/columns stay the
+    identity."""
     C = np.eye(N.shape[0])
     k = n_symbols
     M = N[:k, :k] + s.conf_off + np.eye(k) * (s.conf_diag - s.conf_off)

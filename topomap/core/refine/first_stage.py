@@ -19,36 +19,36 @@ from __future__ import annotations
 __all__ = ["AMBIGUITY_BAR", "FIRSTS", "ROUGH", "check_ambiguity", "first_settings",
            "rough_first"]
 
-#: what ``first`` of :class:`~topomap.core.refine.methods.EMRefinement` may be
+#: what ``growth.first`` of :class:`~topomap.core.refine.methods.EMRefinement` may be
 FIRSTS = ("auto", "rough", "plain")
 
-#: stage 1 is rough (``first_*``) on a prefix of at most this share of the steps (only then can two
-#: growth stages follow): FourRooms at 50,000 steps (0.83) lost ARI by it, not the 12x12 room (0.58)
+#: stage 1 is rough (``growth.first_*``) on a prefix of at most this share of the steps (only
+#: then can two growth stages follow): FourRooms at 50,000 steps (0.83) lost ARI by it, not the
+#: 12x12 room (0.58)
 ROUGH = 2 / 3
 
-#: ``first="auto"`` makes stage 1 rough where the symbol ambiguity is below this
+#: ``growth.first="auto"`` makes stage 1 rough where the symbol ambiguity is below this
 AMBIGUITY_BAR = 1e-3
 
 
-def first_settings(refinement, rough: bool):
-    """Stage 1's clone factor and Baum-Welch cap (``(iterations, rtol)`` or None): the
-    refinement's ``first_*`` where ``rough``, each unless 0, else ``clone_factor`` and none."""
-    factor = refinement.first_factor if rough and refinement.first_factor else \
-        refinement.clone_factor
-    cap = ((refinement.first_iter, float(refinement.first_rtol))
-           if rough and refinement.first_iter else None)
+def first_settings(growth, rough: bool):
+    """Stage 1's clone factor and Baum-Welch cap (``(iterations, rtol)`` or None): the growth
+    settings' (:class:`~topomap.core.refine.settings.Growth`) ``first_*`` where ``rough``, each
+    unless 0, else ``clone_factor`` and none."""
+    factor = growth.first_factor if rough and growth.first_factor else growth.clone_factor
+    cap = (growth.first_iter, float(growth.first_rtol)) if rough and growth.first_iter else None
     return factor, cap
 
 
-def rough_first(refinement, n: int, T: int, ambiguity) -> bool:
+def rough_first(growth, n: int, T: int, ambiguity) -> bool:
     """Whether stage 1 on the first ``n`` of ``T`` steps is rough: on at most :data:`ROUGH` of
-    them, with ``first_*`` that change it, and ``first="rough"``, or ``"auto"`` with an
-    ``ambiguity`` (None: not known) below :data:`AMBIGUITY_BAR`."""
-    if n > ROUGH * T or first_settings(refinement, True) == first_settings(refinement, False):
+    them, with ``growth.first_*`` that change it, and ``growth.first="rough"``, or ``"auto"``
+    with an ``ambiguity`` (None: not known) below :data:`AMBIGUITY_BAR`."""
+    if n > ROUGH * T or first_settings(growth, True) == first_settings(growth, False):
         return False
-    if refinement.first == "auto":
+    if growth.first == "auto":
         return ambiguity is not None and ambiguity < AMBIGUITY_BAR
-    return refinement.first == "rough"
+    return growth.first == "rough"
 
 
 def check_ambiguity(ambiguity):

@@ -1,31 +1,31 @@
-"""Soft evidence from each step's own observation (``refine.soft.observed``).
+"""Soft evidence from each step's own observation (``refine.reading.temperature``).
 
 The soft rounds of :mod:`topomap.core.refine.soft` weigh a clone of symbol ``k`` at a step read as
 ``r`` by the confusion matrix, ``C[k, r]``: the same for every step read as ``r``.  But phase 1
 models every symbol by a Gaussian, so each step's observation ``o_t`` says by itself how likely
 each symbol is to have made it: an observation deep inside its cluster is read surely, one near
-the boundary of two clusters could be either.  With ``soft.observed = tau > 0`` a soft round takes
-that as the evidence of the step,
+the boundary of two clusters could be either.  With ``reading.temperature`` > 0 a soft round
+takes that as the evidence of the step,
 
-    e_t(k) = (p(o_t | k) / max_j p(o_t | j)) ** (1 / tau),
+    e_t(k) = (p(o_t | k) / max_j p(o_t | j)) ** (1 / temperature),
 
-the symbols' likelihood relative to the best one, tempered by ``tau``; a symbol is a candidate
+the symbols' likelihood relative to the best one, tempered; a symbol is a candidate
 where that is at least :data:`SHARE`, and a GDS step keeps its GDS id (so does a step whose
 observation no symbol's model gives a finite density: its symbol as read).  The transitions are
-learned as in a confusion-matrix round; the evidence stays fixed.  ``tau`` > 1 flattens the evidence, so the map's transitions weigh more against a reading:
-phase 1's Gaussians, fitted to K-means clusters, are narrower than the noise that carries a view
-across a cluster's boundary (docs/refinement.md has ``tau`` measured).
+learned as in a confusion-matrix round; the evidence stays fixed.  A temperature above 1
+flattens the evidence, so the map's transitions weigh more against a reading.
 
 The first soft round always reads with the confusion matrix.  By default
-(``soft.observed_in="auto"``) the rounds after it take this evidence, unless that round's
+(``reading.observed_in="auto"``) the rounds after it take this evidence, unless that round's
 confusion matrix pairs two symbols often (:data:`~topomap.core.refine.rounds.PAIRED_READ`): a
 view phase 1 cut into two symbols, whose halves the Gaussians would keep apart as two places
 while the confusion matrix lets one clone explain both; then only the last round, which gives
 the map, takes it (``"last"`` always so; ``"all"``: every round, the first too).
 
-The kernels are :mod:`topomap.core.refine.soft_kernels`', each step its own "read symbol": the
-evidence of a round is a dense (clones, steps) table, at most :data:`MAX_BYTES` (a round that
-would need more is the confusion matrix's, recorded ``"observed": "over MAX_BYTES"``).
+A round runs what every soft round runs (:mod:`topomap.core.refine.evidence`), each step its own
+"read symbol": the evidence of a round is a dense (clones, steps) table, at most
+:data:`MAX_BYTES` (a round that would need more is the confusion matrix's, recorded
+``"observed": "over MAX_BYTES"``).
 """
 
 from __future__ import annotations
@@ -34,14 +34,15 @@ import numpy as np
 
 from .clones import compact_labels
 from .convergence import ConvergenceMonitor
-from .soft import (SoftFit, SoftSettings, _episode_data, _normalise_trans, _soft_estep,
-                   _warm_counts, soft_round)
-from .soft_kernels import SoftData, SoftModel, soft_candidates, soft_offsets, soft_viterbi
+from .evidence import decode, episode_data, normalise_transitions, soft_estep, warm_counts
+from .settings import Reading, SoftRounds
+from .soft import SoftFit, soft_round
+from .soft_kernels import SoftData, SoftModel, soft_candidates
 
 __all__ = ["SHARE", "MAX_BYTES", "step_evidence", "observed_evidence", "observed_round"]
 
 #: a symbol whose tempered evidence at a step is below this is not a candidate there.  At
-#: tau = 1 gridroom 8x6 at 9.8 % misreads keeps 3.1 of its 4 symbols per step, the true symbol
+#: temperature 1 gridroom 8x6 at 9.8 % misreads keeps 3.1 of its 4 symbols per step, the true symbol
 #: of 99.5 % of the misread steps among them (``bench_noise_floor.py --candidates``); the same
 #: cut made before tempering lowered the office at 25.6 % misreads, seed 2, from 0.98 to 0.75
 SHARE = 1e-6
@@ -82,67 +83,66 @@ def observed_evidence(seq, temperature: float, observed):
 
 
 def observed_round(seq, labels, state_symbol, conf=None, *, evidence, spare: int = 0,
-                   settings: SoftSettings = SoftSettings(), rng=None, keep=None,
-                   exact_below: float | None = None) -> SoftFit:
+                   soft: SoftRounds = SoftRounds(), reading: Reading = Reading(), rng=None,
+                   keep=None, exact_below: float | None = None) -> SoftFit:
     """A soft round (:func:`~topomap.core.refine.soft.soft_round`, the same arguments and
     result) with the per-step ``evidence`` (:func:`observed_evidence`) in place of the confusion
     matrix, which is handed on unchanged (``conf``, the identity where None).  Its record says
-    ``"evidence": "observed"``; ``misread`` and ``conf_offdiag`` are the share of the K-means
-    steps EM explains by a clone of another symbol."""
-    s, ns, base = settings, seq.n_symbols, _episode_data(seq)
+    ``"evidence": "observed"``; its ``misread`` is the share of the K-means steps EM explains by
+    a clone of another symbol, and so is its ``conf_offdiag``, the map file's name for the
+    misread rate of a round (a confusion-matrix round's, :func:`~.confusion.misread_rate`)."""
+    ns, base = seq.n_symbols, episode_data(seq)
     rng = np.random.default_rng(0) if rng is None else rng
     state_symbol = np.asarray(state_symbol, dtype=np.int64)
     keep = np.ones(state_symbol.size, bool) if keep is None else np.asarray(keep, bool)
     if (int(keep.sum()) + spare * ns) * seq.T * 8 > MAX_BYTES:  # (clones, steps) evidence
-        fit = soft_round(seq, labels, state_symbol, conf, spare=spare, settings=settings,
-                         rng=rng, keep=keep, exact_below=exact_below)  # needs no such table
+        fit = soft_round(seq, labels, state_symbol, conf, spare=spare, soft=soft,
+                         reading=reading, rng=rng, keep=keep,
+                         exact_below=exact_below)  # needs no such table
         fit.info["observed"] = "over MAX_BYTES"
         return fit
-    counts, clone_symbol = _warm_counts(base, labels, state_symbol, keep, ns, seq.n_actions,
-                                        spare, rng)
+    counts, clone_symbol = warm_counts(base, labels, state_symbol, keep, ns, seq.n_actions,
+                                       spare, rng)
     S, T = clone_symbol.size, seq.T
     data = SoftData(np.arange(T, dtype=np.int64), base.u, base.has_next)  # each step its own read
     emit = np.ascontiguousarray(evidence[:, clone_symbol].T)
     cptr, cidx = soft_candidates(emit)
     trans, misread, monitor = _observed_em(seq, data, counts, emit, (cptr, cidx), clone_symbol,
-                                           s, exact_below)
+                                           (soft, reading), exact_below)
     conf = np.eye(seq.n_ids) if conf is None else conf
     info = {"evidence": "observed", "em_iterations": monitor.iter,
             "em_loglik": monitor.history[-1], "clones": int(S), "misread": misread}
-    if exact_below is not None and misread < exact_below and monitor.iter <= s.detect_iter:
+    if (exact_below is not None and misread < exact_below
+            and monitor.iter <= reading.detect_iter):
         return SoftFit(labels, state_symbol, conf, seq.sym, dict(info, stopped="exact"))
-    init = np.full(S, 1.0 / S)
-    model = SoftModel(trans, emit, init, cptr, cidx)
-    with np.errstate(divide="ignore"):
-        logs = SoftModel(np.log(trans), np.log(emit), np.log(init), cptr, cidx)
-    path, log_p = soft_viterbi(data, logs, soft_offsets(data, model))
+    path, log_p = decode(data, SoftModel(trans, emit, np.full(S, 1.0 / S), cptr, cidx))
     labels, state_symbol, _ = compact_labels(path, clone_symbol)
     new_sym = clone_symbol[path]
-    info.update(viterbi_logp=float(log_p), corrected=float(np.mean(new_sym != seq.sym)),
+    info.update(viterbi_logp=log_p, corrected=float(np.mean(new_sym != seq.sym)),
                 conf_offdiag=misread)
     return SoftFit(labels, state_symbol, conf, new_sym, info)
 
 
-def _observed_em(seq, data, counts, emit, candidates, clone_symbol, s, exact_below):
+def _observed_em(seq, data, counts, emit, candidates, clone_symbol, settings, exact_below):
     """Baum-Welch on the transitions with the evidence ``emit`` fixed; returns the transitions,
     the misread share of the last E-step and the convergence monitor.  Stops as the
-    confusion-matrix rounds do (``s.tol``, ``s.rtol``, ``s.max_iter``; with ``exact_below``
-    after ``s.detect_iter`` iterations explaining fewer steps as misread)."""
-    S, T, ns = clone_symbol.size, seq.T, seq.n_symbols
+    confusion-matrix rounds do (``settings``, ``(soft, reading)``: ``soft.tol``, ``soft.rtol``,
+    ``soft.max_iter``; with ``exact_below`` after ``reading.detect_iter`` iterations explaining
+    fewer steps as misread)."""
+    (s, r), S, T, ns = settings, clone_symbol.size, seq.T, seq.n_symbols
     init, pseudo = np.full(S, 1.0 / S), s.row_prior / S
     monitor = ConvergenceMonitor(s.tol * T, s.max_iter, min_iter=2, rtol=s.rtol or None)
-    trans = _normalise_trans(counts, pseudo)
+    trans = normalise_transitions(counts, pseudo)
     plain = np.flatnonzero(seq.sym < ns)
     other = clone_symbol[:, None] != seq.sym[None, plain]  # (S, plain steps)
-    dense = SoftSettings(prune=s.prune, read_share=0.0)  # no read tables: T read "symbols"
     misread = 0.0
     while not monitor.converged and monitor.iter < s.max_iter:
-        stats, ll = _soft_estep(data, SoftModel(trans, emit, init, *candidates), dense,
-                                clone_symbol)
+        stats, ll = soft_estep(data, SoftModel(trans, emit, init, *candidates), clone_symbol,
+                               prune=s.prune)  # no read tables: T read "symbols"
         monitor.report(ll)
         occ = stats.emit[:, plain]
         misread = float((occ * other).sum() / max(occ.sum(), 1e-300))
-        trans = _normalise_trans(stats.trans, pseudo)
-        if exact_below is not None and monitor.iter == s.detect_iter and misread < exact_below:
+        trans = normalise_transitions(stats.trans, pseudo)
+        if exact_below is not None and monitor.iter == r.detect_iter and misread < exact_below:
             break
     return trans, misread, monitor

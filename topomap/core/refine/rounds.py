@@ -7,7 +7,7 @@ themselves, the hard rounds, are :mod:`topomap.core.refine.methods`.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import dataclass, field, replace
 from typing import Self
 
 import numpy as np
@@ -16,8 +16,10 @@ from sklearn.base import BaseEstimator
 from ..checks import ParameterError
 from .first_stage import check_ambiguity
 from .observed import observed_evidence, observed_round
+from .renamed import fold_renamed
 from .sequence import SymbolSequence
-from .soft import SoftSettings, check_evidence, soft_round, soft_settings, successor_surprise
+from .settings import RefineSettings, settings_of
+from .soft import check_evidence, soft_round, successor_surprise
 from .soft_states import keep_states, merge_twins, min_steps_of
 from .structure import same_partition
 
@@ -74,9 +76,40 @@ def _checked_init(seq: SymbolSequence, labels, state_symbol, name: str = "init")
 class CloneRefinement(BaseEstimator):
     """What the built-in refinements share: ``fit`` as a template -- check the parameters, a
     hard round (the subclass's :meth:`_hard_round`), then, unless ``evidence="hard"``, hard and
-    soft rounds in turn (:meth:`_soft_rounds`) -- and the ``evidence`` and ``soft`` parameters."""
+    soft rounds in turn (:meth:`_soft_rounds`) -- and their settings: ``evidence`` and the
+    groups of :mod:`topomap.core.refine.settings` (``soft``, ``reading``, ...), each a settings
+    object or a mapping of some of its fields, the parameters of before 0.3 accepted until 0.4
+    (:mod:`topomap.core.refine.renamed`)."""
 
     name = ""
+    #: the settings groups the refinement takes (parameter name: settings class)
+    _groups: dict = {}
+    #: every parameter and soft setting of before 0.3 and its place now ("" for none)
+    renamed_params: dict = {}
+
+    def _store(self, groups: dict, old: dict) -> None:
+        """``__init__``'s: every group as given, the values ``old`` gave under the names of
+        before 0.3 moved in (:func:`~topomap.core.refine.renamed.fold_renamed`)."""
+        for name, value in fold_renamed(type(self).__name__, self._groups, groups, old,
+                                        self.renamed_params, stacklevel=3).items():
+            setattr(self, name, value)
+
+    def set_params(self, **params):
+        """scikit-learn's ``set_params``; a parameter of before 0.3 is accepted until 0.4 with a
+        ``FutureWarning``, set where it lives now."""
+        old = {k: params.pop(k) for k in list(params) if k in self.renamed_params}
+        groups = {g: params.pop(g) for g in list(params) if g in self._groups}
+        if old or "soft" in groups:
+            groups = fold_renamed(type(self).__name__, self._groups,
+                                  {g: groups.get(g, getattr(self, g)) for g in self._groups},
+                                  old, self.renamed_params)
+        return super().set_params(**params, **groups)
+
+    def settings(self) -> RefineSettings:
+        """Every settings group, checked (:func:`~topomap.core.refine.settings.settings_of`): a
+        :class:`~topomap.core.checks.ParameterError` names ``<group>.<field>``."""
+        return RefineSettings(**{name: settings_of(cls, getattr(self, name), name)
+                                 for name, cls in self._groups.items()})
 
     def fit(self, seq: SymbolSequence, split_state_symbol=None, random_state: int = 0, *,
             init=None, split_labels=None, ambiguity=None, observed=None) -> Self:
@@ -86,18 +119,19 @@ class CloneRefinement(BaseEstimator):
         hard round starts from instead (a warm start: :class:`EMRefinement` runs its rounds on
         all steps from it; :class:`CSCGRefinement` ignores it); ``split_labels``, optional, the
         split state of every step (``labels_split_``), the first EM stage starts from with
-        :class:`EMRefinement`'s ``start="split"``; ``ambiguity``, optional, the share of steps
-        whose symbol phase 1 may have misread (the learner's estimate,
+        :class:`EMRefinement`'s ``growth.start="split"``; ``ambiguity``, optional, the share of
+        steps whose symbol phase 1 may have misread (the learner's estimate,
         :func:`~topomap.core.phase1.ambiguity.symbol_ambiguity`), kept as ``ambiguity_``:
-        :class:`EMRefinement`'s ``first="auto"`` makes its first stage rough below
+        :class:`EMRefinement`'s ``growth.first="auto"`` makes its first stage rough below
         :data:`~topomap.core.refine.first_stage.AMBIGUITY_BAR`; ``observed``, optional, the (T,
         n_symbols) log-density of every step's observation under each symbol's model (or a
         function returning it, called only if a soft round runs), which the soft rounds take
-        as evidence with ``soft.observed`` > 0 (:mod:`~topomap.core.refine.observed`; without
+        as evidence with ``reading.temperature`` > 0 (:mod:`~topomap.core.refine.observed`; without
         it they use the confusion matrix).  Sets ``labels_``,
-        ``state_symbol_``, ``n_states_`` and ``info_`` (with ``evidence`` other than ``"hard"``
-        also ``"soft"`` and ``"soft_rounds"``); returns ``self``."""
-        self.check_params()
+        ``state_symbol_``, ``n_states_``, ``info_`` (with ``evidence`` other than ``"hard"``
+        also ``"soft"`` and ``"soft_rounds"``) and ``settings_`` (the checked settings,
+        :meth:`settings`); returns ``self``."""
+        self.settings_ = self.check_params()
         self.ambiguity_ = check_ambiguity(ambiguity)
         if init is not None:
             init = _checked_init(seq, *init)
@@ -119,10 +153,11 @@ class CloneRefinement(BaseEstimator):
         """``split_labels`` of :meth:`fit` as ``(labels, state_symbol)`` (each split state's
         symbol id, read off the steps) where the first stage may start from it (``start`` other
         than ``"random"``), else None; a ``ValueError`` naming what is wrong."""
-        if getattr(self, "start", "random") == "random":
+        growth = self.settings_.growth
+        if growth is None or growth.start == "random":
             return None
         if split_labels is None:
-            raise ValueError(f"split_labels: start={self.start!r} needs the split state of "
+            raise ValueError(f"split_labels: start={growth.start!r} needs the split state of "
                              "every step")
         labels = np.asarray(split_labels)
         if labels.shape != (seq.T,) or not np.issubdtype(labels.dtype, np.integer):
@@ -134,10 +169,11 @@ class CloneRefinement(BaseEstimator):
         state_symbol[labels] = seq.sym
         return _checked_init(seq, labels, state_symbol, "split_labels")
 
-    def check_params(self) -> None:
-        """Check the parameters (``fit`` does); a :class:`ParameterError` names the bad one."""
+    def check_params(self) -> RefineSettings:
+        """Check the parameters (``fit`` does); a :class:`ParameterError` names the bad one
+        (``evidence``, ``hard.max_iter``, ...).  Returns the checked settings."""
         check_evidence(self.evidence)
-        soft_settings(self.soft)
+        return self.settings()
 
     def _hard_round(self, seq: SymbolSequence, split_state_symbol, random_state: int,
                     init=None, split_labels=None) -> CloneFit:
@@ -154,60 +190,60 @@ class CloneRefinement(BaseEstimator):
                      observed=None):
         """Hard and soft rounds in turn, from the hard round ``hard_fit`` on ``seq``:
 
-        1. ``soft.rounds`` times: twin states merged, small states dropped, a soft round (over
-           the states found plus ``soft.spare`` clones per symbol), every step's symbol replaced
-           by the symbol of its decoded clone, and a hard round on the corrected symbols
-           (:meth:`_cycle_hard_round`); until a hard round gives back the labelling it started
-           from, or a soft round after the first re-reads all but fewer than ``SETTLE_REREAD`` x
-           ``soft.detect`` of the steps as the symbols the last hard round learned on
-           (``reread`` in its record: a hard round on them would repeat that one);
+        1. ``soft.rounds`` times: twin states merged, small states dropped, a soft round (the
+           states found plus ``soft.spare`` clones per symbol), every step's symbol replaced by
+           its decoded clone's, and a hard round on them (:meth:`_cycle_hard_round`); until a
+           hard round gives back the labelling it started from, or a soft round after the
+           first re-reads all but fewer than ``SETTLE_REREAD`` x ``reading.detect`` of the
+           steps as the last hard round's symbols (``reread``: a hard round would repeat it);
         2. a last soft round without spare clones gives the map (tried first after a hard round
            that explains its symbols: :func:`_settled_map`).
 
         With ``evidence="auto"``, the hard round is kept without a soft round when its labelling
-        predicts the next symbol of all but a ``soft.detect`` share of its transitions
-        (:func:`~topomap.core.refine.soft.successor_surprise`: there is nothing to correct), and
-        after the first soft round when that round explains fewer steps than ``soft.detect`` as
-        misread (:func:`~topomap.core.refine.soft.misread_share`) and corrects fewer.  Where
+        predicts the next symbol of all but a ``reading.detect`` share of its transitions
+        (:func:`~topomap.core.refine.soft.successor_surprise`: nothing to correct), and after
+        the first soft round when it explains and corrects fewer steps than ``reading.detect``
+        as misread (:func:`~topomap.core.refine.soft.misread_share`).  Where
         misreads are many, the soft rounds stop by ``soft.rtol`` (:func:`_round_settings`).
-        ``n_reference`` is the state count a fractional ``soft.min_steps`` refers to (the
-        split's; default: the hard round's); ``observed`` :meth:`fit`'s."""
+        ``n_reference``: the states a fractional ``soft.min_steps`` refers to (default: the hard
+        round's); ``observed`` :meth:`fit`'s."""
         surprise = successor_surprise(seq, hard_fit.labels)
-        s = _round_settings(soft_settings(self.soft), self.evidence, surprise)
-        if surprise < s.detect:
+        st = _round_settings(self.settings_, self.evidence, surprise)
+        detect = st.reading.detect  # -1 with evidence="soft"
+        if surprise < detect:
             return _skipped(hard_fit, surprise, [])
         rng = np.random.default_rng(random_state)
-        ev = observed_evidence(seq, s.observed, observed)
-        cycle_ev = ev if s.observed_in == "all" else None  # "last" / "auto": not the first
+        ev = observed_evidence(seq, st.reading.temperature, observed)
+        cycle_ev = ev if st.reading.observed_in == "all" else None  # "last" / "auto": not first
         labels, state_symbol = hard_fit.labels, hard_fit.state_symbol
         n_ref = state_symbol.size if n_reference is None else int(n_reference)
         conf, rounds, read, explained = None, [], seq.sym, False
-        for r in range(s.rounds):
-            last = explained and _settled_map(seq, labels, state_symbol, conf, s, rng, n_ref,
+        for r in range(st.soft.rounds):
+            last = explained and _settled_map(seq, labels, state_symbol, conf, st, rng, n_ref,
                                               read, ev)
             if last:  # the last hard round explained its symbols, and they are re-read
                 return _soft_fit(hard_fit, surprise, [*rounds, last.info], last)
-            soft, labels, state_symbol = _spare_soft_round(seq, labels, state_symbol, conf, s,
+            soft, labels, state_symbol = _spare_soft_round(seq, labels, state_symbol, conf, st,
                                                            rng, n_ref, r == 0, cycle_ev)
             conf = soft.conf
             rounds.append(soft.info)
             if r == 0:
-                nothing, cycle_ev = _after_first(soft, s, ev, seq.n_symbols)
+                nothing, cycle_ev = _after_first(soft, st.reading, ev, seq.n_symbols)
                 if nothing:
                     return _skipped(hard_fit, surprise, rounds)
             else:
                 rounds[-1]["reread"] = reread_share(soft.sym, read)
-                if rounds[-1]["reread"] < SETTLE_REREAD * s.detect:
+                if rounds[-1]["reread"] < SETTLE_REREAD * detect:
                     break  # the next hard round would read (nearly) the symbols the last one did
             read = soft.sym
-            hard, explained = self._cycle_hard_round(seq, soft, random_state, s.detect)
+            hard, explained = self._cycle_hard_round(seq, soft, random_state, detect)
             settled = hard.n_states == state_symbol.size and same_partition(hard.labels, labels)
             labels, state_symbol = hard.labels, hard.state_symbol
             rounds[-1].update(hard_states=int(state_symbol.size),
                               **({"hard_cut": True} if hard.resume is not None else {}))
             if settled:
                 break
-        soft = _last_soft_round(seq, labels, state_symbol, conf, s, rng, n_ref, ev)
+        soft = _last_soft_round(seq, labels, state_symbol, conf, st, rng, n_ref, ev)
         rounds.append(soft.info)
         return _soft_fit(hard_fit, surprise, rounds, soft)
 
@@ -226,36 +262,28 @@ class CloneRefinement(BaseEstimator):
             hard = self._first_hard_round(read, split_symbol, random_state, cycle=True)
         return hard, hard.resume is None and successor_surprise(read, hard.labels) < detect
 
-    def _provenance_soft(self) -> str:
-        """``soft=SoftSettings(...)`` naming the soft settings changed from their defaults ("" for
-        none), for :meth:`provenance`."""
-        s, default = soft_settings(self.soft), SoftSettings()
-        changed = [f"{f.name}={getattr(s, f.name)!r}" for f in fields(SoftSettings)
-                   if getattr(s, f.name) != getattr(default, f.name)]
-        return f"soft=SoftSettings({', '.join(changed)})" if changed else ""
 
-
-#: the successor surprise (in ``soft.detect``) from which misreads count as many: the growth
+#: the successor surprise (in ``reading.detect``) from which misreads count as many: the growth
 #: stages of a hard round whose first stage's labelling of the prefix shows it are capped
-#: (``soft.stage_cap``), and the soft rounds after a hard round whose labelling shows it stop by
-#: ``soft.rtol``.  Gridroom 8x6's prefixes show 0.6-1.1 % without misreads, 3.5-3.8 % at 2.5 %
+#: (``growth.stage_cap``), and the soft rounds after a hard round whose labelling shows it stop
+#: by ``soft.rtol``.  Gridroom 8x6's prefixes show 0.6-1.1 % without misreads, 3.5-3.8 % at 2.5 %
 #: misreads (where the cap cost ARI), 8-10 % at 9.7 %
 CAP_SURPRISE = 25.0
 
 
-#: the share of steps (in ``soft.detect``) a soft round must correct for the hard round on its
+#: the share of steps (in ``reading.detect``) a soft round must correct for the hard round on its
 #: symbols to be cut short: below it the surprise left is the walk's own, not misreads (MiniGrid
 #: Empty-16x16 at 10,000 steps, seed 0, 0.2 % corrected: a cut round gave ARI 0.431, not 0.481)
 CUT_CORRECTED = 5.0
 
 
-#: the share of steps (in ``soft.detect``) below which a soft round's re-read symbols count as
+#: the share of steps (in ``reading.detect``) below which a soft round's re-read symbols count as
 #: the ones the last hard round learned on: the hard and soft rounds stop there (at 5, the
 #: rounds stopped earlier and gridroom 8x6 at 9.7 % misreads lost ARI: seed 1 0.981 -> 0.978)
 SETTLE_REREAD = 1.0
 
 
-#: ``soft.observed_in="auto"``: the rounds after the first take each step's own evidence unless
+#: ``reading.observed_in="auto"``: the rounds after the first take each step's own evidence unless
 #: the first one's confusion matrix reads some symbol as another at least this often -- a view
 #: phase 1 cut into two symbols, which the per-step evidence would keep as two places (the
 #: office at 10.8-25.6 % misreads: 0.20-0.50 on every seed; gridroom 8x6 at 9.7-23.4 %,
@@ -263,16 +291,16 @@ SETTLE_REREAD = 1.0
 PAIRED_READ = 0.15
 
 
-def _after_first(soft, s: SoftSettings, ev, n_symbols: int):
+def _after_first(soft, reading, ev, n_symbols: int):
     """After the first soft round ``soft``: whether it found nothing to correct (stopped early
-    on exact readings, or it explains and corrects fewer than ``soft.detect`` of the steps as
-    misread), and the per-step evidence ``ev`` the rounds after it take as ``s.observed_in``
-    says (``"auto"``: unless the round's confusion matrix pairs two symbols at least
-    :data:`PAIRED_READ`, ``paired`` in its record)."""
-    if "stopped" in soft.info or max(soft.info["corrected"], soft.info["misread"]) < s.detect:
+    on exact readings, or it explains and corrects fewer than ``reading.detect`` of the steps as
+    misread), and the per-step evidence ``ev`` the rounds after it take as
+    ``reading.observed_in`` says (``"auto"``: unless the round's confusion matrix pairs two
+    symbols at least :data:`PAIRED_READ`, ``paired`` in its record)."""
+    if "stopped" in soft.info or max(soft.info["corrected"], soft.info["misread"]) < reading.detect:
         return True, None
-    if s.observed_in != "auto" or ev is None:
-        return False, ev if s.observed_in == "all" else None
+    if reading.observed_in != "auto" or ev is None:
+        return False, ev if reading.observed_in == "all" else None
     soft.info["paired"] = paired = pair_read(soft.conf, n_symbols)
     return False, ev if paired < PAIRED_READ else None
 
@@ -290,17 +318,21 @@ def reread_share(sym, read) -> float:
     return float(np.mean(np.asarray(sym) != np.asarray(read))) if len(read) else 0.0
 
 
-def _round_settings(s: SoftSettings, evidence: str, surprise: float) -> SoftSettings:
-    """The soft settings ``s`` of the rounds after a hard round whose labelling shows the
-    successor ``surprise``: ``detect`` -1 with ``evidence="soft"`` (the soft rounds always run);
-    ``rtol`` 0 (the soft rounds run to ``tol``) unless misreads are many, a surprise at least
-    ``CAP_SURPRISE`` x ``soft.detect`` -- there the slow tail of a soft round only moves what
-    the next round corrects anyway; ``prune`` ``soft.prune_loose`` (if not 0) where the surprise
-    is below ``soft.loose_below`` -- misreads too few for the sparser soft passes to cost ARI."""
-    few = surprise < CAP_SURPRISE * s.detect
+def _round_settings(settings: RefineSettings, evidence: str, surprise: float):
+    """The settings of the soft rounds after a hard round whose labelling shows the successor
+    ``surprise``: ``reading.detect`` -1 with ``evidence="soft"`` (the soft rounds always run);
+    ``soft.rtol`` 0 (the soft rounds run to ``tol``) unless misreads are many, a surprise at
+    least ``CAP_SURPRISE`` x ``reading.detect`` -- there the slow tail of a soft round only moves
+    what the next round corrects anyway; ``soft.prune`` ``soft.prune_loose`` (if not 0) where
+    the surprise is below ``soft.loose_below`` -- misreads too few for the sparser soft passes to
+    cost ARI."""
+    s, r = settings.soft, settings.reading
+    few = surprise < CAP_SURPRISE * r.detect
     loose = s.prune_loose > 0 and surprise < s.loose_below
-    return replace(s, detect=-1.0 if evidence == "soft" else s.detect,
-                   rtol=0.0 if few else s.rtol, prune=s.prune_loose if loose else s.prune)
+    return replace(settings,
+                   soft=replace(s, rtol=0.0 if few else s.rtol,
+                                prune=s.prune_loose if loose else s.prune),
+                   reading=replace(r, detect=-1.0 if evidence == "soft" else r.detect))
 
 
 def _skipped(hard_fit: CloneFit, surprise: float, rounds) -> CloneFit:
@@ -316,36 +348,40 @@ def _soft_fit(hard_fit: CloneFit, surprise: float, rounds, soft) -> CloneFit:
                     {**hard_fit.info, "soft": "on", "surprise": surprise, "soft_rounds": rounds})
 
 
-def _settled_map(seq, labels, state_symbol, conf, s, rng, n_ref, read, ev=None):
+def _settled_map(seq, labels, state_symbol, conf, st, rng, n_ref, read, ev=None):
     """The last soft round (:func:`_last_soft_round`) if it re-reads all but fewer than
-    ``SETTLE_REREAD`` x ``soft.detect`` of the steps as ``read``, the symbols the last hard round
-    learned on (``reread`` in its record): it is the map; None otherwise (the cycles go on as if
-    it had not run: it draws nothing from ``rng``)."""
-    last = _last_soft_round(seq, labels, state_symbol, conf, s, rng, n_ref, ev)
+    ``SETTLE_REREAD`` x ``reading.detect`` of the steps as ``read``, the symbols the last hard
+    round learned on (``reread`` in its record): it is the map; None otherwise (the cycles go on
+    as if it had not run: it draws nothing from ``rng``)."""
+    last = _last_soft_round(seq, labels, state_symbol, conf, st, rng, n_ref, ev)
     last.info["reread"] = reread_share(last.sym, read)
-    return last if last.info["reread"] < SETTLE_REREAD * s.detect else None
+    return last if last.info["reread"] < SETTLE_REREAD * st.reading.detect else None
 
 
-def _spare_soft_round(seq, labels, state_symbol, conf, s, rng, n_ref, first: bool, ev=None):
-    """A soft round of the cycles: twins merged, small states dropped (``soft.prune_every``),
-    ``soft.spare`` clones per symbol; the ``first`` stops early on exact readings.  Returns the
-    round (its info starting with ``states_in`` and ``twins_merged``) and the labelling with
-    twins merged."""
+def _spare_soft_round(seq, labels, state_symbol, conf, st, rng, n_ref, first: bool, ev=None):
+    """A soft round of the cycles (``st``, the round's :class:`RefineSettings`): twins merged,
+    small states dropped (``soft.prune_every``), ``soft.spare`` clones per symbol; the ``first``
+    stops early on exact readings.  Returns the round (its info starting with ``states_in`` and
+    ``twins_merged``) and the labelling with twins merged."""
+    s = st.soft
     labels, state_symbol, n_merged = merge_twins(seq, labels, state_symbol, s.twin_merge)
     keep = keep_states(seq, labels, state_symbol,
                        min_steps_of(s, seq.T, n_ref) if s.prune_every else 0, s.twin)
-    soft = _round(ev)(seq, labels, state_symbol, conf, spare=s.spare, settings=s, rng=rng,
-                      keep=keep, exact_below=s.detect if first else None)
+    soft = _round(ev)(seq, labels, state_symbol, conf, spare=s.spare, soft=s,
+                      reading=st.reading, rng=rng, keep=keep,
+                      exact_below=st.reading.detect if first else None)
     soft.info = {"states_in": int(state_symbol.size), "twins_merged": n_merged, **soft.info}
     return soft, labels, state_symbol
 
 
-def _last_soft_round(seq, labels, state_symbol, conf, s, rng, n_ref, ev=None):
+def _last_soft_round(seq, labels, state_symbol, conf, st, rng, n_ref, ev=None):
     """The map: twins merged, states under ``soft.min_steps`` dropped, a soft round without spare
     clones; its info holds ``states_in``, the states kept."""
+    s = st.soft
     labels, state_symbol, _ = merge_twins(seq, labels, state_symbol, s.twin_merge)
     keep = keep_states(seq, labels, state_symbol, min_steps_of(s, seq.T, n_ref), s.twin)
-    soft = _round(ev)(seq, labels, state_symbol, conf, spare=0, settings=s, rng=rng, keep=keep)
+    soft = _round(ev)(seq, labels, state_symbol, conf, spare=0, soft=s, reading=st.reading,
+                      rng=rng, keep=keep)
     soft.info = {"states_in": int(keep.sum()), **soft.info}
     return soft
 

@@ -69,8 +69,8 @@ def merge_twins(seq, labels, state_symbol, twin: float):
 
 def min_steps_of(settings, n_steps: int, n_reference: int) -> float:
     """The steps a state needs to be kept (``settings`` a
-    :class:`~topomap.core.refine.soft.SoftSettings`): ``settings.min_steps`` itself from 1 on, else that
-    fraction of the mean steps per state of ``n_reference`` states."""
+    :class:`~topomap.core.refine.settings.SoftRounds`): ``settings.min_steps`` itself from 1 on,
+    else that fraction of the mean steps per state of ``n_reference`` states."""
     m = settings.min_steps
     return m if m >= 1 else int(np.ceil(m * n_steps / n_reference))
 

@@ -14,7 +14,7 @@ module              its one job
 ``layouts``         floor plans: :class:`Layout`, the built-in layouts and their regions
 ``floorplan``       a user's floor plan from a YAML or JSON file, checked entry by entry
 ``geometry``        rays against walls, points against polygons, whole paths at once (numpy)
-``motion``          :class:`Motion` (the moves a path's samples make), ratinabox's random motion
+``kinematics``      :class:`Motion` (the moves a path's samples make), ratinabox's random motion
 ``paths``           recorded paths (ratinabox's rats, the user's files), resampled every ``dt``
 ``sensors``         range finder, boundary-vector and object-vector cells
 ``actions``         discrete actions read off the motion: compass octants, differential-drive turns
@@ -28,7 +28,7 @@ from ..minigrid import MissingDependencyError
 from .actions import ACTION_RULES, CompassActions, TurnActions
 from .floorplan import floorplan_from_dict, load_floorplan
 from .layouts import LAYOUTS, Layout, builtin_layout
-from .motion import Motion
+from .kinematics import Motion
 from .paths import DATASETS, RecordedPath
 from .sensors import SENSORS, BoundaryVectorCells, ObjectVectorCells, RangeFinder
 from .world import Arena, ArenaWorld

@@ -2,7 +2,7 @@
 
 An action rule is a component with plain typed parameters, ``action_names`` and
 ``actions(motion) -> (T,) int`` (ids into ``action_names``), given the path's
-:class:`~topomap.worlds.arena.motion.Motion`.  The action of step ``t`` describes the move from
+:class:`~topomap.worlds.arena.kinematics.Motion`.  The action of step ``t`` describes the move from
 sample ``t`` to sample ``t + 1``, the command a robot executes after its observation at ``t``.
 
 :class:`CompassActions`

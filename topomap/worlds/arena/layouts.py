@@ -16,7 +16,7 @@ Four are built in (metres; every door and corridor 0.3 m wide):
     of its wall (2 x 2.4 m in all); regions the four rooms and ``corridor``.
 
 A user's floor plan is read from a file by :func:`topomap.worlds.arena.floorplan.load_floorplan`.
-The regions are what the wrong-region score counts (:mod:`topomap.core.position_scores`).
+The regions are what the wrong-region score counts (:mod:`topomap.evaluation.metres`).
 """
 
 from __future__ import annotations

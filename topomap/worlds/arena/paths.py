@@ -28,7 +28,7 @@ import numpy as np
 
 from ...core.checks import ParameterError
 from .layouts import Layout, open_box
-from .motion import isolated_global_rng
+from .kinematics import isolated_global_rng
 
 __all__ = ["DATASETS", "RecordedPath", "load_path", "bad_path"]
 

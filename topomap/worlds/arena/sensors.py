@@ -3,7 +3,7 @@
 A sensor is a component with plain typed parameters and one method,
 ``sense(arena, motion) -> (T, D)`` float array, given the :class:`~topomap.worlds.arena.world.Arena`
 (its ``layout`` and ratinabox ``environment``) and the path's
-:class:`~topomap.worlds.arena.motion.Motion` (positions and headings).  Readings are noise-free:
+:class:`~topomap.worlds.arena.kinematics.Motion` (positions and headings).  Readings are noise-free:
 the run's noise component (:mod:`topomap.worlds.noise`) applies on top.
 
 :class:`RangeFinder`
@@ -28,7 +28,7 @@ import numpy as np
 from ...core.checks import ParameterError, check_count
 from .checks import positive
 from .geometry import ray_distances
-from .motion import isolated_global_rng
+from .kinematics import isolated_global_rng
 
 __all__ = ["RangeFinder", "BoundaryVectorCells", "ObjectVectorCells", "SENSORS", "make_sensor"]
 

@@ -7,7 +7,7 @@ seconds; a sensor (:mod:`.sensors`) that reads all positions at once; an action 
 (:mod:`.actions`) that reads the moves.  ``simulate(n_steps, explorer, rng)`` returns a
 :class:`~topomap.Trajectory` with noise-free observations, the actions and the true
 ``positions``; no ``places``: the arena has no discrete places, its scores are in metres
-(:mod:`topomap.core.position_scores`, with :meth:`ArenaWorld.region_of` for the wrong-region
+(:mod:`topomap.evaluation.metres`, with :meth:`ArenaWorld.region_of` for the wrong-region
 share).  ``heldout_walk`` gives the walk such scores are taken on: another random walk, or the
 end of a recorded path.
 """
@@ -28,7 +28,7 @@ from .actions import make_action_rule
 from .checks import non_negative, positive, require_ratinabox
 from .floorplan import FLOORPLAN_SUFFIXES, load_floorplan
 from .layouts import LAYOUTS, Layout, builtin_layout
-from .motion import MOTION_PARAMETERS, Motion, random_motion
+from .kinematics import MOTION_PARAMETERS, Motion, random_motion
 from .paths import RecordedPath
 from .plot import plot_layout
 from .sensors import make_sensor

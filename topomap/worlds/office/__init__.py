@@ -46,7 +46,7 @@ Modules
 -------
 ``layout``   the rooms: :class:`OfficeLayout`, :func:`paper_layout`, :func:`random_layout`
 ``actions``  :class:`Pose`, the actions and the legs they are made of
-``motion``   driving legs: reach zones, turns, sliding around obstacles
+``driving``  driving legs: reach zones, turns, sliding around obstacles
 ``sensing``  the panoramic camera: occlusion, apparent sizes, approach targets
 ``world``    :class:`OfficeWorld`: places, docking, simulation
 ``plot``     drawing the room

@@ -2,7 +2,7 @@
 
 An action is a sequence of *legs* (:class:`GoTo`, :class:`GoToWall` or any object with the same two
 methods, ``heading(p)`` and ``guide(p)``) that :meth:`OfficeWorld.drive` runs; see
-:mod:`topomap.worlds.office.motion` for how a leg is driven and when an action stops.
+:mod:`topomap.worlds.office.driving` for how a leg is driven and when an action stops.
 """
 
 from __future__ import annotations

@@ -28,7 +28,7 @@ from ..explorers import show
 from .actions import Action, ApproachType, FollowWall, Pose
 from .geometry import CORNER_NAMES, TOL, check_positive, corner_points
 from .layout import OfficeLayout, paper_layout, random_layout
-from .motion import Motion, wall_following_legs
+from .driving import Drive, wall_following_legs
 from .plot import plot_room
 from .sensing import Camera
 
@@ -333,7 +333,7 @@ class OfficeWorld:
         reach at the start never end the action.  With ``dock`` the robot then moves to the
         standing point of its place, facing it.
         """
-        m = Motion(self, pose)
+        m = Drive(self, pose)
         reason = m.run(legs)
         place = self.place_of(m.p, reason, m.entered)
         if self.dock:

@@ -23,18 +23,36 @@ INT32 = "std_msgs/msg/Int32"
 TWIST = "geometry_msgs/msg/Twist"
 TWIST_STAMPED = "geometry_msgs/msg/TwistStamped"
 FLOAT64_ARRAY = "std_msgs/msg/Float64MultiArray"
+POSE_STAMPED = "geometry_msgs/msg/PoseStamped"
+ODOMETRY = "nav_msgs/msg/Odometry"
+TRANSFORM_STAMPED = "geometry_msgs/msg/TransformStamped"
+TF_MESSAGE = "tf2_msgs/msg/TFMessage"
 #: message types accepted on the position topic, each with the dotted path of its position
-#: (a ``geometry_msgs/Point``, or ``Vector3`` for a transform)
+#: (a ``geometry_msgs/Point``, or ``Vector3`` for a transform; for a ``TFMessage``, the path in
+#: the transform of the frames ``position_frame`` -> ``position_child_frame`` it holds)
 POSITION_TYPES = {
-    "geometry_msgs/msg/PoseStamped": "pose.position",
+    POSE_STAMPED: "pose.position",
     "geometry_msgs/msg/PoseWithCovarianceStamped": "pose.pose.position",
-    "nav_msgs/msg/Odometry": "pose.pose.position",
+    ODOMETRY: "pose.pose.position",
     "geometry_msgs/msg/Pose": "position",
     "geometry_msgs/msg/PointStamped": "point",
     "geometry_msgs/msg/Point": "",
-    "geometry_msgs/msg/TransformStamped": "transform.translation",
+    TRANSFORM_STAMPED: "transform.translation",
+    TF_MESSAGE: "transform.translation",
 }
-POSE_STAMPED = "geometry_msgs/msg/PoseStamped"
+#: message types accepted on the odometry topic, each with the dotted paths of its position and
+#: its orientation (a quaternion, whose yaw is the heading)
+ODOMETRY_TYPES = {
+    ODOMETRY: ("pose.pose.position", "pose.pose.orientation"),
+    POSE_STAMPED: ("pose.position", "pose.orientation"),
+    "geometry_msgs/msg/PoseWithCovarianceStamped": ("pose.pose.position", "pose.pose.orientation"),
+    TRANSFORM_STAMPED: ("transform.translation", "transform.rotation"),
+}
+#: message types whose ``child_frame_id`` names the frame they place (besides ``TFMessage``'s
+#: transforms)
+CHILD_FRAME_TYPES = (ODOMETRY, TRANSFORM_STAMPED)
+#: the frame of a robot's own odometry (REP 105): it drifts, so it is no ground truth
+ODOM_FRAME = "odom"
 #: message types accepted on the action topic (any type when ``action_rule`` is given)
 ACTION_TYPES = (STRING, INT32, TWIST, TWIST_STAMPED)
 #: message types accepted on the GDS topic

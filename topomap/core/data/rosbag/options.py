@@ -27,12 +27,16 @@ class Options:
     linear_threshold: float
     angular_threshold: float
     action_rule: object
+    odometry_topic: str | None = None
+    position_frame: str | None = None
+    position_child_frame: str | None = None
 
     def roles(self) -> list[tuple[str, str]]:
-        """``(role, topic)`` of each topic read: observation, action and, if any, GDS and
-        position."""
+        """``(role, topic)`` of each topic read: observation, action and, if any, GDS, position
+        and odometry."""
         extra = [(role, topic) for role, topic in (("GDS", self.gds_topic),
-                                                   ("position", self.position_topic)) if topic]
+                                                   ("position", self.position_topic),
+                                                   ("odometry", self.odometry_topic)) if topic]
         return [("observation", self.observation_topic), ("action", self.action_topic), *extra]
 
 
@@ -61,15 +65,28 @@ def _field_list(fields) -> tuple | None:
     return fields
 
 
+def _frame(name: str, value) -> str | None:
+    """A frame id as TF compares them (without ROS 1's leading ``/``), or None."""
+    if value is None or value == "":
+        return None
+    if not isinstance(value, str) or not value.strip("/"):
+        raise ParameterError(name, f"must be a frame id such as 'map', got {value!r}")
+    return value.lstrip("/")
+
+
 def make_options(observation_topic, action_topic, kw: dict) -> Options:
     """The arguments of :func:`~topomap.core.data.rosbag.read.read_rosbag`, checked."""
-    optional = [kw[k] for k in ("gds_topic", "position_topic") if kw[k]]
+    optional = [kw[k] for k in ("gds_topic", "position_topic", "odometry_topic") if kw[k]]
     topics = [observation_topic, action_topic] + optional
     if not all(isinstance(t, str) and t for t in topics):
         raise ValueError(f"topics must be non-empty strings, got {topics!r}")
     if len(set(topics)) != len(topics):
-        raise ValueError(f"the observation, action, GDS and position topics must differ, got "
-                         f"{topics!r}")
+        raise ValueError(f"the observation, action, GDS, position and odometry topics must "
+                         f"differ, got {topics!r}")
+    frames = [k for k in ("position_frame", "position_child_frame") if kw[k]]
+    if frames and not kw["position_topic"]:
+        raise ParameterError(frames[0], "names the frame of the positions; give position_topic "
+                                        "too")
     if kw["action_rule"] is not None and not callable(kw["action_rule"]):
         raise ParameterError("action_rule", f"must be callable, got {kw['action_rule']!r}")
     return Options(
@@ -83,5 +100,7 @@ def make_options(observation_topic, action_topic, kw: dict) -> Options:
         gds_names=_name_list("gds_names", kw["gds_names"]),
         linear_threshold=_positive("linear_threshold", kw["linear_threshold"]),
         angular_threshold=_positive("angular_threshold", kw["angular_threshold"]),
-        action_rule=kw["action_rule"],
+        action_rule=kw["action_rule"], odometry_topic=kw["odometry_topic"] or None,
+        position_frame=_frame("position_frame", kw["position_frame"]),
+        position_child_frame=_frame("position_child_frame", kw["position_child_frame"]),
     )

@@ -7,11 +7,13 @@ from pathlib import Path
 
 import numpy as np
 
+from ..odometry import check_odometry
 from ..trajectory import Trajectory
 from ...checks import ParameterError
 from .common import (STRING, _check_bag_path, _describe_failure, _one_line, _read_errors,
                      _rosbags, names_topic)
-from .decode import action_decoder, gds_decoder, observation_decoder, position_decoder
+from .decode import (TransformPicker, action_decoder, gds_decoder, observation_decoder,
+                     odometry_decoder, position_decoder)
 from .options import Options, make_options
 
 __all__ = ["read_rosbag"]
@@ -22,8 +24,8 @@ __all__ = ["read_rosbag"]
 
 @dataclasses.dataclass
 class _Episode:
-    """What one bag contributes: per step its observation row, action value, GDS value and
-    position."""
+    """What one bag contributes: per step its observation row, action value, GDS value,
+    position and odometry."""
 
     path: Path
     observations: np.ndarray
@@ -33,6 +35,7 @@ class _Episode:
     types: dict
     positions: np.ndarray | None = None
     declared: list | None = None  # the action names in id order, as the bag records them
+    odometry: np.ndarray | None = None
 
 
 def _topic_listing(topics: dict) -> str:
@@ -111,6 +114,19 @@ def _collect(reader, types: dict, decoders: dict, obs_topic: str) -> dict:
     return result
 
 
+def _picked(streams: dict, decoders: dict) -> dict:
+    """``streams`` with the messages of a transform topic that lack the chosen transform left
+    out; a ValueError when none has it."""
+    for topic, decode in decoders.items():
+        if isinstance(decode, TransformPicker):
+            times, values = streams[topic]
+            has = [i for i, v in enumerate(values) if v is not None]
+            if not has:
+                raise ValueError(decode.missing())
+            streams[topic] = (times[has], [values[i] for i in has])
+    return streams
+
+
 def _read_streams(path: Path, opts: Options):
     """Open the bag at ``path`` and return its topic types and decoded message streams.
 
@@ -128,11 +144,13 @@ def _read_streams(path: Path, opts: Options):
                 decoders[opts.gds_topic] = gds_decoder(types[opts.gds_topic], opts)
             if opts.position_topic is not None:
                 decoders[opts.position_topic] = position_decoder(types[opts.position_topic], opts)
+            if opts.odometry_topic is not None:
+                decoders[opts.odometry_topic] = odometry_decoder(types[opts.odometry_topic], opts)
             names = names_topic(act)
             info = reader.topics.get(names)
             if opts.action_names is None and info is not None and info.msgtype == STRING:
                 types[names], decoders[names] = STRING, (lambda msg: str(msg.data))
-            return types, _collect(reader, types, decoders, obs)
+            return types, _picked(_collect(reader, types, decoders, obs), decoders)
     except _read_errors() as exc:  # first: UnicodeDecodeError is a ValueError too
         raise ValueError(_describe_failure(path, exc)) from None
     except ValueError as exc:  # raised above without the path, or by a decoder
@@ -164,13 +182,19 @@ def _match_gds(step_t: np.ndarray, gds_t: np.ndarray, window_ns: float) -> np.nd
     return np.where(np.minimum(d_left, d_right) <= window_ns, nearest, -1)
 
 
+#: how the messages of each role are named in an error: plural, and one of them
+_NOUNS = {"observation": ("observations", "an observation"),
+          "position": ("positions", "a position"),
+          "odometry": ("odometry messages", "an odometry pose")}
+
+
 def _no_step_left(path: Path, role: str, times: np.ndarray, topic: str, act_t: np.ndarray,
                   action_topic: str) -> str:
     """The message for a bag whose every step comes before the first message on ``topic``."""
-    return (f"bag {path}: all {times.size} {role}s on {topic} come after the last action on "
+    many, one = _NOUNS[role]
+    return (f"bag {path}: all {times.size} {many} on {topic} come after the last action on "
             f"{action_topic} (first {role} at {times[0] / 1e9:.3f} s, last action at "
-            f"{act_t[-1] / 1e9:.3f} s), so no step has {'an' if role[0] in 'aeiou' else 'a'} "
-            f"{role}")
+            f"{act_t[-1] / 1e9:.3f} s), so no step has {one}")
 
 
 def _read_episode(path: Path, opts: Options) -> _Episode:
@@ -187,25 +211,34 @@ def _read_episode(path: Path, opts: Options) -> _Episode:
     if not keep.any():
         raise ValueError(_no_step_left(path, "observation", obs_t, opts.observation_topic,
                                        act_t, opts.action_topic))
-    positions = None
-    if opts.position_topic is not None:
-        pos_t, pos_values = streams[opts.position_topic]
-        pos_idx = np.searchsorted(pos_t, act_t, side="right") - 1
-        keep &= pos_idx >= 0
+    latest = {}  # role -> (values, index of each step's latest message)
+    for role, topic in (("position", opts.position_topic), ("odometry", opts.odometry_topic)):
+        if topic is None:
+            continue
+        times, values = streams[topic]
+        latest[role] = (values, np.searchsorted(times, act_t, side="right") - 1)
+        keep &= latest[role][1] >= 0
         if not keep.any():
-            raise ValueError(_no_step_left(path, "position", pos_t, opts.position_topic,
-                                           act_t, opts.action_topic))
-        positions = np.asarray(pos_values, dtype=np.float64)[pos_idx[keep]]
+            raise ValueError(_no_step_left(path, role, times, topic, act_t, opts.action_topic))
     keep = np.flatnonzero(keep)
     X = _select_rows(obs_rows, obs_idx[keep], path, opts.observation_topic)
+    sampled = {role: np.asarray(values, dtype=np.float64)[index[keep]]
+               for role, (values, index) in latest.items()}
     gds = None
     if opts.gds_topic is not None:
         gds_t, gds_values = streams[opts.gds_topic]
         match = _match_gds(act_t[keep], gds_t, opts.gds_window * 1e9)
         gds = [None if m < 0 else gds_values[m] for m in match.tolist()]
     declared = streams.get(names_topic(opts.action_topic), (None, None))[1]
+    odometry = sampled.get("odometry")
+    if odometry is not None:
+        try:
+            check_odometry(odometry, odometry.shape[0])
+        except ValueError as exc:
+            raise ValueError(f"bag {path}: odometry topic {opts.odometry_topic}: {exc}") from None
     return _Episode(path, X, [act_values[i] for i in keep.tolist()], gds,
-                    int(act_t.size - keep.size), types, positions, declared)
+                    int(act_t.size - keep.size), types, sampled.get("position"), declared,
+                    odometry)
 
 
 # ---------------------------------------------------------------------------------- assembly
@@ -256,10 +289,12 @@ def _assemble(episodes: list, opts: Options, many: bool) -> Trajectory:
     meta = {"source": "rosbag", "bags": [str(e.path) for e in episodes],
             "topics": episodes[0].types, "dropped_steps": [e.dropped for e in episodes]}
     lengths = [len(e.actions) for e in episodes] if many else None
+    odometry = None if opts.odometry_topic is None else \
+        np.concatenate([e.odometry for e in episodes])
     try:
         return Trajectory(observations=X, actions=actions, gds=gds, lengths=lengths,
                           action_names=action_names, gds_names=gds_names, meta=meta,
-                          positions=_positions(episodes, opts))
+                          positions=_positions(episodes, opts), odometry=odometry)
     except ValueError as exc:
         raise ValueError(f"{source}: {_one_line(exc)}") from None
 
@@ -295,59 +330,59 @@ def read_rosbag(path, observation_topic: str, action_topic: str, *, observation_
                 scan_bins: int | None = None, max_range: float | None = None,
                 gds_topic: str | None = None, gds_window: float = 0.5, action_names=None,
                 gds_names=None, linear_threshold: float = 0.05, angular_threshold: float = 0.1,
-                action_rule=None, position_topic: str | None = None) -> Trajectory:
+                action_rule=None, position_topic: str | None = None,
+                position_frame: str | None = None, position_child_frame: str | None = None,
+                odometry_topic: str | None = None) -> Trajectory:
     """Read one ROS bag, or a list of bags (one episode each), into a :class:`Trajectory`.
 
     Parameters
     ----------
     path : path or list of paths
-        A ROS 1 ``.bag`` file, a ROS 2 bag folder, or a ROS 2 ``.db3``/``.mcap`` file; a list
-        gives one episode per bag, in order, and sets ``lengths``.
+        A ROS 1 ``.bag`` file, a ROS 2 bag folder or ``.db3``/``.mcap`` file; a list gives one
+        episode per bag, in order (``lengths``).
     observation_topic, action_topic : str
-        One step per action message; its observation is the latest observation message recorded
-        at or before it.  Steps before the first observation are dropped.
+        One step per action message; its observation the latest observation message at or before
+        it (steps before the first observation, or position or odometry, are dropped).
     observation_fields : list of str, optional
-        Numeric fields to read from observation messages of any type (dotted paths; array fields
-        give one column per element).  Without it the topic must carry ``sensor_msgs/LaserScan``.
-    scan_bins : int, optional
-        Reduce each scan to this many sectors, each the minimum range of its beams.
-    max_range : float, optional
-        Clip ranges at this value (after ``inf``/``nan`` became ``range_max``).
-    gds_topic : str, optional
-        ``std_msgs/String`` or ``Int32`` topic of globally distinctive states.
-    gds_window : float
-        A step gets the GDS of the nearest GDS message at most this many seconds away.
+        Numeric fields of observation messages of any type (dotted paths; an array field gives a
+        column per element); without it the topic must carry ``sensor_msgs/LaserScan``.
+    scan_bins, max_range : int, float, optional
+        Sectors per scan (each its beams' minimum); ranges clipped (``inf``, ``nan``: range_max).
+    gds_topic, gds_window : str, float
+        ``String`` or ``Int32`` topic of globally distinctive states; a step gets the GDS of the
+        nearest GDS message at most ``gds_window`` s away.
     action_names, gds_names : list of str, optional
         Fix the id of each name (other names are an error); for Int32 topics, name the ids.
-    linear_threshold, angular_threshold : float
-        Thresholds in m/s and rad/s of
-        :func:`~topomap.core.data.rosbag.decode.twist_action` for Twist action topics.
-    action_rule : callable, optional
-        ``action_rule(message) -> name or id`` for action messages of any type.
+    linear_threshold, angular_threshold, action_rule : float, float, callable
+        m/s and rad/s of :func:`~topomap.core.data.rosbag.decode.twist_action` for Twist action
+        topics; ``action_rule(message) -> name or id`` reads action messages of any type.
     position_topic : str, optional
-        A pose or odometry topic (types: ``rosbag.POSITION_TYPES``) read as ``positions``, each
-        step's from the latest message at or before it; ``(T, 3)`` if some ``z`` is not 0.
+        The ground truth (a motion capture's, a simulator's) as ``positions``: a pose
+        (``rosbag.POSITION_TYPES``), ``(T, 3)`` if some ``z`` is not 0; in the frame ``odom``
+        (the robot's own, REP 105) only with ``position_frame="odom"``.
+    position_frame, position_child_frame : str, optional
+        The messages' ``header.frame_id`` and (where they have one) ``child_frame_id`` must be
+        these.  A ``tf2_msgs/TFMessage`` topic needs both: the position is the translation of the
+        transform ``position_frame`` -> ``position_child_frame``.
+    odometry_topic : str, optional
+        The robot's own dead reckoning as ``odometry`` (x, y and the orientation's yaw):
+        ``nav_msgs/Odometry``, ``PoseStamped``, ... (``rosbag.ODOMETRY_TYPES``).
 
     Returns
     -------
     Trajectory
-        Observations (float64; LaserScan ranges are float32 values), actions, ``gds`` (with a GDS
-        topic), ``positions`` (with a position topic), ``lengths`` (when ``path`` is a list), the
-        names, and ``meta``: ``source`` (``"rosbag"``), ``bags``, ``topics`` (topic -> message
-        type, of the first bag), ``dropped_steps`` (per bag: before the first observation or
-        position).
+        Observations (float64), actions and, with their topics, ``gds``, ``positions``,
+        ``odometry``; ``lengths`` (``path`` a list), the names, and ``meta``: ``source``,
+        ``bags``, ``topics`` (topic -> type) and ``dropped_steps`` (per bag).
 
     Raises
     ------
     ValueError
-        One line naming the file: missing topics (listing the bag's topics, types and counts),
-        unsupported message types, empty, truncated or corrupt bags, no step with an observation.
+        One line naming the file: a missing topic (listing the bag's), an unsupported type, a bad
+        bag, no step left, a jump of the odometry, positions in another frame than asked.
     """
-    opts = make_options(observation_topic, action_topic, dict(
-        observation_fields=observation_fields, scan_bins=scan_bins, max_range=max_range,
-        gds_topic=gds_topic, gds_window=gds_window, action_names=action_names,
-        gds_names=gds_names, linear_threshold=linear_threshold, position_topic=position_topic,
-        angular_threshold=angular_threshold, action_rule=action_rule))
+    kw = dict(locals())  # the arguments, as make_options checks them
+    opts = make_options(kw.pop("observation_topic"), kw.pop("action_topic"), kw)
     paths, many = _bag_list(path)
     episodes = [_read_episode(p, opts) for p in paths]
     return _assemble(episodes, opts, many)

@@ -1,4 +1,6 @@
-"""Compare learned states with ground-truth places.
+"""Learned states against ground-truth places: ARI, NMI, purity, compound states.
+
+Public as :mod:`topomap.metrics`.
 
 Every function takes ``(labels_true, labels_pred)``, in scikit-learn's order
 (:func:`sklearn.metrics.adjusted_rand_score`): the true place of every step first, then the
@@ -14,6 +16,8 @@ from __future__ import annotations
 import numpy as np
 from sklearn.metrics import adjusted_rand_score, normalized_mutual_info_score
 from sklearn.metrics.cluster import contingency_matrix
+
+from ..core.stats import majority_share
 
 __all__ = ["adjusted_rand", "nmi", "purity", "compound_states", "evaluate"]
 
@@ -42,9 +46,7 @@ def nmi(labels_true, labels_pred) -> float:
 def purity(labels_true, labels_pred) -> float:
     """Share of steps whose state (``labels_pred``) has their own place (``labels_true``) as its
     most common place."""
-    t, p = _check(labels_true, labels_pred)
-    C = contingency_matrix(t, p)  # rows: places, columns: states
-    return float(C.max(axis=0).sum() / t.size)
+    return majority_share(*_check(labels_true, labels_pred))
 
 
 def compound_states(labels_true, labels_pred, min_share: float = 0.0) -> int:

@@ -20,10 +20,10 @@ from .geometry import TOL, WALL_NORMALS, wrap
 if TYPE_CHECKING:
     from .world import OfficeWorld
 
-__all__ = ["Motion", "wall_following_legs"]
+__all__ = ["Drive", "wall_following_legs"]
 
 
-class Motion:
+class Drive:
     """Mutable state of one action while :meth:`OfficeWorld.drive` runs it."""
 
     def __init__(self, world: "OfficeWorld", pose: Pose):

@@ -1,0 +1,124 @@
+"""Simulate a robot in the arena, record its log as ROS bags, learn a map from the bags.
+
+The robot: ratinabox's random motion in two alike rooms joined by a corridor (the arena world), a
+12-beam range finder fixed to the robot (``sensor.frame=egocentric``: beam 0 straight ahead, with
+N(0, 0.02^2) m noise) and turn / forward / stop commands read off its motion (``actions=turns``).
+Its wheel odometry is made here from the true motion with a small noise model -- each step's
+distance off by N(0, 2 %), each turn by N(0, 5 %), and a gyro bias of 0.01 rad/s, integrated from
+the robot's own origin -- until the arena has a wheel-odometry component of its own.
+
+Each bag holds what a robot records, one message per topic at every step (10 Hz): ``/scan``
+(``sensor_msgs/LaserScan``), ``/cmd_vel`` (``geometry_msgs/Twist``), ``/odom``
+(``nav_msgs/Odometry``, drifting), ``/tf`` (``odom`` -> ``base_link``) and the simulator's truth
+on ``/truth`` (``geometry_msgs/PoseStamped`` in ``map``), which only scores the map.  Usage (needs
+``pip install "topomap[arena,ros]"``)::
+
+    python docs/examples/robot_bag.py robot.bag              # ROS 1: robot.bag, robot_heldout.bag
+    python docs/examples/robot_bag.py robot --version 2 --steps 6000 --heldout-steps 2000
+
+The script reads the bags back (``read_rosbag(..., odometry_topic="/odom",
+position_topic="/truth")``), learns a map from the first, scores it in metres on the second
+beside the yardsticks of ``metrics.json`` (the ceiling, K-means on the views), says how far the
+odometry drifted, and prints the ``topomap`` command that does the same from the bags.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import numpy as np
+
+from topomap import MapLearner, Trajectory, read_rosbag, write_rosbag
+from topomap.core.position_scores import position_scores
+from topomap.worlds.arena import ArenaWorld, Motion, RangeFinder, TurnActions
+
+#: the wheel odometry's noise: relative N(0, s^2) on each step's distance and on each turn, and a
+#: constant gyro bias (rad/s) -- a few per cent, as wheel encoders and a MEMS gyro give
+SPEED_NOISE, TURN_NOISE, GYRO_BIAS = 0.02, 0.05, 0.01
+#: metres of N(0, s^2) noise on every range reading
+SCAN_NOISE = 0.02
+
+
+def wheel_odometry(positions: np.ndarray, dt: float, rng: np.random.Generator,
+                   speed_noise: float = SPEED_NOISE, turn_noise: float = TURN_NOISE,
+                   gyro_bias: float = GYRO_BIAS) -> np.ndarray:
+    """``(T, 3)`` odometry (x, y, heading) from the true positions: each step's distance and turn
+    (the arena's :class:`~topomap.worlds.arena.Motion`) with noise, integrated from (0, 0, 0).
+    Without noise it is the true path seen from the robot's start pose."""
+    motion = Motion.from_samples(positions, dt)  # T positions: T - 1 moves
+    distance = motion.speed * dt * (1 + speed_noise * rng.standard_normal(len(motion)))
+    turn = (motion.rotational_velocity * dt * (1 + turn_noise * rng.standard_normal(len(motion)))
+            + gyro_bias * dt)
+    heading = np.concatenate([[0.0], np.cumsum(turn)])  # the move t -> t+1 faces heading[t+1]
+    steps = distance[:, None] * np.c_[np.cos(heading[1:]), np.sin(heading[1:])]
+    return np.c_[np.vstack([[0.0, 0.0], np.cumsum(steps, axis=0)]), heading]
+
+
+def robot_log(world: ArenaWorld, steps: int, rng: np.random.Generator) -> Trajectory:
+    """``steps`` steps of the robot: noisy scans, commands, the truth and the wheel odometry."""
+    traj = world.simulate(steps, None, rng)
+    scans = traj.observations + SCAN_NOISE * rng.standard_normal(traj.observations.shape)
+    return Trajectory(np.clip(scans, 0.0, None), traj.actions, positions=traj.positions,
+                      action_names=traj.action_names,
+                      odometry=wheel_odometry(traj.positions, world.dt, rng))
+
+
+def parse_args(argv=None) -> argparse.Namespace:
+    """The command-line arguments."""
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("out", type=Path, help="the training bag: a .bag file (ROS 1) or a "
+                                               "folder (ROS 2); the held-out bag goes beside it")
+    parser.add_argument("--steps", type=int, default=18000, help="training steps (10 Hz)")
+    parser.add_argument("--heldout-steps", type=int, default=6000)
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--version", type=int, choices=[1, 2], default=1)
+    parser.add_argument("--clusters", type=int, default=32)
+    parser.add_argument("--states", type=int, default=64)
+    return parser.parse_args(argv)
+
+
+def write_bags(args) -> tuple[Path, Path, ArenaWorld]:
+    """Simulate the two walks and write them as bags; returns their paths and the world."""
+    world = ArenaWorld("two_rooms", sensor=RangeFinder(n_beams=12, max_range=3.0,
+                                                       frame="egocentric"),
+                       actions=TurnActions())
+    rng_train, rng_held = (np.random.default_rng(s)
+                           for s in np.random.SeedSequence(args.seed).spawn(2))
+    held = args.out.with_name(args.out.stem + "_heldout" + args.out.suffix)
+    topics = dict(version=args.version, action_topic=None, cmd_vel_topic="/cmd_vel",
+                  position_topic="/truth")
+    write_rosbag(robot_log(world, args.steps, rng_train), args.out, **topics)
+    write_rosbag(robot_log(world, args.heldout_steps, rng_held), held, **topics)
+    return args.out, held, world
+
+
+def main(argv=None) -> dict:
+    """Write the bags, learn from them, print the scores and the command; returns the scores."""
+    args = parse_args(argv)
+    train_bag, held_bag, world = write_bags(args)
+    topics = dict(action_names=world.action_names, odometry_topic="/odom",
+                  position_topic="/truth")
+    train = read_rosbag(train_bag, "/scan", "/cmd_vel", **topics)
+    heldout = read_rosbag(held_bag, "/scan", "/cmd_vel", **topics)
+    print(f"wrote {train_bag} ({len(train)} steps) and {held_bag} ({len(heldout)} steps): "
+          "/scan, /cmd_vel, /odom, /tf, /truth")
+    truth = wheel_odometry(train.positions, world.dt, np.random.default_rng(0), 0, 0, 0)
+    drift = np.hypot(*(train.odometry[-1, :2] - truth[-1, :2]))
+    print(f"the odometry drifted {drift:.2f} m from the truth over {len(train) * world.dt:.0f} s")
+    learner = MapLearner(n_clusters=args.clusters, n_states=args.states, random_state=0)
+    learner.fit_trajectory(train)
+    scores = position_scores(learner.map_, learner.labels_, train, heldout, world.region_of)
+    for name, s in scores.items():
+        print(f"{name:>12}: median error {s['median_error']:.3f} m, "
+              f"wrong region {s['wrong_region']:.1%}")
+    print(f"the same from the command line: topomap data=rosbag data.path={train_bag} "
+          f"data.heldout_path={held_bag} data.observation_topic=/scan "
+          f"data.action_topic=/cmd_vel data.odometry_topic=/odom data.position_topic=/truth "
+          f"'data.action_names=[{','.join(world.action_names)}]' clusters.ns={args.clusters} "
+          f"stop.n_states={args.states}")
+    return scores
+
+
+if __name__ == "__main__":
+    main()
