@@ -129,7 +129,7 @@ def test_learner_config_is_the_learner_signature(make_cfg):
     cfg = make_cfg()
     params = MapLearner().get_params()
     keys = ("covariance_type", "reg_covar", "n_init", "phase1", "sample_size", "refined_size",
-            "motion", "window", "refit_every")
+            "motion", "heading", "window", "refit_every")
     learner = OmegaConf.to_container(cfg.learner)
     motion = dict(dataclasses.asdict(params["motion"]), gates=list(params["motion"].gates))
     assert learner == {k: motion if k == "motion" else params[k] for k in keys}

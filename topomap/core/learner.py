@@ -14,13 +14,14 @@ from sklearn.base import BaseEstimator
 from .checks import check_count
 from .components import (fit_refinement, fold_renamed, make_components, make_refinement, naming,
                          refinement_hints, refinement_label, set_params, within_told_size)
-from .refining import bic_scores, heldout_scores, refined_from, resized, symbol_map
+from .refining import (alphabet, bic_scores, choose_refined_size, refined_from, resized,
+                       split_symbol, symbol_map)
 from .online import OnlineState, Window
 from .online_pass import PassStart, start_map, warm_start, warm_starts, wider_pass
 from .phase1.clustering import cluster_observations
 from .phase1.heading import phase1_states
 from .phase1.start import phase1_labels, start_split, variance_beside
-from .size import AutoStates, probe_sizes, split_holdout
+from .size import AutoStates, probe_sizes
 from .map.model import TopologicalMap
 from .map_methods import MapMethods
 from .motion.inputs import check_odometry
@@ -151,8 +152,8 @@ class MapLearner(StreamFit, MapMethods, BaseEstimator):
                  covariance_type: str = "diag", reg_covar: float = 1e-3, n_init: int = 3,
                  phase1: str = "auto", sample_size: int | None = None, refine=None,
                  refined_size: str = "told", motion: MotionSettings | str = MotionSettings(),
-                 heading: str = "auto", window: int = 20000, refit_every: int = 2000, random_state: int = 0,
-                 callbacks=(), **renamed):
+                 heading: str = "auto", window: int = 20000, refit_every: int = 2000,
+                 random_state: int = 0, callbacks=(), **renamed):
         self.n_clusters = n_clusters
         self.n_states = n_states
         self.clusters = clusters
@@ -242,7 +243,7 @@ class MapLearner(StreamFit, MapMethods, BaseEstimator):
             refinement = None  # too few steps per state: the pass keeps the split
         if refinement is not None and not continuous:
             if auto is not None and auto.criterion == "heldout" and self.refined_size == "told":
-                told = self._choose_refined_size(data, splitter, refinement, auto)
+                told = choose_refined_size(self, data, splitter, refinement, auto)
             self._refine(data, splitter, refinement, told, warm)
             self.timings_["refine"] = time.perf_counter() - t2
         self._emit("done", labels=self.labels_, entropies=self.entropies_[-1], map=self.map_)
@@ -300,13 +301,13 @@ class MapLearner(StreamFit, MapMethods, BaseEstimator):
         worse (both BICs and the map kept go into ``refine_info_``).  Refined states have no
         parent; ``map_.info["refined_from"]`` names, for each, the split state most of its steps
         held."""
-        ns, ids, emitted = self._alphabet()
+        ns, ids, emitted = alphabet(self)
         seq = SymbolSequence.build(self.labels_phase1_, data.u, data.lengths, data.n_actions, ids)
         runner, init = warm_start(refinement, warm, seq.sym)
         if init is not None:  # EM starts from the last map's states, not from a split
             self.labels_split_, self.map_split_ = start_map(self, data, init)
         with naming(self, "refine"):
-            fit = fit_refinement(runner, seq, self._split_symbol(splitter), self.random_state,
+            fit = fit_refinement(runner, seq, split_symbol(splitter), self.random_state,
                                  init, self.labels_split_, **refinement_hints(self, data, runner))
         if runner is not refinement:  # the last map's refinement found no misread symbols
             fit.info.update(soft="skipped", soft_from="the last map")
@@ -337,40 +338,6 @@ class MapLearner(StreamFit, MapMethods, BaseEstimator):
         self.map_ = replace(refined, entropy_history=self.entropies_,
                             info=dict(refined.info, **record, refined_from=origin))
         self._emit("refine", labels=self.labels_, entropies=self.entropies_[-1], map=self.map_)
-
-    @staticmethod
-    def _split_symbol(splitter: Splitter) -> np.ndarray:
-        """The symbol id of every split state -- its phase-1 state, a symbol or a (symbol,
-        heading) pair -- and -1 for GDS states: a refinement's second argument."""
-        return np.where(np.asarray(splitter.gds) < 0, splitter.roots(), -1)
-
-    def _alphabet(self):
-        """``(ns, ids, emitted)``: the K-means symbols, the symbol ids a refinement sees before
-        the GDS ones (the symbols, or the (symbol, heading) pairs) and the function giving the
-        K-means symbol (``ns + g`` for GDS ``g``) of such ids."""
-        ns, headed = self.n_clusters_, self._headed
-        if headed is None:
-            return ns, ns, lambda ids: ids
-        return ns, headed.n_pairs, headed.emitted
-
-    def _choose_refined_size(self, data: FitData, splitter: Splitter, refinement,
-                             rule: AutoStates) -> int:
-        """``stop=auto`` with a refinement: refine all but the held-out final block, bring that
-        refined map to the sizes of :func:`topomap.core.size.refined_sizes` and keep the size
-        whose map scores the held-out block best (``size_choice_["refined"]``)."""
-        L, held, cut = split_holdout(data.u.size, data.lengths, rule.holdout)
-        ns, ids, emitted = self._alphabet()
-        seq = SymbolSequence.build(self.labels_phase1_[:cut], data.u[:cut], L, data.n_actions,
-                                   ids)
-        with naming(self, "refine"):
-            fit = fit_refinement(refinement, seq, self._split_symbol(splitter), self.random_state,
-                                 split_labels=self.labels_split_[:cut],
-                                 **refinement_hints(self, data, refinement, cut))
-        scores = heldout_scores(data, seq, fit, held, splitter.criterion, ns, emitted,
-                                covariance_type=self.covariance_type, reg_covar=self.reg_covar)
-        chosen = max(sorted(scores), key=lambda n: scores[n])
-        self.size_choice_["refined"] = {"own": fit.n_states, "chosen": chosen, "scores": scores}
-        return chosen
 
     def _phase1(self, data: FitData, clusters, metric, criterion, stopping,
                 symbols=None, heading: str = "off", told: int | None = None) -> Splitter:
@@ -469,3 +436,4 @@ class MapLearner(StreamFit, MapMethods, BaseEstimator):
         shows the last fit's refinement, size choice or split map as its own."""
         for name in self._learned():
             delattr(self, name)
+        self._headed = None  # phase 1's (symbol, heading) pairs, where used

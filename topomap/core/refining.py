@@ -14,13 +14,16 @@ from __future__ import annotations
 
 import numpy as np
 
+from .components import fit_refinement, naming, refinement_hints
 from .map.model import TopologicalMap
 from .refine.methods import CloneFit
 from .refine.resize import resize
-from .size import bic, parameter_count, refined_sizes
+from .refine.sequence import SymbolSequence
+from .size import bic, parameter_count, refined_sizes, split_holdout
 from .stats import majority_match
 
-__all__ = ["state_gds", "symbol_map", "resized", "bic_scores", "heldout_scores", "refined_from"]
+__all__ = ["state_gds", "symbol_map", "resized", "bic_scores", "heldout_scores", "refined_from",
+           "split_symbol", "alphabet", "choose_refined_size"]
 
 
 def state_gds(state_symbol, n_symbols: int, gds_ids) -> np.ndarray:
@@ -89,3 +92,38 @@ def heldout_scores(data, seq, fit, held, criterion, n_symbols: int, emitted=None
 def refined_from(labels, split_labels, n_refined: int, n_split: int) -> list[int]:
     """For every refined state, the split state most of its steps held."""
     return majority_match(labels, split_labels, n_refined, n_split).tolist()
+
+
+def split_symbol(splitter) -> np.ndarray:
+    """The symbol id of every split state -- its phase-1 state, a symbol or a (symbol, heading)
+    pair -- and -1 for GDS states: a refinement's second argument."""
+    return np.where(np.asarray(splitter.gds) < 0, splitter.roots(), -1)
+
+
+def alphabet(learner) -> tuple:
+    """``(ns, ids, emitted)``: a fitted learner's K-means symbols, the symbol ids a refinement
+    sees before the GDS ones (the symbols, or the (symbol, heading) pairs of
+    :mod:`~topomap.core.phase1.heading`) and the function giving the K-means symbol (``ns + g``
+    for GDS ``g``) of such ids."""
+    ns, headed = learner.n_clusters_, getattr(learner, "_headed", None)
+    if headed is None:
+        return ns, ns, lambda ids: ids
+    return ns, headed.n_pairs, headed.emitted
+
+
+def choose_refined_size(learner, data, splitter, refinement, rule) -> int:
+    """``stop=auto`` with a refinement: refine all but the held-out final block of ``data``,
+    bring that refined map to the sizes of :func:`topomap.core.size.refined_sizes` and keep the
+    size whose map scores the held-out block best (``learner.size_choice_["refined"]``)."""
+    L, held, cut = split_holdout(data.u.size, data.lengths, rule.holdout)
+    ns, ids, emitted = alphabet(learner)
+    seq = SymbolSequence.build(learner.labels_phase1_[:cut], data.u[:cut], L, data.n_actions, ids)
+    with naming(learner, "refine"):
+        fit = fit_refinement(refinement, seq, split_symbol(splitter), learner.random_state,
+                             split_labels=learner.labels_split_[:cut],
+                             **refinement_hints(learner, data, refinement, cut))
+    scores = heldout_scores(data, seq, fit, held, splitter.criterion, ns, emitted,
+                            covariance_type=learner.covariance_type, reg_covar=learner.reg_covar)
+    chosen = max(sorted(scores), key=lambda n: scores[n])
+    learner.size_choice_["refined"] = {"own": fit.n_states, "chosen": chosen, "scores": scores}
+    return chosen

@@ -23,8 +23,8 @@ moves the agent: neither turns the heading.
 **How far each turns.**  With turn orders ``k_a`` a circle has ``n = lcm(k_a)`` headings and
 turn ``a`` rotates by ``j * n / k_a`` for some ``j`` prime to ``k_a`` (left and right: ``+1``
 and ``-1`` or ``+1`` and ``+1``).  Two turns of which one then the other brings the view back
-as an order's cycle does (:func:`inverse_pairs`) rotate by opposite steps.  Every hypothesis left, up to a renaming of the headings, is
-integrated (every episode from heading 0, each later one turned to agree best with the ones
+as an order's cycle does (:func:`inverse_pairs`) rotate by opposite steps.  Every hypothesis
+left, up to a renaming of the headings, is integrated (every episode from heading 0, each later one turned to agree best with the ones
 before it) and scored by the information a step's symbol gives about its heading on steps it
 was not counted on (:func:`heldout_gain`): where the heading is part of the place, a symbol seen
 at one place comes with one heading.  The best hypothesis is kept when its gain is at least
@@ -51,9 +51,8 @@ import numpy as np
 from .loops import join_loop_views
 
 __all__ = ["MODES", "MAX_ORDER", "MIN_WINDOWS", "MIN_AGREEMENT", "MIN_GAIN", "DECIDE_STEPS",
-           "FOLD_BLOCKS", "Turns", "HeadedStates", "turn_orders", "inverse_pairs", "integrate", "heldout_gain",
-           "drifting_blocks",
-           "learn_turns", "head_states", "phase1_states"]
+           "FOLD_BLOCKS", "Turns", "HeadedStates", "turn_orders", "inverse_pairs", "integrate",
+           "heldout_gain", "drifting_blocks", "learn_turns", "head_states", "phase1_states"]
 
 #: ``MapLearner(heading=...)``: ``"auto"`` where the data support it, ``"on"`` wherever an
 #: action turns, ``"off"`` never
