@@ -29,10 +29,11 @@ before it) and scored by the information a step's symbol gives about its heading
 was not counted on (:func:`heldout_gain`): where the heading is part of the place, a symbol seen
 at one place comes with one heading.  The best hypothesis is kept when its gain is at least
 :data:`MIN_GAIN` nats per step and its heading keeps its origin: no block of the walk agrees
-better with the rest turned (:func:`drifting_blocks`; ``heading="on"``: whatever the two
-tests say; ``"off"``: never tried).  A heading that drifts (turns that sometimes fail) is left
-out: turns failing 0.5 % of the time move 3 of 10 blocks of a 4,000-step walk, 1 % or more
-give a negative gain; a heading that keeps its origin moves none on every walk measured.
+better with the rest turned, or no more than :data:`MAX_DRIFTING` (:func:`drifting_blocks`;
+``heading="on"``: whatever the two tests say; ``"off"``: never tried).  A heading that drifts (turns that sometimes fail) is left
+out: turns failing 0.1 % of the time move 3 or 4 of 10 blocks of a 4,000-step walk, 1 % or more
+give a negative gain; a heading that keeps its origin moves none on every walk measured but
+FourRooms' seed 1, whose rooms look alike turned (one block).
 
 Measured (K-means symbols of the benchmark walks, seed 0): MiniGrid FourRooms 10,000 steps and
 Empty-16x16 50,000 steps find left and right of order 4 (kappa 0.72 and 1.0) and the opposite
@@ -51,7 +52,7 @@ import numpy as np
 from .loops import join_loop_views
 
 __all__ = ["MODES", "MAX_ORDER", "MIN_WINDOWS", "MIN_AGREEMENT", "MIN_GAIN", "DECIDE_STEPS",
-           "FOLD_BLOCKS", "Turns", "HeadedStates", "turn_orders", "inverse_pairs", "integrate",
+           "MAX_DRIFTING", "FOLD_BLOCKS", "Turns", "HeadedStates", "turn_orders", "inverse_pairs", "integrate",
            "heldout_gain", "drifting_blocks", "learn_turns", "head_states", "phase1_states"]
 
 #: ``MapLearner(heading=...)``: ``"auto"`` where the data support it, ``"on"`` wherever an
@@ -73,6 +74,11 @@ MIN_GAIN = 0.01
 #: the steps the decision looks at (the first ones): enough for any order and gain above, and
 #: 10^7-step logs pay no more than 10^5
 DECIDE_STEPS = 100_000
+#: blocks of the walk (of :data:`FOLD_BLOCKS`) that may agree better with the rest turned: a
+#: room that looks like another room turned by 90 degrees moves one block where the turns never
+#: fail (FourRooms 10,000 steps, seed 1: by 465 nats), turns failing 0.1 % of the time move 3
+#: or 4 on every walk of the tests' 2 x 2 room (6 seeds), 0.2-0.5 % 1 to 10
+MAX_DRIFTING = 1
 #: the held-out gain counts on every other of this many blocks of the steps and scores the rest,
 #: then the other way round
 FOLD_BLOCKS = 10
@@ -264,7 +270,7 @@ def learn_turns(sym, u, lengths, n_actions: int, mode: str = "auto") -> tuple:
     h = _align(sym, integrate(u, lengths, best.steps, best.n_headings), lengths,
                best.n_headings, n_ids)
     info["drifting_blocks"] = drifting_blocks(sym, h, best.n_headings, n_ids)
-    if mode == "auto" and info["drifting_blocks"]:
+    if mode == "auto" and info["drifting_blocks"] > MAX_DRIFTING:
         return None, dict(info, reason=f"the heading drifts: {info['drifting_blocks']} of "
                                        f"{FOLD_BLOCKS} blocks of the walk agree better turned")
     return best, info
