@@ -98,7 +98,9 @@ class MapLearner(StreamFit, MapMethods, BaseEstimator):
     heading : {"auto", "on", "off"}
         Phase 1's states as (symbol, heading) pairs, the heading integrated from actions that
         turn the view (:mod:`topomap.core.phase1.heading`): ``"auto"`` where the data support
-        it, ``"on"`` wherever an action turns, ``"off"`` never (nor in :meth:`partial_fit`).
+        it, ``"on"`` wherever an action turns, ``"off"`` never (nor :meth:`partial_fit` or
+        :meth:`fit_stream`).  MiniGrid FourRooms 50,000 steps with ``refine="em"``: ARI 0.95
+        against 0.69 without (Empty-16x16: 0.93 against 0.55; medians of seeds 0-2).
     window : int
         :meth:`partial_fit` only: the latest steps a wider pass re-learns the map's structure
         from (:mod:`topomap.core.online`).
