@@ -304,8 +304,9 @@ def _plan(argv, registry: Registry) -> Plan:
 
 def check_sweep(multirun_cfg) -> None:
     """Refuse (a ValueError naming the key) a sweep before its first job: a search the wrong
-    way (:func:`~topomap.app.compose.config_checks.check_search_direction`), SLURM's launcher on
-    a machine without ``sbatch``, a folder that holds another sweep's jobs
+    way (:func:`~topomap.app.compose.config_checks.check_search_direction`), or going on from a
+    folder without a study of its objective (:func:`~topomap.app.compose.study.check_resume`),
+    SLURM's launcher on a machine without ``sbatch``, a folder that holds another sweep's jobs
     (:func:`~topomap.app.report.jobs.check_sweep_folder`; with ``output.resume=true``, those of
     the same sweep go on)."""
     import shutil
@@ -316,6 +317,13 @@ def check_sweep(multirun_cfg) -> None:
     from .report.jobs import check_sweep_folder
 
     check_search_direction(multirun_cfg)
+    resume_from = OmegaConf.select(multirun_cfg, "hydra.sweeper.storage.resume_from",
+                                   default=None)
+    if resume_from not in (None, ""):
+        from .compose.study import check_resume
+
+        objective = OmegaConf.select(multirun_cfg, "objective", default=None)
+        check_resume(str(resume_from), str(getattr(objective, "value", objective)))
     launcher = str(OmegaConf.select(multirun_cfg, "hydra.launcher._target_", default="") or "")
     if launcher.endswith("SlurmLauncher") and shutil.which("sbatch") is None:
         raise ValueError("hydra/launcher=slurm submits the jobs with SLURM's sbatch, which is not "
