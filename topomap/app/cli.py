@@ -151,6 +151,7 @@ def _single_run(cfg, out, registry: Registry, plan: Plan) -> dict:
     saying so; a run failed by its settings or data removes the folder it made
     (``plan.new_folder``) and ends the command with one line on stderr."""
     from .run.experiment import run
+    from .run.interrupts import ending
     from .run.job import write_status
     from .run.outputs import OutputDirInUse, remove_new_folder
 
@@ -159,6 +160,7 @@ def _single_run(cfg, out, registry: Registry, plan: Plan) -> dict:
     except OutputDirInUse as exc:  # another run's folder: leave it as it is
         sys.exit(f"topomap: error: {exc}")
     except KeyboardInterrupt:
+        ending()
         write_status(out, "interrupted")
         log.warning("interrupted")
         print(f"topomap: interrupted; {out}/status.json says so", file=sys.stderr)
@@ -195,7 +197,11 @@ INTERRUPTED = 130
 
 def _interrupted(plan: Plan) -> None:
     """After Ctrl-C or SIGTERM outside a single run's own handling: a sweep writes its report
-    (with the interrupted job and the jobs that did not start); then one line, exit 130."""
+    (with the interrupted job and the jobs that did not start); then one line, exit 130.  A
+    second Ctrl-C meanwhile is recorded, not raised."""
+    from .run.interrupts import ending
+
+    ending()
     where = _report_early_end(plan)
     print("topomap: interrupted" + (f"; sweep report in {where}" if where else ""),
           file=sys.stderr)
