@@ -8,7 +8,7 @@ none of them imports another to learn a file's name.
 * the files: :data:`OUTPUT_FILES` (every run), :data:`FIGURE_FILES`, :data:`HTML_FILES`,
   :data:`PATH_FIGURES` and :data:`MAPPING_FIGURES` (with ``output.figures``),
   :data:`LOCALIZE_FILES` (``task=localize``), :data:`STATUS_FILE` and, in a sweep's folder,
-  :data:`CACHE_DIR`;
+  :data:`CACHE_DIR` and a search's :data:`STUDY_FILE`;
 * the numbers of ``metrics.json`` (and ``status.json``) by name, :data:`COLUMNS`: where each is,
   its label and which way is better -- the columns of a sweep's ``summary.csv`` and a logger's
   metrics;
@@ -28,7 +28,7 @@ from omegaconf.errors import OmegaConfBaseException
 
 from ..core.checks import ParameterError
 
-__all__ = ["METRICS_FILE", "STATUS_FILE", "CACHE_DIR", "OUTPUT_FILES", "LOCALIZE_FILES",
+__all__ = ["METRICS_FILE", "STATUS_FILE", "CACHE_DIR", "STUDY_FILE", "OUTPUT_FILES", "LOCALIZE_FILES",
            "FIGURE_FILES", "HTML_FILES", "PATH_FIGURES", "MAPPING_FIGURES", "Column", "COLUMNS",
            "METRICS", "check_metric", "select", "OBJECTIVES", "objective_direction", "UNITS"]
 
@@ -41,6 +41,9 @@ METRICS_FILE = "metrics.json"
 STATUS_FILE = "status.json"
 #: the folder of a sweep where its jobs share simulated trajectories
 CACHE_DIR = ".cache"
+#: an optimising search's trials (Optuna's study), in its sweep folder: their objective, and
+#: each trial's parameters, value and the sweep folder and job it ran as
+STUDY_FILE = "study.json"
 
 #: files every run writes, with what they hold (figures only with ``output.figures``)
 OUTPUT_FILES = {
