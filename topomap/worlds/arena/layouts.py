@@ -86,6 +86,13 @@ class Layout:
         (x0, y0), (x1, y1) = self.boundary.min(axis=0), self.boundary.max(axis=0)
         return float(x0), float(x1), float(y0), float(y1)
 
+    @property
+    def reach(self) -> float:
+        """Metres: the diagonal of the boundary's bounding box, the longest straight line on the
+        floor plan (a beam this long from anywhere on the floor meets a wall)."""
+        x0, x1, y0, y1 = self.extent
+        return float(np.hypot(x1 - x0, y1 - y0))
+
     def inside(self, points) -> np.ndarray:
         """Which points lie on the floor: inside the boundary and outside every hole."""
         mask = inside_polygon(points, self.boundary)

@@ -42,16 +42,19 @@ class RangeFinder:
     ----------
     n_beams : int
         Beams, at angles ``360 k / n_beams`` degrees, anticlockwise.
-    max_range : float
-        Metres; a beam meeting no wall within it reads ``max_range``.
+    max_range : float or None
+        Metres; a beam meeting no wall within it reads ``max_range``.  None (the default): the
+        layout's reach, the diagonal of its bounding box (:attr:`Layout.reach`), so every beam
+        from the floor meets a wall (a 1 x 1 m box: 1.41 m; ``two_rooms``: 2.69 m).
     frame : str
         ``"compass"`` (beam 0 points east, whatever the heading) or ``"egocentric"`` (beam 0
         points along the heading, as a scanner fixed to the robot).
     """
 
-    def __init__(self, n_beams: int = 12, max_range: float = 3.0, frame: str = "compass"):
+    def __init__(self, n_beams: int = 12, max_range: float | None = None,
+                 frame: str = "compass"):
         self.n_beams = check_count(n_beams, "n_beams")
-        self.max_range = positive("max_range", max_range)
+        self.max_range = None if max_range is None else positive("max_range", max_range)
         if frame not in FRAMES:
             raise ParameterError("frame", f"must be one of {', '.join(FRAMES)}, got {frame!r}")
         self.frame = frame
@@ -61,24 +64,34 @@ class RangeFinder:
         """(B,) radians of the beams relative to east (compass) or to the heading (egocentric)."""
         return 2 * np.pi * np.arange(self.n_beams) / self.n_beams
 
+    def n_features(self, arena) -> int:
+        """Readings per step: one per beam."""
+        return self.n_beams
+
+    def range_in(self, layout) -> float:
+        """Metres a beam reaches in ``layout``: ``max_range``, or the layout's reach if None."""
+        return layout.reach if self.max_range is None else self.max_range
+
     def sense(self, arena, motion) -> np.ndarray:
         """(T, n_beams) ranges in metres along the path; a ParameterError naming ``max_range``
         when a beam sees no wall within range anywhere on the path."""
         angles = self.beam_angles[None, :]
         if self.frame == "egocentric":
             angles = angles + motion.heading[:, None]
-        R = ray_distances(motion.positions, angles, arena.layout.segments, self.max_range)
-        blind = np.flatnonzero((R >= self.max_range).all(axis=0))
+        reach = self.range_in(arena.layout)
+        R = ray_distances(motion.positions, angles, arena.layout.segments, reach)
+        blind = np.flatnonzero((R >= reach).all(axis=0))
         if blind.size:
             k = int(blind[0])
-            raise ParameterError("max_range", f"={self.max_range:g} m is too short: beam {k} "
+            raise ParameterError("max_range", f"={reach:g} m is too short: beam {k} "
                                  f"({np.degrees(self.beam_angles[k]):g} degrees, {self.frame}) "
-                                 "sees no wall within it anywhere on the path")
+                                 f"sees no wall within it anywhere on the path of {len(motion)} "
+                                 f"steps (the layout's reach is {arena.layout.reach:.2f} m)")
         return R
 
     def __repr__(self) -> str:
-        return (f"RangeFinder(n_beams={self.n_beams}, max_range={self.max_range:g}, "
-                f"frame={self.frame!r})")
+        reach = "None" if self.max_range is None else f"{self.max_range:g}"
+        return f"RangeFinder(n_beams={self.n_beams}, max_range={reach}, frame={self.frame!r})"
 
 
 class _Cells:
@@ -103,6 +116,10 @@ class _Cells:
                     arena.environment.remove_agent(agent)
             self._built = (arena, cells)
         return self._built[1]
+
+    def n_features(self, arena) -> int:
+        """Readings per step: one per cell."""
+        return self.n
 
     def sense(self, arena, motion) -> np.ndarray:
         """(T, n) firing rates along the path."""

@@ -122,7 +122,8 @@ class ArenaWorld:
         Seconds into a recorded path at which ``simulate`` starts.
     sensor : str or sensor object
         ``"range"``, ``"bvc"``, ``"ovc"`` (each with its defaults) or a sensor such as
-        ``RangeFinder(n_beams=12, max_range=3.0)``.
+        ``RangeFinder(n_beams=12, max_range=3.0)``; ``"range"``'s beams reach across the
+        layout (``max_range=None``).
     actions : str or action rule
         ``"compass"``, ``"turns"`` (with their defaults) or a rule such as
         ``TurnActions(angular_threshold=1.0)``.
@@ -177,6 +178,12 @@ rotational_velocity_coherence_time, thigmotaxis, wall_repel_distance, wall_repel
     @property
     def n_actions(self) -> int:
         return len(self.action_names)
+
+    @property
+    def n_features(self) -> int | None:
+        """Observations per step, as the sensor says without sensing (None if it does not)."""
+        count = getattr(self.sensor, "n_features", None)
+        return None if count is None else int(count(self.arena))
 
     @property
     def region_names(self) -> list[str]:
