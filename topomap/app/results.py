@@ -203,5 +203,7 @@ UNITS = {
     "loglik": "nats per step (task=localize); a log-density, like heldout_loglik",
     "position": "median_error, p90_error: metres between where a held-out step is placed (its "
                 "state's mean training position) and where it was; wrong_region: a share of the "
-                "held-out steps",
+                "held-out steps; coverage: each region's share of the training and of the "
+                "held-out steps, and heldout_unvisited, the share of held-out steps in regions "
+                "the training walk never entered",
 }
