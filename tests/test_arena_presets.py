@@ -81,6 +81,7 @@ SHRUNK = {
     "sweep_pricai2002": ["clusters.ns=10,20", "stop.n_states=30"],
     "arena_two_rooms": ["data.n_steps=3000", "data.heldout_steps=1000"],
     "rat_tanni": ["data.n_steps=3000", "data.heldout_steps=1000"],
+    "arena_robot": ["data.n_steps=3000", "data.heldout_steps=1000"],
 }
 
 

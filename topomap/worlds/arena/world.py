@@ -29,6 +29,7 @@ from .checks import non_negative, positive, require_ratinabox
 from .floorplan import FLOORPLAN_SUFFIXES, load_floorplan
 from .layouts import LAYOUTS, Layout, builtin_layout
 from .kinematics import MOTION_PARAMETERS, Motion, random_motion
+from .odometry import ODOMETRY_STREAM, WheelOdometry
 from .paths import RecordedPath
 from .plot import plot_layout
 from .sensors import make_sensor
@@ -94,6 +95,25 @@ def make_layout(layout, recording: RecordedPath | None, floorplan: str | None = 
     return builtin_layout(layout)
 
 
+#: the odometry components by name (a world given a name builds it with its defaults)
+ODOMETRIES = {"none": None, "wheel": WheelOdometry}
+
+
+def make_odometry(odometry):
+    """None for no odometry (None or ``"none"``), the odometry named ``odometry`` with its
+    defaults, or ``odometry`` itself if it has a ``dead_reckoning`` method."""
+    if odometry is None or isinstance(odometry, str):
+        if odometry is not None and odometry not in ODOMETRIES:
+            raise ParameterError("odometry", f"must be one of {', '.join(ODOMETRIES)} or an "
+                                             f"odometry object, got {odometry!r}")
+        factory = ODOMETRIES.get(odometry)
+        return None if factory is None else factory()
+    if not callable(getattr(odometry, "dead_reckoning", None)):
+        raise ParameterError("odometry", "must have a dead_reckoning(motion, rng) method, got "
+                                         f"{odometry!r}")
+    return odometry
+
+
 def _check_explorer(explorer) -> None:
     if explorer is not None and type(explorer) is not RandomExplorer:
         raise ValueError(f"explorer {explorer!r} cannot steer the arena: its motion is "
@@ -131,6 +151,11 @@ class ArenaWorld:
 rotational_velocity_coherence_time, thigmotaxis, wall_repel_distance, wall_repel_strength : float
         ratinabox's random-motion parameters (m/s, s, rad/s, s, in [0, 1], m, -), with its
         defaults, fitted to rats (keyword only, as the parameters after them).
+    odometry : str, odometry object or None
+        The robot's own dead reckoning, kept as the walks' ``odometry``: None or ``"none"``
+        (the default: none), ``"wheel"`` (:class:`~.odometry.WheelOdometry` with its
+        defaults) or an object such as ``WheelOdometry(gyro_bias=0.02)``.  Its errors are drawn
+        from the walk's seed (a recorded path: from its first step).
     path_tolerance : float
         Metres a recorded position may lie off the floor (tracking noise); it is moved 1 mm
         inside.  Farther off is an error.
@@ -141,7 +166,8 @@ rotational_velocity_coherence_time, thigmotaxis, wall_repel_distance, wall_repel
     def __init__(self, layout: str | Layout = "auto", floorplan: str | None = None,
                  path: str | None = None, dt: float = 0.1,
                  start: float = 0.0, sensor: str | object = "range",
-                 actions: str | object = "compass", *, speed_mean: float = 0.08,
+                 actions: str | object = "compass", odometry: str | object | None = None, *,
+                 speed_mean: float = 0.08,
                  speed_coherence_time: float = 0.7, rotational_velocity_std: float = math.radians(120),
                  rotational_velocity_coherence_time: float = 0.08, thigmotaxis: float = 0.5,
                  wall_repel_distance: float = 0.1, wall_repel_strength: float = 1.0,
@@ -154,6 +180,7 @@ rotational_velocity_coherence_time, thigmotaxis, wall_repel_distance, wall_repel
         self.recording = None if path in (None, "") else RecordedPath(path)
         self.sensor = make_sensor(sensor)
         self.action_rule = make_action_rule(actions)
+        self.odometry = make_odometry(odometry)
         values = (speed_mean, speed_coherence_time, rotational_velocity_std,
                   rotational_velocity_coherence_time, thigmotaxis, wall_repel_distance,
                   wall_repel_strength)
@@ -209,7 +236,7 @@ rotational_velocity_coherence_time, thigmotaxis, wall_repel_distance, wall_repel
             return self.walk_from(round(self.start / self.dt), n_steps)
         seed = int(rng.integers(2**32))
         samples = random_motion(self.arena.environment, n_steps, self.dt, self.motion_params, seed)
-        return self._trajectory(Motion.from_samples(samples, self.dt), {"seed": seed})
+        return self._trajectory(Motion.from_samples(samples, self.dt), {"seed": seed}, seed)
 
     def walk_from(self, first_step: int, n_steps: int) -> Trajectory:
         """Steps ``first_step`` to ``first_step + n_steps - 1`` of the recorded path (steps of
@@ -226,7 +253,7 @@ rotational_velocity_coherence_time, thigmotaxis, wall_repel_distance, wall_repel
         samples = self.recording.resample(first * self.dt, self.dt, n_steps + 1)
         samples, moved = self._onto_floor(samples, first)
         motion = Motion.from_samples(samples, self.dt, t0=first * self.dt)
-        return self._trajectory(motion, {"first_step": first, "moved_onto_floor": moved})
+        return self._trajectory(motion, {"first_step": first, "moved_onto_floor": moved}, first)
 
     def heldout_walk(self, n_steps: int, explorer, rng: np.random.Generator,
                      after: int = 0) -> Trajectory:
@@ -262,7 +289,7 @@ rotational_velocity_coherence_time, thigmotaxis, wall_repel_distance, wall_repel
                              f"more than path_tolerance={self.path_tolerance:g} m")
         return P, int(moved.sum())
 
-    def _trajectory(self, motion: Motion, meta: dict) -> Trajectory:
+    def _trajectory(self, motion: Motion, meta: dict, key: int) -> Trajectory:
         try:  # a problem of the sensor's or the rule's parameters, named as the world's parts
             X = self.sensor.sense(self.arena, motion)
         except ParameterError as err:
@@ -274,8 +301,13 @@ rotational_velocity_coherence_time, thigmotaxis, wall_repel_distance, wall_repel
         meta = {"world": "arena", "layout": self.layout.name, "dt": self.dt,
                 "path": None if self.recording is None else self.recording.source,
                 "sensor": repr(self.sensor), "actions": repr(self.action_rule), **meta}
+        odometry = None
+        if self.odometry is not None:  # its own stream of the walk's seed: the same path
+            rng = np.random.default_rng([int(key), ODOMETRY_STREAM])
+            odometry = self.odometry.dead_reckoning(motion, rng)
+            meta["odometry"] = repr(self.odometry)
         return Trajectory(observations=X, actions=u, positions=motion.positions,
-                          action_names=self.action_names, meta=meta)
+                          odometry=odometry, action_names=self.action_names, meta=meta)
 
     @property
     def wall_segments(self) -> np.ndarray:
@@ -289,5 +321,6 @@ rotational_velocity_coherence_time, thigmotaxis, wall_repel_distance, wall_repel
 
     def __repr__(self) -> str:
         source = "random motion" if self.recording is None else self.recording.source
+        odometry = "" if self.odometry is None else f", odometry={self.odometry!r}"
         return (f"ArenaWorld(layout={self.layout.name!r}, {source}, dt={self.dt:g}, "
-                f"sensor={self.sensor!r}, actions={self.action_rule!r})")
+                f"sensor={self.sensor!r}, actions={self.action_rule!r}{odometry})")
