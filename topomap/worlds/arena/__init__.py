@@ -17,7 +17,7 @@ module              its one job
 ``geometry``        rays against walls, points against polygons, whole paths at once (numpy)
 ``kinematics``      :class:`Motion` (the moves a path's samples make), ratinabox's random motion
 ``paths``           recorded paths (ratinabox's rats, the user's files), resampled every ``dt``
-``sensors``         range finder, boundary-vector and object-vector cells
+``sensors``         range finder; boundary-vector, object-vector, place and grid cells
 ``actions``         discrete actions read off the motion: compass octants, differential-drive turns
 ``odometry``        the robot's wheel odometry: dead reckoning with encoder noise, gyro bias, slips
 ``world``           :class:`ArenaWorld`: the world that ties them together
@@ -33,10 +33,11 @@ from .layouts import LAYOUTS, Layout, builtin_layout
 from .kinematics import Motion
 from .odometry import WheelOdometry
 from .paths import DATASETS, RecordedPath
-from .sensors import SENSORS, BoundaryVectorCells, ObjectVectorCells, RangeFinder
+from .sensors import (SENSORS, BoundaryVectorCells, GridCells, ObjectVectorCells, PlaceCells,
+                      RangeFinder)
 from .world import Arena, ArenaWorld
 
 __all__ = ["ArenaWorld", "Arena", "Layout", "LAYOUTS", "builtin_layout", "load_floorplan",
            "floorplan_from_dict", "Motion", "RecordedPath", "DATASETS", "RangeFinder",
-           "BoundaryVectorCells", "ObjectVectorCells", "SENSORS", "CompassActions",
+           "BoundaryVectorCells", "ObjectVectorCells", "PlaceCells", "GridCells", "SENSORS", "CompassActions",
            "TurnActions", "ACTION_RULES", "WheelOdometry", "MissingDependencyError"]

@@ -69,6 +69,22 @@ class Layout:
         object.__setattr__(self, "regions", tuple((str(n), _points(p, (2,)))
                                                   for n, p in self.regions))
 
+    @classmethod
+    def from_environment(cls, environment, name: str = "environment") -> "Layout":
+        """The floor plan of a ratinabox ``Environment`` (2-D, solid boundary): its boundary,
+        walls, holes and objects; no regions."""
+        from ...core.checks import ParameterError
+
+        if environment.dimensionality != "2D" or environment.boundary_conditions != "solid":
+            raise ParameterError("layout", f"must be a 2D ratinabox Environment with solid "
+                                           f"boundaries, got {environment.dimensionality} "
+                                           f"{environment.boundary_conditions}")
+        walls = environment.params.get("walls") or np.zeros((0, 2, 2))
+        objects = environment.objects
+        return cls(name, environment.boundary, walls=walls,
+                   holes=tuple(environment.holes or ()), objects=objects["objects"],
+                   object_types=objects["object_types"])
+
     @property
     def segments(self) -> np.ndarray:
         """Everything that blocks a beam: the boundary's edges, the walls, the holes' edges."""

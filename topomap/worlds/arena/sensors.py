@@ -16,6 +16,12 @@ the run's noise component (:mod:`topomap.worlds.noise`) applies on top.
     firing rates in ``[0, 1]``.
 :class:`ObjectVectorCells`
     ratinabox's object-vector cells, tuned to the layout's objects (allocentric).
+:class:`PlaceCells`
+    ratinabox's place cells: Gaussian bumps of firing around centres drawn on the floor
+    (distances around walls, ``geodesic``, by default).
+:class:`GridCells`
+    ratinabox's grid cells: rectified cosine gratings in three modules of spacing 0.3, 0.5 and
+    0.8 m (ratinabox's defaults).
 
 The cells' tuning is drawn from the sensor's own ``seed``, so every walk through a world (the one
 learned from and the held-out one) is seen by the same cells.
@@ -30,7 +36,8 @@ from .checks import positive
 from .geometry import ray_distances
 from .kinematics import isolated_global_rng
 
-__all__ = ["RangeFinder", "BoundaryVectorCells", "ObjectVectorCells", "SENSORS", "make_sensor"]
+__all__ = ["RangeFinder", "BoundaryVectorCells", "ObjectVectorCells", "PlaceCells", "GridCells",
+           "SENSORS", "make_sensor"]
 
 FRAMES = ("compass", "egocentric")
 
@@ -190,8 +197,74 @@ class ObjectVectorCells(_Cells):
                 f"walls_occlude={self.walls_occlude})")
 
 
+class PlaceCells(_Cells):
+    """ratinabox's place cells, ``n`` of them, centres drawn from ``seed`` on the floor.
+
+    Parameters
+    ----------
+    n : int
+        Cells (features).
+    seed : int
+        Seeds the cells' centres.
+    widths : float
+        Metres: the width (standard deviation) of each cell's Gaussian field.
+    wall_geometry : str
+        How a field reaches around walls: ``"geodesic"`` (the shortest way round),
+        ``"line_of_sight"`` (not past a wall) or ``"euclidean"`` (through walls).
+    """
+
+    GEOMETRIES = ("geodesic", "line_of_sight", "euclidean")
+
+    def __init__(self, n: int = 16, seed: int = 0, widths: float = 0.2,
+                 wall_geometry: str = "geodesic"):
+        self.n = check_count(n, "n")
+        self.seed = int(seed)
+        self.widths = positive("widths", widths)
+        if wall_geometry not in self.GEOMETRIES:
+            raise ParameterError("wall_geometry", f"must be one of {', '.join(self.GEOMETRIES)}"
+                                                  f", got {wall_geometry!r}")
+        self.wall_geometry = wall_geometry
+
+    def _make(self, agent):
+        from ratinabox.Neurons import PlaceCells as PCs
+
+        return PCs(agent, params={"n": self.n, "widths": self.widths,
+                                  "wall_geometry": self.wall_geometry})
+
+    def __repr__(self) -> str:
+        return (f"PlaceCells(n={self.n}, seed={self.seed}, widths={self.widths:g}, "
+                f"wall_geometry={self.wall_geometry!r})")
+
+
+class GridCells(_Cells):
+    """ratinabox's grid cells, ``n`` of them, phases drawn from ``seed``: rectified cosine
+    gratings, spread over three modules of spacing 0.3, 0.5 and 0.8 m and orientation 0, 0.1 and
+    0.2 rad (ratinabox's defaults).
+
+    Parameters
+    ----------
+    n : int
+        Cells (features).
+    seed : int
+        Seeds the cells' modules and phases.
+    """
+
+    def __init__(self, n: int = 30, seed: int = 0):
+        self.n = check_count(n, "n")
+        self.seed = int(seed)
+
+    def _make(self, agent):
+        from ratinabox.Neurons import GridCells as GCs
+
+        return GCs(agent, params={"n": self.n})
+
+    def __repr__(self) -> str:
+        return f"GridCells(n={self.n}, seed={self.seed})"
+
+
 #: the sensors by name (a world given a name builds the sensor with its defaults)
-SENSORS = {"range": RangeFinder, "bvc": BoundaryVectorCells, "ovc": ObjectVectorCells}
+SENSORS = {"range": RangeFinder, "bvc": BoundaryVectorCells, "ovc": ObjectVectorCells,
+           "place_cells": PlaceCells, "grid_cells": GridCells}
 
 
 def make_sensor(sensor):

@@ -114,6 +114,19 @@ def make_odometry(odometry):
     return odometry
 
 
+def _arena_of(layout, recording, floorplan) -> Arena:
+    """The arena of the layout ``layout`` (see :func:`make_layout`), or of a ratinabox
+    ``Environment``, which it keeps."""
+    from ratinabox.Environment import Environment
+
+    if isinstance(layout, Environment):
+        if floorplan not in (None, ""):
+            raise ParameterError("floorplan", f"={floorplan} and a ratinabox Environment both "
+                                              "name the floor plan: give one of them")
+        return Arena(Layout.from_environment(layout), layout)
+    return Arena.build(make_layout(layout, recording, floorplan))
+
+
 def _check_explorer(explorer) -> None:
     if explorer is not None and type(explorer) is not RandomExplorer:
         raise ValueError(f"explorer {explorer!r} cannot steer the arena: its motion is "
@@ -126,10 +139,12 @@ class ArenaWorld:
 
     Parameters
     ----------
-    layout : str or Layout
+    layout : str, Layout or ratinabox Environment
         A built-in layout (``open``, ``two_rooms``, ``four_rooms``, ``corridor``), a floor-plan
-        file (``.yaml``, ``.yml``, ``.json``), a :class:`Layout`, or ``"auto"``: the box of a
-        shipped recording, else ``two_rooms``.
+        file (``.yaml``, ``.yml``, ``.json``), a :class:`Layout`, ``"auto"``: the box of a
+        shipped recording, else ``two_rooms``; or a ratinabox ``Environment`` (2-D, solid),
+        walked as it is (its floor plan :meth:`Layout.from_environment`, without regions).  A
+        ratinabox ``Agent``'s world is :meth:`from_agent`.
     floorplan : str or None
         A floor-plan file (``.yaml``, ``.yml``, ``.json``; :func:`.floorplan.load_floorplan`),
         the layout instead of ``layout`` (which must then be ``"auto"``).
@@ -188,7 +203,20 @@ rotational_velocity_coherence_time, thigmotaxis, wall_repel_distance, wall_repel
                               for name, v in zip(MOTION_PARAMETERS, values)}
         if self.motion_params["thigmotaxis"] > 1:
             raise ParameterError("thigmotaxis", f"must be in [0, 1], got {thigmotaxis!r}")
-        self.arena = Arena.build(make_layout(layout, self.recording, floorplan))
+        self.arena = _arena_of(layout, self.recording, floorplan)
+
+    @classmethod
+    def from_agent(cls, agent, **kwargs) -> "ArenaWorld":
+        """The world a ratinabox ``Agent`` walks in, walking as it does: its ``Environment``
+        (the layout), its ``dt`` and its random-motion parameters (``speed_mean``, ...); a new
+        agent with them walks each walk, so the walks are reproducible.  ``kwargs``: the world's
+        other arguments (``sensor``, ``actions``, ``odometry``, ``path``, ...)."""
+        motion = {name: float(getattr(agent, name)) for name in MOTION_PARAMETERS}
+        clash = sorted(set(kwargs) & {*motion, "dt", "layout", "floorplan"})
+        if clash:
+            raise ParameterError(clash[0], "is the agent's own: from_agent takes it from the "
+                                           "agent (give a new agent, or ArenaWorld(...))")
+        return cls(layout=agent.Environment, dt=float(agent.dt), **motion, **kwargs)
 
     # ------------------------------------------------------------------ what the world offers
     #: the world moves by itself (ratinabox's motion or a recording): no explorer steers it
