@@ -61,3 +61,24 @@ def test_a_held_out_walk_in_a_room_training_never_entered_is_flagged(tmp_path, m
     assert "regions covered: training left 100%, right 0%; held-out left 0%, right 100%" in said
     assert any(m.startswith("100% of the held-out steps lie in regions the training walk never "
                             "entered (right)") for m in said)
+
+
+def test_the_arena_walks_its_own_length_unless_told(make_cfg):
+    """data.n_steps left out: the arena walks WALK_STEPS = 18,000 steps (30 minutes at 10 Hz),
+    half of a recorded path at most, the office the paper's 2,000; a told length wins, and the
+    held-out walk is as long by default."""
+    pytest.importorskip("ratinabox")
+    from topomap.app.run.experiment import check_and_build
+    from topomap.worlds.arena.world import WALK_STEPS
+
+    assert WALK_STEPS == 18000
+    for overrides, steps, held in [(["env=arena"], 18000, 18000),
+                                   (["env=arena", "env.path=sargolini"], 2998, 2998),
+                                   (["env=arena", "data.n_steps=500"], 500, 500),
+                                   (["env=arena", "data.heldout_steps=0"], 18000, 0),
+                                   ([], 2000, 2000)]:
+        parts = check_and_build(make_cfg(overrides)).parts
+        assert parts.data.steps(parts.env) == steps, overrides
+        assert parts.data.heldout_steps_in(parts.env) == held, overrides
+    with pytest.raises(ValueError, match=r"^stop.n_states=9001 is more than half of the 18000"):
+        check_and_build(make_cfg(["env=arena", "stop.n_states=9001"]))

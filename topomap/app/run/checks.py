@@ -29,9 +29,9 @@ def check_before_data(cfg: dict, parts: Parts) -> None:
                          "are drawn where P(x'|x,u) > output.min_prob")
     data = parts.data
     if getattr(data, "simulates", False) and parts.env is not None:
-        steps = int(data.n_steps) + int(getattr(data, "heldout_steps", 0) or 0)
-        check_walk_memory(cfg, parts, steps)
-        check_state_count(parts.stop, int(data.n_steps))
+        walk = data.steps(parts.env)
+        check_walk_memory(parts, walk, walk + data.heldout_steps_in(parts.env))
+        check_state_count(parts.stop, walk)
 
 
 def available_memory() -> int | None:
@@ -69,7 +69,7 @@ def observation_size(env) -> int | None:
     return int(probe.observations.shape[1])
 
 
-def check_walk_memory(cfg: dict, parts: Parts, steps: int) -> None:
+def check_walk_memory(parts: Parts, walk: int, steps: int) -> None:
     """Refuse a simulated walk whose observations alone would not fit in the memory available,
     saying how much it needs (:func:`observation_size` gives the size of a step)."""
     free = available_memory()
@@ -81,7 +81,7 @@ def check_walk_memory(cfg: dict, parts: Parts, steps: int) -> None:
     if need > free:
         gib = 2 ** 30
         raise ValueError(
-            f"data.n_steps={cfg['data']['n_steps']} needs at least {need / gib:.0f} GiB for the "
+            f"data.n_steps={walk} needs at least {need / gib:.0f} GiB for the "
             f"walk alone ({steps} steps, held-out walk included, of {width} features) and "
             f"{free / gib:.0f} GiB of memory is available; give at most "
             f"data.n_steps={max(1, free // per_step // 2)} (with data.heldout_steps=0 no "

@@ -12,10 +12,11 @@ from __future__ import annotations
 
 __all__ = ["check_walkable", "MIN_PASSAGE", "MIN_OVERLAP"]
 
-#: metres: the narrowest door or corridor a plan may have.  ratinabox's random motion (its default
-#: wall_repel_distance 0.1 m) crossed a 0.05 m door of a 2 x 1 m box 0-3 times in 30 minutes,
-#: a 0.1 m door 40-60 times and the built-in layouts' 0.3 m doors ~160 times (three seeds each,
-#: ``benchmarks/notes/arena-floor-plans.md``); a rat's body is about 0.05 m wide.
+#: metres: the narrowest door or corridor a plan may have.  ratinabox's random motion (its
+#: defaults: wall_repel_distance 0.1 m) crossed the door in a wall across a 2 x 1 m box, in 30
+#: minutes, 0-1 times through 0.01, 0.03 and 0.05 m doors, 1-6 times through 0.1 m and 7-12
+#: times through the built-in layouts' 0.3 m (two or three seeds each;
+#: ``benchmarks/notes/arena-walks.md``): a door of 0.05 m or less is all but closed to it.
 MIN_PASSAGE = 0.05
 #: square metres two regions may share (the width of a drawn line): more, and a step there
 #: would count in both

@@ -34,7 +34,14 @@ from .paths import RecordedPath
 from .plot import plot_layout
 from .sensors import make_sensor
 
-__all__ = ["ArenaWorld", "Arena", "make_layout"]
+__all__ = ["ArenaWorld", "Arena", "make_layout", "WALK_STEPS"]
+
+#: steps of the arena's default walk (``data.n_steps`` left out): 30 minutes at 10 Hz, by which
+#: ratinabox's random motion had entered every region of ``open``, ``two_rooms`` and
+#: ``four_rooms`` on each of three seeds (by step 787, 1,733 and 10,789 at the latest; 2,000
+#: steps left whole rooms of ``four_rooms`` unvisited on all three), and of ``corridor`` on two
+#: (16,703; one seed missed a room in 40 minutes): ``benchmarks/notes/arena-walks.md``
+WALK_STEPS = 18000
 
 
 @dataclass(frozen=True, eq=False)
@@ -247,6 +254,15 @@ rotational_velocity_coherence_time, thigmotaxis, wall_repel_distance, wall_repel
     def region_of(self, positions) -> np.ndarray:
         """The layout's region of each position (``(T,)`` ids into :attr:`region_names`)."""
         return self.layout.region_of(positions)
+
+    @property
+    def default_steps(self) -> int:
+        """Steps of a walk when the run names none (``data.n_steps`` left out):
+        :data:`WALK_STEPS` of random motion, or half of a recorded path (at most as many), so
+        that a held-out walk of as many steps fits after it."""
+        if self.recording is None:
+            return WALK_STEPS
+        return max(1, min(WALK_STEPS, self.recording.n_steps(self.start, self.dt) // 2))
 
     @property
     def path_steps(self) -> int | None:
