@@ -58,11 +58,14 @@ LOCALIZE_FILES = {
 }
 FIGURE_FILES = {
     "fig_states.png": "observation points coloured by state after clustering, after splitting and "
-                      "(with refine) after the refinement (the paper's Fig. 4, right)",
+                      "(with refine) after the refinement, or a continuous log's places "
+                      "(the paper's Fig. 4, right)",
     "fig_split.png": "a compound state before and after its split, with transition tables (Figs. 5-6)",
-    "fig_map.png": "the learned map at the states' mean positions (without positions: at a graph "
-                   "layout), arcs where P > min_prob (Fig. 7)",
-    "fig_entropy.png": "H(u|x), H(x'|x,u) and their sum after each split (and after the refinement)",
+    "fig_map.png": "the learned map at the states' mean positions (without positions, or states "
+                   "scattered over the floor: at a graph layout), arcs where P > min_prob and "
+                   "self-loops (a map that mostly stays: the moves between states) (Fig. 7)",
+    "fig_entropy.png": "H(u|x), H(x'|x,u) and their sum after each split (and after the "
+                       "refinement, or a continuous log's places)",
 }
 #: the figure a run whose steps have positions but no discrete places adds (the arena, a log)
 PATH_FIGURES = {
