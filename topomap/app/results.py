@@ -61,11 +61,14 @@ LOCALIZE_FILES = {
 }
 FIGURE_FILES = {
     "fig_states.png": "observation points coloured by state after clustering, after splitting and "
-                      "(with refine) after the refinement (the paper's Fig. 4, right)",
+                      "(with refine) after the refinement, or a continuous log's places "
+                      "(the paper's Fig. 4, right)",
     "fig_split.png": "a compound state before and after its split, with transition tables (Figs. 5-6)",
-    "fig_map.png": "the learned map at the states' mean positions (without positions: at a graph "
-                   "layout), arcs where P > min_prob (Fig. 7)",
-    "fig_entropy.png": "H(u|x), H(x'|x,u) and their sum after each split (and after the refinement)",
+    "fig_map.png": "the learned map at the states' mean positions (without positions, or states "
+                   "scattered over the floor: at a graph layout), arcs where P > min_prob and "
+                   "self-loops (a map that mostly stays: the moves between states) (Fig. 7)",
+    "fig_entropy.png": "H(u|x), H(x'|x,u) and their sum after each split (and after the "
+                       "refinement, or a continuous log's places)",
 }
 #: the figure a run whose steps have positions but no discrete places adds (the arena, a log)
 PATH_FIGURES = {
@@ -206,5 +209,7 @@ UNITS = {
     "loglik": "nats per step (task=localize); a log-density, like heldout_loglik",
     "position": "median_error, p90_error: metres between where a held-out step is placed (its "
                 "state's mean training position) and where it was; wrong_region: a share of the "
-                "held-out steps",
+                "held-out steps; coverage: each region's share of the training and of the "
+                "held-out steps, and heldout_unvisited, the share of held-out steps in regions "
+                "the training walk never entered",
 }
