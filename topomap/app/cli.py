@@ -360,6 +360,18 @@ def main() -> None:
     if "--version" in argv:
         print(version_line())
         return
+    from .compose.help_cache import keeping_help, kept_help
+
+    kept = kept_help(argv)
+    if kept is not None:
+        sys.stdout.write(kept)
+        return
+    with keeping_help(argv):
+        _main(argv)
+
+
+def _main(argv: list[str]) -> None:
+    """:func:`main` past ``--version`` and a kept ``--help``."""
     import hydra
 
     from .compose.command_line import CONFIG_MODULE, overrides_of, screen_command_line
