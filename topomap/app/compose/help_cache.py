@@ -115,13 +115,12 @@ def keeping_help(argv: list[str]):
 
 
 def _write(text: str) -> None:
+    from ...core.data.atomic import atomic_write
+
     path = help_file()
     if path is None:
         return
     try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_name(f".{path.name}.{os.getpid()}")
-        tmp.write_text(text)
-        os.replace(tmp, path)
+        atomic_write(path, lambda tmp: tmp.write_text(text))
     except OSError:  # a read-only home: compose it again next time
         pass
