@@ -135,7 +135,7 @@ def _observed_em(seq, data, counts, emit, candidates, clone_symbol, settings, ex
     trans = normalise_transitions(counts, pseudo)
     plain = np.flatnonzero(seq.sym < ns)
     other = clone_symbol[:, None] != seq.sym[None, plain]  # (S, plain steps)
-    misread = 0.0
+    misread, read = 0.0, None
     while not monitor.converged and monitor.iter < s.max_iter:
         stats, ll = soft_estep(data, SoftModel(trans, emit, init, *candidates), clone_symbol,
                                prune=s.prune)  # no read tables: T read "symbols"
@@ -145,4 +145,17 @@ def _observed_em(seq, data, counts, emit, candidates, clone_symbol, settings, ex
         trans = normalise_transitions(stats.trans, pseudo)
         if exact_below is not None and monitor.iter == r.detect_iter and misread < exact_below:
             break
+        if s.read_settle:
+            read, moved = _read_moved(stats.emit, clone_symbol, seq.n_ids, read)
+            if moved < s.read_settle and monitor.iter >= 2:
+                break
     return trans, misread, monitor
+
+
+def _read_moved(occupancy, clone_symbol, n_ids: int, previous):
+    """Every step's most probable symbol under the clone ``occupancy`` (S, T) of an E-step, and
+    the share of steps where it is not ``previous``'s (None: 1.0)."""
+    by_symbol = np.zeros((n_ids, occupancy.shape[1]))
+    np.add.at(by_symbol, clone_symbol, occupancy)
+    read = by_symbol.argmax(axis=0)
+    return read, 1.0 if previous is None else float(np.mean(read != previous))

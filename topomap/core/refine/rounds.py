@@ -20,7 +20,7 @@ from .renamed import fold_renamed
 from .sequence import SymbolSequence
 from .settings import RefineSettings, settings_of
 from .soft import check_evidence, soft_round, successor_surprise
-from .soft_states import keep_states, merge_twins, min_steps_of
+from .soft_states import keep_states, merge_twins, min_steps_of, successor_pairing
 from .structure import same_partition
 
 __all__ = ["CloneFit", "CloneRefinement"]
@@ -176,15 +176,17 @@ class CloneRefinement(BaseEstimator):
         return self.settings()
 
     def _hard_round(self, seq: SymbolSequence, split_state_symbol, random_state: int,
-                    init=None, split_labels=None) -> CloneFit:
+                    init=None, split_labels=None, *, corrected: bool = False) -> CloneFit:
         raise NotImplementedError
 
     def _first_hard_round(self, seq: SymbolSequence, split_state_symbol, random_state: int,
-                          init=None, split_labels=None, *, cycle: bool = False):
+                          init=None, split_labels=None, *, cycle: bool = False,
+                          corrected: bool = False):
         """A hard round a soft round starts from: the first, or (``cycle``) one on the
         corrected symbols of the cycles (default: :meth:`_hard_round`; a subclass may cut it
         short where its labelling still shows misreads, setting the fit's ``resume``)."""
-        return self._hard_round(seq, split_state_symbol, random_state, init, split_labels)
+        return self._hard_round(seq, split_state_symbol, random_state, init, split_labels,
+                                corrected=corrected)
 
     def _soft_rounds(self, seq: SymbolSequence, hard_fit: CloneFit, n_reference, random_state,
                      observed=None):
@@ -214,7 +216,7 @@ class CloneRefinement(BaseEstimator):
             return _skipped(hard_fit, surprise, [])
         rng = np.random.default_rng(random_state)
         ev = observed_evidence(seq, st.reading.temperature, observed)
-        cycle_ev = ev if st.reading.observed_in == "all" else None  # "last" / "auto": not first
+        cycle_ev, early = _first_evidence(seq, hard_fit, st.reading, ev)
         labels, state_symbol = hard_fit.labels, hard_fit.state_symbol
         n_ref = state_symbol.size if n_reference is None else int(n_reference)
         conf, rounds, read, explained = None, [], seq.sym, False
@@ -228,6 +230,7 @@ class CloneRefinement(BaseEstimator):
             conf = soft.conf
             rounds.append(soft.info)
             if r == 0:
+                soft.info.update(early)
                 nothing, cycle_ev = _after_first(soft, st.reading, ev, seq.n_symbols)
                 if nothing:
                     return _skipped(hard_fit, surprise, rounds)
@@ -256,10 +259,15 @@ class CloneRefinement(BaseEstimator):
         spare clones first: if it re-reads the symbols as they are, it is the map)."""
         split_symbol = np.where(soft.state_symbol < seq.n_symbols, soft.state_symbol, -1)
         read = replace(seq, sym=soft.sym)
-        if soft.info["corrected"] < CUT_CORRECTED * detect:  # hardly any misreads left to cut for
-            hard = self._hard_round(read, split_symbol, random_state)
+        start = self.settings_.soft.cycle_start
+        if start == "soft":
+            hard = self._hard_round(read, split_symbol, random_state,
+                                    init=(soft.labels, soft.state_symbol))
+        elif soft.info["corrected"] < CUT_CORRECTED * detect:  # hardly any misreads to cut for
+            hard = self._hard_round(read, split_symbol, random_state, corrected=start == "rough")
         else:
-            hard = self._first_hard_round(read, split_symbol, random_state, cycle=True)
+            hard = self._first_hard_round(read, split_symbol, random_state, cycle=True,
+                                          corrected=start == "rough")
         return hard, hard.resume is None and successor_surprise(read, hard.labels) < detect
 
 
@@ -291,6 +299,20 @@ SETTLE_REREAD = 1.0
 PAIRED_READ = 0.15
 
 
+def _first_evidence(seq, hard_fit, reading, ev):
+    """The per-step evidence ``ev`` the first soft round takes (None: the confusion matrix),
+    and what its record notes: with ``reading.observed_in="all"`` always; with ``"early"``
+    where the first hard round's moves pair no two symbols at least :data:`PAIRED_READ`
+    (:func:`~topomap.core.refine.soft_states.successor_pairing`, its record's
+    ``hard_paired``)."""
+    if ev is None or reading.observed_in not in ("all", "early"):
+        return None, {}
+    if reading.observed_in == "all":
+        return ev, {}
+    paired = successor_pairing(seq, hard_fit.labels)
+    return (ev if paired < PAIRED_READ else None), {"hard_paired": paired}
+
+
 def _after_first(soft, reading, ev, n_symbols: int):
     """After the first soft round ``soft``: whether it found nothing to correct (stopped early
     on exact readings, or it explains and corrects fewer than ``reading.detect`` of the steps as
@@ -299,8 +321,10 @@ def _after_first(soft, reading, ev, n_symbols: int):
     symbols at least :data:`PAIRED_READ`, ``paired`` in its record)."""
     if "stopped" in soft.info or max(soft.info["corrected"], soft.info["misread"]) < reading.detect:
         return True, None
-    if reading.observed_in != "auto" or ev is None:
-        return False, ev if reading.observed_in == "all" else None
+    if reading.observed_in == "all" or soft.info.get("evidence") == "observed":
+        return False, ev  # "early" took it from the first round: nothing paired
+    if reading.observed_in == "last" or ev is None:
+        return False, None
     soft.info["paired"] = paired = pair_read(soft.conf, n_symbols)
     return False, ev if paired < PAIRED_READ else None
 

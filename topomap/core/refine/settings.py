@@ -42,8 +42,11 @@ INF = float("inf")
 #: what stage 1 of ``refine=em`` starts from (``growth.start``)
 STARTS = ("random", "split", "split_budget", "auto")
 
+#: what a hard round on corrected symbols starts from (``soft.cycle_start``)
+CYCLE_STARTS = ("random", "rough", "soft")
+
 #: the soft rounds that take each step's evidence from its observation (``reading.observed_in``)
-OBSERVED_IN = ("last", "auto", "all")
+OBSERVED_IN = ("last", "auto", "early", "all")
 
 
 @dataclass(frozen=True)
@@ -163,6 +166,13 @@ class SoftRounds:
     """A soft round decodes its model every this many iterations (E-steps; 0: off)..."""
     label_tol: float = 1e-3
     """... and stops once fewer than this share of the steps moved (share of steps)."""
+    read_settle: float = 0.0
+    """A soft round on the per-step evidence stops once every step's most probable symbol
+    changed at fewer than this share of the steps since the E-step before (share; 0: off)."""
+    cycle_start: str = "random"
+    """What a hard round on a soft round's corrected symbols starts from: ``"random"`` counts,
+    random counts with a rough stage 1 (``"rough"``), or the soft round's labelling
+    (``"soft"``)."""
 
 
 @dataclass(frozen=True)
@@ -256,7 +266,7 @@ CHECKS = {
         "prune_loose": _PROBABILITY, "loose_below": _NON_NEGATIVE,
         "accelerate": _choice(ACCELERATIONS), "min_steps": _NON_NEGATIVE, "prune_every": _flag,
         "twin": _NON_NEGATIVE, "twin_merge": _NON_NEGATIVE, "label_every": _count(0),
-        "label_tol": _SHARE},
+        "label_tol": _SHARE, "read_settle": _SHARE, "cycle_start": _choice(CYCLE_STARTS)},
     Reading: {
         "detect": _NUMBER, "detect_iter": _count(0), "init_error": _PROBABILITY,
         "conf_diag": _POSITIVE, "conf_off": _POSITIVE, "conf_warmup": _count(0),
