@@ -232,8 +232,8 @@ def table(args, registry) -> dict:
 
 def soft_values(pairs) -> dict:
     """The settings ``GROUP.FIELD=VALUE`` of ``pairs`` (groups ``soft``, ``reading``,
-    ``growth``, ``hard``; a bare ``FIELD`` of ``soft``, or an old soft setting's name), each value read as
-    its setting's type: ``{group: {field: value}}``."""
+    ``growth``, ``hard``; a bare ``FIELD`` of ``soft``, or an old soft setting's name), each
+    value read as its setting's type: ``{group: {field: value}}``."""
     kinds = {f"{g}.{f.name}": f.type for g, cls in
              (("soft", SoftRounds), ("reading", Reading), ("growth", Growth),
               ("hard", HardRounds)) for f in fields(cls)}

@@ -41,10 +41,11 @@ from .clones import (Layout, capped_baum_welch, clone_budget, compact_labels, fi
 from .first_stage import ROUGH, first_settings, rough_first
 from .provenance import cscg_provenance, em_provenance
 from .renamed import CSCG_RENAMED, EM_RENAMED
-from .rounds import CAP_SURPRISE, CloneFit, CloneRefinement
+from .rounds import CAP_SURPRISE, CUT_SURPRISE, PAIRED_READ, CloneFit, CloneRefinement
 from .sequence import SymbolSequence
 from .settings import STARTS, CSCGRounds, Growth, HardRounds, Reading, SoftRounds
 from .soft import successor_surprise
+from .soft_states import successor_pairing
 from .structure import merge_states, same_partition, split_compounds
 
 __all__ = ["CloneFit", "CloneRefinement", "EMRefinement", "CSCGRefinement", "REFINEMENTS"]
@@ -107,16 +108,13 @@ class EMRefinement(CloneRefinement):
         return em_provenance(self.settings(), self.evidence, self.guard)
 
     def _hard_round(self, seq: SymbolSequence, split_state_symbol, random_state: int,
-                    init=None, split_labels=None, *, corrected: bool = False) -> CloneFit:
+                    init=None, split_labels=None) -> CloneFit:
         """The refinement taking every step's symbol as exact (stages 1 to 3 above; from
-        ``init`` instead of stages 1 and 2 when given; ``corrected``: symbols a soft round
-        corrected, stage 1 rough as where phase 1 reads them exactly)."""
-        return _finish(self._stages(seq, split_state_symbol, random_state, init, split_labels,
-                                    corrected))
+        ``init`` instead of stages 1 and 2 when given)."""
+        return _finish(self._stages(seq, split_state_symbol, random_state, init, split_labels))
 
     def _first_hard_round(self, seq: SymbolSequence, split_state_symbol, random_state: int,
-                          init=None, split_labels=None, *, cycle: bool = False,
-                          corrected: bool = False):
+                          init=None, split_labels=None, *, cycle: bool = False):
         """:meth:`_hard_round`, cut short before stage 3 when the labelling of all steps stage 2
         gives already shows misreads: its successor surprise
         (:func:`~topomap.core.refine.soft.successor_surprise`) at least ``CUT_SURPRISE`` x
@@ -128,8 +126,7 @@ class EMRefinement(CloneRefinement):
         from ``init`` is never cut."""
         if init is not None:  # its rounds are few and short: nothing to gain by a cut
             return self._hard_round(seq, split_state_symbol, random_state, init)
-        stages = self._stages(seq, split_state_symbol, random_state, None, split_labels,
-                              corrected)
+        stages = self._stages(seq, split_state_symbol, random_state, None, split_labels)
         labels, state_symbol, info = next(stages)
         surprise = successor_surprise(seq, labels)
         detect = self.settings_.reading.detect
@@ -139,7 +136,7 @@ class EMRefinement(CloneRefinement):
         return _finish(stages)
 
     def _stages(self, seq: SymbolSequence, split_state_symbol, random_state: int, init=None,
-                split_labels=None, corrected: bool = False):
+                split_labels=None):
         """Stages 1 to 3 as a generator: it yields ``(labels, state_symbol, info)`` of stage 2's
         last labelling, then returns the round's :class:`CloneFit` (:func:`_finish`).  With
         ``init``, a labelling ``(labels, state_symbol)`` of all steps, one EM round on all steps
@@ -160,8 +157,7 @@ class EMRefinement(CloneRefinement):
         split_state_symbol = np.asarray(split_state_symbol)
         n_split = int(np.sum(split_state_symbol >= 0))
         n = min(max(growth.prefix, growth.prefix_visits * n_split), seq.T)
-        rough = rough_first(growth, n, seq.T,
-                            0.0 if corrected else getattr(self, "ambiguity_", None))
+        rough = rough_first(growth, n, seq.T, getattr(self, "ambiguity_", None))
         labels, state_symbol, iters = self._first_round(seq.head(n), split_state_symbol, rng,
                                                         split_labels, rough=rough)
         stages, cap = [(n, int(state_symbol.size), iters)], self._stage_cap(seq.head(n), labels)
@@ -191,6 +187,8 @@ class EMRefinement(CloneRefinement):
         if self.evidence == "hard" or not cap or cap >= st.hard.max_iter:
             return None
         if successor_surprise(prefix, labels) < CAP_SURPRISE * st.reading.detect:
+            return None
+        if successor_pairing(prefix, labels) >= PAIRED_READ:  # a view cut in two: uncapped
             return None
         return cap, st.growth.stage_rtol
 
@@ -309,10 +307,6 @@ SPLIT_TRUST = 0.02
 WARM_ROUNDS = 3
 WARM_ITER = 15
 
-#: the successor surprise (in ``reading.detect``) that cuts :meth:`EMRefinement._first_hard_round`
-CUT_SURPRISE = 5.0
-
-
 def _finish(stages) -> CloneFit:
     """The return of the generator ``stages`` (:meth:`EMRefinement._stages`), run to its end."""
     while True:
@@ -353,7 +347,7 @@ class CSCGRefinement(CloneRefinement):
         return cscg_provenance(self.settings(), self.evidence)
 
     def _hard_round(self, seq: SymbolSequence, split_state_symbol, random_state: int,
-                    init=None, split_labels=None, *, corrected: bool = False) -> CloneFit:
+                    init=None, split_labels=None) -> CloneFit:
         """EM alone taking every step's symbol as exact (neither the split, ``init`` nor
         ``split_labels`` is used)."""
         hard = self.settings_.hard
