@@ -124,7 +124,7 @@ class Growth:
     stage_rtol: float = INF
     """... unless its last iteration gained more than this share of the log-likelihood; then
     it goes on until one gains less (share; ``inf``: it stops)."""
-    cycle_start: str = "soft"
+    cycle_start: str = "random"
     """A hard round on corrected symbols starts from random counts (``"random"``) or, where
     the soft round read the per-step evidence, from its labelling (``"soft"``)."""
 
