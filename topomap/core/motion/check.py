@@ -239,8 +239,11 @@ def _crossfit(settings: MotionSettings, X, Z, u, lengths, n_states: int, n_actio
     T = len(u)
     if settings.holdout == 0 or T * min(settings.holdout, 1 - settings.holdout) < 100:
         return whole.places, dict(info, chosen="places")
-    check = cross_fitted(settings, X, Z, u, lengths, whole, build, n_states=n_states,
-                         **kmeans)
+    check = cross_fitted(settings, X, Z, u, lengths, n_states, n_actions, build,
+                         weight=info["weight"], **kmeans)
+    if check is None:
+        return whole.views, dict(info, chosen="views",
+                                  check="the held-out check's first part gave no odometry")
     chosen = "places" if check["places"] < check["views"] else "views"
     return (whole.places if chosen == "places" else whole.views), dict(info, chosen=chosen,
                                                                       check=check)

@@ -1,8 +1,8 @@
 """The cross-fitted check: places against view clusters on a part of the log neither saw.
 
-The last ``settings.holdout`` share of the log is held out.  Places are cut again on the steps
-before it, from their own odometric positions (the log's view clusters, moves and cell extent
-kept: they are learned from views and actions, no position); the view clusters are the log's; each
+The last ``settings.holdout`` share of the log is held out.  Places and view clusters are learned
+again on the steps before it (:func:`~topomap.core.motion.places.cut_places`: view clusters,
+moves, cell extent and the places from those steps' own odometric positions); each
 decodes the held-out steps (:meth:`~topomap.core.map.model.TopologicalMap.predict`, as any new
 walk) and puts every step at its state's position -- the mean, over the state's training steps,
 of the pose graph of the learned part (:func:`~topomap.core.motion.posegraph.graph_positions`).
@@ -18,8 +18,10 @@ where their error is below the view clusters'.
 from __future__ import annotations
 
 import numpy as np
+from sklearn.metrics import pairwise_distances_argmin
+
 from ..size import split_holdout
-from .places import Places, _view_spread, places_of
+from .places import cut_places
 from .posegraph import graph_positions
 from .settings import MotionSettings
 
@@ -40,28 +42,35 @@ def state_positions(labels, P) -> np.ndarray:
     return np.column_stack([np.bincount(labels, weights=P[:, j]) for j in range(2)]) / counts
 
 
-def cross_fitted(settings: MotionSettings, X, Z, u, lengths, whole: Places, build, *,
-                 n_states: int, **kmeans) -> dict:
+def _nearest_views(views, Z, cut: int) -> np.ndarray:
+    """The view cluster of every step from ``cut`` on: the nearest centre of ``views`` (the
+    clusters of the steps before ``cut``)."""
+    k = int(views.max()) + 1
+    centres = np.zeros((k, Z.shape[1]))
+    np.add.at(centres, views, Z[:cut])
+    centres /= np.maximum(np.bincount(views, minlength=k), 1)[:, None]
+    return pairwise_distances_argmin(Z[cut:], centres)
+
+
+def cross_fitted(settings: MotionSettings, X, Z, u, lengths, n_states: int, n_actions: int,
+                 build, **kmeans) -> dict | None:
     """The check's figures: ``{"learned", "held_out", "places", "views"}`` -- the steps before
-    the cut, after it, and each map's error (:func:`translated_error`, cell extents).  ``whole``:
-    the log's own places, whose view clusters, moves and cell extent the learned part keeps
-    (learned from views and actions, no position); the learned part's places are cut again
-    from its own positions (:func:`~topomap.core.motion.places.places_of`).  ``build`` and
-    ``kmeans`` (``n_init``, ``random_state``, ``method``) as
+    the cut, after it, and each map's error (:func:`translated_error`, cell extents); None where
+    the learned part gives no odometry.  ``build`` and ``kmeans`` (``n_init``,
+    ``random_state``, ``method``, ``weight``) as
     :func:`~topomap.core.motion.check.choose_places`'s."""
     T = len(u)
     head, tail, cut = split_holdout(T, lengths, settings.holdout)
-    views = whole.views
-    spread = _view_spread(Z, views, int(views.max()) + 1)
-    part = places_of(settings, Z[:cut] / spread, views[:cut], u[:cut], head, whole.V,
-                     whole.extent, {}, weight=whole.info["weight"], n_states=n_states, **kmeans)
+    part = cut_places(settings, Z[:cut], u[:cut], head, n_states, n_actions, **kmeans)
+    if part.places is None:
+        return None
     gate = settings.gates[len(settings.gates) // 2]
-    learned = graph_positions(views[:cut], u[:cut], head, whole.V, whole.extent, gate,
+    learned = graph_positions(part.views, u[:cut], head, part.V, part.extent, gate,
                               settings.pull)
-    held = graph_positions(views[cut:], u[cut:], tail, whole.V, whole.extent, gate,
-                           settings.pull)
+    held = graph_positions(_nearest_views(part.views, Z, cut), u[cut:], tail, part.V,
+                           part.extent, gate, settings.pull)
     out = {"learned": cut, "held_out": T - cut}
-    for name, labels in (("places", part.places), ("views", views[:cut])):
+    for name, labels in (("places", part.places), ("views", part.views)):
         decoded = build(X[:cut], u[:cut], labels, head, pooled=name == "views").predict(
             X[cut:], u[cut:], lengths=tail)
         out[name] = round(translated_error(state_positions(labels, learned)[decoded], held), 4)
