@@ -65,3 +65,22 @@ def test_fallback_reason_of_a_check_given_as_words_is_those_words():
                             "check": "the places cut across the view clusters"}) == \
         "the places cut across the view clusters"
     assert fallback_reason({"chosen": "places"}) is None
+
+
+def test_a_run_reports_why_its_map_is_the_view_clusters():
+    """The command's summary line and metrics.json's ``motion`` carry the learner's reason."""
+    from topomap.app.cli import _summary
+    from topomap.app.run.experiment import _motion
+
+    Z, u = _line(period=1.0)
+    unrelated = np.random.default_rng(1).integers(0, 4, u.size)
+    with pytest.warns(ContinuousFallbackWarning):
+        fell_back = MapLearner(n_clusters=4, n_states=8, random_state=0).fit(Z, unrelated)
+    motion = _motion(fell_back)
+    assert motion == {"chosen": "views", "reason": fell_back.motion_info_["reason"]}
+    line = _summary({"n_states": {"final": 8}, "motion": motion}, None)
+    assert line.endswith(f"the map is the view clusters, not places: {motion['reason']}")
+    kept = MapLearner(n_clusters=4, n_states=8, random_state=0).fit(Z, u)
+    assert _motion(kept) == {"chosen": "places", "reason": None}
+    assert "view clusters" not in _summary({"n_states": {"final": 8}, "motion": _motion(kept)}, None)
+    assert _motion(MapLearner(n_clusters=2, n_states=3).fit(Z[::50], u[::50])) is None

@@ -94,6 +94,9 @@ def _summary(results: dict, out) -> str:
                  f"states {trace('compound_states', 'd')}{label}")
     if results.get("position"):
         line += " | " + _metres(results["position"])
+    motion = results.get("motion") or {}
+    if motion.get("reason"):
+        line += f" | the map is the view clusters, not places: {motion['reason']}"
     nav = results.get("navigation")
     if nav:
         ratio = "-" if nav["path_ratio"] is None else f"{nav['path_ratio']:.2f}"

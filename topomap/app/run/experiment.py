@@ -154,6 +154,7 @@ def _write_learned(experiment: Experiment, traj, learner, results, *, timings, p
     results.update({
         "split_history": learner.split_history_, "entropy_trace": learner.entropies_,
         "stop_reason": learner.stop_reason_, "timings": {**timings, **learner.timings_},
+        "motion": _motion(learner),
         "size_choice": getattr(learner, "size_choice_", None), "resized": _resized(learner),
         "mapping": _mapping(traj, results),
         "versions": versions(), "config": cfg, "plugin_metrics": plugin_metrics, "units": UNITS,
@@ -167,6 +168,15 @@ def _write_learned(experiment: Experiment, traj, learner, results, *, timings, p
         sweep_dir = None if cache_dir is None else cache_dir.parent  # <sweep>/.cache
         parts.logger.log_run(RunRecord(experiment.output_dir, cfg, results,
                                        start_dir=start_dir(), sweep_dir=sweep_dir))
+
+
+def _motion(learner) -> dict | None:
+    """What the map of a continuous log is (``"places"`` or ``"views"``, the view clusters) and,
+    where it is the view clusters, why (``motion_info_["reason"]``); None for other logs."""
+    info = getattr(learner, "motion_info_", None)
+    if not info:
+        return None
+    return {"chosen": info.get("chosen"), "reason": info.get("reason")}
 
 
 def localize(experiment: Experiment) -> dict:

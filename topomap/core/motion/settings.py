@@ -20,69 +20,44 @@ MODES = ("auto", "discrete", "continuous")
 
 @dataclass(frozen=True)
 class MotionSettings:
-    """How :meth:`topomap.MapLearner.fit` maps a log recorded at 10-50 Hz (docs/continuous.md).
+    """How :meth:`topomap.MapLearner.fit` maps a log recorded at 10-50 Hz (docs/continuous.md;
+    the measured reason for each default is in benchmarks/notes/continuous.md).  Distances are in
+    cell extents: the spread of the reckoned positions over which one view cluster is seen.
 
-    ``mode``: ``"auto"`` recognises such a log (:func:`is_continuous`: ``min_steps`` steps or
-    more, no GDS, every phase-1 symbol entered twice on average, runs of one symbol ``min_run``
-    steps long on average, or odometry given) and cuts its places from views and odometry learned from the data;
-    ``"discrete"`` never does (the paper's map, refined as ``refine`` says); ``"continuous"``
-    always does.  A continuous log gets no ``refine``: its places replace the refinement.
+    ``mode``: ``"auto"`` recognises such a log (:func:`is_continuous`; a log given odometry always
+    is) and cuts its places from
+    views and odometry learned from the data; ``"discrete"`` never does (the paper's map, refined
+    as ``refine`` says); ``"continuous"`` always does.  A continuous log gets no ``refine``.
+    ``min_steps`` (steps) and ``min_run`` (steps, the mean run of one phase-1 symbol): the least a
+    log needs to be recognised.
 
-    ``gates``: a step joins a copy of its view cluster within ``gate`` cell extents of its reckoned
-    position (:func:`topomap.core.motion.odometry.odometric_positions`); each gate gives one
-    position estimate, and all of them enter the K-means that cuts the places, so that no single
-    gate decides (a tight gate splits an open room by drift, a wide one joins alike rooms).
-    ``weight``: the positions' weight beside the view in that K-means (the view in units of one
-    view cluster's extent, the positions in cell extents;
-    :func:`topomap.core.motion.places.place_features`).  ``loose_weight``: their weight instead
-    where the odometry closes loops loosely -- walks that return to a view cluster keep more
-    than ``loose_return`` of a random walk's displacement in its weaker direction
-    (:func:`topomap.core.motion.places.position_weight`): at 0.5 a view one cluster's extent
-    off counts as a position two cell extents off, so drift of a cell or so inside a room
-    leaves a step with its view (with boundary-vector cells, whose odometry keeps 0.26-0.33,
-    places cut at weight 1 smeared inside rooms and placed a new walk worse than the views;
-    docs/benchmarks.md); where the places cut so give way to the view clusters in the held-out
-    check, those cut at ``weight`` are checked in turn.  ``pull``: how far a step's reckoned
-    position moves towards the copy it joins.  ``max_return``: odometry is used only where walks
-    that come back to a view cluster keep at most this share of a random walk's displacement
-    (:func:`topomap.core.motion.odometry.action_vectors`); turn / forward commands fail it and
-    the places are then the view clusters alone.
+    ``gates`` (cell extents): a step joins a copy of its view cluster within each gate of its
+    reckoned position (:func:`topomap.core.motion.odometry.odometric_positions`), one position
+    estimate per gate.  ``pull`` (a share, 0-1): how far a joining step's position moves towards
+    the copy.  ``max_return`` (a share of a random walk's displacement): odometry is used only
+    where walks that come back to a view cluster keep at most this much
+    (:func:`topomap.core.motion.odometry.action_vectors`); else the places are the view clusters.
+    ``weight``: the positions' weight beside the view in the K-means that cuts the places
+    (:func:`topomap.core.motion.places.place_features`); ``loose_weight`` their weight where walks
+    that return keep more than ``loose_return`` of a random walk's displacement
+    (:func:`topomap.core.motion.places.position_weight`).
 
-    ``holdout``: the share of the log, at its end, that the held-out check decodes
-    (:mod:`topomap.core.motion.check`): the places and the view clusters (K-means on the views,
-    as many clusters as places) are learned on the rest and decode it; a held-out step is
-    misplaced when its decoded state stands more than ``far`` cell extents from the odometric
-    position the filter carries on (counted over the held-out steps that joined a copy made
-    before them).  ``folds`` such parts are held out, one after another from
-    the end (the second learns from the steps before the last two, and decodes the first of
-    them), and the places are kept only when their misplaced share over the folds' held-out
-    steps with a reference (each counted once) is below the view clusters', at most ``margin`` times it and at least ``min_gain`` below it (two
-    shares of a hundredth or so are a handful of runs of one view either way), or when most of
-    the last ``votes`` parts (the third learning from the first quarter alone), each on its
-    own, give the places a share at least ``min_gain`` below the view clusters' (``votes=0``:
-    no vote).  ``confidence`` > 0 also asks the pooled share to beat the view clusters' by that
-    many times its own sampling noise (:func:`topomap.core.motion.check.gain_noise`: the spread
-    of the gain over stretches of ``block_runs`` mean runs of one view cluster, since
-    neighbouring steps are not independent draws); the check records gain and noise either way
-    (off by default: on ``topomap experiment=arena_two_rooms`` a bar of 1 gives up places at
-    half the views' error, docs/benchmarks.md).  Else the map's states are the view clusters;
-    they are also, unchecked, where the middle gate's filter kept no more than ``min_copies``
-    copies per view cluster (:func:`topomap.core.motion.check.tells_apart`: the odometry told
-    no sighting of a view from another, and the places could only follow its drift).
-    They are also, unchecked, where fewer than ``min_purity`` of the steps lie in their place's
-    view cluster (:func:`topomap.core.motion.check.view_purity`: the places cut across the views,
-    the odometry alone deciding where a step belongs; with boundary-vector cells on
-    ``three_rooms`` and ``pillars`` such places were as often worse than the views as better;
-    0: never).
-    ``holdout=0`` (or a held-out part under 100 steps) keeps the places unchecked.
+    The held-out check (:mod:`topomap.core.motion.check`): ``holdout`` (a share of the log; 0, or
+    a part under 100 steps: no check) is held out at the end, ``folds`` such parts one after
+    another; a held-out step is misplaced when its decoded state stands more than ``far`` cell
+    extents from its odometric position.  The places are kept when their misplaced share is at most ``margin`` times the
+    view clusters' and at least ``min_gain`` below it, or when most of the last ``votes`` parts
+    (0: no vote) find it ``min_gain`` below; ``confidence`` (0: off) also asks the gain to be that
+    many times its noise over stretches of ``block_runs`` mean runs of one view
+    (:func:`topomap.core.motion.check.gain_noise`).  The view clusters are the map's states,
+    unchecked, where the check's filter kept no more than ``min_copies`` copies per view cluster
+    (:func:`topomap.core.motion.check.tells_apart`) or fewer than ``min_purity`` of the steps lie
+    in their place's view cluster (:func:`topomap.core.motion.check.view_purity`; 0: never).
 
     ``n_init``: the k-means++ starts of the view clusters (scikit-learn's ``KMeans`` on every
-    row, :func:`~topomap.core.phase1.clustering.view_clusters`).  A map that falls back to
-    them gives every state one variance, pooled over the states and the features, times
-    ``fallback_variance``: its Viterbi decoding then ranks states by the distance of a view to
-    their means, as the nearest centre does, and at 0.01 (a tenth of a cluster's spread) that
-    ranking outweighs the transitions but where two centres are all but equally near (at 1 the
-    transitions move steps off their nearest centre, up to 2 % farther off on a held-out walk).
+    row).  A map of view clusters gives every state one variance, pooled over the states and the
+    features, times ``fallback_variance``, so that its decoding ranks states by the distance of
+    a view to their means.
     """
 
     mode: str = "auto"
