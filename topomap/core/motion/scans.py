@@ -120,7 +120,7 @@ def _solve(T, i, j, d, sd, psi, iters: int = 5):
     return psi
 
 
-def heading_graph(turns, closures, windows=WINDOWS) -> np.ndarray:
+def heading_graph(turns, closures, windows=WINDOWS, turn_sd: float = TURN_SD) -> np.ndarray:
     """(T,) rad: the headings (``[0] = 0``) closest to the per-step ``turns`` (``turns[t]`` from
     step ``t - 1`` to ``t``; ``turns[0]`` unused) and the ``closures`` ``(i, j, turn)``, those
     with a gap of at most each window admitted in turn when within ``CLOSURE_GATE`` of the
@@ -136,7 +136,7 @@ def heading_graph(turns, closures, windows=WINDOWS) -> np.ndarray:
         sel = sel[np.abs(_wrap(psi[cj[sel]] - psi[ci[sel]] - cr[sel])) < CLOSURE_GATE]
         psi = _solve(T, np.r_[chain, ci[sel]], np.r_[chain + 1, cj[sel]],
                      np.r_[turns[1:], cr[sel]],
-                     np.r_[np.full(T - 1, TURN_SD), np.full(len(sel), CLOSURE_SD)], psi)
+                     np.r_[np.full(T - 1, turn_sd), np.full(len(sel), CLOSURE_SD)], psi)
     return psi
 
 
