@@ -17,8 +17,8 @@ of another seed is placed by each route, each step at its state's mean training 
 ``shipped``    ``MapLearner(n_clusters=32, n_states=64, random_state=0).fit(X, u, odometry=...)``
 ``no_odometry`` the same without the odometry
 
-and the research routes of ``robot_routes.py`` and ``robot_slam.py``.  Every row goes to ``--log`` (JSON lines; a run
-skips rows already there); the table printed is the median over the seeds of every (plan, robot,
+and the research routes of ``robot_routes.py`` and ``robot_slam.py``.  Every row goes to
+``--log`` (JSON lines; a run skips rows already there); the table printed is the median over the seeds of every (plan, robot,
 route), with the median error as a multiple of ``ideal``'s.
 """
 

@@ -10,9 +10,10 @@ headgraph_kf headgraph_kf_scans``).
 
 Learning: every step's heading from :func:`topomap.core.motion.scans.scan_headings` (the
 odometry's turns calibrated against the scans', or the scans' own, closed by scan-matched loop
-closures); positions dead-reckoned along it (the odometry's forward travel); ``CELLS`` K-means
-cells on those positions; each cell's mean scan turned into the map frame, one pooled variance;
-the cells' successor graph between keyframes (a keyframe every half cell spacing travelled).
+closures); positions dead-reckoned along it (the odometry's forward travel); ``CELLS`` cells
+on those positions (:func:`cells`); each cell's mean scan turned into the map frame, one pooled
+variance; the cells' successor graph between keyframes (a keyframe every half cell spacing
+travelled).
 
 Placing a held-out walk: its keyframes' moves (forward, left, turn in the frame of the keyframe
 before) from its own odometry (or commands and scan turns); Viterbi over (cell, heading bin, 60
@@ -162,6 +163,17 @@ def viterbi(E, moves, cent, nb_ptr, nb_idx, sd, logK, log_init, jump):
     return pc, ph
 
 
+def cells(xy, n, seed):
+    """(labels, centres) of ``n`` K-means cells on the squares of a grid a quarter of a cell wide
+    that the walk entered, each once: cells as dense where the walk went once as where it went
+    often (K-means on the steps makes the rooms visited longer finer, and their scans then fit
+    better, a few nats a step: enough to pull a held-out walk into the wrong one of two alike
+    rooms)."""
+    side = np.sqrt(np.prod(xy.max(0) - xy.min(0)) / n) / 4
+    km = KMeans(n, n_init=2, random_state=seed).fit(np.unique(np.round(xy / side), axis=0) * side)
+    return km.predict(xy), km.cluster_centers_
+
+
 def successors(cells_kf, n):
     """CSR of each cell's successors between consecutive keyframes, itself included."""
     A = np.eye(n, dtype=bool)
@@ -186,8 +198,7 @@ def route(name, tw, hw, regions, seed, n_clusters, n_states):
     train, held = tw.traj, hw.traj
     X, Xh = S.despike(train.observations), S.despike(held.observations)
     P = _poses(tw, name, train.observations)
-    km = KMeans(CELLS, n_init=2, random_state=seed).fit(P[:, :2])
-    cell, cent = km.labels_, km.cluster_centers_
+    cell, cent = cells(P[:, :2], CELLS, seed)
     M = label_means(cell, S.rotate_scans(X, P[:, 2]), CELLS)
     var = float(((S.rotate_scans(X, P[:, 2]) - M[cell]) ** 2).mean())
     spacing = float(np.median(np.sort(np.linalg.norm(cent[:, None] - cent[None], axis=2), 1)[:, 1]))
