@@ -100,8 +100,10 @@ def emission(X, M, var) -> np.ndarray:
 
 
 @njit(cache=True)
-def _step(delta, cent, nb_ptr, nb_idx, f, lft, s0, sd, logK, jump, new, arg):
-    """One keyframe of the Viterbi recursion: ``new`` (N, B) best score, ``arg`` its origin."""
+def _step(delta, cent, nb_ptr, nb_idx, move, sd, logK, jump, new, arg):
+    """One keyframe of the Viterbi recursion: ``new`` (N, B) best score, ``arg`` its origin;
+    ``move`` (forward, left, turn in heading bins)."""
+    f, lft, s0 = move[0], move[1], int(move[2])
     N, B = delta.shape
     W = (logK.size - 1) // 2
     best_all, arg_all = -1e300, 0
@@ -148,8 +150,8 @@ def viterbi(E, moves, cent, nb_ptr, nb_idx, sd, logK, log_init, jump):
     new = np.empty((N, B))
     arg = np.empty((N, B), dtype=np.int32)
     for k in range(1, K):
-        s0 = int(np.floor(moves[k, 2] * B / (2 * np.pi) + 0.5))
-        _step(delta, cent, nb_ptr, nb_idx, moves[k, 0], moves[k, 1], s0, sd, logK, jump, new, arg)
+        move = np.array([moves[k, 0], moves[k, 1], np.floor(moves[k, 2] * B / (2 * np.pi) + 0.5)])
+        _step(delta, cent, nb_ptr, nb_idx, move, sd, logK, jump, new, arg)
         delta[:, :] = new + E[k]
         back[k] = arg
         delta -= delta.max()
