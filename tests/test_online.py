@@ -191,8 +191,8 @@ def test_a_bad_chunk_is_refused_and_loses_nothing():
 
 def test_a_failed_first_pass_keeps_nothing():
     traj = walk(4, 3, 12, 100, seed=8)
-    learner = MapLearner(12, 200)  # more states than the room's steps can split into
-    with pytest.raises(ValueError):
+    learner = MapLearner(3, 2)  # fewer states than phase 1's symbols
+    with pytest.raises(ValueError, match="n_states=2"):
         learner.partial_fit(traj.observations[:5], traj.actions[:5], n_actions=4)
     assert [name for name in vars(learner) if name.endswith("_")] == []  # nothing learned
     learner.set_params(n_states=12).partial_fit(traj.observations[5:], traj.actions[5:],
