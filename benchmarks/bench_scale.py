@@ -7,6 +7,13 @@
     python benchmarks/bench_scale.py --report                          # reprint the last results
     python benchmarks/bench_scale.py --end-to-end 1e6                 # `topomap data=file` at T = 1e6
     python benchmarks/bench_scale.py --sizes 1e7 --refine-max-T 0 --no-fourrooms --one-thread
+    python benchmarks/bench_scale.py --stream /data/logs --sizes 1e7 1e8 --repeats 1  # fit_stream
+
+``--stream DIR`` times the streamed fit (``MapLearner.fit_stream``) on folders of 100 logs of
+``benchmarks/stream_logs.py`` (written under ``DIR`` when missing: 630 MB at 10^7 steps, 6.3 GB
+at 10^8), beside the in-memory fit of the same logs (``--runs memory``) and on a local Ray
+cluster of 1 and 2 workers (``ray:1``, ``ray:2``), each run's labels compared with the first's
+(ARI and identity) and with the places.
 
 ``--baseline`` runs every measurement also with another Python interpreter (a virtual environment
 with another version of topomap installed, numba included), interleaved with this checkout's, so
@@ -304,6 +311,33 @@ def end_to_end(T: int, folder: Path) -> dict:
     return rec
 
 
+def stream_rows(root: Path, sizes, runs, repeats, files: int = 100) -> list:
+    """Every run of ``runs`` ("memory", "local", "ray:<workers>") on a folder of ``files``
+    aliased-walk logs of each size (written under ``root`` when missing), the labels compared
+    with the first run's (:mod:`stream_logs`)."""
+    from stream_logs import compare, format_stream, write_logs
+
+    rows = []
+    for T in sizes:
+        folder = root / f"logs-{T:.0e}"
+        if not folder.is_dir():
+            write_logs(folder, T, files)
+        ns, S = WALK_SIZES.get(T, (100, 200))
+        recs = []
+        for run in runs:
+            kind = "memory" if run == "memory" else "stream"
+            engine, _, workers = ("local" if run == "memory" else run).partition(":")
+            out = root / f"labels-{T:.0e}-{run.replace(':', '')}.npy"
+            rec = measure(repeats, sys.executable, "fit", kind, folder, ns, S, engine,
+                          workers or 0, out)
+            recs.append({**rec, "T": T, "labels": str(out)})
+        compare(recs, folder)
+        for r in recs:
+            print(format_stream(r), flush=True)
+        rows += recs
+    return rows
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=3)
@@ -321,9 +355,18 @@ def main():
     ap.add_argument("--report", action="store_true", help="reprint the last run's results")
     ap.add_argument("--end-to-end", type=float, metavar="T",
                     help="only time `topomap data=file` on a T-step recording")
+    ap.add_argument("--stream", metavar="DIR", help="only the streamed fit: folders of 100 logs "
+                    "under DIR (written when missing), one per --sizes")
+    ap.add_argument("--runs", nargs="+", default=["memory", "local", "ray:1", "ray:2"],
+                    help="with --stream: memory (fit), local, ray:<workers> (fit_stream)")
     args = ap.parse_args()
     out = Path(args.out)
     out.mkdir(exist_ok=True)
+    if args.stream:
+        rows = stream_rows(Path(args.stream), [int(s) for s in args.sizes], args.runs,
+                           args.repeats)
+        (out / "bench_stream.json").write_text(json.dumps(rows, indent=1))
+        return None
     if args.end_to_end:
         with tempfile.TemporaryDirectory() as tmp:
             rec = end_to_end(int(args.end_to_end), Path(tmp))
@@ -363,7 +406,11 @@ def report(rows, out: Path) -> None:
 
 def child_main(argv):
     kind, T, *rest = argv
-    if kind == "walk":
+    if kind == "fit":
+        from stream_logs import child_fit
+
+        rec = child_fit(T, rest[0], int(rest[1]), int(rest[2]), rest[3], int(rest[4]), rest[5])
+    elif kind == "walk":
         rec = child_walk(int(T), *rest)
     else:
         rec = child_fourrooms(int(T), rest[0], int(rest[1]))

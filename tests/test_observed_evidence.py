@@ -148,7 +148,8 @@ def test_the_learner_hands_phase_1_log_densities_to_the_soft_rounds():
     centres = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
     X = centres[sym] + np.random.default_rng(1).normal(0.0, 0.3, (sym.size, 2))
     learner = MapLearner(n_clusters=3, n_states=10, refine=EMRefinement(
-        evidence="soft", reading={"temperature": 6.0}), random_state=0).fit(X, u)
+        evidence="soft", reading={"temperature": 6.0}), motion="discrete",
+        random_state=0).fit(X, u)
     records = learner.refine_info_["soft_rounds"]
     assert records and records[-1]["evidence"] == "observed"
     assert learner.labels_.shape == place.shape

@@ -94,7 +94,7 @@ def test_missing_and_unknown_files(tmp_path):
     with pytest.raises(ValueError, match="does not exist"):
         load_trajectory(tmp_path / "nope.npz")
     (tmp_path / "x.txt").write_text("1")
-    with pytest.raises(ValueError, match="must end in .npz or .csv"):
+    with pytest.raises(ValueError, match="must end in .npz, .csv or .csv.gz"):
         load_trajectory(tmp_path / "x.txt")
 
 

@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from topomap import MapLearner, Trajectory, read_rosbag, write_rosbag
-from topomap.core.position_scores import position_scores
+from topomap.evaluation.metres import position_scores
 from topomap.worlds.arena import ArenaWorld, Motion, RangeFinder, TurnActions
 
 #: the wheel odometry's noise: relative N(0, s^2) on each step's distance and on each turn, and a

@@ -24,6 +24,7 @@ from .size import AutoStates, probe_sizes, split_holdout
 from .map.model import TopologicalMap
 from .map_methods import MapMethods
 from .motion.inputs import check_odometry
+from .stream.learner import StreamFit
 from .motion.learn import fit_places
 from .motion.settings import MotionSettings, motion_settings
 from .refine.sequence import SymbolSequence
@@ -34,7 +35,7 @@ from .data.trajectory import FitData, check_fit_data, check_sequences
 __all__ = ["MapLearner"]
 
 
-class MapLearner(MapMethods, BaseEstimator):
+class MapLearner(StreamFit, MapMethods, BaseEstimator):
     """Learn a topological map from observations and actions (Yairi, Togami & Hori, 2002).
 
     Phase 1 clusters the non-GDS observations with K-means into ``ns`` symbols, one state each, and
@@ -440,7 +441,6 @@ class MapLearner(MapMethods, BaseEstimator):
             split_history=self.split_history_, entropy_history=self.entropies_, info=info,
             models=models, counts=splitter.count_tables())
 
-    # ------------------------------------------------------------------ conveniences
     def _forget_fit(self) -> None:
         """Drop every attribute an earlier fit learned (names ending in ``_``), so a refit never
         shows the last fit's refinement, size choice or split map as its own."""

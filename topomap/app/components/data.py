@@ -11,6 +11,7 @@ import dataclasses
 import inspect
 import typing
 import warnings
+from pathlib import Path
 from typing import Any, Optional
 
 import numpy as np
@@ -127,14 +128,17 @@ class Simulate:
 
 
 class FromFile:
-    """Learn from a recorded trajectory (``.npz`` or ``.csv``); no simulation.
+    """Learn from a recorded trajectory (``.npz``, ``.csv`` or ``.csv.gz``); no simulation.
 
     Parameters
     ----------
     path : str
-        The recording (see the trajectory file formats in ``docs/file-formats.md``).
+        The recording (see the trajectory file formats in ``docs/file-formats.md``), or a
+        folder of recordings: every log in it in name order, each an episode (``lengths``),
+        read into memory (a run writes every step's state; ``MapLearner.fit_stream`` fits
+        logs larger than memory, ``docs/large-logs.md``).
     heldout_path : str or None
-        A second recording of the same world that the map is scored on.
+        A second recording (or folder) of the same world that the map is scored on.
     """
 
     simulates = False
@@ -144,10 +148,19 @@ class FromFile:
         self.heldout_path = None if heldout_path in (None, "") else heldout_path
 
     def train(self, parts, seed: int, progress=None) -> Trajectory:
-        return load_trajectory(self.path)
+        return _recording(self.path)
 
     def heldout(self, parts, seed: int) -> Trajectory | None:
-        return None if self.heldout_path is None else load_trajectory(self.heldout_path)
+        return None if self.heldout_path is None else _recording(self.heldout_path)
+
+
+def _recording(path) -> Trajectory:
+    """One recording, or every log of a folder as the episodes of one trajectory."""
+    if Path(path).is_dir():
+        from ...core.stream.plan import read_logs
+
+        return read_logs(path)
+    return load_trajectory(path)
 
 
 def _bag_options() -> list[inspect.Parameter]:

@@ -1,11 +1,13 @@
-"""The ``.csv`` trajectory file: a header row ``o0,...,o{D-1},action[,gds][,place][,x,y[,z]]
-[,odom_x,odom_y,odom_theta][,episode]`` and one row per step (``docs/file-formats.md``), read
-into the fields of a :class:`~topomap.core.data.trajectory.Trajectory` (:func:`read_csv`); a
-spreadsheet's UTF-8 byte-order mark is dropped, actions may be ids or names."""
+"""The ``.csv`` (or gzip-compressed ``.csv.gz``) trajectory file: a header row
+``o0,...,o{D-1},action[,gds][,place][,x,y[,z]][,odom_x,odom_y,odom_theta][,episode]`` and one
+row per step (``docs/file-formats.md``), read into the fields of a
+:class:`~topomap.core.data.trajectory.Trajectory` (:func:`read_csv`); a spreadsheet's UTF-8
+byte-order mark is dropped, actions may be ids or names."""
 
 from __future__ import annotations
 
 import csv
+import gzip
 from pathlib import Path
 
 import numpy as np
@@ -17,11 +19,13 @@ __all__ = ["read_csv"]
 
 
 def _csv_rows(path: Path) -> list[list[str]]:
-    """The rows of a CSV file (a UTF-8 byte-order mark, as spreadsheets write, is dropped)."""
+    """The rows of a CSV file, gzip-compressed when its name ends in ``.gz`` (a UTF-8
+    byte-order mark, as spreadsheets write, is dropped)."""
+    opener = gzip.open if path.name.lower().endswith(".gz") else open
     try:
-        with open(path, newline="", encoding="utf-8-sig") as fh:
+        with opener(path, "rt", newline="", encoding="utf-8-sig") as fh:
             return list(csv.reader(fh))
-    except (OSError, UnicodeDecodeError, csv.Error) as exc:
+    except (OSError, EOFError, UnicodeDecodeError, csv.Error) as exc:
         raise ValueError(f"trajectory file {path} could not be read as CSV: {exc}") from None
 
 

@@ -382,12 +382,12 @@ def _episode_lengths(episode) -> np.ndarray:
 
 
 def load_trajectory(path) -> Trajectory:
-    """Read a trajectory from a ``.npz`` or ``.csv`` file, validating every field."""
+    """Read a trajectory from a ``.npz``, ``.csv`` or ``.csv.gz`` file, validating every field."""
     path = Path(path)
     if not path.is_file():
         where = "" if path.is_absolute() else f" (relative to {Path.cwd()})"
         raise ValueError(f"trajectory file {path} does not exist{where}")
-    suffix = path.suffix.lower()
+    suffix = ".csv" if path.name.lower().endswith(".csv.gz") else path.suffix.lower()
     if suffix == ".npz":
         return _load_npz(path)
     if suffix == ".csv":
@@ -398,4 +398,4 @@ def load_trajectory(path) -> Trajectory:
             return Trajectory(**fields)
         except ValueError as exc:
             raise ValueError(f"trajectory file {path}: {exc}") from None
-    raise ValueError(f"trajectory file {path} must end in .npz or .csv, not {suffix!r}")
+    raise ValueError(f"trajectory file {path} must end in .npz, .csv or .csv.gz, not {suffix!r}")

@@ -143,6 +143,13 @@ def members_of(labels, n_states, like):
     return out
 
 
+def _kept_dtype(values, compact) -> type:
+    """The type a (T,) array of ids is kept as: its own when it is one of ``compact``, else
+    int64."""
+    dtype = getattr(values, "dtype", None)
+    return dtype if dtype is not None and any(dtype == c for c in compact) else np.int64
+
+
 def _merge_delta(table, old, new, size):
     """The sorted sparse table ``(codes, counts)`` with one count moved from each code of
     ``old`` to the code of ``new`` at the same place (codes' keys and columns below ``size``);
@@ -155,15 +162,17 @@ class SplitEngine:
 
     Parameters: ``labels`` (T,) int (copied), ``actions`` (T,) int, ``n_states``, ``n_actions``,
     ``has_prev`` / ``has_next`` from :func:`topomap.core.stats.episode_masks`.
-    Attributes: ``labels`` (T,) int64, ``members[s]`` sorted steps of state ``s`` (int32
-    below 2**31 steps),
+    Attributes: ``labels`` (T,) int64 -- or, given as int16 or int32, a copy of that type,
+    widened when the states outgrow it (a streamed fit keeps 2 bytes a step, not 8) --,
+    ``u`` the actions as given when they are int8, int16, int32 or int64, ``members[s]`` sorted
+    steps of state ``s`` (int32 below 2**31 steps),
     ``state_counts`` (S,), ``action_counts`` (S, A), ``near`` (S,) the states next to the last
     split's moved steps.
     """
 
     def __init__(self, labels, actions, n_states, n_actions, has_prev, has_next):
-        self.labels = np.array(labels, dtype=np.int64)
-        self.u = np.asarray(actions, dtype=np.int64)
+        self.labels = np.array(labels, dtype=_kept_dtype(labels, (np.int16, np.int32)))
+        self.u = np.asarray(actions, dtype=_kept_dtype(actions, (np.int8, np.int16, np.int32)))
         self.S, self.A = int(n_states), int(n_actions)
         self.has_prev, self.has_next = has_prev, has_next
         self.centre = has_prev & has_next
@@ -247,7 +256,7 @@ class SplitEngine:
             starts = steps[is_start]
             halves = np.stack([p.counts[~side].sum(axis=0), p.counts[side].sum(axis=0)])
             freq = halves / np.maximum(halves.sum(axis=1, keepdims=True), 1)
-            col = x[starts + 1] * A + u[starts]
+            col = x[starts + 1].astype(np.int64) * A + u[starts]
             pos = np.minimum(np.searchsorted(p.cols, col), p.cols.size - 1)
             goes[is_start] = (p.cols[pos] == col) & (freq[1, pos] > freq[0, pos])
         return goes, chosen
@@ -267,6 +276,8 @@ class SplitEngine:
         goes, chosen = self._moving(p)
         steps = self.members[q]
         moved = steps[goes]
+        if new > np.iinfo(self.labels.dtype).max:  # the states outgrow a compact type
+            self.labels = self.labels.astype(np.int32 if new < 2**31 else np.int64)
         self.labels[moved] = new
         outside, inside, starts, self.near = touched_codes(
             moved, self.has_prev, self.has_next, self.centre, self.labels, self.u, self.A, _SHIFT,
