@@ -250,9 +250,11 @@ class MapLearner(StreamFit, MapMethods, BaseEstimator):
         counted, and every ``refit_every`` steps a wider pass re-learns the map from the latest
         ``window`` steps (:mod:`topomap.core.online` says what is kept).  ``n_actions``,
         ``action_names`` and ``gds_names`` may be given with any call (more actions than the
-        map has bring a wider pass).  A call that fails changes nothing.  :meth:`fit` starts
-        over.  ``odometry`` is checked as :meth:`fit`'s (wider passes do not use it).  Returns
-        ``self``.
+        map has bring a wider pass).  A cluster count above the distinct observations a pass's
+        window holds is capped at them and grown as new views appear, with one warning
+        (:mod:`topomap.core.online_codebook`; ``online_["clusters"]``).  A call that fails
+        changes nothing.  :meth:`fit` starts over.  ``odometry`` is checked as :meth:`fit`'s
+        (wider passes do not use it).  Returns ``self``.
         """
         X, u, g, _ = check_sequences(observations, actions, gds, None, min_length=1)
         check_odometry(odometry, X.shape[0])

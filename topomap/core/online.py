@@ -10,7 +10,9 @@ seen before it:
   nearest mean: for the Euclidean metric (the paper's) this is K-means' own assignment.  Symbols
   are then fixed rather than updated (``MiniBatchKMeans.partial_fit``) because every state,
   count and label is defined on them: moving a centre would silently change the symbol of steps
-  already counted.
+  already counted.  A count asked for above the distinct observations of a pass's window is
+  capped at them, and the codebook grows as new views appear
+  (:mod:`topomap.core.online_codebook`).
 * **Every chunk** is decoded with the current map (Viterbi over the chunk's symbols and actions,
   continuing from the last steps before it) and its transitions are added to the map's count
   tables: only the rows of the states the chunk visits change.
