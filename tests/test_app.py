@@ -30,11 +30,13 @@ def options(group):
 def test_default_config_is_the_papers_experiment(make_cfg):
     cfg = make_cfg()
     assert cfg.env.component == "office" and cfg.env.layout == "paper"
-    assert cfg.data.n_steps == 2000 and cfg.clusters.ns == 20 and cfg.stop.n_states == 30
+    assert cfg.data.n_steps is None  # the world's own walk: the office's is the paper's 2,000
+    assert cfg.clusters.ns == 20 and cfg.stop.n_states == 30
     assert cfg.seed == 0
     preset = make_cfg(["experiment=pricai2002"])
-    for key in ("env", "noise", "explorer", "metric", "clusters", "split", "stop", "data", "seed"):
+    for key in ("env", "noise", "explorer", "metric", "clusters", "split", "stop", "seed"):
         assert preset[key] == cfg[key], key
+    assert preset.data.n_steps == 2000 and {**preset.data, "n_steps": None} == {**cfg.data}
 
 
 @pytest.mark.parametrize("group, option", BUILTINS)

@@ -94,3 +94,65 @@ def test_file_errors_name_the_file(tmp_path):
         load_floorplan(tmp_path / "short.yaml")
     with pytest.raises(ValueError, match="does not exist"):
         load_floorplan(tmp_path / "none.json")
+
+
+def _two_rooms_plan(door: float | None) -> dict:
+    """A 2 x 1 m box cut at x = 1 by a wall; a door of width ``door`` in its middle (None: no
+    door)."""
+    if door is None:
+        walls = [[[1, 0], [1, 1]]]
+    else:
+        walls = [[[1, 0], [1, 0.5 - door / 2]], [[1, 0.5 + door / 2], [1, 1]]]
+    return {"boundary": [[0, 0], [2, 0], [2, 1], [0, 1]], "walls": walls}
+
+
+def test_a_wall_that_cuts_the_floor_in_two_is_refused_naming_it():
+    with pytest.raises(ValueError, match=r"^walls\[0\]: cuts the floor into 2 parts joined by no "
+                                         r"passage MIN_PASSAGE = 0.05 m wide"):
+        floorplan_from_dict(_two_rooms_plan(None))
+
+
+@pytest.mark.parametrize("door, walkable", [(0.01, False), (0.04, False), (0.06, True),
+                                            (0.3, True)])
+def test_a_door_narrower_than_the_narrowest_passage_is_refused(door, walkable):
+    """MIN_PASSAGE is 0.05 m: a 1 cm and a 4 cm door close, 6 cm and 30 cm doors pass."""
+    from topomap.worlds.arena.walkable import MIN_PASSAGE
+
+    assert MIN_PASSAGE == 0.05
+    if walkable:
+        floorplan_from_dict(_two_rooms_plan(door))
+        return
+    with pytest.raises(ValueError, match=r"^walls\[0\]: cuts the floor into 2 parts"):
+        floorplan_from_dict(_two_rooms_plan(door))
+
+
+def test_a_hole_that_closes_a_corridor_is_named():
+    plan = {"boundary": [[0, 0], [3, 0], [3, 1], [0, 1]],
+            "holes": [[[0.2, 0.2], [0.4, 0.2], [0.4, 0.4], [0.2, 0.4]],
+                      [[1.4, 0.02], [1.6, 0.02], [1.6, 0.98], [1.4, 0.98]]]}
+    with pytest.raises(ValueError, match=r"^holes\[1\]: cuts the floor into 2 parts .*widen the "
+                                         r"passage it closes$"):
+        floorplan_from_dict(plan)
+    plan["holes"][1] = [[1.4, 0.1], [1.6, 0.1], [1.6, 0.9], [1.4, 0.9]]
+    floorplan_from_dict(plan)  # 0.1 m passages either side
+
+
+def test_a_neck_of_the_boundary_itself_is_named_boundary():
+    """Two 1 x 1 m boxes joined by a 2 cm neck of the outer wall."""
+    lo, hi = 0.49, 0.51
+    plan = {"boundary": [[0, 0], [1, 0], [1, lo], [1.2, lo], [1.2, 0], [2.2, 0], [2.2, 1],
+                         [1.2, 1], [1.2, hi], [1, hi], [1, 1], [0, 1]]}
+    with pytest.raises(ValueError, match=r"^boundary: cuts the floor into 2 parts"):
+        floorplan_from_dict(plan)
+
+
+def test_overlapping_regions_are_refused_naming_both(tmp_path):
+    plan = {"boundary": [[0, 0], [2, 0], [2, 1], [0, 1]],
+            "regions": {"west": [[0, 0], [1.5, 0], [1.5, 1], [0, 1]],
+                        "east": [[1, 0], [2, 0], [2, 1], [1, 1]]}}
+    (tmp_path / "lab.yaml").write_text(json.dumps(plan))
+    with pytest.raises(ValueError, match=r"lab.yaml: regions\['east'\]: overlaps "
+                                         r"regions\['west'\] by 0.5 m\^2"):
+        load_floorplan(tmp_path / "lab.yaml")
+    plan["regions"]["west"] = [[0, 0], [1, 0], [1, 1], [0, 1]]  # sharing an edge is fine
+    floorplan_from_dict(plan)

@@ -240,3 +240,61 @@ def test_ctrl_c_while_a_job_draws_its_figures_ends_the_sweep(tmp_path, in_destru
     assert sorted(p.name for p in (sweep / "0").iterdir()) == [".hydra", "status.json",
                                                               "topomap.log"]
     assert not (sweep / "1").exists()
+
+
+def test_a_second_interrupt_while_the_command_ends_is_recorded_not_raised():
+    """The first Ctrl-C is raised; once the command says it is ending (writing a status, the
+    report), a second one is only recorded, and taking the signals again raises once more."""
+    from topomap.app.run import interrupts
+
+    if threading.current_thread() is not threading.main_thread():
+        pytest.skip("signals reach the main thread only")
+    replaced = interrupts.take_interrupts()
+    try:
+        with pytest.raises(interrupts.Interrupted):
+            signal.raise_signal(signal.SIGINT)
+        interrupts.ending()
+        signal.raise_signal(signal.SIGINT)  # recorded only
+        signal.raise_signal(signal.SIGTERM)
+        assert interrupts._received == ["SIGINT", "SIGINT", "SIGTERM"]
+        interrupts.give_back(interrupts.take_interrupts())
+        interrupts.take_interrupts()
+        with pytest.raises(interrupts.Interrupted):
+            signal.raise_signal(signal.SIGINT)
+    finally:
+        interrupts.give_back(replaced)
+
+
+TWICE_PLUGIN = FIGURES_PLUGIN.format(in_destructor=False, where="then again as the report is "
+                                     "written (Ctrl-C pressed twice)") + '''
+
+from topomap.app.report import callback
+
+_report = callback.write_report
+
+
+def write_report(*args, **kwargs):
+    os.kill(os.getpid(), signal.SIGINT)
+    _wait_for_the_handler()
+    return _report(*args, **kwargs)
+
+
+callback.write_report = write_report
+'''
+
+
+@pytest.mark.slow
+def test_ctrl_c_twice_ends_the_sweep_with_its_report(tmp_path):
+    """SIGINT while job 0 draws its figures, and a second one while the command writes the
+    report: the report is written all the same, one line, status 130, no traceback."""
+    plugin = tmp_path / "twice.py"
+    plugin.write_text(TWICE_PLUGIN)
+    sweep = tmp_path / "sweep"
+    r = subprocess.run([sys.executable, "-m", "topomap", "-m", *SMALL, "output.figures=true",
+                        "stop.n_states=8,9", f"hydra.sweep.dir={sweep}", f"plugins=[{plugin}]"],
+                       cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    assert r.returncode == 130 and "Traceback" not in r.stderr, r.stdout + r.stderr
+    assert r.stderr.strip().splitlines()[-1] == \
+        f"topomap: interrupted; sweep report in {sweep / 'summary.csv'}", r.stderr
+    with open(sweep / "summary.csv", newline="") as fh:
+        assert [row["status"] for row in csv.DictReader(fh)] == ["interrupted", "not started"]

@@ -172,18 +172,23 @@ def example():
                               "robot_bag.py"))
 
 
-def test_the_example_s_odometry_without_noise_is_the_path_from_the_robot_s_start():
-    wheel_odometry = example()["wheel_odometry"]
-    rng = np.random.default_rng(0)
+def test_the_example_s_true_odometry_is_the_path_from_the_robot_s_start():
+    true_odometry = example()["true_odometry"]
     # north 1 m, then west 1 m (dt = 1 s): seen from the start, facing +x, that is +x then +y
-    path = np.array([[0.0, 0.0], [0.0, 1.0], [-1.0, 1.0]])
-    np.testing.assert_allclose(wheel_odometry(path, 1.0, rng, 0, 0, 0),
+    path = np.array([[0.0, 0.0], [0.0, 1.0], [-1.0, 1.0], [-1.0, 1.0]])
+    np.testing.assert_allclose(true_odometry(path, 1.0),
                                [[0, 0, 0], [1, 0, 0], [1, 1, math.pi / 2]], atol=1e-12)
-    # a gyro bias of 0.1 rad/s alone bends a straight drive east: headings 0.1, 0.2, 0.3 rad
-    east = np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.0], [3.0, 0.0]])
-    h = np.array([0.1, 0.2, 0.3])
-    expected = np.c_[np.r_[0, np.cumsum(np.cos(h))], np.r_[0, np.cumsum(np.sin(h))], [0, *h]]
-    np.testing.assert_allclose(wheel_odometry(east, 1.0, rng, 0, 0, 0.1), expected, atol=1e-12)
+
+
+def test_the_example_s_robot_keeps_the_arena_s_wheel_odometry():
+    """The bags' /odom is the arena's odometry=wheel of the same walk."""
+    ns = example()
+    world = ns["ArenaWorld"]("two_rooms", sensor=ns["RangeFinder"](frame="egocentric"),
+                             actions="turns", odometry="wheel")
+    log = ns["robot_log"](world, 200, np.random.default_rng(1))
+    again = world.simulate(200, None, np.random.default_rng(1))
+    assert np.array_equal(log.odometry, again.odometry)
+    assert np.array_equal(log.positions, again.positions)
 
 
 def test_the_example_simulates_records_and_learns(tmp_path, make_cfg, capsys):

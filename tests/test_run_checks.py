@@ -66,6 +66,26 @@ def test_a_folder_held_by_a_run_is_refused_to_another(tmp_path):
         assert not new
 
 
+def test_a_run_writing_its_files_is_named_as_such_and_a_killed_ones_leftovers_are_not_outputs(
+        tmp_path):
+    """While a run moves its files in, its folder holds the hidden staging folder and the
+    run's lock: a second run is told that another run is writing there (not shown the staging
+    folder's name as if it were an output).  Left by a killed run, with no lock held, the staging
+    folder holds no outputs: the folder is free."""
+    from topomap.app.run.outputs import STAGE_PREFIX, claim_output_dir
+
+    folder = tmp_path / "run"
+    with locked_output_dir(folder):
+        (folder / f"{STAGE_PREFIX}x").mkdir()
+        with pytest.raises(OutputDirInUse, match=rf"^another topomap run is writing into the "
+                                                 rf"output folder {folder}; choose another"):
+            with locked_output_dir(folder):
+                pass
+    with locked_output_dir(folder) as new:  # the first run was killed: its leftovers
+        assert not new
+        assert claim_output_dir(folder) == [] and not (folder / f"{STAGE_PREFIX}x").exists()
+
+
 @pytest.mark.slow
 def test_a_refused_run_changes_nothing_in_the_other_runs_folder(tmp_path):
     folder = tmp_path / "run"

@@ -122,3 +122,64 @@ def test_a_lazy_name_is_imported_on_first_use_and_kept(monkeypatch):
     assert vars(package)["VALUE"] is inner.VALUE
     with pytest.raises(AttributeError, match="'lazypkg' has no attribute 'OTHER'"):
         package.OTHER
+
+
+@pytest.mark.slow
+def test_a_kept_help_is_the_composed_one_and_imports_no_hydra(tmp_path):
+    """The second bare ``--help`` prints the first one's text from the kept file, without Hydra
+    or OmegaConf; with an override the help is composed again."""
+    env = dict(os.environ, TOPOMAP_DISABLE_PLUGIN_AUTOLOAD="1", TOPOMAP_CACHE_DIR=str(tmp_path))
+
+    def run(*args):
+        r = subprocess.run([sys.executable, "-m", "topomap", *args], cwd=tmp_path, env=env,
+                           capture_output=True, text=True, timeout=300)
+        assert r.returncode == 0, r.stderr
+        return r.stdout
+
+    composed = run("--help")
+    assert composed.startswith("topomap: learn a robot") and "\nseed: 0\n" in composed
+    assert len(list(tmp_path.glob("help-*.txt"))) == 1
+    assert run("--help") == composed
+    mods = _imported(_command(["--help"]), tmp_path, cache_dir=tmp_path)
+    assert not mods & {"hydra", "omegaconf", *HEAVY}, mods
+    assert "\nseed: 7\n" in run("--help", "seed=7")
+    assert len(list(tmp_path.glob("help-*.txt"))) == 1
+
+
+def test_the_kept_help_s_key_follows_the_plugins_and_their_autoload(tmp_path, monkeypatch):
+    import importlib.metadata as md
+
+    from topomap.app.compose import help_cache, schema_cache
+
+    monkeypatch.setenv(schema_cache.CACHE_ENV, str(tmp_path))
+    monkeypatch.delenv("TOPOMAP_DISABLE_PLUGIN_AUTOLOAD", raising=False)
+    base = help_cache.help_file()
+    assert base.parent == tmp_path and base == help_cache.help_file()
+    monkeypatch.setenv("TOPOMAP_DISABLE_PLUGIN_AUTOLOAD", "1")
+    assert help_cache.help_file() != base
+    monkeypatch.delenv("TOPOMAP_DISABLE_PLUGIN_AUTOLOAD")
+    added = md.EntryPoint("mine", "json:dumps", "topomap")
+    monkeypatch.setattr(md, "entry_points", lambda group: [added] if group == "topomap" else [])
+    assert help_cache.help_file() != base
+    monkeypatch.setenv(schema_cache.CACHE_ENV, "")
+    assert help_cache.help_file() is None and help_cache.kept_help(["--help"]) is None
+
+
+def test_only_a_help_that_ends_well_is_kept(tmp_path, monkeypatch, capsys):
+    from topomap.app.compose import help_cache, schema_cache
+
+    monkeypatch.setenv(schema_cache.CACHE_ENV, str(tmp_path))
+    with pytest.raises(SystemExit):
+        with help_cache.keeping_help(["--help"]):
+            print("half a help")
+            raise SystemExit(2)
+    assert help_cache.kept_help(["--help"]) is None
+    with help_cache.keeping_help(["--help", "seed=3"]):
+        print("help of an override")
+    assert help_cache.kept_help(["--help", "seed=3"]) is None
+    with pytest.raises(SystemExit):
+        with help_cache.keeping_help(["-h"]):
+            print("the whole help")
+            raise SystemExit(0)
+    assert help_cache.kept_help(["--help"]) == "the whole help\n"
+    assert "half a help" in capsys.readouterr().out

@@ -111,3 +111,26 @@ def test_names_must_cover_ids():
         Trajectory(np.zeros((3, 1)), [0, 1, 2], action_names=["a", "b"])
     with pytest.raises(ValueError, match="positions must have shape"):
         Trajectory(np.zeros((3, 1)), [0, 1, 1], positions=np.zeros((3, 4)))
+
+
+@pytest.mark.filterwarnings("ignore:Number of distinct clusters")  # one step dwarfs the rest
+def test_observations_too_large_to_square_name_the_file_the_field_and_the_overflow(tmp_path):
+    """1e300 squared is beyond float64 (1.8e308): the file is refused, naming it, the field,
+    the step and the column, where the learner once failed later on an infinite variance of
+    ``states[0].covariance``.  1e100 is far below the bound (about 2e152 for 300 x 3 values)."""
+    from topomap import MapLearner
+
+    rng = np.random.default_rng(0)
+    X, u = rng.normal(size=(300, 3)), rng.integers(0, 3, 300)
+    X[5, 1] = 1e300
+    path = tmp_path / "big.npz"
+    np.savez(path, observations=X, actions=u)
+    with pytest.raises(ValueError, match=rf"^trajectory file {path}: observations hold 1e\+300 "
+                       r"\(step 5, column 1\), too large: the variances and distances the "
+                       r"learner sums over these 300 x 3 values would overflow float64 \(\|x\| "
+                       r"must stay below 2.2e\+152\); rescale the observations"):
+        load_trajectory(path)
+    with pytest.raises(ValueError, match=r"^observations hold 1e\+300 \(step 5, column 1\)"):
+        MapLearner(n_clusters=3, n_states=5).fit(X, u)
+    X[5, 1] = -1e100
+    assert MapLearner(n_clusters=3, n_states=5).fit(X, u).map_.n_states == 5

@@ -32,6 +32,9 @@ def cli(args, cwd, timeout=120, pythonpath=()):
     ("cluster.ns=5", "unknown config key 'cluster.ns'; did you mean clusters.ns?"),
     ("+cluster.ns=5", "unknown config key 'cluster.ns'; did you mean clusters.ns?"),
     ("+clusters.nss=3", "did you mean clusters.ns?"),
+    ("+seed=3", "topomap: error: +seed=3: seed is a key of the config already, and + adds only "
+                "new ones; drop the +: seed=3\n"),
+    ("expriment=gridroom", "did you mean the group experiment (experiment=<option>)?"),
 ])
 def test_a_key_no_schema_declares_fails_with_the_nearest_valid_key(override, message, tmp_path):
     r = cli([override], tmp_path)
@@ -49,6 +52,58 @@ def test_a_key_of_another_component_names_the_components_that_have_it(make_cfg, 
 def test_the_compose_api_refuses_unknown_keys_too(make_cfg):
     with pytest.raises(ValueError, match="did you mean seed"):
         make_cfg(["+sed=3"])
+
+
+@pytest.mark.parametrize("override, message", [
+    ("+seed=3", "+seed=3: seed is a key of the config already, and + adds only new ones; drop "
+                "the +: seed=3"),
+    ("+clusters.ns=15,20", "+clusters.ns=15,20: clusters.ns is a key of the config already, "
+                           "and + adds only new ones; drop the +: clusters.ns=15,20"),
+    ("+experiment=gridroom", "+experiment=gridroom: experiment is a group of the config already, "
+                             "and + adds only new ones; drop the +: experiment=gridroom"),
+    ("+typo=1", "unknown config key 'typo'; the config is typed, so + adds no key (topomap "
+                "--help lists the config)"),
+    ("expriment=gridroom", "unknown config key 'expriment'; did you mean the group experiment "
+                           "(experiment=<option>)?"),
+])
+def test_hydra_habits_with_plus_are_answered_in_one_line(override, message, make_cfg):
+    """Hydra's + adds a key: the config is typed, so a key it has is set without it (Hydra
+    refuses +key for a structured config's key too), and an unknown one is named; a misspelt
+    group is suggested as the group, not as a key that ends like it (logger.experiment)."""
+    with pytest.raises(ValueError) as err:
+        make_cfg([override])
+    assert str(err.value).startswith(message) and "\n" not in str(err.value)
+
+
+def test_plus_plus_sets_a_key_either_way(make_cfg):
+    assert make_cfg(["++seed=3"]).seed == 3 and make_cfg(["++clusters.ns=15"]).clusters.ns == 15
+    with pytest.raises(ValueError, match=r"drop the \+: env.n_symbols=3$"):
+        make_cfg(["+env.n_symbols=3", "env=gridroom"])  # a key of the chosen component
+
+
+@pytest.mark.slow
+def test_shell_completion_installs_and_completes_as_hydras(tmp_path):
+    """``topomap --shell-completion install=bash`` prints Hydra's bash script for topomap, and
+    the completion it asks for (``-sc query=bash``) offers topomap's groups, options and keys."""
+    import shutil
+
+    r = cli(["--shell-completion", "install=bash"], tmp_path)
+    assert r.returncode == 0, r.stderr
+    assert "complete -o nospace -o default -F hydra_bash_completion" in r.stdout
+    env = dict(os.environ, TOPOMAP_DISABLE_PLUGIN_AUTOLOAD="1", COMP_LINE="topomap env=grid")
+    q = subprocess.run([sys.executable, "-m", "topomap", "-sc", "query=bash"], cwd=tmp_path,
+                       env=env, capture_output=True, text=True, timeout=120)
+    assert q.returncode == 0 and "env=gridroom" in q.stdout.split(), q.stderr
+    topomap = shutil.which("topomap")
+    if shutil.which("bash") is None or topomap is None:
+        return
+    script = ('eval "$(topomap --shell-completion install=bash)"; COMP_LINE="topomap stop.n_"; '
+              'COMP_POINT=${#COMP_LINE}; COMP_WORDS=(topomap stop.n_); COMP_CWORD=1; '
+              'hydra_bash_completion; echo "${COMPREPLY[@]}"')
+    path = os.pathsep.join([str(Path(topomap).parent), os.environ.get("PATH", "")])
+    b = subprocess.run(["bash", "-c", script], cwd=tmp_path, capture_output=True, text=True,
+                       timeout=120, env=dict(os.environ, PATH=path))
+    assert b.stdout.split() == ["stop.n_states="], b.stdout + b.stderr
 
 
 def test_a_preset_setting_the_replaced_component_names_the_command_to_give_instead(make_cfg):

@@ -2,10 +2,10 @@
 
 The robot: ratinabox's random motion in two alike rooms joined by a corridor (the arena world), a
 12-beam range finder fixed to the robot (``sensor.frame=egocentric``: beam 0 straight ahead, with
-N(0, 0.02^2) m noise) and turn / forward / stop commands read off its motion (``actions=turns``).
-Its wheel odometry is made here from the true motion with a small noise model -- each step's
-distance off by N(0, 2 %), each turn by N(0, 5 %), and a gyro bias of 0.01 rad/s, integrated from
-the robot's own origin -- until the arena has a wheel-odometry component of its own.
+N(0, 0.02^2) m noise), turn / forward / stop commands read off its motion (``actions=turns``) and
+its wheel odometry (``odometry=wheel``, :class:`~topomap.worlds.arena.WheelOdometry` with its
+defaults: 2 % speed noise, 5 % turn-rate noise, a gyro bias of 0.01 rad/s at most, slips),
+integrated from the robot's own start pose.
 
 Each bag holds what a robot records, one message per topic at every step (10 Hz): ``/scan``
 (``sensor_msgs/LaserScan``), ``/cmd_vel`` (``geometry_msgs/Twist``), ``/odom``
@@ -31,28 +31,17 @@ import numpy as np
 
 from topomap import MapLearner, Trajectory, read_rosbag, write_rosbag
 from topomap.evaluation.metres import position_scores
-from topomap.worlds.arena import ArenaWorld, Motion, RangeFinder, TurnActions
+from topomap.worlds.arena import ArenaWorld, Motion, RangeFinder, TurnActions, WheelOdometry
 
-#: the wheel odometry's noise: relative N(0, s^2) on each step's distance and on each turn, and a
-#: constant gyro bias (rad/s) -- a few per cent, as wheel encoders and a MEMS gyro give
-SPEED_NOISE, TURN_NOISE, GYRO_BIAS = 0.02, 0.05, 0.01
 #: metres of N(0, s^2) noise on every range reading
 SCAN_NOISE = 0.02
 
 
-def wheel_odometry(positions: np.ndarray, dt: float, rng: np.random.Generator,
-                   speed_noise: float = SPEED_NOISE, turn_noise: float = TURN_NOISE,
-                   gyro_bias: float = GYRO_BIAS) -> np.ndarray:
-    """``(T, 3)`` odometry (x, y, heading) from the true positions: each step's distance and turn
-    (the arena's :class:`~topomap.worlds.arena.Motion`) with noise, integrated from (0, 0, 0).
-    Without noise it is the true path seen from the robot's start pose."""
-    motion = Motion.from_samples(positions, dt)  # T positions: T - 1 moves
-    distance = motion.speed * dt * (1 + speed_noise * rng.standard_normal(len(motion)))
-    turn = (motion.rotational_velocity * dt * (1 + turn_noise * rng.standard_normal(len(motion)))
-            + gyro_bias * dt)
-    heading = np.concatenate([[0.0], np.cumsum(turn)])  # the move t -> t+1 faces heading[t+1]
-    steps = distance[:, None] * np.c_[np.cos(heading[1:]), np.sin(heading[1:])]
-    return np.c_[np.vstack([[0.0, 0.0], np.cumsum(steps, axis=0)]), heading]
+def true_odometry(positions: np.ndarray, dt: float) -> np.ndarray:
+    """``(T - 1, 3)``: the true path seen from the robot's start pose, as an odometry without
+    errors would read it (what the wheel odometry drifts from)."""
+    exact = WheelOdometry(speed_noise=0, turn_noise=0, gyro_bias=0, slip_rate=0, slip_size=0)
+    return exact.dead_reckoning(Motion.from_samples(positions, dt), np.random.default_rng(0))
 
 
 def robot_log(world: ArenaWorld, steps: int, rng: np.random.Generator) -> Trajectory:
@@ -60,8 +49,7 @@ def robot_log(world: ArenaWorld, steps: int, rng: np.random.Generator) -> Trajec
     traj = world.simulate(steps, None, rng)
     scans = traj.observations + SCAN_NOISE * rng.standard_normal(traj.observations.shape)
     return Trajectory(np.clip(scans, 0.0, None), traj.actions, positions=traj.positions,
-                      action_names=traj.action_names,
-                      odometry=wheel_odometry(traj.positions, world.dt, rng))
+                      action_names=traj.action_names, odometry=traj.odometry)
 
 
 def parse_args(argv=None) -> argparse.Namespace:
@@ -82,7 +70,7 @@ def write_bags(args) -> tuple[Path, Path, ArenaWorld]:
     """Simulate the two walks and write them as bags; returns their paths and the world."""
     world = ArenaWorld("two_rooms", sensor=RangeFinder(n_beams=12, max_range=3.0,
                                                        frame="egocentric"),
-                       actions=TurnActions())
+                       actions=TurnActions(), odometry="wheel")
     rng_train, rng_held = (np.random.default_rng(s)
                            for s in np.random.SeedSequence(args.seed).spawn(2))
     held = args.out.with_name(args.out.stem + "_heldout" + args.out.suffix)
@@ -103,8 +91,8 @@ def main(argv=None) -> dict:
     heldout = read_rosbag(held_bag, "/scan", "/cmd_vel", **topics)
     print(f"wrote {train_bag} ({len(train)} steps) and {held_bag} ({len(heldout)} steps): "
           "/scan, /cmd_vel, /odom, /tf, /truth")
-    truth = wheel_odometry(train.positions, world.dt, np.random.default_rng(0), 0, 0, 0)
-    drift = np.hypot(*(train.odometry[-1, :2] - truth[-1, :2]))
+    truth = true_odometry(train.positions, world.dt)
+    drift = np.hypot(*(train.odometry[len(truth) - 1, :2] - truth[-1, :2]))
     print(f"the odometry drifted {drift:.2f} m from the truth over {len(train) * world.dt:.0f} s")
     learner = MapLearner(n_clusters=args.clusters, n_states=args.states, random_state=0)
     learner.fit_trajectory(train)

@@ -154,6 +154,7 @@ def _single_run(cfg, out, registry: Registry, plan: Plan) -> dict:
     saying so; a run failed by its settings or data removes the folder it made
     (``plan.new_folder``) and ends the command with one line on stderr."""
     from .run.experiment import run
+    from .run.interrupts import ending
     from .run.job import write_status
     from .run.outputs import OutputDirInUse, remove_new_folder
 
@@ -162,6 +163,7 @@ def _single_run(cfg, out, registry: Registry, plan: Plan) -> dict:
     except OutputDirInUse as exc:  # another run's folder: leave it as it is
         sys.exit(f"topomap: error: {exc}")
     except KeyboardInterrupt:
+        ending()
         write_status(out, "interrupted")
         log.warning("interrupted")
         print(f"topomap: interrupted; {out}/status.json says so", file=sys.stderr)
@@ -198,7 +200,11 @@ INTERRUPTED = 130
 
 def _interrupted(plan: Plan) -> None:
     """After Ctrl-C or SIGTERM outside a single run's own handling: a sweep writes its report
-    (with the interrupted job and the jobs that did not start); then one line, exit 130."""
+    (with the interrupted job and the jobs that did not start); then one line, exit 130.  A
+    second Ctrl-C meanwhile is recorded, not raised."""
+    from .run.interrupts import ending
+
+    ending()
     where = _report_early_end(plan)
     print("topomap: interrupted" + (f"; sweep report in {where}" if where else ""),
           file=sys.stderr)
@@ -307,8 +313,9 @@ def _plan(argv, registry: Registry) -> Plan:
 
 def check_sweep(multirun_cfg) -> None:
     """Refuse (a ValueError naming the key) a sweep before its first job: a search the wrong
-    way (:func:`~topomap.app.compose.config_checks.check_search_direction`), SLURM's launcher on
-    a machine without ``sbatch``, a folder that holds another sweep's jobs
+    way (:func:`~topomap.app.compose.config_checks.check_search_direction`), or going on from a
+    folder without a study of its objective (:func:`~topomap.app.compose.study.check_resume`),
+    SLURM's launcher on a machine without ``sbatch``, a folder that holds another sweep's jobs
     (:func:`~topomap.app.report.jobs.check_sweep_folder`; with ``output.resume=true``, those of
     the same sweep go on)."""
     import shutil
@@ -319,6 +326,13 @@ def check_sweep(multirun_cfg) -> None:
     from .report.jobs import check_sweep_folder
 
     check_search_direction(multirun_cfg)
+    resume_from = OmegaConf.select(multirun_cfg, "hydra.sweeper.storage.resume_from",
+                                   default=None)
+    if resume_from not in (None, ""):
+        from .compose.study import check_resume
+
+        objective = OmegaConf.select(multirun_cfg, "objective", default=None)
+        check_resume(str(resume_from), str(getattr(objective, "value", objective)))
     launcher = str(OmegaConf.select(multirun_cfg, "hydra.launcher._target_", default="") or "")
     if launcher.endswith("SlurmLauncher") and shutil.which("sbatch") is None:
         raise ValueError("hydra/launcher=slurm submits the jobs with SLURM's sbatch, which is not "
@@ -346,6 +360,18 @@ def main() -> None:
     if "--version" in argv:
         print(version_line())
         return
+    from .compose.help_cache import keeping_help, kept_help
+
+    kept = kept_help(argv)
+    if kept is not None:
+        sys.stdout.write(kept)
+        return
+    with keeping_help(argv):
+        _main(argv)
+
+
+def _main(argv: list[str]) -> None:
+    """:func:`main` past ``--version`` and a kept ``--help``."""
     import hydra
 
     from .compose.command_line import CONFIG_MODULE, overrides_of, screen_command_line

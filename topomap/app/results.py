@@ -8,7 +8,7 @@ none of them imports another to learn a file's name.
 * the files: :data:`OUTPUT_FILES` (every run), :data:`FIGURE_FILES`, :data:`HTML_FILES`,
   :data:`PATH_FIGURES` and :data:`MAPPING_FIGURES` (with ``output.figures``),
   :data:`LOCALIZE_FILES` (``task=localize``), :data:`STATUS_FILE` and, in a sweep's folder,
-  :data:`CACHE_DIR`;
+  :data:`CACHE_DIR` and a search's :data:`STUDY_FILE`;
 * the numbers of ``metrics.json`` (and ``status.json``) by name, :data:`COLUMNS`: where each is,
   its label and which way is better -- the columns of a sweep's ``summary.csv`` and a logger's
   metrics;
@@ -28,7 +28,7 @@ from omegaconf.errors import OmegaConfBaseException
 
 from ..core.checks import ParameterError
 
-__all__ = ["METRICS_FILE", "STATUS_FILE", "CACHE_DIR", "OUTPUT_FILES", "LOCALIZE_FILES",
+__all__ = ["METRICS_FILE", "STATUS_FILE", "CACHE_DIR", "STUDY_FILE", "OUTPUT_FILES", "LOCALIZE_FILES",
            "FIGURE_FILES", "HTML_FILES", "PATH_FIGURES", "MAPPING_FIGURES", "Column", "COLUMNS",
            "METRICS", "check_metric", "select", "OBJECTIVES", "objective_direction", "UNITS"]
 
@@ -41,6 +41,9 @@ METRICS_FILE = "metrics.json"
 STATUS_FILE = "status.json"
 #: the folder of a sweep where its jobs share simulated trajectories
 CACHE_DIR = ".cache"
+#: an optimising search's trials (Optuna's study), in its sweep folder: their objective, and
+#: each trial's parameters, value and the sweep folder and job it ran as
+STUDY_FILE = "study.json"
 
 #: files every run writes, with what they hold (figures only with ``output.figures``)
 OUTPUT_FILES = {
@@ -58,11 +61,14 @@ LOCALIZE_FILES = {
 }
 FIGURE_FILES = {
     "fig_states.png": "observation points coloured by state after clustering, after splitting and "
-                      "(with refine) after the refinement (the paper's Fig. 4, right)",
+                      "(with refine) after the refinement, or a continuous log's places "
+                      "(the paper's Fig. 4, right)",
     "fig_split.png": "a compound state before and after its split, with transition tables (Figs. 5-6)",
-    "fig_map.png": "the learned map at the states' mean positions (without positions: at a graph "
-                   "layout), arcs where P > min_prob (Fig. 7)",
-    "fig_entropy.png": "H(u|x), H(x'|x,u) and their sum after each split (and after the refinement)",
+    "fig_map.png": "the learned map at the states' mean positions (without positions, or states "
+                   "scattered over the floor: at a graph layout), arcs where P > min_prob and "
+                   "self-loops (a map that mostly stays: the moves between states) (Fig. 7)",
+    "fig_entropy.png": "H(u|x), H(x'|x,u) and their sum after each split (and after the "
+                       "refinement, or a continuous log's places)",
 }
 #: the figure a run whose steps have positions but no discrete places adds (the arena, a log)
 PATH_FIGURES = {
@@ -203,5 +209,7 @@ UNITS = {
     "loglik": "nats per step (task=localize); a log-density, like heldout_loglik",
     "position": "median_error, p90_error: metres between where a held-out step is placed (its "
                 "state's mean training position) and where it was; wrong_region: a share of the "
-                "held-out steps",
+                "held-out steps; coverage: each region's share of the training and of the "
+                "held-out steps, and heldout_unvisited, the share of held-out steps in regions "
+                "the training walk never entered",
 }

@@ -1,7 +1,9 @@
 """The learner's methods that apply its learned map (``map_``) to new sequences: scikit-learn's
 ``predict`` and ``score`` and hmmlearn's ``predict_proba``, ``score_samples``, ``decode`` and
-``sample``, each the :class:`~topomap.core.map.model.TopologicalMap` method of the same name; and
-the fit conveniences ``fit_trajectory`` and ``fit_predict``.
+``sample``, each the :class:`~topomap.core.map.model.TopologicalMap` method of the same name;
+and hmmlearn's names of a fitted model (``n_components``, ``startprob_``, ``transmat_``,
+``means_``, ``covars_``) as read-only views of the map; and the fit conveniences ``fit_trajectory`` and
+``fit_predict``.
 
 ``predict`` and ``score`` take the robot's ``odometry`` as ``fit`` does, checked
 (:func:`topomap.core.motion.inputs.check_odometry`): a map localises a walk from its views and
@@ -18,26 +20,89 @@ from .motion.inputs import check_odometry
 __all__ = ["MapMethods"]
 
 
+def _read_only(a: np.ndarray) -> np.ndarray:
+    """A view of ``a`` that cannot be written (the map never changes)."""
+    view = a.view()
+    view.flags.writeable = False
+    return view
+
+
 class MapMethods:
     """What :class:`topomap.MapLearner` does with its ``map_``; each method raises
-    scikit-learn's ``NotFittedError`` before :meth:`fit` (or :meth:`partial_fit`)."""
+    scikit-learn's ``NotFittedError`` before :meth:`fit` (or :meth:`partial_fit`).
 
-    def predict(self, observations: ArrayLike, actions: ArrayLike, gds: ArrayLike | None = None,
-                lengths: ArrayLike | None = None, *,
+    ``actions=None`` (hmmlearn's ``predict(X)``, scikit-learn's ``score(X)``): a sequence of
+    observations alone is decoded on the map with its actions summed out, whose transitions are
+    :attr:`TopologicalMap.marginal_transition_probs
+    <topomap.core.map.model.TopologicalMap.marginal_transition_probs>`; its likelihood is that
+    of the observations, ``P(o) = sum_u P(o, u)``.
+
+    hmmlearn's names, read-only views of ``map_`` (S states, A actions, D features):
+
+    * ``n_components``: S, the number of states learned (a parameter in hmmlearn; here the
+      parameter is ``n_states``, which the map may not keep: ``"auto"``, a free refinement);
+    * ``startprob_`` (S,): the share of steps in each state, which every episode starts from
+      when decoding (a robot's walk starts anywhere);
+    * ``transmat_`` (A, S, S): ``transmat_[a, i, j] = P(x'=j | x=i, u=a)``, one hmmlearn
+      ``transmat_`` per action (the action chooses the matrix); with the actions summed out it is
+      ``map_.marginal_transition_probs`` (S, S), hmmlearn's own;
+    * ``means_`` (S, D) and ``covars_`` (S, D, D): each state's Gaussian, tied between the states
+      split from one symbol; ``covars_`` holds full matrices whatever ``covariance_type``, as
+      hmmlearn's ``covars_`` does (``map_.covariances`` keeps the (S, D) variances of ``"diag"``).
+    """
+
+    def _fitted_map(self):
+        check_is_fitted(self, "map_")
+        return self.map_
+
+    @property
+    def n_components(self) -> int:
+        """S, the number of states of the learned map (hmmlearn's name)."""
+        return self._fitted_map().n_states
+
+    @property
+    def startprob_(self) -> np.ndarray:
+        """(S,) the share of steps in each state: where an episode starts when decoding."""
+        return _read_only(self._fitted_map().state_probs)
+
+    @property
+    def transmat_(self) -> np.ndarray:
+        """(A, S, S) ``P(x'|x, u)``, one (S, S) matrix per action, rows summing to 1."""
+        return _read_only(np.moveaxis(self._fitted_map().transition_probs, 1, 0))
+
+    @property
+    def means_(self) -> np.ndarray:
+        """(S, D) the mean of each state's Gaussian observation model."""
+        return _read_only(self._fitted_map().means)
+
+    @property
+    def covars_(self) -> np.ndarray:
+        """(S, D, D) the covariance of each state's Gaussian, as full matrices."""
+        cov = self._fitted_map().covariances
+        if cov.ndim == 2:  # "diag": the variances on the diagonals
+            full = np.zeros(cov.shape + cov.shape[-1:])
+            full[:, np.arange(cov.shape[1]), np.arange(cov.shape[1])] = cov
+            cov = full
+        return _read_only(cov)
+
+    def predict(self, observations: ArrayLike, actions: ArrayLike | None = None,
+                gds: ArrayLike | None = None, lengths: ArrayLike | None = None, *,
                 odometry: ArrayLike | None = None) -> np.ndarray:
         """The most likely state of every step of a new sequence (Viterbi on the learned map:
         :meth:`TopologicalMap.predict <topomap.core.map.model.TopologicalMap.predict>`);
-        ``odometry`` is checked, not used (see the module docstring).
+        without ``actions``, on the map with its actions summed out; ``odometry`` is checked,
+        not used (see the module docstring).
         Raises scikit-learn's ``NotFittedError`` before :meth:`fit` (or :meth:`partial_fit`)."""
         check_is_fitted(self, "map_")
         self._check_odometry(odometry, observations, lengths)
         return self.map_.predict(observations, actions, gds=gds, lengths=lengths)
 
-    def score(self, observations: ArrayLike, actions: ArrayLike, gds: ArrayLike | None = None,
-              lengths: ArrayLike | None = None, *, odometry: ArrayLike | None = None) -> float:
+    def score(self, observations: ArrayLike, actions: ArrayLike | None = None,
+              gds: ArrayLike | None = None, lengths: ArrayLike | None = None, *,
+              odometry: ArrayLike | None = None) -> float:
         """Mean log-likelihood per step (nats; a log-density) of a new sequence under the learned
         map (:meth:`TopologicalMap.score <topomap.core.map.model.TopologicalMap.score>`);
-        ``odometry`` is checked, not used.
+        without ``actions``, that of the observations alone; ``odometry`` is checked, not used.
         Raises scikit-learn's ``NotFittedError`` before :meth:`fit` (or :meth:`partial_fit`)."""
         check_is_fitted(self, "map_")
         self._check_odometry(odometry, observations, lengths)
@@ -48,7 +113,7 @@ class MapMethods:
         if odometry is not None:
             check_odometry(odometry, len(observations), lengths)
 
-    def predict_proba(self, observations: ArrayLike, actions: ArrayLike,
+    def predict_proba(self, observations: ArrayLike, actions: ArrayLike | None = None,
                       gds: ArrayLike | None = None,
                       lengths: ArrayLike | None = None) -> np.ndarray:
         """(T, S) posterior of every state at every step given its whole episode
@@ -57,7 +122,7 @@ class MapMethods:
         check_is_fitted(self, "map_")
         return self.map_.predict_proba(observations, actions, gds=gds, lengths=lengths)
 
-    def score_samples(self, observations: ArrayLike, actions: ArrayLike,
+    def score_samples(self, observations: ArrayLike, actions: ArrayLike | None = None,
                       gds: ArrayLike | None = None,
                       lengths: ArrayLike | None = None) -> tuple[float, np.ndarray]:
         """``(log_prob, posteriors)``: the summed log-likelihood and :meth:`predict_proba` in
@@ -66,8 +131,8 @@ class MapMethods:
         check_is_fitted(self, "map_")
         return self.map_.score_samples(observations, actions, gds=gds, lengths=lengths)
 
-    def decode(self, observations: ArrayLike, actions: ArrayLike, gds: ArrayLike | None = None,
-               lengths: ArrayLike | None = None, *,
+    def decode(self, observations: ArrayLike, actions: ArrayLike | None = None,
+               gds: ArrayLike | None = None, lengths: ArrayLike | None = None, *,
                algorithm: str = "viterbi") -> tuple[float, np.ndarray]:
         """``(log_prob, states)`` by ``algorithm`` ``"viterbi"`` or ``"map"``
         (:meth:`TopologicalMap.decode <topomap.core.map.model.TopologicalMap.decode>`), as

@@ -37,7 +37,8 @@ from ..core.phase1.clustering import view_clusters
 from ..core.stats import label_means
 
 __all__ = ["placement_scores", "score_units", "map_scores", "true_places", "split_places",
-           "ceiling_scores", "kmeans_view_scores", "position_scores", "VIEW_STARTS"]
+           "ceiling_scores", "kmeans_view_scores", "position_scores", "region_coverage",
+           "VIEW_STARTS"]
 
 #: k-means++ starts of the yardstick's view clusters: those of the view clusters a continuous
 #: log's map falls back to (``MotionSettings.n_init``'s default)
@@ -66,6 +67,23 @@ def _region_pair(regions, train, heldout):
         if r.size != len(traj):
             raise ValueError(f"regions: {r.size} {which} region ids for {len(traj)} steps")
     return out
+
+
+def region_coverage(names, train_regions, heldout_regions) -> dict:
+    """How the two walks cover the regions ``names`` (region ids per step of each walk):
+    ``regions`` -> ``{name: {"training": share, "heldout": share}}`` (shares of each walk's
+    steps), ``unvisited``: the regions the held-out walk entered and the training walk never
+    did, and ``heldout_unvisited``: the share of the held-out steps in them -- steps no map
+    learned from the training walk can place in their region."""
+    n = len(names)
+    train = np.bincount(np.asarray(train_regions, dtype=np.int64), minlength=n)
+    held = np.bincount(np.asarray(heldout_regions, dtype=np.int64), minlength=n)
+    unseen = (train == 0) & (held > 0)
+    return {"regions": {name: {"training": float(train[k] / max(train.sum(), 1)),
+                               "heldout": float(held[k] / max(held.sum(), 1))}
+                        for k, name in enumerate(names)},
+            "unvisited": [name for k, name in enumerate(names) if unseen[k]],
+            "heldout_unvisited": float(held[unseen].sum() / max(held.sum(), 1))}
 
 
 def placement_scores(placed, truth, wrong=None) -> dict:

@@ -23,7 +23,11 @@ from ...core.data.trajectory import Trajectory, load_trajectory
 from ...worlds.explorers import RandomExplorer
 from ...worlds.mapping import heldout_judge, map_while_exploring, quality_curve
 
-__all__ = ["Simulate", "FromFile", "FromRosbag", "seed_streams"]
+__all__ = ["Simulate", "FromFile", "FromRosbag", "seed_streams", "DEFAULT_STEPS"]
+
+#: steps of a simulated walk in a world that names no length of its own (``default_steps``):
+#: the paper's T (Yairi, Togami & Hori 2002, Section 4)
+DEFAULT_STEPS = 2000
 
 
 def seed_streams(seed: int):
@@ -37,8 +41,9 @@ class Simulate:
 
     Parameters
     ----------
-    n_steps : int
-        Length of the walk learned from.
+    n_steps : int or None
+        Length of the walk learned from; None (the default): the world's own length
+        (``default_steps``: the arena's walks cover its layouts), else :data:`DEFAULT_STEPS`.
     heldout_steps : int or None
         Length of a second, held-out walk through the same world that the map is scored on
         (None: ``n_steps``; 0: none).  It uses the seed's third random stream, so it never
@@ -56,11 +61,11 @@ class Simulate:
 
     simulates = True
 
-    def __init__(self, n_steps: int = 2000, heldout_steps: int | None = None,
+    def __init__(self, n_steps: int | None = None, heldout_steps: int | None = None,
                  update_every: int = 0, curve_every: int | None = None):
-        self.n_steps = check_count(n_steps, "n_steps")
-        hold = check_count(heldout_steps, "heldout_steps", minimum=0, allow_none=True)
-        self.heldout_steps = self.n_steps if hold is None else hold
+        self.told_steps = check_count(n_steps, "n_steps", allow_none=True)
+        self.told_heldout = check_count(heldout_steps, "heldout_steps", minimum=0,
+                                        allow_none=True)
         if curve_every is not None:
             if update_every:
                 raise ParameterError("curve_every", "is the old name of update_every: give "
@@ -70,6 +75,17 @@ class Simulate:
                           stacklevel=2)
             update_every = curve_every
         self.update_every = check_count(update_every, "update_every", minimum=0)
+
+    def steps(self, env) -> int:
+        """Steps of the walk learned from in the world ``env``: ``n_steps``, else the world's
+        ``default_steps``, else :data:`DEFAULT_STEPS`."""
+        if self.told_steps is not None:
+            return self.told_steps
+        return int(getattr(env, "default_steps", None) or DEFAULT_STEPS)
+
+    def heldout_steps_in(self, env) -> int:
+        """Steps of the held-out walk in ``env``: ``heldout_steps``, else :meth:`steps`."""
+        return self.steps(env) if self.told_heldout is None else self.told_heldout
 
     def maps_while_exploring(self, parts) -> int:
         """Steps between two map updates while walking (0: the map is learned after the walk);
@@ -84,19 +100,19 @@ class Simulate:
 
     def train(self, parts, seed: int, progress=None, learner=None) -> Trajectory:
         rng_sim, rng_noise, _ = seed_streams(seed)
-        explorer = parts.explorer
+        explorer, n_steps = parts.explorer, self.steps(parts.env)
         if progress is not None and not getattr(parts.env, "moves_itself", False):
-            explorer = progress.ticking(parts.explorer, self.n_steps)
+            explorer = progress.ticking(parts.explorer, n_steps)
         update_every = self.maps_while_exploring(parts)
         if update_every and learner is not None:
             judge = heldout_judge(self.judging_walk(parts, seed))
-            traj, walk = map_while_exploring(parts.env, self.n_steps, explorer, learner,
+            traj, walk = map_while_exploring(parts.env, n_steps, explorer, learner,
                                              parts.noise, rng_sim, rng_noise, update_every, judge)
             walk.flush()
             traj.meta["mapping"] = {"update_every": update_every, "explorer": repr(parts.explorer),
                                     "curve": quality_curve(walk, traj.places)}
             return traj
-        traj = parts.env.simulate(self.n_steps, explorer, rng_sim)
+        traj = parts.env.simulate(n_steps, explorer, rng_sim)
         traj.observations = parts.noise.apply(traj.observations, rng_noise)
         return traj
 
@@ -105,7 +121,7 @@ class Simulate:
         ``min(n_steps, 10000)`` steps of :class:`~topomap.worlds.RandomExplorer`, from the seed's
         fourth random stream."""
         rng_sim, rng_noise = np.random.SeedSequence(int(seed)).spawn(4)[3].spawn(2)
-        traj = parts.env.simulate(min(self.n_steps, 10000), RandomExplorer(),
+        traj = parts.env.simulate(min(self.steps(parts.env), 10000), RandomExplorer(),
                                     np.random.default_rng(rng_sim))
         traj.observations = parts.noise.apply(traj.observations, np.random.default_rng(rng_noise))
         return traj
@@ -114,13 +130,14 @@ class Simulate:
         """The held-out walk: the world's ``heldout_walk`` where it has one (the arena: another
         random walk, or the end of a recorded path after the ``n_steps`` learned from), else
         another walk of the world; from the seed's third random stream."""
-        if self.heldout_steps == 0:
+        held = self.heldout_steps_in(parts.env)
+        if held == 0:
             return None
         rng_sim, rng_noise = seed_streams(seed)[2].spawn(2)
         walk = getattr(parts.env, "heldout_walk", None)
         try:
-            traj = (parts.env.simulate(self.heldout_steps, parts.explorer, rng_sim) if walk is None
-                    else walk(self.heldout_steps, parts.explorer, rng_sim, after=self.n_steps))
+            traj = (parts.env.simulate(held, parts.explorer, rng_sim) if walk is None
+                    else walk(held, parts.explorer, rng_sim, after=self.steps(parts.env)))
         except ParameterError as err:  # the walk's n_steps is this heldout_steps
             raise (err.renamed("heldout_steps") if err.param == "n_steps" else err) from None
         traj.observations = parts.noise.apply(traj.observations, rng_noise)

@@ -16,12 +16,13 @@ def _c(kind, name, factory, description):
 
 
 def nothing():
-    """A component switched off (``refine=none``, ``evaluate=none``, ``logger=none``)."""
+    """A component switched off (``refine=none``, ``evaluate=none``, ``logger=none``,
+    ``odometry=none``)."""
     return None
 
 
 def _arena():
-    """The arena and its parts: its sensors and its action rules."""
+    """The arena and its parts: its sensors, its action rules and its odometry."""
     return [
         _c("env", "arena", "topomap.worlds.arena:ArenaWorld",
            "continuous motion in a floor plan (optional ratinabox package): random motion or a "
@@ -32,10 +33,18 @@ def _arena():
            "the arena's boundary-vector cells (ratinabox), firing rates"),
         _c("sensor", "ovc", "topomap.worlds.arena:ObjectVectorCells",
            "the arena's object-vector cells (ratinabox), tuned to the floor plan's objects"),
+        _c("sensor", "place_cells", "topomap.worlds.arena:PlaceCells",
+           "the arena's place cells (ratinabox): Gaussian fields around centres on the floor"),
+        _c("sensor", "grid_cells", "topomap.worlds.arena:GridCells",
+           "the arena's grid cells (ratinabox): rectified cosine gratings in three modules"),
         _c("actions", "compass", "topomap.worlds.arena:CompassActions",
            "the arena's moves as compass octants of the velocity, or stop"),
         _c("actions", "turns", "topomap.worlds.arena:TurnActions",
            "the arena's moves as a differential drive's: forward, turn_left, turn_right, stop"),
+        _c("odometry", "none", nothing, "no odometry: the walks hold none (the default)"),
+        _c("odometry", "wheel", "topomap.worlds.arena:WheelOdometry",
+           "the robot's wheel odometry (the arena): dead reckoning with speed and turn-rate "
+           "noise, a gyro bias and slips"),
     ]
 
 

@@ -40,8 +40,11 @@ def hydra_arguments(argv):
 
 
 def overrides_of(argv) -> list[str]:
-    """The overrides (``key=value`` words) of a command line, as Hydra's own parser reads it."""
-    return list(hydra_arguments(argv).overrides or [])
+    """The overrides (``key=value`` words) of a command line, as Hydra's own parser reads it;
+    none with ``--shell-completion`` (``-sc``), whose words are commands to Hydra's shell
+    completion (``install=bash``, ``query=bash``), not keys of the config."""
+    args = hydra_arguments(argv)
+    return [] if args.shell_completion else list(args.overrides or [])
 
 
 def plugins_named(overrides) -> list[str]:

@@ -61,18 +61,40 @@ def _has_key(schema, key: str) -> bool:
     return key in fields_of(schema) or key in renamed_of(schema)
 
 
-def _unknown(key: str, valid, where: str = "") -> ValueError:
+def _unknown(key: str, valid, where: str = "", groups=(), added: bool = False) -> ValueError:
+    """The error of an unknown ``key``, naming the nearest valid key or, for a key without a
+    dot, group (``groups``: chosen as ``group=<option>``); ``added``: given with ``+``."""
     import difflib
 
-    close = difflib.get_close_matches(key, sorted(valid), n=1, cutoff=0.6)
-    hint = f"; did you mean {close[0]}?" if close else ""
-    return ValueError(f"unknown config key {key!r}{where}{hint} (topomap --help lists the config)")
+    candidates = set(valid) | set(groups) if "." not in key else set(valid) - set(groups)
+    close = difflib.get_close_matches(key, sorted(candidates), n=1, cutoff=0.6)
+    hint = ""
+    if close:
+        hint = (f"; did you mean the group {close[0]} ({close[0]}=<option>)?"
+                if close[0] in groups else f"; did you mean {close[0]}?")
+    plus = ("; the config is typed, so + adds no key" if added else "")
+    return ValueError(f"unknown config key {key!r}{where}{hint}{plus} (topomap --help lists the "
+                      "config)")
+
+
+def _check_added(override, groups) -> None:
+    """Refuse ``+key=value`` for a key or group topomap's config already has, as Hydra does
+    for a structured config, in one line: drop the ``+`` (``++`` sets it either way)."""
+    if not override.is_add():
+        return
+    key = override.key_or_group
+    what = "a group" if key in groups else "a key"
+    value = override.input_line.partition("=")[2]
+    raise ValueError(f"{override.input_line}: {key} is {what} of the config already, and + adds "
+                     f"only new ones; drop the +: {key}={value}")
 
 
 def check_overrides(overrides, registry, *, user_configs: bool = False) -> None:
     """Screen a command line before Hydra composes it, in topomap's words.
 
-    * a key no config declares, ``+`` or not: refused, naming the nearest valid key;
+    * a key no config declares, ``+`` or not: refused, naming the nearest valid key or group;
+    * ``+key=value`` of a key or group the config has: refused (drop the ``+``), as Hydra does
+      for a structured config; ``++key=value`` sets it;
     * a group's option that does not exist (``env=gridrom``): refused, naming the nearest option;
     * a key of a component that is not selected (``data.path`` while ``data=simulate``):
       refused, naming the components that have that key (Hydra would offer to append it);
@@ -94,10 +116,11 @@ def check_overrides(overrides, registry, *, user_configs: bool = False) -> None:
         _check_hydra_plugin(override)
     for override in parsed:
         key = override.key_or_group
-        if (override.is_delete() or "/" in key or key.split(".")[0] == "hydra"
-                or key in groups or key in valid or key in renamed):
+        if override.is_delete() or "/" in key or key.split(".")[0] == "hydra":
             continue
-        raise _unknown(key, valid)
+        if key in groups or key in valid or key in renamed:
+            continue
+        raise _unknown(key, valid, groups=groups, added=override.is_add())
     user_configs = user_configs or any(o.key_or_group.startswith("hydra.searchpath")
                                        for o in parsed)
     chosen = {}  # group -> the options the command line chooses (several in a sweep)
@@ -115,6 +138,9 @@ def check_overrides(overrides, registry, *, user_configs: bool = False) -> None:
     choices = {g: v[0] for g, v in chosen.items() if len(v) == 1}
     if "experiment" in choices:
         _check_preset(choices.pop("experiment"), choices, registry)
+    for override in parsed:  # a key of the chosen components, or a group, given with +
+        if "/" not in override.key_or_group and override.key_or_group.split(".")[0] != "hydra":
+            _check_added(override, groups)
 
 
 #: Hydra's sweepers and launchers that come with an extra of topomap: (option, Hydra plugin

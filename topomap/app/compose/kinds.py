@@ -53,6 +53,9 @@ KINDS = MappingProxyType({kind.name: kind for kind in (
                    "(:mod:`topomap.worlds.arena.sensors`)", simulated=True, part_of="env"),
     Kind("actions", "``action_names``; ``actions(motion) -> (T,)`` action ids read off a path "
                     "(:mod:`topomap.worlds.arena.actions`)", simulated=True, part_of="env"),
+    Kind("odometry", "``dead_reckoning(motion, rng) -> (T, 3)``: the robot's own x, y, heading "
+                     "along a path (:mod:`topomap.worlds.arena.odometry`)", simulated=True,
+         part_of="env"),
     Kind("env", "a world: ``simulate(n_steps, explorer, rng) -> Trajectory`` (optional: "
                 "``plot_room(ax)``, ``heldout_walk(n_steps, explorer, rng, after)``, an "
                 "``extra_actions=`` argument, the parts it takes: ``sensor=``, ``actions=``)",

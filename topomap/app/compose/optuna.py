@@ -26,7 +26,12 @@ def store_optuna_sweeper(cs) -> None:
         from hydra_plugins.hydra_optuna_sweeper.config import OptunaSweeperConf, TPESamplerConfig
     except ImportError:
         return
+    import logging
+
     from hydra.core.plugins import Plugins
+
+    logging.getLogger("alembic").setLevel(logging.WARNING)  # Optuna's database migrations, a
+    # line for each of its plugins when the sweeper imports Optuna
 
     Plugins.instance()  # Hydra's first plugin scan stores the plugin's options: let it come first
 
@@ -35,7 +40,8 @@ def store_optuna_sweeper(cs) -> None:
         direction: Any = "maximize"
         storage: Optional[Any] = field(default_factory=lambda: {
             "_target_": "topomap.app.compose.study.SweepStudy", "folder": II("hydra.sweep.dir"),
-            "resume_from": None, "n_trials": II("hydra.sweeper.n_trials")})
+            "resume_from": None, "n_trials": II("hydra.sweeper.n_trials"),
+            "objective": II("objective")})
         study_name: Optional[str] = "topomap"
         n_jobs: int = 1
         max_failure_rate: float = 1.0

@@ -25,6 +25,8 @@ from dataclasses import field, make_dataclass
 from pathlib import Path
 from typing import Any, Optional
 
+from ...core.data.atomic import atomic_write
+
 __all__ = ["cached_schema", "cache_file", "source_stamp", "renamed_of", "CACHE_ENV"]
 
 #: the folder of the cache file; "" keeps none (default: ``$XDG_CACHE_HOME/topomap`` or
@@ -86,10 +88,7 @@ def _write(key: str, encoded: dict) -> None:
     if path is None:
         return
     try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_name(f".{path.name}.{os.getpid()}")
-        tmp.write_text(json.dumps(stored, sort_keys=True))
-        os.replace(tmp, path)
+        atomic_write(path, lambda tmp: tmp.write_text(json.dumps(stored, sort_keys=True)))
     except OSError:  # a read-only home: derive again next time
         pass
 

@@ -11,11 +11,62 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = ["room", "state_positions", "node_positions", "compound_mask", "pairs", "drawn",
-           "jitter", "continuous", "MAX_POINTS"]
+           "jitter", "continuous", "map_arcs", "Arcs", "MAX_POINTS", "STAYING",
+           "MIN_LEAVING_SHARE"]
 
 #: most observation points a figure draws; longer runs show every k-th step (all steps still
 #: count for the state numbers, rings and legend counts)
 MAX_POINTS = 20_000
+
+
+#: a map whose steps stay in their state more often than this (a log sampled faster than it
+#: moves between places: the arena's rat stays in one of 64 places for 90-97 % of its 10 Hz
+#: steps) draws the moves between states rather than its transitions above ``min_prob``, which
+#: are then nearly all self-loops
+STAYING = 0.5
+#: an arc of such a map joins x to x' when at least this share of the moves that leave x go to
+#: x': a place among places tiling the floor has about six neighbours (a share of 1/6 each),
+#: and rarer moves are the noise of view-aliased states
+MIN_LEAVING_SHARE = 0.1
+
+
+class Arcs:
+    """The arcs a map figure draws: ``between`` (pairs ``(x, x')``, ``x != x'``), ``loops``
+    (the states with a self-loop drawn), ``rule`` (what an arc means, for the title), ``legend``
+    (the same, short) and ``staying`` (the share of steps that stay in their state)."""
+
+    def __init__(self, between, loops, rule, staying, legend):
+        self.between, self.loops, self.rule, self.staying = between, loops, rule, staying
+        self.legend = legend
+
+    def title(self, n_states: int) -> str:
+        """``64 states, 3 arcs and 61 self-loops with P(x'|x,u) > 0.8`` (or the moves' rule)."""
+        n = len(self.loops)
+        loops = f" and {n} self-loop{'s' if n != 1 else ''}" if n else ""
+        return f"{n_states} states, {len(self.between)} arcs{loops} {self.rule}"
+
+
+def map_arcs(m, min_prob: float) -> Arcs:
+    """The arcs of the map ``m``: where some ``P(x'|x,u) > min_prob`` (self-loops apart); or,
+    when its steps stay in their state more than :data:`STAYING` of the time, the moves
+    between states: ``x -> x'`` where at least :data:`MIN_LEAVING_SHARE` of the moves leaving
+    ``x`` go (no self-loops: staying is what such a map does)."""
+    C = np.asarray(m.transition_counts, dtype=np.float64).sum(axis=1)  # (S, S) over actions
+    total = C.sum()
+    staying = float(np.trace(C) / total) if total else 0.0
+    if staying > STAYING:
+        leave = C - np.diag(np.diag(C))
+        share = leave / np.maximum(leave.sum(axis=1, keepdims=True), 1.0)
+        between = [(int(a), int(b)) for a, b in zip(*np.nonzero(share >= MIN_LEAVING_SHARE))]
+        rule = (f"where >= {MIN_LEAVING_SHARE:.0%} of the moves out of a state go "
+                f"(steps stay in their state {staying:.0%} of the time)")
+        return Arcs(between, [], rule, staying,
+                    f"arc: >= {MIN_LEAVING_SHARE:.0%} of the moves out of a state")
+    G = m.to_networkx(min_prob=min_prob)
+    between = [(a, b) for a, b in G.edges if a != b]
+    loops = [a for a, b in G.edges if a == b]
+    return Arcs(between, loops, f"with P(x'|x,u) > {min_prob}", staying,
+                f"arc: P(x'|x,u) > {min_prob}")
 
 
 def pairs(labels, places, **kw):
@@ -87,9 +138,33 @@ def state_positions(labels, positions, S):
         return np.where(n[:, None] > 0, sums / n[:, None], np.nan)
 
 
-def node_positions(m, labels=None, positions=None, seed: int = 0) -> tuple[np.ndarray, str]:
+#: a map whose states' steps lie, in the median state, farther than this share of the floor's
+#: diagonal from their state's mean position is no map of places (an egocentric robot's view
+#: clusters): its nodes are drawn at a layout of its graph, not in a clump at the floor's middle.
+#: The arena's places lie 0.03 of the diagonal from their means (``topomap
+#: experiment=arena_two_rooms``, seed 0), an egocentric robot's view clusters 0.13
+#: (``experiment=arena_robot``, 60 beams) to 0.20 (12 beams); a discrete world's states 0
+#: (the median state holds one place).  Steps with discrete places keep their mean positions
+SCATTERED = 0.1
+
+
+def scatter_of_states(labels, positions, means) -> float:
+    """The median over states of the median distance of a state's steps from its mean position,
+    as a share of the diagonal of the positions' extent."""
+    labels, positions = np.asarray(labels), np.asarray(positions, dtype=float)[:, :2]
+    d = np.hypot(*(positions - means[labels, :2]).T)
+    order = np.argsort(labels, kind="stable")
+    bounds = np.flatnonzero(np.diff(labels[order])) + 1
+    per_state = [np.median(g) for g in np.split(d[order], bounds) if g.size]
+    diagonal = float(np.hypot(*np.ptp(positions, axis=0))) or 1.0
+    return float(np.median(per_state)) / diagonal if per_state else 0.0
+
+
+def node_positions(m, labels=None, positions=None, seed: int = 0,
+                   places=None) -> tuple[np.ndarray, str]:
     """``((S, 2) positions, how)``: each state's mean position where the steps have positions
-    (``how`` = ``"mean position"``), else a layout of the map's graph (``"graph layout"``: a
+    (``how`` = ``"mean position"``), else -- or when the steps have no discrete ``places`` and
+    the states' steps scatter over the floor (:data:`SCATTERED`) -- a layout of the map's graph (``how`` starts ``"graph layout"``: a
     spring layout seeded by ``seed``, from a spectral one beyond 500 states).  A state without
     steps of its own is placed by the layout too."""
     import networkx as nx
@@ -100,6 +175,11 @@ def node_positions(m, labels=None, positions=None, seed: int = 0) -> tuple[np.nd
     if positions is not None and labels is not None:
         P = state_positions(np.asarray(labels), np.asarray(positions, dtype=float), S)
         how = "mean position"
+        spread = 0.0 if places is not None else scatter_of_states(labels, positions, P)
+        if spread > SCATTERED:
+            P = np.full((S, 2), np.nan)
+            how = (f"graph layout: the states' steps scatter over the floor ({spread:.0%} of "
+                   "its diagonal from their mean, in the median state)")
     missing = ~np.isfinite(P).all(axis=1)
     if missing.any():
         G = nx.Graph(m.to_networkx(min_prob=0.0))

@@ -10,17 +10,32 @@ from .style import LEGEND_SIZE, TITLE_SIZE
 __all__ = ["plot_entropy", "plot_mapping"]
 
 
+#: the entropies' stages that replace the split's map: drawn apart, right of a dashed line,
+#: with their line's label (a continuous log's places replace the split; a refinement refines it)
+AFTER_SPLIT = {"refined": "refined", "places": "places"}
+
+
+def _after_label(learner, stage: str) -> tuple[str, str]:
+    """``(legend, title)`` of the map that replaced the split at ``stage``."""
+    if stage == "refined":
+        return "after the refinement", "then after the refinement"
+    chosen = (getattr(learner, "motion_info_", None) or {}).get("chosen")
+    what = "the view clusters" if chosen == "views" else "the places (views and motion)"
+    return f"{what}, in place of the split", f"then {what}"
+
+
 def plot_entropy(ax, learner):
-    """H(u|x), H(x'|x,u) and their sum after phase 1 and after each split; after a refinement
-    its values too, as open markers right of a dashed line labelled "refined", at the refined
-    map's number of states.  The y-axis spans every value drawn, the split's and the
+    """H(u|x), H(x'|x,u) and their sum after phase 1 and after each split; after a refinement,
+    or the places of a continuous log that replace the split's map (:data:`AFTER_SPLIT`), its
+    values too, as open markers right of a dashed line labelled with the stage, at that map's
+    number of states.  The y-axis spans every value drawn, the split's and the
     refinement's (its range is the data's, not 0, unless an entropy is 0).  The legend sits
     outside the Axes, so it never covers a curve.  Returns ``ax``."""
     from matplotlib.ticker import MaxNLocator
 
     entries = learner.entropies_
-    e = [r for r in entries if r.get("stage") != "refined"]
-    refined = [r for r in entries if r.get("stage") == "refined"]
+    e = [r for r in entries if r.get("stage") not in AFTER_SPLIT]
+    refined = [r for r in entries if r.get("stage") in AFTER_SPLIT]
     it = [r["n_states"] for r in e]
     hu = np.array([r["H_u"] for r in e])
     hx = np.array([r["H_x"] for r in e])
@@ -42,22 +57,26 @@ def plot_entropy(ax, learner):
         ax.set_ylim(lo - pad, hi + pad)
         x = max(it) + max(1.0, 0.06 * (max(it) - min(it)))  # right of the split's last point
         ax.axvline((x + max(it)) / 2, color="0.4", ls="--", lw=0.8)
-        ax.text((x + max(it)) / 2, hi + pad, " refined", rotation=90, va="top", ha="right",
-                fontsize=LEGEND_SIZE, color="0.3")
+        legend, then = _after_label(learner, r["stage"])
+        ax.text((x + max(it)) / 2, hi + pad, f" {AFTER_SPLIT[r['stage']]}", rotation=90,
+                va="top", ha="right", fontsize=LEGEND_SIZE, color="0.3")
         for label, _, marker, colour in curves:  # the sum larger: it shows round a value it meets
             ax.plot([x], [values[label]], marker=marker, ms=9 if label == "sum" else 6,
                     mfc="white", mec=colour, ls="none")
         ax.plot([], [], marker="o", ms=5, mfc="white", mec="0.3", ls="none",
-                label=f"after the refinement ({r['n_states']} states)")
+                label=f"{legend} ({r['n_states']} states)")
         ax.set_xlim(right=x + 0.5 * (x - max(it)) + 0.5)
-        title += ", then after the refinement"
+        title += f", {then}"
     ax.legend(fontsize=LEGEND_SIZE, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
     ax.set_title(title, fontsize=TITLE_SIZE)
     return ax
 
 
 def _explorer_name(label: str) -> str:
-    """The explorer's class name out of its ``repr`` (``HistoryExplorer(update_every=250)``)."""
+    """The explorer as the title names it: ``explorer=<component>`` as the run chose it
+    (``explorer=active``), else the class name out of its ``repr``."""
+    if label.startswith("explorer="):
+        return label
     return label.partition("(")[0].strip()
 
 
@@ -65,8 +84,8 @@ def plot_mapping(ax, curve, label=""):
     """The quality of the map learned while exploring, after every update: its ARI on the
     held-out random walk (``heldout_ari``, the fair judge: :mod:`topomap.worlds.mapping`), and,
     thinner, on the steps taken so far (``ari``, which flatters an explorer that stays in a
-    small part of the world); ``label`` (the explorer's ``repr``) names the explorer in the
-    title.  The legend sits below the Axes, clear of the curves and the ticks.  Returns ``ax``."""
+    small part of the world); ``label`` names the explorer in the title (``explorer=active``
+    as the run chose it; a ``repr``: its class).  The legend sits below the Axes, clear of the curves and the ticks.  Returns ``ax``."""
     steps = [c["steps"] for c in curve]
     lows = [c["ari"] for c in curve]
     if all("heldout_ari" in c for c in curve):

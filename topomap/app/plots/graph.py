@@ -3,7 +3,9 @@
 Each state is a node at the mean position of its steps over the world's room (or, when the steps
 have no positions, where a seeded layout of the map's graph puts it:
 :func:`~topomap.app.plots.common.node_positions`, as ``map.html`` does); an arc joins two states
-where some ``P(x'|x,u)`` exceeds ``min_prob``.  The room's own point markers (the office's corner
+where some ``P(x'|x,u)`` exceeds ``min_prob`` -- or, for a map whose steps mostly stay in their
+state (a log sampled faster than it moves), where a share of the moves leaving a state go
+(:func:`~topomap.app.plots.common.map_arcs`).  The room's own point markers (the office's corner
 places) are drawn larger than the nodes and beneath them, so that a node standing on one leaves
 its arms showing.
 """
@@ -12,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .common import compound_mask, node_positions, room
+from .common import compound_mask, map_arcs, node_positions, room
 from .labels import data_per_point, spread
 from .style import MAX_MAP_NUMBERS, TITLE_SIZE
 
@@ -24,16 +26,18 @@ NODE_KINDS = (("white", "black", 1.0, "learned state"),
               ("gold", "red", 1.3, "state at a GDS"))
 
 
-def _arcs(ax, G, pos, diameter):
-    """Draw the map's arcs as thin grey curves that bend to the right of their direction (so the
-    arcs x -> x' and x' -> x stay apart), ending at the nodes' rims (``diameter`` points) in an
-    arrowhead; a self-loop is a small circle above its node.  Two collections, so that maps
-    of thousands of arcs draw quickly."""
+def _arcs(ax, arcs, pos, diameter):
+    """Draw the map's arcs (:func:`~.common.map_arcs`) as thin grey curves that bend to the
+    right of their direction (so the arcs x -> x' and x' -> x stay apart), ending at the nodes'
+    rims (``diameter`` points) in an arrowhead; a self-loop is a small circle above its node.
+    Two collections, so that maps of thousands of arcs draw quickly; a legend entry for each
+    kind drawn."""
     from matplotlib.collections import LineCollection, PolyCollection
+    from matplotlib.lines import Line2D
 
     unit = data_per_point(ax)[0]
-    edges = np.array([(a, b) for a, b in G.edges if a != b], dtype=int).reshape(-1, 2)
-    loops = [a for a, b in G.edges if a == b]
+    edges = np.array(arcs.between, dtype=int).reshape(-1, 2)
+    loops = list(arcs.loops)
     t = np.linspace(0.0, 1.0, 12)[:, None, None]
     p = np.array([pos[a] for a in edges[:, 0]]).reshape(-1, 2)
     q = np.array([pos[b] for b in edges[:, 1]]).reshape(-1, 2)
@@ -60,6 +64,11 @@ def _arcs(ax, G, pos, diameter):
                                      alpha=0.6, zorder=2), autolim=False)
     ax.add_collection(PolyCollection(heads, facecolors="0.3", edgecolors="none", alpha=0.7,
                                      zorder=2), autolim=False)
+    if len(edges):
+        ax.add_line(Line2D([], [], color="0.3", lw=0.8, label=arcs.legend))
+    if loops:
+        ax.add_line(Line2D([], [], color="0.3", lw=0, marker="o", mfc="none", ms=5,
+                           label="self-loop (small circle): stays in the state"))
 
 
 def _nodes(ax, P, states, kinds, diameter, numbered):
@@ -105,21 +114,23 @@ def plot_map(ax, traj, learner, env=None, min_prob=0.8, seed=0):
     dots beyond; compound states lavender (when the ground truth is known), GDS states gold.  One
     legend beside the map: the room's entries (if any), then the nodes'.  Returns ``ax``."""
     m = learner.map_
-    G = m.to_networkx(min_prob=min_prob)
-    means, how = node_positions(m, learner.labels_, traj.positions, seed)
-    if traj.positions is None:
+    arcs = map_arcs(m, min_prob)
+    means, how = node_positions(m, learner.labels_, traj.positions, seed, traj.places)
+    if how != "mean position":
         _layout_axes(ax, means)
     else:
         room(ax, env, traj.positions)
     room_legend = ax.get_legend()
-    keep = np.array([s for s in G.nodes if np.isfinite(means[s]).all()], dtype=int)
-    G = G.subgraph(keep.tolist())
+    keep = np.flatnonzero(np.isfinite(means).all(axis=1))
+    kept = set(keep.tolist())
+    arcs.between = [(a, b) for a, b in arcs.between if a in kept and b in kept]
+    arcs.loops = [a for a in arcs.loops if a in kept]
     numbered = len(keep) <= MAX_MAP_NUMBERS
     diameter = 11.0 if numbered else 4.0  # points
     _room_markers_around_nodes(ax, diameter)
     unit = data_per_point(ax)[0]
     P = spread(means[keep], 1.1 * diameter * unit) if numbered else means[keep]
-    _arcs(ax, G, dict(zip(keep.tolist(), P)), diameter)
+    _arcs(ax, arcs, dict(zip(keep.tolist(), P)), diameter)
     kinds = np.where(m.state_gds[keep] >= 0, 2, 0)
     if traj.places is not None:
         compound = compound_mask(learner.labels_, traj.places, m.n_states)
@@ -131,8 +142,8 @@ def plot_map(ax, traj, learner, env=None, min_prob=0.8, seed=0):
         names = [*(t.get_text() for t in room_legend.get_texts()), *names]
     ax.legend(handles, names, loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=6.5,
               frameon=False)
-    where = "" if how == "mean position" else "; no positions: nodes at a layout of the graph"
-    ax.set_title(f"learned map: {m.n_states} states, {G.number_of_edges()} arcs with "
-                 f"P(x'|x,u) > {min_prob}" + ("" if numbered else "; numbers omitted") + where,
-                 fontsize=TITLE_SIZE)
+    where = ("" if how == "mean position" else "\nnodes at a " + how if traj.positions is not None
+             else "; no positions: nodes at a layout of the graph")
+    ax.set_title("learned map: " + arcs.title(m.n_states)
+                 + ("" if numbered else "; numbers omitted") + where, fontsize=TITLE_SIZE)
     return ax

@@ -8,7 +8,9 @@ would overlap at the first view are pushed apart (the hover gives the true mean 
 symbol (or GDS), visits, mean position, ground-truth places by name when known and its outgoing
 transitions.  The nodes are one trace per kind -- learned, compound (steps of more than one true
 place) and GDS states, coloured as in ``fig_map.png`` -- so the legend names each kind; the arcs
-are those with some ``P(x'|x,u) > output.min_prob``, each with an arrowhead at 70 % of its length;
+are those of ``fig_map.png`` (:func:`~topomap.app.plots.common.map_arcs`: some
+``P(x'|x,u) > output.min_prob``, or the moves between states of a map whose steps mostly stay
+in their state), each with an arrowhead at 70 % of its length;
 a world with a floor plan (the arena's ``wall_segments``) has its walls drawn beneath.
 
 However many states, the figure is a handful of traces: the walls, the arcs (one line, ``None``
@@ -24,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from ...core.data.atomic import atomic_write
-from .common import compound_mask, node_positions
+from .common import compound_mask, map_arcs, node_positions
 from .labels import spread
 
 __all__ = ["map_figure", "write_map_html", "node_positions", "SVG_MAX_STATES", "NODE_COLOURS",
@@ -133,13 +135,13 @@ def _node_traces(Scatter, P, kind, sizes, text, numbered):
     return traces
 
 
-def _arc_traces(Scatter, P, arcs, min_prob):
+def _arc_traces(Scatter, P, arcs, legend):
     """The arcs as one line and their arrowheads (at 70 % of each arc) as one marker trace."""
     ends = np.array(arcs, dtype=int).reshape(-1, 2)
     xs, ys = _line(np.stack([P[ends[:, 0]], P[ends[:, 1]]], axis=1))
     edge_trace = Scatter(x=xs, y=ys, mode="lines", hoverinfo="skip",
                          line=dict(color="rgba(80,80,80,0.55)", width=1),
-                         name=f"arc: P(x'|x,u) > {min_prob}")
+                         name=legend)
     d = P[ends[:, 1]] - P[ends[:, 0]]
     head = P[ends[:, 0]] + 0.7 * d
     angle = np.degrees(np.arctan2(d[:, 0], d[:, 1]))  # clockwise from up, as plotly's
@@ -160,19 +162,21 @@ def map_figure(m, labels=None, positions=None, places=None, *, min_prob: float =
     import plotly.graph_objects as go
 
     S = m.n_states
-    means, how = node_positions(m, labels, positions, seed)
+    means, how = node_positions(m, labels, positions, seed, places)
+    if how.startswith("graph layout:"):  # positions, but the states scatter: no floor plan
+        walls = None
     Scatter = go.Scatter if S <= SVG_MAX_STATES else go.Scattergl
     visits = np.asarray(m.state_counts)
     sizes = _node_sizes(visits, S)
     numbered = S <= NUMBERED_STATES
     P = _spread_to_view(means, float(sizes.max()), walls) if S <= SVG_MAX_STATES else means
-    G = m.to_networkx(min_prob=min_prob)
+    arcs = map_arcs(m, min_prob)
     traces = []
     if walls is not None and len(walls):
         xs, ys = _line(walls)
         traces.append(Scatter(x=xs, y=ys, mode="lines", hoverinfo="skip", name="wall",
                               line=dict(color="black", width=2.5)))
-    traces += _arc_traces(Scatter, P, [(a, b) for a, b in G.edges if a != b], min_prob)
+    traces += _arc_traces(Scatter, P, arcs.between, arcs.legend)
     compound = (compound_mask(labels, places, S) if places is not None and labels is not None
                 else np.zeros(S, dtype=bool))
     kind = np.where(m.state_gds >= 0, "gds", np.where(compound, "compound", "state"))
@@ -190,8 +194,8 @@ def map_figure(m, labels=None, positions=None, places=None, *, min_prob: float =
     pad = 0.04 * max(float((hi - lo).max()), 1e-9) + 0.5 * (hi - lo == 0)
     fig = go.Figure(traces)
     fig.update_layout(
-        title=dict(text=f"learned map: {S} states, {G.number_of_edges()} arcs with P(x'|x,u) > "
-                        f"{min_prob}<br><sup>{detail}</sup>", font=dict(size=14), x=0.01,
+        title=dict(text=f"learned map: {arcs.title(S)}<br><sup>{detail}</sup>",
+                   font=dict(size=14), x=0.01,
                    xanchor="left", y=0.98, yanchor="top"),
         dragmode="pan", hovermode="closest", plot_bgcolor="white", template="none",
         margin=dict(l=20, r=20, t=70, b=20), legend=dict(orientation="h", y=-0.02),

@@ -145,9 +145,22 @@ def _split_stage(learner):
 
 
 def _refined(learner) -> bool:
-    """Whether the learner's final map is a refinement of its split map (``refine``, kept)."""
+    """Whether the learner's final map replaced its split map: a refinement (``refine``,
+    kept), or the places or view clusters of a continuous log (:func:`final_stage`)."""
     split = getattr(learner, "map_split_", None)
     return split is not None and learner.map_ is not split
+
+
+def final_stage(learner) -> str:
+    """What the learner's final map is when it replaced the split map: ``"the places (views and
+    motion)"`` or ``"the view clusters"`` for a continuous log (``motion_info_["chosen"]``),
+    ``"after the refinement"`` otherwise."""
+    chosen = (getattr(learner, "motion_info_", None) or {}).get("chosen")
+    if chosen == "places":
+        return "the places (views and motion), in place of the split"
+    if chosen == "views":
+        return "the view clusters, in place of the split (the places lost the check)"
+    return "after the refinement"
 
 
 def _table_rows(m, s) -> int:
@@ -213,7 +226,7 @@ def _room_figures(plt, traj, learner, env, compound_state):
     plot_states(axes[1], traj, split_labels, env, f"after splitting: {split_map.n_states} states")
     if refined:
         plot_states(axes[2], traj, learner.labels_, env,
-                    f"after the refinement: {learner.map_.n_states} states")
+                    f"{final_stage(learner)}: {learner.map_.n_states} states")
     yield "fig_states.png", fig
     top = 4.5 if aspect is None else 6.0 * min(aspect, 0.75) + 1.1  # inches above the tables
     fig = plt.figure(figsize=(13, top * 4.4 / 3))
@@ -259,6 +272,7 @@ def write_figures(out: Path, traj, learner, env=None, *, min_prob=0.8, compound_
     save("fig_entropy.png", fig)
     if curve:
         fig, ax = plt.subplots(figsize=(5.5, 3.8))
-        plot_mapping(ax, curve, traj.meta["mapping"].get("explorer", ""))
+        mapping = traj.meta["mapping"]
+        plot_mapping(ax, curve, mapping.get("component") or mapping.get("explorer", ""))
         save("fig_mapping.png", fig)
     return written

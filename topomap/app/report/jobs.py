@@ -13,10 +13,10 @@ import json
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ..results import CACHE_DIR, METRICS_FILE, STATUS_FILE
+from ..results import CACHE_DIR, METRICS_FILE, STATUS_FILE, STUDY_FILE
 
 __all__ = ["Job", "read_jobs", "swept_keys", "planned_jobs", "not_started", "STATUSES",
-           "check_sweep_folder"]
+           "check_sweep_folder", "read_study"]
 
 #: the option of Hydra's ``hydra/sweeper`` group that runs a grid (Hydra's default), as the
 #: multirun config records the choices made (``hydra.runtime.choices``)
@@ -228,6 +228,30 @@ def _one_line(exc: BaseException) -> str:
     """An exception's message on one line, cut to 120 characters."""
     text = " ".join(str(exc).split()) or type(exc).__name__
     return text if len(text) <= 120 else text[:117] + "..."
+
+
+def read_study(folder) -> dict:
+    """The study a search left in ``folder`` (its :data:`~topomap.app.results.STUDY_FILE`):
+    ``objective`` (None in a file that does not say), ``sweep_dir`` (the search's folder, as
+    its command gave it; ``folder`` in a file that does not say) and ``trials``, each with
+    ``number``, ``state``, ``values``, ``params``, ``distributions`` and where it ran,
+    ``sweep_dir`` and ``job`` (in a file that does not say: the search's and the trial's
+    number).  A ValueError
+    naming the file when there is none or it cannot be read."""
+    source = Path(folder) / STUDY_FILE
+    try:
+        study = json.loads(source.read_text())
+        trials = [dict(t) for t in study["trials"]]
+        home = str(study.get("sweep_dir", folder))
+        for t in trials:
+            t.setdefault("sweep_dir", home)
+            t.setdefault("job", t["number"])
+            missing = [k for k in ("state", "values", "params", "distributions") if k not in t]
+            if missing:
+                raise KeyError(f"a trial without {missing[0]!r}")
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise ValueError(f"no study in {source} ({type(exc).__name__}: {exc})") from None
+    return {"objective": study.get("objective"), "sweep_dir": home, "trials": trials}
 
 
 def planned_jobs(multirun_cfg) -> list[dict[str, str]] | None:

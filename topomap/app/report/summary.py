@@ -34,10 +34,10 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ...core.data.atomic import atomic_write
-from ..results import METRICS, check_metric
+from ..results import METRICS, STUDY_FILE, check_metric
 from .columns import axis_values, best_row, header, mean, no_value, number, row, short
 from .figure import is_grid
-from .jobs import not_started, planned_jobs, read_jobs, swept_keys
+from .jobs import not_started, planned_jobs, read_jobs, read_study, swept_keys
 
 log = logging.getLogger("topomap")
 
@@ -56,6 +56,7 @@ class Report:
     rows: list[dict]
     metric: str
     best: dict | None
+    study_best: dict | None = None
 
     @property
     def failed(self) -> list[dict]:
@@ -72,7 +73,10 @@ def write_report(sweep_dir, *, metric: str = "ari", figure: bool = True,
     keys and, for Hydra's basic sweeper, every job the sweep was to run: a job without a folder
     is a row ``not started``.  ``fallback``: the columns shown instead, the first that some job
     has, when no job has ``metric`` (a grid of arena runs has no ARI, but a localisation error).
-    Returns a :class:`Report`.
+    A search's folder holds its study (:data:`~topomap.app.results.STUDY_FILE`), with the
+    trials of the searches it went on from: the best is the study's best trial
+    (:func:`study_best`), and a job of this folder is the report's ``best`` only if it is that
+    trial.  Returns a :class:`Report`.
     """
     check_metric(metric)
     for other in fallback:
@@ -91,6 +95,9 @@ def write_report(sweep_dir, *, metric: str = "ari", figure: bool = True,
     metric = _shown(rows, metric, fallback)
     summary = _write_summary(sweep_dir / SUMMARY_FILE, header(keys), rows)
     best = best_row(rows, metric)
+    overall = study_best(sweep_dir, metric)
+    if overall is not None and not overall["here"]:
+        best = None  # an earlier search's trial: no job of this folder is the best
     fig_path = None
     if figure and rows and 1 <= len(keys) <= 2:
         if all(math.isnan(number(r[metric])) for r in rows):
@@ -103,7 +110,34 @@ def write_report(sweep_dir, *, metric: str = "ari", figure: bool = True,
     elif figure and rows:
         log.info("sweep report: %d swept keys, so no figure (one or two make a line or a heat map)",
                  len(keys))
-    return Report(summary=summary, figure=fig_path, keys=keys, rows=rows, metric=metric, best=best)
+    return Report(summary=summary, figure=fig_path, keys=keys, rows=rows, metric=metric, best=best,
+                  study_best=overall)
+
+
+def study_best(sweep_dir, metric: str) -> dict | None:
+    """The best completed trial at ``metric`` of the study in ``sweep_dir`` (ties: the first),
+    over every trial it holds, those of the searches it went on from included: ``value``,
+    ``params``, ``number`` (in the study), ``sweep_dir`` and ``job`` (where it ran), ``here``
+    (whether that is ``sweep_dir``) and ``n_trials`` (the study's finished trials).  None
+    without a study, or when its values are not ``metric``'s."""
+    sweep_dir = Path(sweep_dir)
+    if not (sweep_dir / STUDY_FILE).is_file():
+        return None
+    try:
+        study = read_study(sweep_dir)
+    except ValueError as exc:
+        log.warning("sweep report: %s", exc)
+        return None
+    better = METRICS[metric].better
+    done = [t for t in study["trials"] if t["state"] == "COMPLETE" and t["values"]]
+    if study["objective"] != metric or not better or not done:
+        return None
+    sign = 1 if better == "max" else -1
+    best = max(done, key=lambda t: (sign * t["values"][0], -t["number"]))
+    here = best["sweep_dir"] == study["sweep_dir"]
+    return {"value": best["values"][0], "params": best["params"], "number": best["number"],
+            "sweep_dir": best["sweep_dir"], "job": best["job"], "here": here,
+            "n_trials": len(study["trials"])}
 
 
 def _shown(rows, metric: str, fallback) -> str:
@@ -172,6 +206,28 @@ def _table(report: Report) -> str:
     return "\n".join("  ".join(v.rjust(w) for v, w in zip(line, widths)) for line in lines)
 
 
+def _best_line(report: Report) -> str | None:
+    """The line naming the best job, or for a search that went on with earlier searches' trials
+    the best of its whole study (which may be one of theirs)."""
+    overall = report.study_best
+    if overall is None and report.best is None:
+        return None
+    of_study = ""
+    if overall is not None and overall["n_trials"] > len(report.rows):
+        of_study = f", the best of the study's {overall['n_trials']} trials"
+    if overall is not None:
+        setting = " ".join(f"{k}={v}" for k, v in overall["params"].items())
+    else:
+        setting = " ".join(f"{k}={report.best[k]}" for k in report.keys)
+    if overall is not None and not overall["here"]:
+        return (f"topomap: best {report.metric}: {overall['value']:.4g} (trial "
+                f"{overall['number']}{of_study}, an earlier search's: job {overall['job']} of "
+                f"{overall['sweep_dir']}, {setting})")
+    value = overall["value"] if overall is not None else number(report.best[report.metric])
+    job = overall["job"] if overall is not None else report.best["job"]
+    return f"topomap: best {report.metric}: {value:.4g} (job {job}: {setting}{of_study})"
+
+
 def print_report(report: Report, file=None) -> None:
     """Print ``report``: the jobs by status, the metric as a table, the best job, the first
     failures and where the report is."""
@@ -185,10 +241,9 @@ def print_report(report: Report, file=None) -> None:
     table = _table(report)
     if table:
         print(f"{METRICS[report.metric].label}:\n{table}", file=file)
-    if report.best is not None:
-        setting = " ".join(f"{k}={report.best[k]}" for k in report.keys)
-        print(f"topomap: best {report.metric}: {number(report.best[report.metric]):.4g} "
-              f"(job {report.best['job']}: {setting})", file=file)
+    best_line = _best_line(report)
+    if best_line:
+        print(best_line, file=file)
     listed = [r for r in failed if r["status"] != "not started"]
     for r in listed[:5]:
         print(f"topomap: job {r['job']} {r['status']}" + (f": {r['error']}" if r["error"] else ""),

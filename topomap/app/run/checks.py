@@ -29,9 +29,9 @@ def check_before_data(cfg: dict, parts: Parts) -> None:
                          "are drawn where P(x'|x,u) > output.min_prob")
     data = parts.data
     if getattr(data, "simulates", False) and parts.env is not None:
-        steps = int(data.n_steps) + int(getattr(data, "heldout_steps", 0) or 0)
-        check_walk_memory(cfg, parts, steps)
-        check_state_count(parts.stop, int(data.n_steps))
+        walk = data.steps(parts.env)
+        check_walk_memory(parts, walk, walk + data.heldout_steps_in(parts.env))
+        check_state_count(parts.stop, walk)
 
 
 def available_memory() -> int | None:
@@ -50,27 +50,42 @@ def available_memory() -> int | None:
         return None
 
 
-def check_walk_memory(cfg: dict, parts: Parts, steps: int) -> None:
-    """Refuse a simulated walk whose observations alone would not fit in the memory available,
-    saying how much it needs (a step of the world, walked once, gives the observation size)."""
+def observation_size(env) -> int | None:
+    """Features per step of the world ``env``: its ``n_features`` where it says it without
+    walking (the arena), else those of a two-step probe walk; None when the probe's own
+    checks refuse it (a sensor judges the whole walk, which the run then senses)."""
     import numpy as np
 
+    from ...core.checks import ParameterError
     from ...worlds.explorers import RandomExplorer
 
+    size = getattr(env, "n_features", None)
+    if size is not None:
+        return int(size)
+    try:
+        probe = env.simulate(2, RandomExplorer(), np.random.default_rng(0))
+    except ParameterError:
+        return None
+    return int(probe.observations.shape[1])
+
+
+def check_walk_memory(parts: Parts, walk: int, steps: int) -> None:
+    """Refuse a simulated walk whose observations alone would not fit in the memory available,
+    saying how much it needs (:func:`observation_size` gives the size of a step)."""
     free = available_memory()
-    if free is None:
+    width = None if free is None else observation_size(parts.env)
+    if width is None:
         return
-    probe = parts.env.simulate(2, RandomExplorer(), np.random.default_rng(0))
-    per_step = 8 * (probe.observations.shape[1] + 5)  # observations, position, ids
+    per_step = 8 * (width + 5)  # observations, position, ids
     need = steps * per_step
     if need > free:
         gib = 2 ** 30
         raise ValueError(
-            f"data.n_steps={cfg['data']['n_steps']} needs at least {need / gib:.0f} GiB for the "
-            f"walk alone ({steps} steps, held-out walk included, of "
-            f"{probe.observations.shape[1]} features) and {free / gib:.0f} GiB of memory is "
-            f"available; give at most data.n_steps={max(1, free // per_step // 2)} (with "
-            f"data.heldout_steps=0 no held-out walk is simulated)")
+            f"data.n_steps={walk} needs at least {need / gib:.0f} GiB for the "
+            f"walk alone ({steps} steps, held-out walk included, of {width} features) and "
+            f"{free / gib:.0f} GiB of memory is available; give at most "
+            f"data.n_steps={max(1, free // per_step // 2)} (with data.heldout_steps=0 no "
+            "held-out walk is simulated)")
 
 
 def check_state_count(stop, n_steps: int) -> None:

@@ -48,6 +48,8 @@ def load_data(cfg, parts: Parts, registry: Registry, cache_dir=None, progress=No
     t0 = time.perf_counter()
     with config_keys("data"):
         traj = get("train", train)
+        if mapping and "mapping" in (traj.meta or {}):  # the explorer as the run chose it
+            traj.meta["mapping"]["component"] = f"explorer={cfg['explorer']['component']}"
         t1 = time.perf_counter()
         heldout = get("heldout", lambda: data.heldout(parts, seed))
     t2 = time.perf_counter()

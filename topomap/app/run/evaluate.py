@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import logging
+
 import numpy as np
 
 from ...core.data.trajectory import Trajectory
@@ -11,6 +13,8 @@ from ...evaluation import metres as positions
 from ...evaluation import partitions as M
 
 from ..results import METRICS, OBJECTIVES
+
+log = logging.getLogger("topomap")
 
 __all__ = ["evaluate", "localization_scores", "objective_value", "check_objective",
            "position_entry"]
@@ -106,6 +110,28 @@ def _regions(env):
     return (names, env.region_of) if names else (None, None)
 
 
+def _shares(coverage: dict, walk: str) -> str:
+    return ", ".join(f"{name} {c[walk]:.0%}" for name, c in coverage["regions"].items())
+
+
+def coverage_entry(names, region_of, traj: Trajectory, heldout: Trajectory) -> dict | None:
+    """:func:`~topomap.evaluation.metres.region_coverage` of the two walks (None without
+    regions), said on the console: each walk's share of steps in every region, and a warning
+    when the held-out walk spends steps in regions the training walk never entered."""
+    if region_of is None:
+        return None
+    cover = positions.region_coverage(names, region_of(traj.positions),
+                                      region_of(heldout.positions))
+    log.info("regions covered: training %s; held-out %s", _shares(cover, "training"),
+             _shares(cover, "heldout"))
+    if cover["unvisited"]:
+        log.warning("%.0f%% of the held-out steps lie in regions the training walk never "
+                    "entered (%s): no map learned from it can place them there; walk longer "
+                    "(data.n_steps) or through them",
+                    100 * cover["heldout_unvisited"], ", ".join(cover["unvisited"]))
+    return cover
+
+
 def position_entry(learner: MapLearner, traj: Trajectory, heldout: Trajectory | None,
                    env=None, held: str = "the held-out recording") -> dict | None:
     """Scores in metres of the held-out walk (:mod:`topomap.evaluation.metres`: the map's,
@@ -127,6 +153,7 @@ def position_entry(learner: MapLearner, traj: Trajectory, heldout: Trajectory | 
     report("scores in metres", 0, 3)
     out = {"heldout": (heldout.meta or {}).get("heldout", held),
            "heldout_steps": len(heldout), "regions": names, "ceiling_note": None,
+           "coverage": coverage_entry(names, region_of, traj, heldout),
            "map": positions.map_scores(m, labels, traj, heldout, region_of)}
     report("scores in metres", 1, 3)
     out["kmeans_views"] = positions.kmeans_view_scores(m.n_states, traj, heldout, region_of, seed)

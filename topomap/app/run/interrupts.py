@@ -8,6 +8,10 @@ reference's callback -- matplotlib runs such callbacks while it draws -- is prin
 "Exception ignored in ..." and dropped.  The record stays, so :func:`stop_if_interrupted` raises
 it again at the points a run or a sweep passes: before a run's files move into its folder (after
 its figures are drawn), at the start and the end of every job, and when the sweep ends.
+
+Once the command has taken the interrupt and is ending (:func:`ending`: writing the job's
+``status.json``, the sweep's report), a second Ctrl-C -- people press it twice -- is recorded but
+not raised, so that it cannot cut that short.
 """
 
 from __future__ import annotations
@@ -17,13 +21,15 @@ import threading
 from contextlib import contextmanager
 
 __all__ = ["Interrupted", "INTERRUPTS", "take_interrupts", "give_back", "interrupted",
-           "stop_if_interrupted", "held_signals"]
+           "stop_if_interrupted", "ending", "held_signals"]
 
 #: the signals that end a run or a sweep: Ctrl-C and a kill (SIGTERM)
 INTERRUPTS = (signal.SIGINT, signal.SIGTERM)
 
 #: the signals received since :func:`take_interrupts` (names, in order)
 _received: list[str] = []
+#: whether the command is ending after an interrupt (:func:`ending`)
+_ending = [False]
 
 
 class Interrupted(KeyboardInterrupt):
@@ -35,7 +41,8 @@ class Interrupted(KeyboardInterrupt):
 def _record(signum, frame):
     name = signal.Signals(signum).name
     _received.append(name)
-    raise Interrupted(f"signal {name}")
+    if not _ending[0]:
+        raise Interrupted(f"signal {name}")
 
 
 def take_interrupts() -> dict:
@@ -43,6 +50,7 @@ def take_interrupts() -> dict:
     :class:`Interrupted`), forgetting any earlier record.  Only the main thread takes signals:
     elsewhere nothing changes.  Returns the handlers replaced, for :func:`give_back`."""
     _received.clear()
+    _ending[0] = False
     if threading.current_thread() is not threading.main_thread():
         return {}
     return {sig: signal.signal(sig, _record) for sig in INTERRUPTS}
@@ -53,6 +61,14 @@ def give_back(replaced: dict) -> None:
     for sig, handler in replaced.items():
         signal.signal(sig, handler)
     _received.clear()
+    _ending[0] = False
+
+
+def ending() -> None:
+    """Say that the command is ending after an interrupt it took: from now on Ctrl-C and
+    SIGTERM are recorded but not raised, so that a second one does not cut the ending short (a
+    job's ``status.json``, the sweep's report)."""
+    _ending[0] = True
 
 
 def interrupted() -> str | None:

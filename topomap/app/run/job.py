@@ -18,7 +18,7 @@ from pathlib import Path
 
 from ..results import CACHE_DIR, METRICS_FILE, STATUS_FILE
 from .experiment import run
-from .interrupts import stop_if_interrupted
+from .interrupts import ending, stop_if_interrupted
 from .outputs import OutputDirInUse, write_json
 
 log = logging.getLogger("topomap")
@@ -53,6 +53,7 @@ def run_job(cfg, output_dir, *, sweep_dir, registry=None, needs_objective=False)
         log.error("job not run: %s", exc)
         return None
     except KeyboardInterrupt:
+        ending()  # a second Ctrl-C must not cut the status and the report short
         write_status(out, "interrupted", job_time=time.perf_counter() - t0)
         raise
     except Exception as exc:

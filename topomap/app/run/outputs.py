@@ -52,11 +52,13 @@ def claim_output_dir(out, overwrite: bool = False, *, check_only: bool = False,
                      key: str = "hydra.run.dir") -> list[str]:
     """Make ``out`` ready for a run: refuse (:class:`OutputDirInUse`, naming the config ``key``
     that chose the folder) when it holds another run's outputs (:func:`own_files`), or with
-    ``overwrite`` remove them.  Returns the names removed.  A folder whose run failed or was
-    interrupted (it holds ``status.json`` and nothing else of topomap's) is free: its
-    ``status.json`` is removed.  ``check_only``: refuse as said, and change nothing."""
+    ``overwrite`` remove them.  Returns the names removed.  A folder whose run failed, was
+    interrupted or killed (it holds ``status.json`` or the hidden staging folder of files that
+    never moved in, and nothing else of topomap's) is free: they are removed.  A run still
+    writing holds the folder's lock (:func:`locked_output_dir`), checked before this.
+    ``check_only``: refuse as said, and change nothing."""
     found = own_files(out)
-    if [p.name for p in found if not p.name.startswith(STAGE_PREFIX)] == [STATUS_FILE]:
+    if [p.name for p in found if not p.name.startswith(STAGE_PREFIX)] in ([], [STATUS_FILE]):
         if not check_only:
             for p in found:
                 shutil.rmtree(p) if p.is_dir() else p.unlink()

@@ -101,6 +101,23 @@ def _nonfinite_rows(X: np.ndarray) -> np.ndarray:
     return np.concatenate(bad) if bad else np.empty(0, dtype=np.int64)
 
 
+def _check_magnitude(X: np.ndarray) -> None:
+    """A ValueError when the observations are so large that the squares the learner sums over
+    them (variances, K-means distances, summed over T x D values) overflow float64: every
+    ``|x|`` must stay below ``sqrt(max float64 / (T D)) / 2`` (about 7e148 at T D = 1e8)."""
+    limit = 0.5 * np.sqrt(np.finfo(np.float64).max / max(X.size, 1))
+    for start in range(0, X.shape[0], _BLOCK_ROWS):
+        block = X[start:start + _BLOCK_ROWS]
+        if max(block.max(), -block.min()) < limit:
+            continue
+        step, column = np.unravel_index(np.argmax(np.abs(block)), block.shape)
+        raise ValueError(
+            f"observations hold {block[step, column]:.3g} (step {start + int(step)}, column "
+            f"{int(column)}), too large: the variances and distances the learner sums over these "
+            f"{X.shape[0]} x {X.shape[1]} values would overflow float64 (|x| must stay below "
+            f"{limit:.2g}); rescale the observations (e.g. to SI units)")
+
+
 def check_sequences(observations, actions, gds=None, lengths=None, *, min_length: int = 3):
     """Validate learner input and return it as arrays ``(X, u, gds, lengths)``.
 
@@ -127,6 +144,7 @@ def check_sequences(observations, actions, gds=None, lengths=None, *, min_length
         raise ValueError(
             f"observations contain NaN or inf in {rows.size} row(s), first at step {int(rows[0])}"
         )
+    _check_magnitude(X)
     u = _as_int_array(actions, "actions", T)
     if u.min() < 0:
         raise ValueError(f"actions must be >= 0, found {int(u.min())} at step {int(np.argmin(u))}")

@@ -21,6 +21,10 @@ Emission pruning (``prune=True``, the default): at every step the states whose e
 than :func:`topomap.core.map.kernels.prune_threshold` nats below the step's best are skipped.  Every
 smoothed transition is at least ``smoothing / S``, so Viterbi stays exact and a forward
 log-likelihood changes by less than 1e-20 relative.
+
+A sequence without actions (``actions=None``) is decoded on the map with its actions summed out
+(:func:`without_actions`): a hidden Markov model over the same states whose transitions are
+``sum_u P(u|x) P(x'|x,u)``, the likelihood ``P(o)`` of the observations alone.
 """
 
 from __future__ import annotations
@@ -33,7 +37,8 @@ from . import kernels as K
 from .observations import log_density_chunks
 from ..data.trajectory import check_sequences
 
-__all__ = ["Query", "tied_gaussians", "log_densities", "setup", "forward", "filtered",
+__all__ = ["Query", "tied_gaussians", "log_densities", "setup", "marginal_transitions",
+           "without_actions", "forward", "filtered",
            "posteriors", "viterbi", "path_log_prob", "emission_row", "predicted"]
 
 
@@ -87,12 +92,51 @@ def _transitions(m, smoothing: float) -> K.Transitions:
     rows, cols = np.nonzero(counts)
     c = counts[rows, cols].astype(np.float64)
     total = counts.sum(axis=1).astype(np.float64)
-    prob = (1 - smoothing) * (c / total[rows])
+    return _smoothed(rows, cols, c / total[rows], total > 0, A, smoothing)
+
+
+def _smoothed(rows, cols, p, seen, n_actions: int, smoothing: float) -> K.Transitions:
+    """The :class:`~topomap.core.map.kernels.Transitions` of the probabilities ``p`` at
+    ``(rows, cols)`` (rows sorted; ``seen``: the rows that hold any), smoothed by ``smoothing``."""
+    S = seen.size // n_actions
+    prob = (1 - smoothing) * p
     consts = np.log(np.array([0.0 + smoothing / S, (1 - smoothing) * (1.0 / S) + smoothing / S]))
     return K.Transitions(
-        indptr=np.searchsorted(rows, np.arange(S * A + 1)), indices=cols, data=prob,
-        logdata=np.log(prob + smoothing / S), seen=total > 0, n_actions=A,
+        indptr=np.searchsorted(rows, np.arange(seen.size + 1)), indices=cols, data=prob,
+        logdata=np.log(prob + smoothing / S), seen=seen, n_actions=n_actions,
         eps_s=smoothing / S, uni=(1 - smoothing) / S, log_eps_s=consts[0], log_uni=consts[1])
+
+
+def marginal_transitions(m) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The map's transitions with the action summed out, ``M[x, x'] = sum_u P(u|x) P(x'|x,u)``,
+    sparse: ``(rows, cols, probabilities, seen)``, rows sorted, ``seen`` (S,) the states
+    whose row is not uniform.  ``P(x'|x,u)`` is uniform for an ``(x, u)`` without a counted
+    transition (as :attr:`~topomap.core.map.model.TopologicalMap.transition_probs`), so a state
+    that took such an action gets that share spread over every state."""
+    S = m.n_states
+    act = m.action_probs
+    total = m.transition_counts.sum(axis=2)
+    xs, us, ys = np.nonzero(m.transition_counts)
+    weight = act[xs, us] * m.transition_counts[xs, us, ys] / total[xs, us]
+    spread = (act * (total == 0)).sum(axis=1) / S  # the uniform rows' share, per next state
+    seen = (act * (total > 0)).sum(axis=1) > 0
+    partial = np.flatnonzero(seen & (spread > 0))
+    keys = np.concatenate([xs * S + ys, (partial[:, None] * S + np.arange(S)).ravel()])
+    values = np.concatenate([weight, np.repeat(spread[partial], S)])
+    cells, where = np.unique(keys, return_inverse=True)
+    return cells // S, cells % S, np.bincount(where, weights=values), seen
+
+
+def without_actions(m, observations, gds, lengths, smoothing: float, prune: bool) -> Query:
+    """:func:`setup` for a sequence without actions: the map with its actions summed out, a
+    hidden Markov model whose transitions are :func:`marginal_transitions` (smoothed as every
+    table) and whose steps' action term is ``log sum_u P(u|x) = 0``.  Its likelihood is
+    ``P(o) = sum over the action sequences u of P(o, u)``."""
+    n = np.shape(observations)[0] if np.ndim(observations) else 0
+    q = setup(m, observations, np.zeros(n, dtype=np.int64), gds, lengths, smoothing, prune)
+    rows, cols, p, seen = marginal_transitions(m)
+    return q._replace(tables=q.tables._replace(log_act=np.zeros((m.n_states, 1))),
+                      trans=_smoothed(rows, cols, p, seen, 1, smoothing))
 
 
 def _check_query(m, X, u, g, gds, smoothing) -> None:
@@ -112,7 +156,10 @@ def _check_query(m, X, u, g, gds, smoothing) -> None:
 
 
 def setup(m, observations, actions, gds, lengths, smoothing: float, prune: bool) -> Query:
-    """Validate a sequence for the map ``m`` and collect everything the kernels use."""
+    """Validate a sequence for the map ``m`` and collect everything the kernels use;
+    ``actions=None``: a sequence without actions (:func:`without_actions`)."""
+    if actions is None:
+        return without_actions(m, observations, gds, lengths, smoothing, prune)
     X, u, g, L = check_sequences(observations, actions, gds, lengths, min_length=1)
     _check_query(m, X, u, g, gds, smoothing)
     if gds is None:

@@ -159,6 +159,13 @@ class TopologicalMap:
         """(S, A, S) ``P(x'|x,u)``; an ``(x, u)`` never seen gets a uniform row."""
         return normalise(self.transition_counts)
 
+    @property
+    def marginal_transition_probs(self) -> np.ndarray:
+        """(S, S) ``P(x'|x) = sum_u P(u|x) P(x'|x,u)``: the transitions with the action summed
+        out, hmmlearn's ``transmat_`` of this map; a sequence without actions is decoded with
+        it (``predict(observations)``)."""
+        return np.einsum("xa,xay->xy", self.action_probs, self.transition_probs)
+
     # ------------------------------------------------------------------ entropies
     def state_entropies(self) -> np.ndarray:
         """(S,) differential entropy in bits of each state's Gaussian observation model."""
@@ -177,12 +184,16 @@ class TopologicalMap:
         }
 
     # ------------------------------------------------------------------ inference
-    def predict(self, observations, actions, gds=None, lengths=None, *, smoothing=1e-6,
+    def predict(self, observations, actions=None, gds=None, lengths=None, *, smoothing=1e-6,
                 prune=True) -> np.ndarray:
         """Most likely state of every step of a new sequence (Viterbi).
 
         Uses the Gaussian observation likelihoods, ``P(u|x)`` and ``P(x'|x,u)``; ``smoothing`` mixes
         a small uniform share into every table so unseen transitions are unlikely, not impossible.
+        ``actions=None`` (observations alone, as hmmlearn's ``predict(X)``): the actions are
+        summed out, so the states move by :attr:`marginal_transition_probs`
+        (:func:`~topomap.core.map.inference.without_actions`); the same holds for every method
+        below.
         With ``gds`` given, GDS steps are clamped to their GDS state and other steps never take
         one.  ``prune`` skips states far below a step's best (exact; see
         :mod:`topomap.core.map.inference`).  Memory does not grow with T beyond the path.
@@ -190,7 +201,7 @@ class TopologicalMap:
         s = inference.setup(self, observations, actions, gds, lengths, smoothing, prune)
         return inference.viterbi(s)
 
-    def score(self, observations, actions, gds=None, lengths=None, *, smoothing=1e-6,
+    def score(self, observations, actions=None, gds=None, lengths=None, *, smoothing=1e-6,
               prune=True) -> float:
         """Mean log-likelihood per step (natural log, forward algorithm) of a new sequence.
 
@@ -198,7 +209,7 @@ class TopologicalMap:
         s = inference.setup(self, observations, actions, gds, lengths, smoothing, prune)
         return inference.forward(s)
 
-    def filter(self, observations, actions, gds=None, lengths=None, *, smoothing=1e-6,
+    def filter(self, observations, actions=None, gds=None, lengths=None, *, smoothing=1e-6,
                prune=True) -> np.ndarray:
         """Belief over the states at every step given only the past (forward filtering).
 
@@ -210,7 +221,7 @@ class TopologicalMap:
         s = inference.setup(self, observations, actions, gds, lengths, smoothing, prune)
         return inference.filtered(s)
 
-    def predict_proba(self, observations, actions, gds=None, lengths=None, *, smoothing=1e-6,
+    def predict_proba(self, observations, actions=None, gds=None, lengths=None, *, smoothing=1e-6,
                       prune=True) -> np.ndarray:
         """Posterior probability of every state at every step given the whole episode
         (forward-backward, also called smoothing), as hmmlearn's ``predict_proba``.
@@ -222,7 +233,7 @@ class TopologicalMap:
         return self.score_samples(observations, actions, gds, lengths, smoothing=smoothing,
                                   prune=prune)[1]
 
-    def score_samples(self, observations, actions, gds=None, lengths=None, *, smoothing=1e-6,
+    def score_samples(self, observations, actions=None, gds=None, lengths=None, *, smoothing=1e-6,
                       prune=True) -> tuple[float, np.ndarray]:
         """``(log_prob, posteriors)`` in one forward-backward pass, as hmmlearn's
         ``score_samples``: ``log_prob`` is the log-likelihood ``log P(o, u)`` of the whole
@@ -231,7 +242,7 @@ class TopologicalMap:
         s = inference.setup(self, observations, actions, gds, lengths, smoothing, prune)
         return inference.posteriors(s)
 
-    def decode(self, observations, actions, gds=None, lengths=None, *, algorithm="viterbi",
+    def decode(self, observations, actions=None, gds=None, lengths=None, *, algorithm="viterbi",
                smoothing=1e-6, prune=True) -> tuple[float, np.ndarray]:
         """``(log_prob, states)``: the states of every step and a log-probability, as
         hmmlearn's ``decode``.

@@ -13,11 +13,13 @@ module              its one job
 ==================  ===========================================================================
 ``layouts``         floor plans: :class:`Layout`, the built-in layouts and their regions
 ``floorplan``       a user's floor plan from a YAML or JSON file, checked entry by entry
+``walkable``        whether a floor plan can be walked: one floor, passages a walker fits through
 ``geometry``        rays against walls, points against polygons, whole paths at once (numpy)
 ``kinematics``      :class:`Motion` (the moves a path's samples make), ratinabox's random motion
 ``paths``           recorded paths (ratinabox's rats, the user's files), resampled every ``dt``
-``sensors``         range finder, boundary-vector and object-vector cells
+``sensors``         range finder; boundary-vector, object-vector, place and grid cells
 ``actions``         discrete actions read off the motion: compass octants, differential-drive turns
+``odometry``        the robot's wheel odometry: dead reckoning with encoder noise, gyro bias, slips
 ``world``           :class:`ArenaWorld`: the world that ties them together
 ``plot``            the floor plan drawn on a matplotlib Axes
 ``checks``          argument checks the components share; ratinabox asked for
@@ -29,11 +31,13 @@ from .actions import ACTION_RULES, CompassActions, TurnActions
 from .floorplan import floorplan_from_dict, load_floorplan
 from .layouts import LAYOUTS, Layout, builtin_layout
 from .kinematics import Motion
+from .odometry import WheelOdometry
 from .paths import DATASETS, RecordedPath
-from .sensors import SENSORS, BoundaryVectorCells, ObjectVectorCells, RangeFinder
+from .sensors import (SENSORS, BoundaryVectorCells, GridCells, ObjectVectorCells, PlaceCells,
+                      RangeFinder)
 from .world import Arena, ArenaWorld
 
 __all__ = ["ArenaWorld", "Arena", "Layout", "LAYOUTS", "builtin_layout", "load_floorplan",
            "floorplan_from_dict", "Motion", "RecordedPath", "DATASETS", "RangeFinder",
-           "BoundaryVectorCells", "ObjectVectorCells", "SENSORS", "CompassActions",
-           "TurnActions", "ACTION_RULES", "MissingDependencyError"]
+           "BoundaryVectorCells", "ObjectVectorCells", "PlaceCells", "GridCells", "SENSORS", "CompassActions",
+           "TurnActions", "ACTION_RULES", "WheelOdometry", "MissingDependencyError"]

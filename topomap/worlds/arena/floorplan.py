@@ -16,7 +16,9 @@ The file holds a mapping with these keys (metres; only ``boundary`` is required)
       east: [[1.5, 0], [3, 0], [3, 2], [1.5, 2]]
 
 Every problem is a one-line ValueError naming the file and the entry, e.g.
-``walls[2]: a wall needs two points [[x0, y0], [x1, y1]]``.
+``walls[2]: a wall needs two points [[x0, y0], [x1, y1]]``.  A plan must also be walkable
+(:mod:`.walkable`): one floor, every part of it reached through passages at least
+:data:`~.walkable.MIN_PASSAGE` wide, and regions that do not overlap.
 """
 
 from __future__ import annotations
@@ -29,6 +31,7 @@ import numpy as np
 
 from .geometry import inside_polygon
 from .layouts import Layout
+from .walkable import check_walkable
 
 __all__ = ["load_floorplan", "floorplan_from_dict", "FLOORPLAN_SUFFIXES"]
 
@@ -136,9 +139,11 @@ def floorplan_from_dict(data, name: str = "floor plan") -> Layout:
             raise ValueError(f"holes[{i}]: a hole must lie inside the boundary")
     walls = _walls(data, boundary, holes)
     points, types = _objects(data, boundary, holes)
+    regions = _regions(data)
+    check_walkable(boundary, walls, holes, regions)
     return Layout(name, boundary, walls=walls or np.zeros((0, 2, 2)), holes=tuple(holes),
                   objects=points or np.zeros((0, 2)), object_types=types,
-                  regions=tuple(_regions(data)))
+                  regions=tuple(regions))
 
 
 def load_floorplan(path) -> Layout:

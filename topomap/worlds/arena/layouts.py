@@ -69,6 +69,22 @@ class Layout:
         object.__setattr__(self, "regions", tuple((str(n), _points(p, (2,)))
                                                   for n, p in self.regions))
 
+    @classmethod
+    def from_environment(cls, environment, name: str = "environment") -> "Layout":
+        """The floor plan of a ratinabox ``Environment`` (2-D, solid boundary): its boundary,
+        walls, holes and objects; no regions."""
+        from ...core.checks import ParameterError
+
+        if environment.dimensionality != "2D" or environment.boundary_conditions != "solid":
+            raise ParameterError("layout", f"must be a 2D ratinabox Environment with solid "
+                                           f"boundaries, got {environment.dimensionality} "
+                                           f"{environment.boundary_conditions}")
+        walls = environment.params.get("walls") or np.zeros((0, 2, 2))
+        objects = environment.objects
+        return cls(name, environment.boundary, walls=walls,
+                   holes=tuple(environment.holes or ()), objects=objects["objects"],
+                   object_types=objects["object_types"])
+
     @property
     def segments(self) -> np.ndarray:
         """Everything that blocks a beam: the boundary's edges, the walls, the holes' edges."""
@@ -85,6 +101,13 @@ class Layout:
         """``(x_min, x_max, y_min, y_max)`` of the boundary."""
         (x0, y0), (x1, y1) = self.boundary.min(axis=0), self.boundary.max(axis=0)
         return float(x0), float(x1), float(y0), float(y1)
+
+    @property
+    def reach(self) -> float:
+        """Metres: the diagonal of the boundary's bounding box, the longest straight line on the
+        floor plan (a beam this long from anywhere on the floor meets a wall)."""
+        x0, x1, y0, y1 = self.extent
+        return float(np.hypot(x1 - x0, y1 - y0))
 
     def inside(self, points) -> np.ndarray:
         """Which points lie on the floor: inside the boundary and outside every hole."""

@@ -16,6 +16,12 @@ the run's noise component (:mod:`topomap.worlds.noise`) applies on top.
     firing rates in ``[0, 1]``.
 :class:`ObjectVectorCells`
     ratinabox's object-vector cells, tuned to the layout's objects (allocentric).
+:class:`PlaceCells`
+    ratinabox's place cells: Gaussian bumps of firing around centres drawn on the floor
+    (distances around walls, ``geodesic``, by default).
+:class:`GridCells`
+    ratinabox's grid cells: rectified cosine gratings in three modules of spacing 0.3, 0.5 and
+    0.8 m (ratinabox's defaults).
 
 The cells' tuning is drawn from the sensor's own ``seed``, so every walk through a world (the one
 learned from and the held-out one) is seen by the same cells.
@@ -30,7 +36,8 @@ from .checks import positive
 from .geometry import ray_distances
 from .kinematics import isolated_global_rng
 
-__all__ = ["RangeFinder", "BoundaryVectorCells", "ObjectVectorCells", "SENSORS", "make_sensor"]
+__all__ = ["RangeFinder", "BoundaryVectorCells", "ObjectVectorCells", "PlaceCells", "GridCells",
+           "SENSORS", "make_sensor"]
 
 FRAMES = ("compass", "egocentric")
 
@@ -42,16 +49,19 @@ class RangeFinder:
     ----------
     n_beams : int
         Beams, at angles ``360 k / n_beams`` degrees, anticlockwise.
-    max_range : float
-        Metres; a beam meeting no wall within it reads ``max_range``.
+    max_range : float or None
+        Metres; a beam meeting no wall within it reads ``max_range``.  None (the default): the
+        layout's reach, the diagonal of its bounding box (:attr:`Layout.reach`), so every beam
+        from the floor meets a wall (a 1 x 1 m box: 1.41 m; ``two_rooms``: 2.69 m).
     frame : str
         ``"compass"`` (beam 0 points east, whatever the heading) or ``"egocentric"`` (beam 0
         points along the heading, as a scanner fixed to the robot).
     """
 
-    def __init__(self, n_beams: int = 12, max_range: float = 3.0, frame: str = "compass"):
+    def __init__(self, n_beams: int = 12, max_range: float | None = None,
+                 frame: str = "compass"):
         self.n_beams = check_count(n_beams, "n_beams")
-        self.max_range = positive("max_range", max_range)
+        self.max_range = None if max_range is None else positive("max_range", max_range)
         if frame not in FRAMES:
             raise ParameterError("frame", f"must be one of {', '.join(FRAMES)}, got {frame!r}")
         self.frame = frame
@@ -61,24 +71,34 @@ class RangeFinder:
         """(B,) radians of the beams relative to east (compass) or to the heading (egocentric)."""
         return 2 * np.pi * np.arange(self.n_beams) / self.n_beams
 
+    def n_features(self, arena) -> int:
+        """Readings per step: one per beam."""
+        return self.n_beams
+
+    def range_in(self, layout) -> float:
+        """Metres a beam reaches in ``layout``: ``max_range``, or the layout's reach if None."""
+        return layout.reach if self.max_range is None else self.max_range
+
     def sense(self, arena, motion) -> np.ndarray:
         """(T, n_beams) ranges in metres along the path; a ParameterError naming ``max_range``
         when a beam sees no wall within range anywhere on the path."""
         angles = self.beam_angles[None, :]
         if self.frame == "egocentric":
             angles = angles + motion.heading[:, None]
-        R = ray_distances(motion.positions, angles, arena.layout.segments, self.max_range)
-        blind = np.flatnonzero((R >= self.max_range).all(axis=0))
+        reach = self.range_in(arena.layout)
+        R = ray_distances(motion.positions, angles, arena.layout.segments, reach)
+        blind = np.flatnonzero((R >= reach).all(axis=0))
         if blind.size:
             k = int(blind[0])
-            raise ParameterError("max_range", f"={self.max_range:g} m is too short: beam {k} "
+            raise ParameterError("max_range", f"={reach:g} m is too short: beam {k} "
                                  f"({np.degrees(self.beam_angles[k]):g} degrees, {self.frame}) "
-                                 "sees no wall within it anywhere on the path")
+                                 f"sees no wall within it anywhere on the path of {len(motion)} "
+                                 f"steps (the layout's reach is {arena.layout.reach:.2f} m)")
         return R
 
     def __repr__(self) -> str:
-        return (f"RangeFinder(n_beams={self.n_beams}, max_range={self.max_range:g}, "
-                f"frame={self.frame!r})")
+        reach = "None" if self.max_range is None else f"{self.max_range:g}"
+        return f"RangeFinder(n_beams={self.n_beams}, max_range={reach}, frame={self.frame!r})"
 
 
 class _Cells:
@@ -103,6 +123,10 @@ class _Cells:
                     arena.environment.remove_agent(agent)
             self._built = (arena, cells)
         return self._built[1]
+
+    def n_features(self, arena) -> int:
+        """Readings per step: one per cell."""
+        return self.n
 
     def sense(self, arena, motion) -> np.ndarray:
         """(T, n) firing rates along the path."""
@@ -173,8 +197,74 @@ class ObjectVectorCells(_Cells):
                 f"walls_occlude={self.walls_occlude})")
 
 
+class PlaceCells(_Cells):
+    """ratinabox's place cells, ``n`` of them, centres drawn from ``seed`` on the floor.
+
+    Parameters
+    ----------
+    n : int
+        Cells (features).
+    seed : int
+        Seeds the cells' centres.
+    widths : float
+        Metres: the width (standard deviation) of each cell's Gaussian field.
+    wall_geometry : str
+        How a field reaches around walls: ``"geodesic"`` (the shortest way round),
+        ``"line_of_sight"`` (not past a wall) or ``"euclidean"`` (through walls).
+    """
+
+    GEOMETRIES = ("geodesic", "line_of_sight", "euclidean")
+
+    def __init__(self, n: int = 16, seed: int = 0, widths: float = 0.2,
+                 wall_geometry: str = "geodesic"):
+        self.n = check_count(n, "n")
+        self.seed = int(seed)
+        self.widths = positive("widths", widths)
+        if wall_geometry not in self.GEOMETRIES:
+            raise ParameterError("wall_geometry", f"must be one of {', '.join(self.GEOMETRIES)}"
+                                                  f", got {wall_geometry!r}")
+        self.wall_geometry = wall_geometry
+
+    def _make(self, agent):
+        from ratinabox.Neurons import PlaceCells as PCs
+
+        return PCs(agent, params={"n": self.n, "widths": self.widths,
+                                  "wall_geometry": self.wall_geometry})
+
+    def __repr__(self) -> str:
+        return (f"PlaceCells(n={self.n}, seed={self.seed}, widths={self.widths:g}, "
+                f"wall_geometry={self.wall_geometry!r})")
+
+
+class GridCells(_Cells):
+    """ratinabox's grid cells, ``n`` of them, phases drawn from ``seed``: rectified cosine
+    gratings, spread over three modules of spacing 0.3, 0.5 and 0.8 m and orientation 0, 0.1 and
+    0.2 rad (ratinabox's defaults).
+
+    Parameters
+    ----------
+    n : int
+        Cells (features).
+    seed : int
+        Seeds the cells' modules and phases.
+    """
+
+    def __init__(self, n: int = 30, seed: int = 0):
+        self.n = check_count(n, "n")
+        self.seed = int(seed)
+
+    def _make(self, agent):
+        from ratinabox.Neurons import GridCells as GCs
+
+        return GCs(agent, params={"n": self.n})
+
+    def __repr__(self) -> str:
+        return f"GridCells(n={self.n}, seed={self.seed})"
+
+
 #: the sensors by name (a world given a name builds the sensor with its defaults)
-SENSORS = {"range": RangeFinder, "bvc": BoundaryVectorCells, "ovc": ObjectVectorCells}
+SENSORS = {"range": RangeFinder, "bvc": BoundaryVectorCells, "ovc": ObjectVectorCells,
+           "place_cells": PlaceCells, "grid_cells": GridCells}
 
 
 def make_sensor(sensor):

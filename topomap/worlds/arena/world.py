@@ -29,11 +29,19 @@ from .checks import non_negative, positive, require_ratinabox
 from .floorplan import FLOORPLAN_SUFFIXES, load_floorplan
 from .layouts import LAYOUTS, Layout, builtin_layout
 from .kinematics import MOTION_PARAMETERS, Motion, random_motion
+from .odometry import ODOMETRY_STREAM, WheelOdometry
 from .paths import RecordedPath
 from .plot import plot_layout
 from .sensors import make_sensor
 
-__all__ = ["ArenaWorld", "Arena", "make_layout"]
+__all__ = ["ArenaWorld", "Arena", "make_layout", "WALK_STEPS"]
+
+#: steps of the arena's default walk (``data.n_steps`` left out): 30 minutes at 10 Hz, by which
+#: ratinabox's random motion had entered every region of ``open``, ``two_rooms`` and
+#: ``four_rooms`` on each of three seeds (by step 787, 1,733 and 10,789 at the latest; 2,000
+#: steps left whole rooms of ``four_rooms`` unvisited on all three), and of ``corridor`` on two
+#: (16,703; one seed missed a room in 40 minutes): ``benchmarks/notes/arena-walks.md``
+WALK_STEPS = 18000
 
 
 @dataclass(frozen=True, eq=False)
@@ -94,6 +102,38 @@ def make_layout(layout, recording: RecordedPath | None, floorplan: str | None = 
     return builtin_layout(layout)
 
 
+#: the odometry components by name (a world given a name builds it with its defaults)
+ODOMETRIES = {"none": None, "wheel": WheelOdometry}
+
+
+def make_odometry(odometry):
+    """None for no odometry (None or ``"none"``), the odometry named ``odometry`` with its
+    defaults, or ``odometry`` itself if it has a ``dead_reckoning`` method."""
+    if odometry is None or isinstance(odometry, str):
+        if odometry is not None and odometry not in ODOMETRIES:
+            raise ParameterError("odometry", f"must be one of {', '.join(ODOMETRIES)} or an "
+                                             f"odometry object, got {odometry!r}")
+        factory = ODOMETRIES.get(odometry)
+        return None if factory is None else factory()
+    if not callable(getattr(odometry, "dead_reckoning", None)):
+        raise ParameterError("odometry", "must have a dead_reckoning(motion, rng) method, got "
+                                         f"{odometry!r}")
+    return odometry
+
+
+def _arena_of(layout, recording, floorplan) -> Arena:
+    """The arena of the layout ``layout`` (see :func:`make_layout`), or of a ratinabox
+    ``Environment``, which it keeps."""
+    from ratinabox.Environment import Environment
+
+    if isinstance(layout, Environment):
+        if floorplan not in (None, ""):
+            raise ParameterError("floorplan", f"={floorplan} and a ratinabox Environment both "
+                                              "name the floor plan: give one of them")
+        return Arena(Layout.from_environment(layout), layout)
+    return Arena.build(make_layout(layout, recording, floorplan))
+
+
 def _check_explorer(explorer) -> None:
     if explorer is not None and type(explorer) is not RandomExplorer:
         raise ValueError(f"explorer {explorer!r} cannot steer the arena: its motion is "
@@ -106,10 +146,12 @@ class ArenaWorld:
 
     Parameters
     ----------
-    layout : str or Layout
+    layout : str, Layout or ratinabox Environment
         A built-in layout (``open``, ``two_rooms``, ``four_rooms``, ``corridor``), a floor-plan
-        file (``.yaml``, ``.yml``, ``.json``), a :class:`Layout`, or ``"auto"``: the box of a
-        shipped recording, else ``two_rooms``.
+        file (``.yaml``, ``.yml``, ``.json``), a :class:`Layout`, ``"auto"``: the box of a
+        shipped recording, else ``two_rooms``; or a ratinabox ``Environment`` (2-D, solid),
+        walked as it is (its floor plan :meth:`Layout.from_environment`, without regions).  A
+        ratinabox ``Agent``'s world is :meth:`from_agent`.
     floorplan : str or None
         A floor-plan file (``.yaml``, ``.yml``, ``.json``; :func:`.floorplan.load_floorplan`),
         the layout instead of ``layout`` (which must then be ``"auto"``).
@@ -122,7 +164,8 @@ class ArenaWorld:
         Seconds into a recorded path at which ``simulate`` starts.
     sensor : str or sensor object
         ``"range"``, ``"bvc"``, ``"ovc"`` (each with its defaults) or a sensor such as
-        ``RangeFinder(n_beams=12, max_range=3.0)``.
+        ``RangeFinder(n_beams=12, max_range=3.0)``; ``"range"``'s beams reach across the
+        layout (``max_range=None``).
     actions : str or action rule
         ``"compass"``, ``"turns"`` (with their defaults) or a rule such as
         ``TurnActions(angular_threshold=1.0)``.
@@ -130,6 +173,11 @@ class ArenaWorld:
 rotational_velocity_coherence_time, thigmotaxis, wall_repel_distance, wall_repel_strength : float
         ratinabox's random-motion parameters (m/s, s, rad/s, s, in [0, 1], m, -), with its
         defaults, fitted to rats (keyword only, as the parameters after them).
+    odometry : str, odometry object or None
+        The robot's own dead reckoning, kept as the walks' ``odometry``: None or ``"none"``
+        (the default: none), ``"wheel"`` (:class:`~.odometry.WheelOdometry` with its
+        defaults) or an object such as ``WheelOdometry(gyro_bias=0.02)``.  Its errors are drawn
+        from the walk's seed (a recorded path: from its first step).
     path_tolerance : float
         Metres a recorded position may lie off the floor (tracking noise); it is moved 1 mm
         inside.  Farther off is an error.
@@ -140,7 +188,8 @@ rotational_velocity_coherence_time, thigmotaxis, wall_repel_distance, wall_repel
     def __init__(self, layout: str | Layout = "auto", floorplan: str | None = None,
                  path: str | None = None, dt: float = 0.1,
                  start: float = 0.0, sensor: str | object = "range",
-                 actions: str | object = "compass", *, speed_mean: float = 0.08,
+                 actions: str | object = "compass", odometry: str | object | None = None, *,
+                 speed_mean: float = 0.08,
                  speed_coherence_time: float = 0.7, rotational_velocity_std: float = math.radians(120),
                  rotational_velocity_coherence_time: float = 0.08, thigmotaxis: float = 0.5,
                  wall_repel_distance: float = 0.1, wall_repel_strength: float = 1.0,
@@ -153,6 +202,7 @@ rotational_velocity_coherence_time, thigmotaxis, wall_repel_distance, wall_repel
         self.recording = None if path in (None, "") else RecordedPath(path)
         self.sensor = make_sensor(sensor)
         self.action_rule = make_action_rule(actions)
+        self.odometry = make_odometry(odometry)
         values = (speed_mean, speed_coherence_time, rotational_velocity_std,
                   rotational_velocity_coherence_time, thigmotaxis, wall_repel_distance,
                   wall_repel_strength)
@@ -160,7 +210,20 @@ rotational_velocity_coherence_time, thigmotaxis, wall_repel_distance, wall_repel
                               for name, v in zip(MOTION_PARAMETERS, values)}
         if self.motion_params["thigmotaxis"] > 1:
             raise ParameterError("thigmotaxis", f"must be in [0, 1], got {thigmotaxis!r}")
-        self.arena = Arena.build(make_layout(layout, self.recording, floorplan))
+        self.arena = _arena_of(layout, self.recording, floorplan)
+
+    @classmethod
+    def from_agent(cls, agent, **kwargs) -> "ArenaWorld":
+        """The world a ratinabox ``Agent`` walks in, walking as it does: its ``Environment``
+        (the layout), its ``dt`` and its random-motion parameters (``speed_mean``, ...); a new
+        agent with them walks each walk, so the walks are reproducible.  ``kwargs``: the world's
+        other arguments (``sensor``, ``actions``, ``odometry``, ``path``, ...)."""
+        motion = {name: float(getattr(agent, name)) for name in MOTION_PARAMETERS}
+        clash = sorted(set(kwargs) & {*motion, "dt", "layout", "floorplan"})
+        if clash:
+            raise ParameterError(clash[0], "is the agent's own: from_agent takes it from the "
+                                           "agent (give a new agent, or ArenaWorld(...))")
+        return cls(layout=agent.Environment, dt=float(agent.dt), **motion, **kwargs)
 
     # ------------------------------------------------------------------ what the world offers
     #: the world moves by itself (ratinabox's motion or a recording): no explorer steers it
@@ -179,12 +242,27 @@ rotational_velocity_coherence_time, thigmotaxis, wall_repel_distance, wall_repel
         return len(self.action_names)
 
     @property
+    def n_features(self) -> int | None:
+        """Observations per step, as the sensor says without sensing (None if it does not)."""
+        count = getattr(self.sensor, "n_features", None)
+        return None if count is None else int(count(self.arena))
+
+    @property
     def region_names(self) -> list[str]:
         return self.layout.region_names
 
     def region_of(self, positions) -> np.ndarray:
         """The layout's region of each position (``(T,)`` ids into :attr:`region_names`)."""
         return self.layout.region_of(positions)
+
+    @property
+    def default_steps(self) -> int:
+        """Steps of a walk when the run names none (``data.n_steps`` left out):
+        :data:`WALK_STEPS` of random motion, or half of a recorded path (at most as many), so
+        that a held-out walk of as many steps fits after it."""
+        if self.recording is None:
+            return WALK_STEPS
+        return max(1, min(WALK_STEPS, self.recording.n_steps(self.start, self.dt) // 2))
 
     @property
     def path_steps(self) -> int | None:
@@ -202,7 +280,7 @@ rotational_velocity_coherence_time, thigmotaxis, wall_repel_distance, wall_repel
             return self.walk_from(round(self.start / self.dt), n_steps)
         seed = int(rng.integers(2**32))
         samples = random_motion(self.arena.environment, n_steps, self.dt, self.motion_params, seed)
-        return self._trajectory(Motion.from_samples(samples, self.dt), {"seed": seed})
+        return self._trajectory(Motion.from_samples(samples, self.dt), {"seed": seed}, seed)
 
     def walk_from(self, first_step: int, n_steps: int) -> Trajectory:
         """Steps ``first_step`` to ``first_step + n_steps - 1`` of the recorded path (steps of
@@ -219,7 +297,7 @@ rotational_velocity_coherence_time, thigmotaxis, wall_repel_distance, wall_repel
         samples = self.recording.resample(first * self.dt, self.dt, n_steps + 1)
         samples, moved = self._onto_floor(samples, first)
         motion = Motion.from_samples(samples, self.dt, t0=first * self.dt)
-        return self._trajectory(motion, {"first_step": first, "moved_onto_floor": moved})
+        return self._trajectory(motion, {"first_step": first, "moved_onto_floor": moved}, first)
 
     def heldout_walk(self, n_steps: int, explorer, rng: np.random.Generator,
                      after: int = 0) -> Trajectory:
@@ -255,7 +333,7 @@ rotational_velocity_coherence_time, thigmotaxis, wall_repel_distance, wall_repel
                              f"more than path_tolerance={self.path_tolerance:g} m")
         return P, int(moved.sum())
 
-    def _trajectory(self, motion: Motion, meta: dict) -> Trajectory:
+    def _trajectory(self, motion: Motion, meta: dict, key: int) -> Trajectory:
         try:  # a problem of the sensor's or the rule's parameters, named as the world's parts
             X = self.sensor.sense(self.arena, motion)
         except ParameterError as err:
@@ -267,8 +345,13 @@ rotational_velocity_coherence_time, thigmotaxis, wall_repel_distance, wall_repel
         meta = {"world": "arena", "layout": self.layout.name, "dt": self.dt,
                 "path": None if self.recording is None else self.recording.source,
                 "sensor": repr(self.sensor), "actions": repr(self.action_rule), **meta}
+        odometry = None
+        if self.odometry is not None:  # its own stream of the walk's seed: the same path
+            rng = np.random.default_rng([int(key), ODOMETRY_STREAM])
+            odometry = self.odometry.dead_reckoning(motion, rng)
+            meta["odometry"] = repr(self.odometry)
         return Trajectory(observations=X, actions=u, positions=motion.positions,
-                          action_names=self.action_names, meta=meta)
+                          odometry=odometry, action_names=self.action_names, meta=meta)
 
     @property
     def wall_segments(self) -> np.ndarray:
@@ -282,5 +365,6 @@ rotational_velocity_coherence_time, thigmotaxis, wall_repel_distance, wall_repel
 
     def __repr__(self) -> str:
         source = "random motion" if self.recording is None else self.recording.source
+        odometry = "" if self.odometry is None else f", odometry={self.odometry!r}"
         return (f"ArenaWorld(layout={self.layout.name!r}, {source}, dt={self.dt:g}, "
-                f"sensor={self.sensor!r}, actions={self.action_rule!r})")
+                f"sensor={self.sensor!r}, actions={self.action_rule!r}{odometry})")
