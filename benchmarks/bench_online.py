@@ -6,8 +6,6 @@ steps an explorer needs before its map is right.
     python benchmarks/bench_online.py explore        # steps to ARI 0.95: explorer=random vs active
     python benchmarks/bench_online.py passes         # FourRooms refine=em: fit, the calls, fit again
     python benchmarks/bench_online.py report         # reprint the last results (and the figure)
-    python benchmarks/bench_online_chunks.py         # FourRooms refine=em in chunks of 25,000
-                                                     # then 5,000 steps, the count capped
 
 Options: ``--seeds 0 1 2`` (explore: ``31 32 33``), ``--max-steps 1e6`` (latency),
 ``--quick`` (smaller sizes, for a look).  Every part runs its measurements in fresh subprocesses
