@@ -16,6 +16,7 @@ from .components import (fit_refinement, fold_renamed, make_components, make_ref
                          refinement_hints, refinement_label, set_params, within_told_size)
 from .refining import bic_scores, heldout_scores, refined_from, resized, symbol_map
 from .online import OnlineState, Window
+from .online_codebook import WindowClusters
 from .online_pass import PassStart, start_map, warm_start, warm_starts, wider_pass
 from .phase1.clustering import cluster_observations
 from .phase1.start import phase1_labels, start_split, variance_beside
@@ -200,7 +201,8 @@ class MapLearner(StreamFit, MapMethods, BaseEstimator):
         self._forget_fit()
         self.n_features_in_ = data.X.shape[1]
         t0 = time.perf_counter()
-        splitter = self._phase1(data, clusters, metric, criterion, stopping, symbols)
+        splitter = self._phase1(data, clusters, metric, criterion, stopping, symbols,
+                                capped=warm is not None)
         told = stopping.n_states if isinstance(stopping, TargetStates) else None
         auto = stopping if isinstance(stopping, AutoStates) else None
         if auto is not None:
@@ -248,9 +250,11 @@ class MapLearner(StreamFit, MapMethods, BaseEstimator):
         counted, and every ``refit_every`` steps a wider pass re-learns the map from the latest
         ``window`` steps (:mod:`topomap.core.online` says what is kept).  ``n_actions``,
         ``action_names`` and ``gds_names`` may be given with any call (more actions than the
-        map has bring a wider pass).  A call that fails changes nothing.  :meth:`fit` starts
-        over.  ``odometry`` is checked as :meth:`fit`'s (wider passes do not use it).  Returns
-        ``self``.
+        map has bring a wider pass).  A cluster count above the distinct observations a pass's
+        window holds is capped at them and grown as new views appear, with one warning
+        (:mod:`topomap.core.online_codebook`; ``online_["clusters"]``).  A call that fails
+        changes nothing.  :meth:`fit` starts over.  ``odometry`` is checked as :meth:`fit`'s
+        (wider passes do not use it).  Returns ``self``.
         """
         X, u, g, _ = check_sequences(observations, actions, gds, None, min_length=1)
         check_odometry(odometry, X.shape[0])
@@ -350,9 +354,11 @@ class MapLearner(StreamFit, MapMethods, BaseEstimator):
         return chosen
 
     def _phase1(self, data: FitData, clusters, metric, criterion, stopping,
-                symbols=None) -> Splitter:
+                symbols=None, capped: bool = False) -> Splitter:
         """K-means symbols (or the ``symbols`` given), one state each, plus one state per GDS id,
-        never split (paper Section 3.2)."""
+        never split (paper Section 3.2).  ``capped``: a wider pass of :meth:`partial_fit`, whose
+        count is capped at the distinct observations of its window
+        (:class:`~topomap.core.online_codebook.WindowClusters`)."""
         plain = data.gds < 0
         if plain.sum() < 1:
             raise ValueError("every step is labelled as a GDS; no observations are left to cluster")
@@ -362,6 +368,7 @@ class MapLearner(StreamFit, MapMethods, BaseEstimator):
             symbols = np.array(symbols, dtype=np.int64)  # the caller's array is left alone
         else:
             searched = within_told_size(clusters, stopping, np.unique(data.gds[~plain]).size)
+            searched = WindowClusters(searched) if capped else searched
             with naming(self, "clusters", method="phase1"):
                 symbols, choice = cluster_observations(
                     data.X if plain.all() else data.X[plain], searched, metric,
