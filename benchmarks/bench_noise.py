@@ -61,7 +61,7 @@ from topomap import metrics as M
 from topomap.core.refine.accelerate import ACCELERATIONS
 from topomap.core.refine.methods import CSCGRefinement, EMRefinement
 from topomap.core.refine.renamed import SOFT_FIELDS
-from topomap.core.refine.settings import Growth, Reading, SoftRounds
+from topomap.core.refine.settings import Growth, HardRounds, Reading, SoftRounds
 
 TEN_K = "data.n_steps=10000"
 WORLDS = {
@@ -232,10 +232,11 @@ def table(args, registry) -> dict:
 
 def soft_values(pairs) -> dict:
     """The settings ``GROUP.FIELD=VALUE`` of ``pairs`` (groups ``soft``, ``reading``,
-    ``growth``; a bare ``FIELD`` of ``soft``, or an old soft setting's name), each value read as
-    its setting's type: ``{group: {field: value}}``."""
+    ``growth``, ``hard``; a bare ``FIELD`` of ``soft``, or an old soft setting's name), each
+    value read as its setting's type: ``{group: {field: value}}``."""
     kinds = {f"{g}.{f.name}": f.type for g, cls in
-             (("soft", SoftRounds), ("reading", Reading), ("growth", Growth)) for f in fields(cls)}
+             (("soft", SoftRounds), ("reading", Reading), ("growth", Growth),
+              ("hard", HardRounds)) for f in fields(cls)}
     groups = {}
     for pair in pairs:
         key, _, value = pair.partition("=")

@@ -17,8 +17,8 @@ of another seed is placed by each route, each step at its state's mean training 
 ``shipped``    ``MapLearner(n_clusters=32, n_states=64, random_state=0).fit(X, u, odometry=...)``
 ``no_odometry`` the same without the odometry
 
-and the research routes of ``robot_routes.py``.  Every row goes to ``--log`` (JSON lines; a run
-skips rows already there); the table printed is the median over the seeds of every (plan, robot,
+and the research routes of ``robot_routes.py`` and ``robot_slam.py``.  Every row goes to
+``--log`` (JSON lines; a run skips rows already there); the table printed is the median over the seeds of every (plan, robot,
 route), with the median error as a multiple of ``ideal``'s.
 """
 
@@ -37,9 +37,10 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import robot_harness as H  # noqa: E402
 import robot_routes as RR  # noqa: E402
+import robot_slam as RS  # noqa: E402
 
 from topomap import MapLearner  # noqa: E402
-from topomap.core.position_scores import (ceiling_scores, kmeans_view_scores,  # noqa: E402
+from topomap.evaluation.metres import (ceiling_scores, kmeans_view_scores,  # noqa: E402
                                           map_scores, score_units)
 
 N_CLUSTERS, N_STATES = 32, 64
@@ -79,12 +80,14 @@ def base_route(name, tw, hw, regions, seed):
     return None
 
 
-ROUTES = ("ideal", "ceiling", "views", "shipped", "no_odometry", *RR.ROUTES)
+ROUTES = ("ideal", "ceiling", "views", "shipped", "no_odometry", *RR.ROUTES, *RS.ROUTES)
 
 
 def route(name, tw, hw, regions, seed):
     start = time.perf_counter()
     row = base_route(name, tw, hw, regions, seed)
+    if row is None and name in RS.ROUTES:
+        row = RS.route(name, tw, hw, regions, seed, N_CLUSTERS, N_STATES)
     if row is None:
         row = RR.route(name, tw, hw, regions, seed, N_CLUSTERS, N_STATES)
     return {"fit_s": round(time.perf_counter() - start, 2), **row}

@@ -122,7 +122,7 @@ def world(plan: str, robot: Robot):
 def true_heading(positions) -> np.ndarray:
     """(T,) the heading at every step, the direction of the last move (as the arena's Motion:
     the heading the egocentric beams were cast along)."""
-    from topomap.worlds.arena.motion import _headings
+    from topomap.worlds.arena.kinematics import _headings
 
     return _headings(np.asarray(positions, dtype=np.float64))
 

@@ -26,7 +26,7 @@ from numba import njit
 from sklearn.cluster import KMeans
 
 from topomap.core.map.model import TopologicalMap
-from topomap.core.position_scores import map_scores, score_units
+from topomap.evaluation.metres import map_scores, score_units
 
 ROUTES = ("oracle", "odo_raw", "odo_copies", "fft_views")
 SECTORS = 16

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -156,3 +157,10 @@ def test_overlapping_regions_are_refused_naming_both(tmp_path):
         load_floorplan(tmp_path / "lab.yaml")
     plan["regions"]["west"] = [[0, 0], [1, 0], [1, 1], [0, 1]]  # sharing an edge is fine
     floorplan_from_dict(plan)
+
+
+@pytest.mark.parametrize("plan", sorted((Path(__file__).resolve().parents[1] / "benchmarks"
+                                         / "floorplans").glob("*.yaml")), ids=lambda p: p.stem)
+def test_every_benchmark_floor_plan_is_walkable(plan):
+    """The benchmarks' own plans pass the checks every user's plan passes."""
+    load_floorplan(str(plan))

@@ -185,5 +185,6 @@ def test_every_component_has_a_typed_config_of_plain_values():
                     CompassActions, TurnActions):
         schema = schema_of(Component("env", "arena", factory))
         types = {f.name: f.type for f in dataclasses.fields(schema)}
-        assert all(t in (int, float, bool, str, str | None) or str(t) == "typing.Optional[str]"
+        assert all(t in (int, float, bool, str, str | None, float | None)
+                   or str(t) in ("typing.Optional[str]", "typing.Optional[float]")
                    for t in types.values()), (factory, types)

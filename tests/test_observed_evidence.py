@@ -126,7 +126,8 @@ def test_bad_observed_input_is_refused_with_its_name():
     assert observed_evidence(seq, 0.0, None) is None
     with pytest.raises(ParameterError, match="^reading.temperature must be >= 0 and finite"):
         EMRefinement(reading={"temperature": -1.0}).check_params()
-    with pytest.raises(ParameterError, match="^reading.observed_in must be one of last, auto, all"):
+    with pytest.raises(ParameterError,
+                       match="^reading.observed_in must be one of last, auto, early, all"):
         EMRefinement(reading={"observed_in": "first"}).check_params()
 
 
@@ -165,7 +166,8 @@ def _auto_records(sym, u, lengths, split_symbol, n_symbols):
     seq = SymbolSequence.build(sym, u, lengths, 3, n_symbols)
     loglik = np.full((sym.size, n_symbols), -30.0)
     loglik[np.arange(sym.size), sym] = 0.0
-    fit = EMRefinement(evidence="soft").fit(seq, split_symbol, 0, observed=loglik)  # "auto"
+    fit = EMRefinement(evidence="soft", reading={"observed_in": "auto"}).fit(
+        seq, split_symbol, 0, observed=loglik)
     return fit.info_["soft_rounds"]
 
 

@@ -191,8 +191,8 @@ def test_a_bad_chunk_is_refused_and_loses_nothing():
 
 def test_a_failed_first_pass_keeps_nothing():
     traj = walk(4, 3, 12, 100, seed=8)
-    learner = MapLearner(12, 200)  # more states than the room's steps can split into
-    with pytest.raises(ValueError):
+    learner = MapLearner(3, 2)  # fewer states than phase 1's symbols
+    with pytest.raises(ValueError, match="n_states=2"):
         learner.partial_fit(traj.observations[:5], traj.actions[:5], n_actions=4)
     assert [name for name in vars(learner) if name.endswith("_")] == []  # nothing learned
     learner.set_params(n_states=12).partial_fit(traj.observations[5:], traj.actions[5:],
@@ -349,3 +349,22 @@ def test_a_pass_from_the_last_map_makes_no_split_and_guards_against_the_map_it_s
     assert learner.refine_info_["kept"] == "refined"
     assert sorted(learner.map_.info["refined_from"]) == [0, 1, 2, 3]
     assert adjusted_rand_score(cells, learner.labels_) == 1.0
+
+
+@pytest.mark.parametrize("exact", [True, False])
+def test_em_continued_from_the_batch_maps_states_gives_the_batch_map(exact):
+    # a pass from the last map, given the batch map's own states: EM starts at its optimum
+    # (the 20 cells of an aliased room) and stays there, with no split, soft check or not
+    from topomap.core.data.trajectory import check_fit_data
+
+    traj = walk(5, 4, 3, 6000, seed=2)
+    X, u = traj.observations, traj.actions
+    batch = MapLearner(3, 20, refine="em").fit(X, u, n_actions=4)
+    assert adjusted_rand_score(traj.places, batch.labels_) == 1.0
+    data = check_fit_data(X, u, None, None, 4, None, None)
+    start = online_pass.PassStart(batch.labels_.astype(np.int64), exact)
+    warm = MapLearner(3, 20, refine="em")._fit(data, batch.labels_phase1_, motion=False,
+                                               warm=start)
+    assert warm.refine_info_["warm_start"] and warm.split_history_ == []
+    assert warm.map_.n_states == 20
+    assert adjusted_rand_score(batch.labels_, warm.labels_) == 1.0

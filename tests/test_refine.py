@@ -245,13 +245,15 @@ def test_soft_settings_reach_the_refinement_and_the_map_file_label():
 
     sym, u, _ = ring_walk(3000, RING, 0)
     learner = MapLearner(n_clusters=6, n_states=6, refine=EMRefinement(
-        evidence="soft", soft={"rounds": 1}, reading={"conf_warmup": 100})).fit(noisy(sym, 6), u)
+        evidence="soft", soft={"rounds": 1},
+        reading={"conf_warmup": 100, "observed_in": "auto"})).fit(noisy(sym, 6), u)
     rounds = learner.refine_info_["soft_rounds"]
     assert len(rounds) == 2  # one soft round and a hard one after it, then the last soft round
     assert [r["conf_offdiag"] for r in rounds] == [0.0, 0.0]
-    assert "soft=SoftSettings(rounds=1, conf_warmup=100)" in learner.map_.info["refine"]
-    learned = MapLearner(n_clusters=6, n_states=6, refine=EMRefinement(
-        evidence="soft", soft={"rounds": 1})).fit(noisy(sym, 6), u)
+    assert ("soft=SoftSettings(rounds=1, conf_warmup=100, observed_in='auto')"
+            in learner.map_.info["refine"])
+    learned = MapLearner(n_clusters=6, n_states=6, refine=EMRefinement(  # the matrix first
+        evidence="soft", soft={"rounds": 1}, reading={"observed_in": "auto"})).fit(noisy(sym, 6), u)
     assert 0.0 < learned.refine_info_["soft_rounds"][0]["conf_offdiag"] < 0.1
 
 
@@ -364,9 +366,9 @@ def test_the_repr_is_the_estimators_and_the_provenance_the_form_map_json_stores(
     # are named, by their names of before 0.3 and in the old SoftSettings' order
     assert ("evidence='soft', soft=SoftSettings(conf_warmup=10), settings=EMSettings("
             in EMRefinement(evidence="soft", reading={"conf_warmup": 10}).provenance())
-    assert ("guard=True, soft=SoftSettings(rounds=2, conf_diag=5.0, stage_cap=15, "
+    assert ("guard=True, soft=SoftSettings(rounds=2, conf_diag=5.0, stage_cap=10, "
             "observed=0.0), settings=EMSettings(" in EMRefinement(
-                reading={"temperature": 0.0, "conf_diag": 5.0}, growth={"stage_cap": 15},
+                reading={"temperature": 0.0, "conf_diag": 5.0}, growth={"stage_cap": 10},
                 soft={"rounds": 2}).provenance())
     assert CSCGRefinement(soft=SoftRounds(rounds=1)).provenance().endswith(
         "tol=0.0, soft=SoftSettings(rounds=1))")

@@ -31,14 +31,14 @@ OLD_TEXT = {
     "em2": "EMRefinement(clone_factor=2, prefix=2000, prefix_visits=40, max_rounds=8, "
            "guard=True, budget='split', settle=0.01, accelerate='squarem', start='auto', "
            "first='rough', first_factor=2, first_iter=10, first_rtol=0.001, evidence='soft', "
-           "soft=SoftSettings(rounds=2, detect=0.01, conf_warmup=10, stage_cap=15, "
+           "soft=SoftSettings(rounds=2, detect=0.01, conf_warmup=10, stage_cap=10, "
            "read_share=0.0, observed=3.0, observed_in='all'), settings=EMSettings(row_prior=0.5,"
            " tol=1e-06, max_iter=50, prune=0.0001, merge_threshold=6.63, split_z=3.09, spare=2, "
            "init_noise=1.0))",
     "cscg1": "CSCGRefinement(clones_per_symbol=8, pseudocount=0.01, max_iter=30, tol=0.001, "
              "evidence='hard', soft=SoftSettings(rounds=1, observed=0.0))",
     "config_em": "EMRefinement(clone_factor=2, prefix=2000, prefix_visits=40, max_rounds=8, "
-                 "guard=True, soft=SoftSettings(conf_warmup=10, stage_cap=15, observed=3.0), "
+                 "guard=True, soft=SoftSettings(conf_warmup=10, stage_cap=10, observed=3.0), "
                  "settings=EMSettings(row_prior=0.5, tol=0.0, max_iter=40, prune=0.0001, "
                  "merge_threshold=6.63, split_z=3.09, spare=2, init_noise=1.0))",
 }
@@ -138,11 +138,11 @@ def _warned(make):
           growth={"clone_factor": 3, "prefix": 500, "prefix_visits": 20}, guard=False)),
     ("em2", dict(budget="split", settle=0.01, accelerate="squarem", start="auto", first="rough",
           first_factor=2, first_iter=10, first_rtol=0.001, evidence="soft",
-          soft={"rounds": 2, "conf_warmup": 10, "stage_cap": 15, "observed": 3.0,
+          soft={"rounds": 2, "conf_warmup": 10, "stage_cap": 10, "observed": 3.0,
                 "observed_in": "all", "read_share": 0.0, "detect": 0.01}),
      dict(hard={"settle": 0.01, "accelerate": "squarem"}, evidence="soft",
           growth={"budget": "split", "start": "auto", "first": "rough", "first_factor": 2,
-                  "first_iter": 10, "first_rtol": 0.001, "stage_cap": 15},
+                  "first_iter": 10, "first_rtol": 0.001, "stage_cap": 10},
           soft={"rounds": 2}, reading={"conf_warmup": 10, "temperature": 3.0,
                                        "observed_in": "all", "read_share": 0.0,
                                        "detect": 0.01})),
@@ -228,10 +228,10 @@ def test_old_config_keys_warn_and_set_the_new_keys_typed_as_the_new_keys():
     """``refine.tol=0`` is ``refine.hard.tol=0``, the float 0.0 (as the old typed key gave),
     so map.json's text is the version before's; each old key warns, naming the new one."""
     old = ["refine=em", "refine.tol=0", "refine.max_iter=40", "refine.first_rtol=inf",
-           "refine.soft.observed=3", "refine.soft.conf_warmup=10", "refine.soft.stage_cap=15"]
+           "refine.soft.observed=3", "refine.soft.conf_warmup=10", "refine.soft.stage_cap=10"]
     new = ["refine=em", "refine.hard.tol=0", "refine.hard.max_iter=40",
            "refine.reading.temperature=3", "refine.reading.conf_warmup=10",
-           "refine.growth.stage_cap=15"]
+           "refine.growth.stage_cap=10"]
     em, messages = _warned(lambda: _made(old))
     assert em.provenance() == _made(new).provenance() == OLD_TEXT["config_em"]
     assert ("refine.soft.observed was renamed refine.reading.temperature in 0.3; the old key "

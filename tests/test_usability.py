@@ -130,7 +130,7 @@ def test_help_is_topomaps_own_and_lists_components_not_schemas(tmp_path):
     assert "Usage:" in r.stdout and "topomap --list-plugins" in r.stdout
     assert "clusters: bic, fixed" in r.stdout
     assert "env: arena, gridroom, minigrid, office" in r.stdout
-    assert "sensor: bvc, ovc, range" in r.stdout and "actions: compass, turns" in r.stdout
+    assert "sensor: bvc, grid_cells, ovc, place_cells, range" in r.stdout and "actions: compass, turns" in r.stdout
     r = cli(["--help", "plugins=[topomap_gtest]"], tmp_path, pythonpath=[PLUGINS / "topomap-gtest"])
     assert "split: entropy, gtest" in r.stdout and "_schema" not in r.stdout
 

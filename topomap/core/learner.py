@@ -17,6 +17,7 @@ from .components import (fit_refinement, fold_renamed, make_components, make_ref
 from .refining import (alphabet, bic_scores, choose_refined_size, refined_from, resized,
                        split_symbol, symbol_map)
 from .online import OnlineState, Window
+from .online_codebook import WindowClusters
 from .online_pass import PassStart, start_map, warm_start, warm_starts, wider_pass
 from .phase1.clustering import cluster_observations
 from .phase1.heading import phase1_states
@@ -213,6 +214,7 @@ class MapLearner(StreamFit, MapMethods, BaseEstimator):
         t0 = time.perf_counter()
         told = stopping.n_states if isinstance(stopping, TargetStates) else None
         splitter = self._phase1(data, clusters, metric, criterion, stopping, symbols,
+                                capped=warm is not None,
                                 heading=self.heading if motion else "off", told=told)
         auto = stopping if isinstance(stopping, AutoStates) else None
         if auto is not None:
@@ -262,9 +264,11 @@ class MapLearner(StreamFit, MapMethods, BaseEstimator):
         counted, and every ``refit_every`` steps a wider pass re-learns the map from the latest
         ``window`` steps (:mod:`topomap.core.online` says what is kept).  ``n_actions``,
         ``action_names`` and ``gds_names`` may be given with any call (more actions than the
-        map has bring a wider pass).  A call that fails changes nothing.  :meth:`fit` starts
-        over.  ``odometry`` is checked as :meth:`fit`'s (wider passes do not use it).  Returns
-        ``self``.
+        map has bring a wider pass).  A cluster count above the distinct observations a pass's
+        window holds is capped at them and grown as new views appear, with one warning
+        (:mod:`topomap.core.online_codebook`; ``online_["clusters"]``).  A call that fails
+        changes nothing.  :meth:`fit` starts over.  ``odometry`` is checked as :meth:`fit`'s
+        (wider passes do not use it).  Returns ``self``.
         """
         X, u, g, _ = check_sequences(observations, actions, gds, None, min_length=1)
         check_odometry(odometry, X.shape[0])
@@ -342,10 +346,13 @@ class MapLearner(StreamFit, MapMethods, BaseEstimator):
         self._emit("refine", labels=self.labels_, entropies=self.entropies_[-1], map=self.map_)
 
     def _phase1(self, data: FitData, clusters, metric, criterion, stopping,
-                symbols=None, heading: str = "off", told: int | None = None) -> Splitter:
+                symbols=None, capped: bool = False, heading: str = "off",
+                told: int | None = None) -> Splitter:
         """K-means symbols (or the ``symbols`` given), one state each -- or one per (symbol,
         heading) pair, as ``heading`` and the data say (:func:`phase1_states`; ``told``: the
-        states asked for) -- plus one state per GDS id, never split (paper Section 3.2)."""
+        states asked for) -- plus one state per GDS id, never split (paper Section 3.2).
+        ``capped``: a wider pass of :meth:`partial_fit`, whose count is capped at the distinct
+        observations of its window (:class:`~topomap.core.online_codebook.WindowClusters`)."""
         plain = data.gds < 0
         if plain.sum() < 1:
             raise ValueError("every step is labelled as a GDS; no observations are left to cluster")
@@ -355,6 +362,7 @@ class MapLearner(StreamFit, MapMethods, BaseEstimator):
             symbols = np.array(symbols, dtype=np.int64)  # the caller's array is left alone
         else:
             searched = within_told_size(clusters, stopping, np.unique(data.gds[~plain]).size)
+            searched = WindowClusters(searched) if capped else searched
             with naming(self, "clusters", method="phase1"):
                 symbols, choice = cluster_observations(
                     data.X if plain.all() else data.X[plain], searched, metric,

@@ -10,7 +10,9 @@ seen before it:
   nearest mean: for the Euclidean metric (the paper's) this is K-means' own assignment.  Symbols
   are then fixed rather than updated (``MiniBatchKMeans.partial_fit``) because every state,
   count and label is defined on them: moving a centre would silently change the symbol of steps
-  already counted.
+  already counted.  A count asked for above the distinct observations of a pass's window is
+  capped at them, and the codebook grows as new views appear
+  (:mod:`topomap.core.online_codebook`).
 * **Every chunk** is decoded with the current map (Viterbi over the chunk's symbols and actions,
   continuing from the last steps before it) and its transitions are added to the map's count
   tables: only the rows of the states the chunk visits change.
@@ -48,8 +50,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-from sklearn.metrics.pairwise import euclidean_distances
 
+from .online_codebook import Codebook
 from .refine.clones import decode, make_layout
 from .stats import majority_match
 
@@ -126,31 +128,6 @@ class Window:
         return int(sum(a.nbytes for c in self.chunks for a in c))
 
 
-@dataclass(frozen=True)
-class Codebook:
-    """The fixed symbols: the mean observation of every K-means symbol (K, D)."""
-
-    means: np.ndarray
-
-    @classmethod
-    def from_symbols(cls, X: np.ndarray, sym: np.ndarray, K: int) -> "Codebook":
-        """The mean of the rows of ``X`` of every symbol ``0..K-1`` of ``sym``."""
-        sums = np.zeros((K, X.shape[1]))
-        np.add.at(sums, sym, X)
-        return cls(sums / np.maximum(np.bincount(sym, minlength=K), 1)[:, None])
-
-    @property
-    def size(self) -> int:
-        return int(self.means.shape[0])
-
-    def symbols(self, X: np.ndarray) -> np.ndarray:
-        """The symbol of every row: its nearest mean (scikit-learn's squared Euclidean
-        distances, one matrix product; its ``pairwise_distances_argmin`` gives the same symbols
-        but starts OpenMP threads, which on a chunk of a thousand rows cost far more than the
-        product)."""
-        return euclidean_distances(X, self.means, squared=True).argmin(axis=1).astype(np.int64)
-
-
 def lengths_of(starts: np.ndarray) -> np.ndarray:
     """Episode lengths of a run of steps from its episode-start flags (the first step starts)."""
     first = np.flatnonzero(starts)
@@ -217,6 +194,8 @@ class OnlineState:
     gds_ids: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     state_id: np.ndarray | None = None         # (S,) the symbol id every state of the map emits
     n_ids: int = 0                             # symbol ids: K-means symbols, then known GDS ids
+    map_symbols: int = 0                       # the codebook's symbols when the map was learned
+    clusters: dict = field(default_factory=dict)  # a capped count (:meth:`summary`)
     pass_first: int = 0                        # first step of the last pass's window
     pass_steps: int = 0                        # steps seen at the last pass
     n_calls: int = 0
@@ -231,12 +210,13 @@ class OnlineState:
         """What :meth:`restore` brings back when a call fails."""
         w = self.window
         return (list(w.chunks), w.size, w.first, self.record.size, self.n_actions,
-                self.action_names, self.gds_names)
+                self.action_names, self.gds_names, self.codebook, self.state_id, self.n_ids,
+                dict(self.clusters))
 
     def restore(self, saved) -> None:
         w = self.window
         (w.chunks, w.size, w.first, self.record.size, self.n_actions, self.action_names,
-         self.gds_names) = saved
+         self.gds_names, self.codebook, self.state_id, self.n_ids, self.clusters) = saved
 
     def take(self, X, u, g, starts, n_actions, action_names, gds_names) -> None:
         """Record a chunk (its steps' symbols: the codebook's) and the names and action count
@@ -252,11 +232,26 @@ class OnlineState:
         sym = np.full(X.shape[0], -1, dtype=np.int64)
         plain = g < 0
         if self.codebook is not None and plain.any():
-            sym[plain] = self.codebook.symbols(X[plain])
+            sym[plain] = self.assign(X[plain])
         self.window.push(X, u, g, starts)
         self.record.append(sym, u, g, starts)
         names = 0 if self.action_names is None else len(self.action_names)
         self.n_actions = max(self.n_actions, int(u.max()) + 1, int(n_actions or 0), names)
+
+    def assign(self, X) -> np.ndarray:
+        """The codebook's symbols of the rows ``X`` (:meth:`Codebook.assign
+        <topomap.core.online_codebook.Codebook.assign>`: a new view may get a new symbol, which
+        no state of the map emits yet; the GDS ids after the symbols move up with it)."""
+        sym, grown = self.codebook.assign(X)
+        added = grown.size - self.codebook.size
+        if added and self.state_id is not None:
+            self.state_id = np.where(self.state_id >= self.codebook.size, self.state_id + added,
+                                     self.state_id)
+            self.n_ids += added
+        self.codebook = grown
+        if self.clusters:
+            self.clusters["symbols"] = grown.size
+        return sym
 
     def ids(self, sym, g) -> np.ndarray:
         """Symbol ids of steps: K-means symbols, then ``K + i`` for the ``i``-th known GDS id
@@ -272,7 +267,8 @@ class OnlineState:
 
     def needs_pass(self, m, every: int, grow: bool = False) -> bool:
         """A pass is due: no map yet, :meth:`interval` new steps, more actions than the map
-        has, or a GDS id or symbol the map does not know."""
+        has, or a GDS id or symbol the map does not know (a view that got a new symbol since
+        the map was learned waits for the next pass: its steps are labelled -1 until then)."""
         if self.codebook is None or self.state_id is None or m is None:
             return True
         if self.n_steps - self.pass_steps >= self.interval(every, grow):
@@ -282,7 +278,8 @@ class OnlineState:
         since = slice(self.pass_steps, self.n_steps)
         ids = self.ids(self.record.sym[since], self.record.gds[since])
         per = np.bincount(self.state_id, minlength=self.n_ids)
-        return bool((ids < 0).any() or (per[ids] == 0).any())
+        new_view = (ids >= self.map_symbols) & (ids < self.codebook.size)
+        return bool((ids < 0).any() or ((per[ids] == 0) & ~new_view).any())
 
     def interval(self, every: int, grow: bool = False) -> int:
         """New steps after which the next pass comes: as many as the last pass saw, at most
@@ -307,15 +304,17 @@ class OnlineState:
         present = np.unique(sym)
         return np.searchsorted(present, sym), present
 
-    def learn_codebook(self, X_call, Xw, plain, symbols, K: int, first: int) -> None:
+    def learn_codebook(self, X_call, Xw, plain, symbols, K: int, first: int,
+                       limit: int = 0) -> None:
         """The codebook of a pass that ran K-means on the window (``symbols`` of its ``plain``
-        steps); the window's steps take those symbols, and the steps before it (all in the
-        call's ``X_call``, at the first call) their nearest means."""
-        self.codebook = Codebook.from_symbols(Xw[plain], symbols, K)
+        steps; ``limit``: the count asked for, when the pass capped it at the window's ``K``
+        views); the window's steps take those symbols, and the steps before it (all in the
+        call's ``X_call``, at the first call) the codebook's (:meth:`assign`)."""
+        self.codebook = Codebook.from_symbols(Xw[plain], symbols, K, limit)
         self.record.sym[first:][plain] = symbols
         if first > 0:
             old = np.flatnonzero(self.record.gds[:first] < 0)
-            self.record.sym[old] = self.codebook.symbols(X_call[old])
+            self.record.sym[old] = self.assign(X_call[old])
 
     def after_pass(self, m, labels, gw, first: int, present) -> None:
         """Bind the state to the map ``m`` a pass learned from the window (from step ``first``,
@@ -328,6 +327,7 @@ class OnlineState:
         K = self.codebook.size
         present = np.arange(K) if present is None else present
         self.n_ids = K + self.gds_ids.size
+        self.map_symbols = K
         self.state_id = np.where(m.state_gds >= 0, K + np.searchsorted(self.gds_ids, m.state_gds),
                                  present[np.maximum(m.state_symbol, 0)]).astype(np.int64)
         rec, since = self.record, slice(self.pass_first, self.pass_steps)
@@ -381,12 +381,16 @@ class OnlineState:
     def summary(self) -> dict:
         """``online_``: steps seen, calls, wider passes, the steps the last call's kernels
         touched (decoded; learned from and relabelled by a pass), the first step the last pass
-        learned from, and the bytes kept (``per_step`` is the O(T) part)."""
+        learned from, the bytes kept (``per_step`` is the O(T) part) and, once a pass capped
+        the cluster count, ``clusters``: the count ``asked`` for, the distinct views the
+        ``window`` of the last capped pass held and the ``symbols`` there are now."""
+        book = self.codebook
+        kept = 0 if book is None else int(book.means.nbytes) + sum(map(len, book.views or ()))
         return {"n_steps": self.n_steps, "n_calls": self.n_calls, "n_passes": self.n_passes,
                 "last_work": dict(self.last_work), "pass_from": self.pass_first,
                 "memory": {"per_step": self.record.nbytes, "window": self.window.nbytes,
-                           "codebook": 0 if self.codebook is None
-                           else int(self.codebook.means.nbytes)}}
+                           "codebook": kept},
+                **({"clusters": dict(self.clusters)} if self.clusters else {})}
 
 
 def add_counts(m, labels, actions, starts, n_old: int):

@@ -6,6 +6,7 @@ per state keeps the split."""
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -17,8 +18,8 @@ from .refining import symbol_map
 from .refine.methods import EMRefinement
 from .refine.rounds import CloneRefinement
 
-__all__ = ["MIN_STEPS_PER_STATE", "PassStart", "wider_pass", "warm_starts", "warm_start",
-           "warm_labelling", "start_map"]
+__all__ = ["MIN_STEPS_PER_STATE", "PassStart", "wider_pass", "note_cap", "warm_starts",
+           "warm_start", "warm_labelling", "start_map"]
 
 #: a wider pass afresh refines its map only when the window holds at least this many steps per
 #: state of the split: EM's clones cannot be told apart by fewer visits, and on so short a walk
@@ -64,10 +65,28 @@ def wider_pass(learner, state: OnlineState, X_call) -> None:
     learner._fit(check_fit_data(Xw, uw, gw, lengths_of(sw), state.n_actions, state.action_names,
                                 state.gds_names), symbols, motion=False, warm=start)
     if symbols is None:  # phase 1's K-means symbols of every step seen become the codebook
+        capped = learner.cluster_choice_.get("capped")
+        if capped is not None:
+            note_cap(learner, state, capped)
         state.learn_codebook(X_call, Xw, plain, learner.labels_phase1_[plain],
-                             learner.n_clusters_, first)
+                             learner.n_clusters_, first, 0 if capped is None else capped["asked"])
+        if state.clusters:
+            state.clusters["symbols"] = state.codebook.size
     state.after_pass(learner.map_, learner.labels_, gw, first, present)
     del learner.labels_phase1_, learner.labels_split_  # the window's: labels_ covers every step
+
+
+def note_cap(learner, state: OnlineState, capped: dict) -> None:
+    """Record a pass's capped cluster count (``capped``: ``asked``, ``distinct``) in
+    ``state.clusters`` (``online_["clusters"]``), warning the first time."""
+    if not state.clusters:
+        name = "n_clusters" if learner.clusters is None else "the clusters policy's count"
+        warnings.warn(f"{name}={capped['asked']} is more than the {capped['distinct']} distinct "
+                      "observations the window holds (GDS steps excluded): partial_fit uses "
+                      f"{capped['distinct']} symbols and gives each new view a symbol of its own "
+                      f"as it appears, up to {capped['asked']} (online_['clusters'])",
+                      UserWarning, stacklevel=4)
+    state.clusters = {"asked": capped["asked"], "window": capped["distinct"]}
 
 
 def warm_starts(refine) -> bool:

@@ -37,6 +37,7 @@ from sklearn.metrics import pairwise_distances_argmin
 
 from ..size import split_holdout
 from ..stats import majority_share
+from .crossfit import cross_fitted
 from .odometry import odometric_positions, reckoned_steps
 from .places import Places, cut_places
 from .settings import MotionSettings
@@ -212,6 +213,8 @@ def choose_places(settings: MotionSettings, X, Z, u, lengths, n_states: int, n_a
     loose weight give way to the view clusters, the places cut with ``settings.weight`` are
     checked in turn (on ``ring`` at 50 Hz, seed 0, those kept alike rooms apart where the loosely
     weighted ones did not); ``info["loose"]`` then says what the first try chose and why."""
+    if settings.check == "crossfit":
+        return _crossfit(settings, X, Z, u, lengths, n_states, n_actions, build, **kmeans)
     labels, info = _choose(settings, X, Z, u, lengths, n_states, n_actions, build, **kmeans)
     if info["chosen"] == "places" or info.get("weight", settings.weight) == settings.weight:
         return labels, info
@@ -223,6 +226,27 @@ def choose_places(settings: MotionSettings, X, Z, u, lengths, n_states: int, n_a
     if isinstance(first.get("check"), dict):  # the first try's shares, not its folds
         first["check"] = {k: first["check"][k] for k in ("mean_misplaced", "outvoted")}
     return labels2, dict(info2, loose=first)
+
+
+def _crossfit(settings: MotionSettings, X, Z, u, lengths, n_states: int, n_actions: int,
+              build, **kmeans) -> tuple[np.ndarray, dict]:
+    """:func:`choose_places` by the one rule of :func:`~topomap.core.motion.crossfit.cross_fitted`:
+    the places where their held-out error is below the view clusters'."""
+    whole = cut_places(settings, Z, u, lengths, n_states, n_actions, **kmeans)
+    info = dict(whole.info)
+    if whole.places is None:
+        return whole.views, dict(info, chosen="views")
+    T = len(u)
+    if settings.holdout == 0 or T * min(settings.holdout, 1 - settings.holdout) < 100:
+        return whole.places, dict(info, chosen="places")
+    check = cross_fitted(settings, X, Z, u, lengths, n_states, n_actions, build,
+                         weight=info["weight"], **kmeans)
+    if check is None:
+        return whole.views, dict(info, chosen="views",
+                                  check="the held-out check's first part gave no odometry")
+    chosen = "places" if check["places"] < check["views"] else "views"
+    return (whole.places if chosen == "places" else whole.views), dict(info, chosen=chosen,
+                                                                      check=check)
 
 
 def _choose(settings: MotionSettings, X, Z, u, lengths, n_states: int, n_actions: int,

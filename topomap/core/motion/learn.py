@@ -42,6 +42,10 @@ def fallback_reason(info: dict) -> str | None:
                 f"not cancel their commands' moves (return ratios {info['return_ratios']}, at "
                 "most max_return kept); turn / forward commands move a robot differently with "
                 "its heading")
+    if "mean_misplaced" not in check:  # the cross-fitted check: one error per map
+        return (f"the held-out check placed the log's last {check['held_out']} steps no nearer "
+                f"their own pose graph with the places ({check['places']:.3f} cell extents) than "
+                f"with the view clusters ({check['views']:.3f})")
     shares = check["mean_misplaced"]
     return (f"the held-out check placed the log's held-out parts no better with the places "
             f"(misplaced {shares['places']:.3f}) than with the view clusters "

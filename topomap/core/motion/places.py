@@ -22,7 +22,8 @@ from .odometry import (action_vectors, cell_extent, dead_reckoning, odometric_po
                        reckoned_steps)
 from .settings import MotionSettings, mean_run
 
-__all__ = ["Places", "cut_places", "place_features", "position_weight", "view_clusters"]
+__all__ = ["Places", "cut_places", "places_of", "place_features", "position_weight",
+           "view_clusters"]
 
 
 @dataclass
@@ -96,15 +97,29 @@ def cut_places(settings: MotionSettings, Z, u, lengths, n_states: int, n_actions
         info["odometry"] = False
         return Places(fsym, None, V, 1.0, None, info)
     r = cell_extent(fsym, dead_reckoning(u, lengths, V), lengths)
+    if weight is None:  # the directions kept: a plane, or a line (the first alone)
+        weight = position_weight(settings, ratios if V[:, 1].any() else ratios[:1])
+    views = Z / _view_spread(Z, fsym, k)
+    return places_of(settings, views, fsym, u, lengths, V, r, info, weight=float(weight),
+                     n_states=n_states, n_init=n_init, random_state=random_state, method=method)
+
+
+def places_of(settings: MotionSettings, views, fsym, u, lengths, V, extent: float, info: dict,
+              *, weight: float, n_states: int, n_init: int, random_state: int,
+              method: str) -> Places:
+    """The places of steps whose ``views`` (in units of one view cluster's extent) lie in view
+    clusters ``fsym``, moved by the actions ``u`` (displacements ``V``, cell extent ``extent``):
+    K-means on the views beside each gate's odometric positions at ``weight``; ``info`` (what
+    was measured before) gains the cell extent, the copies of every gate and the weight."""
     steps = reckoned_steps(u, lengths, V)
     positions, copies = [], []
     for gate in settings.gates:
-        P, _, n_copies = odometric_positions(fsym, steps, lengths, gate * r, pull=settings.pull)
-        positions.append(P / r)
+        P, _, n_copies = odometric_positions(fsym, steps, lengths, gate * extent,
+                                             pull=settings.pull)
+        positions.append(P / extent)
         copies.append(n_copies)
-    if weight is None:  # the directions kept: a plane, or a line (the first alone)
-        weight = position_weight(settings, ratios if V[:, 1].any() else ratios[:1])
-    F = place_features(Z / _view_spread(Z, fsym, k), positions, float(weight))
-    info.update(odometry=True, cell_extent=round(r, 4), copies=copies, weight=float(weight))
+    F = place_features(views, positions, float(weight))
+    info = dict(info, odometry=True, cell_extent=round(extent, 4), copies=copies,
+                weight=float(weight))
     places = _kmeans(F, int(n_states), n_init, random_state, method)
-    return Places(fsym, places, V, r, positions[len(positions) // 2], info)
+    return Places(fsym, places, V, extent, positions[len(positions) // 2], info)

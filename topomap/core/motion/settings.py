@@ -16,6 +16,8 @@ __all__ = ["MODES", "MotionSettings", "motion_settings", "mean_run", "is_continu
 
 #: what ``MotionSettings.mode`` (or ``motion`` given as a string) accepts
 MODES = ("auto", "discrete", "continuous")
+#: what ``MotionSettings.check`` accepts
+CHECKS = ("folds", "crossfit")
 
 
 @dataclass(frozen=True)
@@ -54,6 +56,12 @@ class MotionSettings:
     (:func:`topomap.core.motion.check.tells_apart`) or fewer than ``min_purity`` of the steps lie
     in their place's view cluster (:func:`topomap.core.motion.check.view_purity`; 0: never).
 
+    ``check``: ``"folds"`` (the rule above) or ``"crossfit"`` -- one rule instead: the places
+    are cut again on the log before its last ``holdout`` share, from those steps' own positions,
+    and kept where they place the held-out steps nearer the held-out part's own pose graph than
+    the view clusters do (:mod:`topomap.core.motion.crossfit`; ``gates``' middle one and
+    ``pull`` make both pose graphs, no other setting of the check is read).
+
     ``n_init``: the k-means++ starts of the view clusters (scikit-learn's ``KMeans`` on every
     row).  A map of view clusters gives every state one variance, pooled over the states and the
     features, times ``fallback_variance``, so that its decoding ranks states by the distance of
@@ -81,6 +89,7 @@ class MotionSettings:
     min_purity: float = 0.2
     loose_return: float = 0.26
     loose_weight: float = 0.5
+    check: str = "folds"
 
 
 def motion_settings(value) -> MotionSettings:
@@ -104,6 +113,9 @@ def motion_settings(value) -> MotionSettings:
     if value.mode not in MODES:
         raise ParameterError("motion.mode", f"must be one of {', '.join(MODES)}, "
                                             f"got {value.mode!r}")
+    if value.check not in CHECKS:
+        raise ParameterError("motion.check", f"must be one of {', '.join(CHECKS)}, "
+                                             f"got {value.check!r}")
     check_count(value.min_steps, "motion.min_steps")
     check_count(value.n_init, "motion.n_init")
     check_count(value.folds, "motion.folds")

@@ -41,10 +41,11 @@ from .clones import (Layout, capped_baum_welch, clone_budget, compact_labels, fi
 from .first_stage import ROUGH, first_settings, rough_first
 from .provenance import cscg_provenance, em_provenance
 from .renamed import CSCG_RENAMED, EM_RENAMED
-from .rounds import CAP_SURPRISE, CloneFit, CloneRefinement
+from .rounds import CAP_SURPRISE, CUT_SURPRISE, PAIRED_READ, CloneFit, CloneRefinement
 from .sequence import SymbolSequence
 from .settings import STARTS, CSCGRounds, Growth, HardRounds, Reading, SoftRounds
 from .soft import successor_surprise
+from .soft_states import successor_pairing
 from .structure import merge_states, same_partition, split_compounds
 
 __all__ = ["CloneFit", "CloneRefinement", "EMRefinement", "CSCGRefinement", "REFINEMENTS"]
@@ -187,6 +188,8 @@ class EMRefinement(CloneRefinement):
             return None
         if successor_surprise(prefix, labels) < CAP_SURPRISE * st.reading.detect:
             return None
+        if successor_pairing(prefix, labels) >= PAIRED_READ:  # a view cut in two: uncapped
+            return None
         return cap, st.growth.stage_rtol
 
     def _first_round(self, seq: SymbolSequence, split_state_symbol, rng, split_labels=None, *,
@@ -303,10 +306,6 @@ SPLIT_TRUST = 0.02
 #: rounds with their merges and splits bring it to the steps it had not seen
 WARM_ROUNDS = 3
 WARM_ITER = 15
-
-#: the successor surprise (in ``reading.detect``) that cuts :meth:`EMRefinement._first_hard_round`
-CUT_SURPRISE = 5.0
-
 
 def _finish(stages) -> CloneFit:
     """The return of the generator ``stages`` (:meth:`EMRefinement._stages`), run to its end."""

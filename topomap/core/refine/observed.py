@@ -15,12 +15,16 @@ observation no symbol's model gives a finite density: its symbol as read).  The 
 learned as in a confusion-matrix round; the evidence stays fixed.  A temperature above 1
 flattens the evidence, so the map's transitions weigh more against a reading.
 
-The first soft round always reads with the confusion matrix.  By default
-(``reading.observed_in="auto"``) the rounds after it take this evidence, unless that round's
-confusion matrix pairs two symbols often (:data:`~topomap.core.refine.rounds.PAIRED_READ`): a
-view phase 1 cut into two symbols, whose halves the Gaussians would keep apart as two places
-while the confusion matrix lets one clone explain both; then only the last round, which gives
-the map, takes it (``"last"`` always so; ``"all"``: every round, the first too).
+By default (``reading.observed_in="early"``) every soft round takes this evidence where the
+first hard round's labelling shows misreads and its moves pair no two symbols often
+(:func:`~topomap.core.refine.soft_states.successor_pairing` under
+:data:`~topomap.core.refine.rounds.PAIRED_READ`); else the first soft round reads with the
+confusion matrix and the rounds after it take this evidence unless that matrix pairs two
+symbols as often (``"auto"``): a view phase 1 cut into two symbols, whose halves the Gaussians
+would keep apart as two places while the confusion matrix lets one clone explain both; then
+only the last round, which gives the map, takes it (``"last"`` always so; ``"all"``: every
+round, the first too).  The first round on this evidence stops once its readings settle
+(``reading.settle``).
 
 A round runs what every soft round runs (:mod:`topomap.core.refine.evidence`), each step its own
 "read symbol": the evidence of a round is a dense (clones, steps) table, at most
@@ -107,8 +111,11 @@ def observed_round(seq, labels, state_symbol, conf=None, *, evidence, spare: int
     data = SoftData(np.arange(T, dtype=np.int64), base.u, base.has_next)  # each step its own read
     emit = np.ascontiguousarray(evidence[:, clone_symbol].T)
     cptr, cidx = soft_candidates(emit)
+    # the first round corrects the readings, and stops once they settle; the later ones drain
+    # the states the misreads left, which the readings do not show, and the last gives the map
+    settle = reading.settle if exact_below is not None else 0.0
     trans, misread, monitor = _observed_em(seq, data, counts, emit, (cptr, cidx), clone_symbol,
-                                           (soft, reading), exact_below)
+                                           (soft, reading, settle), exact_below)
     conf = np.eye(seq.n_ids) if conf is None else conf
     info = {"evidence": "observed", "em_iterations": monitor.iter,
             "em_loglik": monitor.history[-1], "clones": int(S), "misread": misread}
@@ -129,13 +136,13 @@ def _observed_em(seq, data, counts, emit, candidates, clone_symbol, settings, ex
     confusion-matrix rounds do (``settings``, ``(soft, reading)``: ``soft.tol``, ``soft.rtol``,
     ``soft.max_iter``; with ``exact_below`` after ``reading.detect_iter`` iterations explaining
     fewer steps as misread)."""
-    (s, r), S, T, ns = settings, clone_symbol.size, seq.T, seq.n_symbols
+    (s, r, settle), S, T, ns = settings, clone_symbol.size, seq.T, seq.n_symbols
     init, pseudo = np.full(S, 1.0 / S), s.row_prior / S
     monitor = ConvergenceMonitor(s.tol * T, s.max_iter, min_iter=2, rtol=s.rtol or None)
     trans = normalise_transitions(counts, pseudo)
     plain = np.flatnonzero(seq.sym < ns)
     other = clone_symbol[:, None] != seq.sym[None, plain]  # (S, plain steps)
-    misread = 0.0
+    misread, read = 0.0, None
     while not monitor.converged and monitor.iter < s.max_iter:
         stats, ll = soft_estep(data, SoftModel(trans, emit, init, *candidates), clone_symbol,
                                prune=s.prune)  # no read tables: T read "symbols"
@@ -145,4 +152,17 @@ def _observed_em(seq, data, counts, emit, candidates, clone_symbol, settings, ex
         trans = normalise_transitions(stats.trans, pseudo)
         if exact_below is not None and monitor.iter == r.detect_iter and misread < exact_below:
             break
+        if settle:
+            read, moved = _read_moved(stats.emit, clone_symbol, seq.n_ids, read)
+            if moved < settle and monitor.iter >= 2:
+                break
     return trans, misread, monitor
+
+
+def _read_moved(occupancy, clone_symbol, n_ids: int, previous):
+    """Every step's most probable symbol under the clone ``occupancy`` (S, T) of an E-step, and
+    the share of steps where it is not ``previous``'s (None: 1.0)."""
+    by_symbol = np.zeros((n_ids, occupancy.shape[1]))
+    np.add.at(by_symbol, clone_symbol, occupancy)
+    read = by_symbol.argmax(axis=0)
+    return read, 1.0 if previous is None else float(np.mean(read != previous))

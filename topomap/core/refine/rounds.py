@@ -20,7 +20,7 @@ from .renamed import fold_renamed
 from .sequence import SymbolSequence
 from .settings import RefineSettings, settings_of
 from .soft import check_evidence, soft_round, successor_surprise
-from .soft_states import keep_states, merge_twins, min_steps_of
+from .soft_states import keep_states, merge_twins, min_steps_of, successor_pairing
 from .structure import same_partition
 
 __all__ = ["CloneFit", "CloneRefinement"]
@@ -214,7 +214,7 @@ class CloneRefinement(BaseEstimator):
             return _skipped(hard_fit, surprise, [])
         rng = np.random.default_rng(random_state)
         ev = observed_evidence(seq, st.reading.temperature, observed)
-        cycle_ev = ev if st.reading.observed_in == "all" else None  # "last" / "auto": not first
+        cycle_ev, early = _first_evidence(seq, hard_fit, st.reading, ev, surprise)
         labels, state_symbol = hard_fit.labels, hard_fit.state_symbol
         n_ref = state_symbol.size if n_reference is None else int(n_reference)
         conf, rounds, read, explained = None, [], seq.sym, False
@@ -228,7 +228,7 @@ class CloneRefinement(BaseEstimator):
             conf = soft.conf
             rounds.append(soft.info)
             if r == 0:
-                nothing, cycle_ev = _after_first(soft, st.reading, ev, seq.n_symbols)
+                nothing, cycle_ev = _after_first(soft, st.reading, ev, seq.n_symbols, early)
                 if nothing:
                     return _skipped(hard_fit, surprise, rounds)
             else:
@@ -248,15 +248,23 @@ class CloneRefinement(BaseEstimator):
         return _soft_fit(hard_fit, surprise, rounds, soft)
 
     def _cycle_hard_round(self, seq: SymbolSequence, soft, random_state: int, detect: float):
-        """The hard round on the symbols the soft round ``soft`` corrected (cut short like the
-        first where misreads still show, the next soft round correcting what is left, unless the
-        soft round corrected fewer than ``CUT_CORRECTED`` x ``detect`` of the steps), and
+        """The hard round on the symbols the soft round ``soft`` corrected -- started from its
+        labelling (a few short rounds, :meth:`EMRefinement._stages`) with
+        ``growth.cycle_start="soft"`` where it read the per-step evidence; else from random counts,
+        cut short like the first where misreads still show, the next soft round correcting what
+        is left, unless the soft round corrected fewer than ``CUT_CORRECTED`` x ``detect`` of
+        the steps -- and
         whether it explains them: not cut, and its labelling predicts the next symbol of all
         but a ``detect`` share of its transitions (the next soft round is then tried without
         spare clones first: if it re-reads the symbols as they are, it is the map)."""
         split_symbol = np.where(soft.state_symbol < seq.n_symbols, soft.state_symbol, -1)
         read = replace(seq, sym=soft.sym)
-        if soft.info["corrected"] < CUT_CORRECTED * detect:  # hardly any misreads left to cut for
+        growth = self.settings_.growth  # None for refine=cscg, which starts no round warm
+        if (growth is not None and growth.cycle_start == "soft"
+                and soft.info.get("evidence") == "observed"):
+            hard = self._hard_round(read, split_symbol, random_state,
+                                    init=(soft.labels, soft.state_symbol))
+        elif soft.info["corrected"] < CUT_CORRECTED * detect:  # hardly any misreads to cut for
             hard = self._hard_round(read, split_symbol, random_state)
         else:
             hard = self._first_hard_round(read, split_symbol, random_state, cycle=True)
@@ -269,6 +277,11 @@ class CloneRefinement(BaseEstimator):
 #: by ``soft.rtol``.  Gridroom 8x6's prefixes show 0.6-1.1 % without misreads, 3.5-3.8 % at 2.5 %
 #: misreads (where the cap cost ARI), 8-10 % at 9.7 %
 CAP_SURPRISE = 25.0
+
+
+#: the successor surprise (in ``reading.detect``) that cuts :meth:`EMRefinement._first_hard_round`
+#: and from which the first soft round takes the per-step evidence (``reading.observed_in="early"``)
+CUT_SURPRISE = 5.0
 
 
 #: the share of steps (in ``reading.detect``) a soft round must correct for the hard round on its
@@ -291,16 +304,37 @@ SETTLE_REREAD = 1.0
 PAIRED_READ = 0.15
 
 
-def _after_first(soft, reading, ev, n_symbols: int):
-    """After the first soft round ``soft``: whether it found nothing to correct (stopped early
-    on exact readings, or it explains and corrects fewer than ``reading.detect`` of the steps as
-    misread), and the per-step evidence ``ev`` the rounds after it take as
-    ``reading.observed_in`` says (``"auto"``: unless the round's confusion matrix pairs two
-    symbols at least :data:`PAIRED_READ`, ``paired`` in its record)."""
+def _first_evidence(seq, hard_fit, reading, ev, surprise: float):
+    """The per-step evidence ``ev`` the first soft round takes (None: the confusion matrix),
+    and what its record notes: with ``reading.observed_in="all"`` always; with ``"early"``
+    where the first hard round's labelling shows misreads (a successor ``surprise`` at least
+    :data:`CUT_SURPRISE` x ``reading.detect``) and its moves pair no two symbols at least
+    :data:`PAIRED_READ` (:func:`~topomap.core.refine.soft_states.successor_pairing`, its
+    record's ``hard_paired``)."""
+    if ev is None or reading.observed_in not in ("all", "early"):
+        return None, {}
+    if reading.observed_in == "all":
+        return ev, {}
+    if surprise < CUT_SURPRISE * reading.detect:  # few misreads: the first round judges them
+        return None, {}
+    paired = successor_pairing(seq, hard_fit.labels)
+    return (ev if paired < PAIRED_READ else None), {"hard_paired": paired}
+
+
+def _after_first(soft, reading, ev, n_symbols: int, early: dict):
+    """After the first soft round ``soft`` (``early``, what :func:`_first_evidence` noted, added
+    to its record): whether it found nothing to correct (stopped early on exact readings, or it
+    explains and corrects fewer than ``reading.detect`` of the steps as misread), and the
+    per-step evidence ``ev`` the rounds after it take as ``reading.observed_in`` says
+    (``"auto"``: unless the round's confusion matrix pairs two symbols at least
+    :data:`PAIRED_READ`, ``paired`` in its record)."""
+    soft.info.update(early)
     if "stopped" in soft.info or max(soft.info["corrected"], soft.info["misread"]) < reading.detect:
         return True, None
-    if reading.observed_in != "auto" or ev is None:
-        return False, ev if reading.observed_in == "all" else None
+    if reading.observed_in == "all" or soft.info.get("evidence") == "observed":
+        return False, ev  # "early" took it from the first round: nothing paired
+    if reading.observed_in == "last" or ev is None:
+        return False, None
     soft.info["paired"] = paired = pair_read(soft.conf, n_symbols)
     return False, ev if paired < PAIRED_READ else None
 

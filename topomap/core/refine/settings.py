@@ -42,8 +42,11 @@ INF = float("inf")
 #: what stage 1 of ``refine=em`` starts from (``growth.start``)
 STARTS = ("random", "split", "split_budget", "auto")
 
+#: what a hard round on corrected symbols starts from (``growth.cycle_start``)
+CYCLE_STARTS = ("random", "soft")
+
 #: the soft rounds that take each step's evidence from its observation (``reading.observed_in``)
-OBSERVED_IN = ("last", "auto", "all")
+OBSERVED_IN = ("last", "auto", "early", "all")
 
 
 @dataclass(frozen=True)
@@ -115,12 +118,15 @@ class Growth:
     first_rtol: float = INF
     """... unless its last iteration gained more than this share of the log-likelihood; then
     it goes on until one gains less (share; ``inf``: it stops)."""
-    stage_cap: int = 0
-    """Where stage 1's labelling shows many misreads, the growth stages' Baum-Welch stops after
-    this many iterations (E-steps; 0: no cap)..."""
+    stage_cap: int = 15
+    """Where stage 1's labelling shows many misreads and pairs no two symbols, the growth
+    stages' Baum-Welch stops after this many iterations (E-steps; 0: no cap)..."""
     stage_rtol: float = INF
     """... unless its last iteration gained more than this share of the log-likelihood; then
     it goes on until one gains less (share; ``inf``: it stops)."""
+    cycle_start: str = "random"
+    """A hard round on corrected symbols starts from random counts (``"random"``) or, where
+    the soft round read the per-step evidence, from its labelling (``"soft"``)."""
 
 
 @dataclass(frozen=True)
@@ -193,8 +199,12 @@ class Reading:
     temperature: float = 6.0
     """The observed evidence, each symbol's likelihood relative to the best, is raised to
     ``1 / temperature`` (1: the likelihood itself; 0: off, the confusion matrix throughout)."""
-    observed_in: str = "auto"
-    """Which soft rounds take the observed evidence: ``"auto"``, ``"last"`` or ``"all"``."""
+    observed_in: str = "early"
+    """Which soft rounds take the observed evidence: ``"early"``, ``"auto"``, ``"last"`` or
+    ``"all"``."""
+    settle: float = 0.002
+    """The first soft round on the observed evidence stops once every step's most probable
+    symbol moved at fewer than this share of the steps since the E-step before (share; 0: off)."""
 
 
 @dataclass(frozen=True)
@@ -249,7 +259,8 @@ CHECKS = {
         "clone_factor": _count(), "budget": _choice(tuple(BUDGETS)), "prefix": _count(),
         "prefix_visits": _count(0), "start": _choice(STARTS), "first": _choice(FIRSTS),
         "first_factor": _count(0), "first_iter": _count(0), "first_rtol": _NON_NEGATIVE,
-        "stage_cap": _count(0), "stage_rtol": _NON_NEGATIVE},
+        "stage_cap": _count(0), "stage_rtol": _NON_NEGATIVE,
+        "cycle_start": _choice(CYCLE_STARTS)},
     SoftRounds: {
         "rounds": _count(0), "spare": _count(0), "max_iter": _count(), "tol": _NON_NEGATIVE,
         "rtol": _NON_NEGATIVE, "row_prior": _POSITIVE, "prune": _PROBABILITY,
@@ -263,7 +274,7 @@ CHECKS = {
         "clone_prior": _POSITIVE, "floor": _real(lambda v: 0 < v < 1, "in (0, 1)"),
         "read_share": _PROBABILITY,
         "temperature": _real(lambda v: 0 <= v < INF, ">= 0 and finite"),
-        "observed_in": _choice(OBSERVED_IN)},
+        "observed_in": _choice(OBSERVED_IN), "settle": _SHARE},
 }
 
 

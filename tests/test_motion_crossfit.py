@@ -1,0 +1,138 @@
+"""The pose graph and the cross-fitted check of a continuous log, on small cases whose answer
+follows from their construction."""
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from topomap import MapLearner
+from topomap.core.motion import MotionSettings
+from topomap.core.motion.crossfit import state_positions, translated_error
+from topomap.core.motion.posegraph import pose_graph
+
+
+def _square_loop(side=10, bias=(0.05, -0.03)):
+    """Moves round a square of ``side`` unit steps a side, back to the start, each move off by
+    the same ``bias`` (the odometry's drift); the truth beside them."""
+    dirs = np.repeat([[1.0, 0.0], [0.0, 1.0], [-1.0, 0.0], [0.0, -1.0]], side, axis=0)
+    truth = np.vstack([[0.0, 0.0], np.cumsum(dirs, axis=0)])  # 4 side + 1 steps, last = first
+    steps = np.zeros_like(truth)
+    steps[1:] = dirs + np.asarray(bias)
+    return steps, truth
+
+
+def test_a_pose_graph_removes_a_constant_drift_round_a_closed_loop():
+    steps, truth = _square_loop()
+    T = len(steps)
+    dead = np.cumsum(steps, axis=0)
+    assert np.linalg.norm(dead[-1] - truth[-1]) > 1.0  # 40 moves of drift: off by 2.3
+    # every step its own copy but the last, which closes the loop on the first one's
+    copy = np.arange(T)
+    copy[-1] = 0
+    x, m = pose_graph(steps, copy, T - 1, [T], cell=1e-3)
+    # least squares spreads the loop's error evenly over its 40 like moves: exactly the bias
+    np.testing.assert_allclose(x, truth, atol=1e-5)
+    np.testing.assert_allclose(m[0], truth[0], atol=1e-5)
+
+
+def test_a_pose_graph_without_closures_is_dead_reckoning():
+    steps, _ = _square_loop()
+    T = len(steps)
+    x, _ = pose_graph(steps, np.arange(T), T, [T], cell=1.0)
+    np.testing.assert_allclose(x, np.cumsum(steps, axis=0), atol=1e-6)
+
+
+def test_two_episodes_each_start_at_the_origin_unless_a_copy_joins_them():
+    steps = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 0.0], [0.0, 1.0]])
+    x, _ = pose_graph(steps, np.arange(4), 4, [2, 2], cell=1.0)
+    np.testing.assert_allclose(x, [[0, 0], [1, 0], [0, 0], [0, 1]], atol=1e-6)
+
+
+def test_the_translated_error_ignores_where_each_frame_starts():
+    rng = np.random.default_rng(0)
+    frame = rng.normal(size=(101, 2))
+    assert translated_error(frame + [5.0, -3.0], frame) == pytest.approx(0.0)
+    placed = frame + [5.0, -3.0]
+    placed[:40] += [0.0, 2.0]  # 40 of 101 steps placed 2 off: the median step is still exact
+    assert translated_error(placed, frame) == pytest.approx(0.0)
+    placed[40:] += [0.0, 2.0]  # now all are: the shift follows them
+    assert translated_error(placed, frame) == pytest.approx(0.0)
+    # every step 1 off, each in one of four directions in turn: no shift helps
+    placed[:100] += np.tile([[1.0, 0.0], [-1.0, 0.0], [0.0, 1.0], [0.0, -1.0]], (25, 1))
+    assert translated_error(placed, frame) == pytest.approx(1.0)
+
+
+def test_state_positions_are_the_means_of_their_steps():
+    labels = np.array([0, 1, 0, 1, 2])
+    P = np.array([[0.0, 0.0], [1.0, 1.0], [2.0, 0.0], [3.0, 1.0], [5.0, 5.0]])
+    np.testing.assert_allclose(state_positions(labels, P), [[1, 0], [2, 1], [5, 5]])
+
+
+def _line(T=8000, seed=0, jitter=0.3, period=None):
+    """A walk on [0, 2] (turning at the ends and at random; moves of 0.01 times 1 +- ``jitter``),
+    action 0 right, 1 left; views that differ all along the line, or repeat every ``period``."""
+    rng = np.random.default_rng(seed)
+    x = np.empty(T)
+    x[0], d = 0.1, 1
+    u = np.empty(T, dtype=np.int64)
+    for t in range(T):
+        if rng.random() < 0.01:
+            d = -d
+        nxt = x[t] + d * 0.01 * rng.uniform(1 - jitter, 1 + jitter)
+        if not 0.0 <= nxt <= 2.0:
+            d = -d
+            nxt = x[t] + d * 0.01
+        u[t] = 0 if d > 0 else 1
+        if t + 1 < T:
+            x[t + 1] = nxt
+    phase = np.pi * x if period is None else 2 * np.pi * x / period
+    Z = np.stack([np.cos(phase), np.sin(phase)], 1)
+    return Z + rng.normal(0, 0.01, Z.shape), u, x
+
+
+def _new_walk_error(learner, x_train):
+    """Median distance of a new walk's steps from the mean true position of their state."""
+    Z, u, x = _line(8000, seed=1)
+    labels = learner.labels_
+    pos = np.bincount(labels, x_train) / np.maximum(np.bincount(labels), 1)
+    return float(np.median(np.abs(pos[learner.predict(Z, u)] - x)))
+
+
+def test_the_cross_fitted_check_keeps_the_view_clusters_where_places_are_built_to_lose():
+    # views that differ all along the line place a step alone; places cut mostly on the
+    # odometry's positions (weight 10), which drift by 30 % of a move each step, lose to them
+    Z, u, x = _line()
+    kw = dict(n_clusters=16, n_states=32, random_state=0)
+    lose = MotionSettings(check="crossfit", weight=10.0, loose_weight=10.0)
+    places = MapLearner(**kw, motion=replace(lose, holdout=0)).fit(Z, u)
+    assert places.motion_info_["chosen"] == "places"
+    with pytest.warns(UserWarning, match="no nearer"):
+        checked = MapLearner(**kw, motion=lose).fit(Z, u)
+    check = checked.motion_info_["check"]
+    assert checked.motion_info_["chosen"] == "views" and check["places"] > check["views"]
+    assert (check["learned"], check["held_out"]) == (6000, 2000)
+    assert _new_walk_error(places, x) > _new_walk_error(checked, x)  # the truth agrees
+
+
+def test_the_cross_fitted_check_keeps_places_that_tell_alike_halves_apart():
+    Z, u, x = _line(jitter=0.1, period=1.0)  # the view of x is that of x + 1
+    learner = MapLearner(n_clusters=4, n_states=8, random_state=0,
+                         motion=MotionSettings(check="crossfit")).fit(Z, u)
+    check = learner.motion_info_["check"]
+    assert learner.motion_info_["chosen"] == "places" and check["places"] < check["views"]
+    halves = x > 1.0
+    # each place lies in one half: the view clusters fold the halves onto each other
+    purity = sum(max(np.sum(halves & (learner.labels_ == s)),
+                     np.sum(~halves & (learner.labels_ == s)))
+                 for s in np.unique(learner.labels_)) / x.size
+    assert purity > 0.95
+
+
+def test_an_unknown_check_is_named():
+    from topomap.core.checks import ParameterError
+    from topomap.core.motion import motion_settings
+
+    with pytest.raises(ParameterError, match="motion.check.*folds, crossfit.*'cross'"):
+        motion_settings({"check": "cross"})
+    assert motion_settings({"check": "crossfit"}).check == "crossfit"

@@ -1,0 +1,73 @@
+"""Heading from egocentric scans: turns read from scans, and loop closures that remove drift."""
+
+import numpy as np
+import pytest
+
+from topomap.core.motion import scans as S
+
+
+def _room_scan(n=60, seed=0):
+    """(n,) ranges of a smooth, asymmetric ring (a few Fourier terms)."""
+    rng = np.random.default_rng(seed)
+    a = 2 * np.pi * np.arange(n) / n
+    return 1.5 + sum(rng.uniform(0.1, 0.3) * np.cos(k * a + rng.uniform(0, 2 * np.pi))
+                     for k in (1, 2, 3))
+
+
+@pytest.mark.parametrize("k", [-7, -1, 0, 3, 12])
+def test_a_scan_turned_by_whole_beams_gives_that_turn_exactly(k):
+    A = _room_scan()[None, :]
+    B = np.roll(A, -k, axis=1)  # B[j] = A[j + k]: the robot turned k beams anticlockwise
+    assert S.scan_turns(A, B)[0] == pytest.approx(2 * np.pi * k / 60, abs=1e-12)
+    # turning the scans by their headings undoes the turn
+    np.testing.assert_allclose(S.rotate_scans(B, [2 * np.pi * k / 60]), A, atol=1e-12)
+
+
+def test_a_fractional_turn_is_read_below_a_beam():
+    A = _room_scan()[None, :]
+    B = S.rotate_scans(A, [-0.25 * 2 * np.pi / 60])  # a quarter beam anticlockwise
+    assert S.scan_turns(A, B)[0] == pytest.approx(0.25 * 2 * np.pi / 60, abs=0.3 * 2 * np.pi / 60)
+
+
+def test_despike_removes_a_dropout_beam():
+    x = _room_scan()
+    y = x.copy()
+    y[17] = 3.5  # a beam that saw nothing reads the maximum range
+    # the median of (x[16], 3.5, x[18]) is the larger neighbour, and 3.5 touches no other beam's
+    # median but its neighbours', each by less than the ring's change over two beams
+    d = S.despike(y[None])[0]
+    assert d[17] == max(x[16], x[18])
+    assert np.abs(d - S.despike(x[None])[0]).max() <= np.abs(x - np.roll(x, 2)).max()
+
+
+def test_loop_closures_pair_a_scan_with_its_turned_copy():
+    rng = np.random.default_rng(1)
+    X = np.array([_room_scan(seed=s) for s in range(600)]) + rng.normal(0, 1e-3, (600, 60))
+    X[500] = np.roll(X[0], -5)
+    i, j, turn = S.loop_closures(X, every=1, neighbours=1, min_gap=300)
+    hit = (i == 0) & (j == 500)
+    assert hit.sum() == 1
+    assert turn[hit][0] == pytest.approx(2 * np.pi * 5 / 60, abs=1e-12)
+
+
+def test_one_closure_spreads_a_loops_drift_as_least_squares_says():
+    # the robot stands still (true heading 0) but every step reads a turn b; a closure says
+    # step n is at step 0's heading.  Least squares: every step's turn is b / (1 + n s^2 / c^2).
+    n, b = 99, 1e-5
+    turns = np.r_[0.0, np.full(n, b)]
+    psi = S.heading_graph(turns, (np.array([0]), np.array([n]), np.array([0.0])), windows=(n,))
+    shrink = 1 + n * S.TURN_SD ** 2 / S.CLOSURE_SD ** 2
+    np.testing.assert_allclose(psi, np.arange(n + 1) * b / shrink, rtol=1e-3, atol=1e-12)
+
+
+def test_closures_remove_a_gyro_bias_from_a_wandering_walk():
+    rng = np.random.default_rng(2)
+    T = 3000
+    true = np.cumsum(np.r_[0.0, rng.normal(0, 0.1, T - 1)])
+    turns = np.r_[0.0, np.diff(true) + 0.001]  # 0.001 rad a step of bias: 3 rad over the walk
+    i = np.arange(0, T - 300, 10)
+    j = i + 300
+    psi = S.heading_graph(turns, (i, j, np.diff(true[np.c_[i, j]], axis=1)[:, 0]))
+    drift = np.abs(np.r_[0.0, np.cumsum(turns[1:])] - true).max()
+    assert drift == pytest.approx(0.001 * (T - 1))
+    assert np.abs(psi - true).max() < 0.1 * drift

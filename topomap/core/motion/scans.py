@@ -1,0 +1,158 @@
+"""Heading from egocentric range scans: scan-to-scan turns and a heading graph closed by loops.
+
+A ring of ``B`` range beams fixed to the robot (beam ``k`` at ``2 pi k / B`` anticlockwise from
+the heading) sees the same walls turned when the robot turns: a turn by ``r`` rad shifts the scan
+by ``r B / 2 pi`` beams.  :func:`scan_turns` reads that shift by circular cross-correlation (the
+FFT) and refines it below a beam with a parabola; :func:`despike` first takes the circular median
+of three beams, as a beam that drops out reads the maximum range (on the robots of
+``benchmarks/robot_harness.py``, 1 % dropouts, 18 % of steps were off by over 0.2 rad without it,
+0.3-0.9 % with it; then the median error is 0.016-0.022 rad a step, unbiased).
+
+Summed, these turns (or a wheel odometry's) drift: 0.4-0.75 rad a minute on those robots.
+:func:`heading_graph` corrects them as one least-squares problem over every step's heading: a
+chain of the per-step turns and *loop closures*, pairs of steps far apart in time whose scans look
+alike once the rotation is taken out (:func:`loop_closures`: nearest neighbours on the magnitudes
+of the scans' Fourier coefficients, which a rotation leaves unchanged), each stating the turn
+between them.  Closures are admitted in growing windows of time, each only if it agrees within
+``CLOSURE_GATE`` with the headings solved so far, and weighted by a Cauchy loss (iteratively
+reweighted, ``scipy.sparse.linalg.spsolve``).  Measured (``benchmarks/robot_slam.py``): wheel
+odometry calibrated against the scans and closed this way is 0.025 rad from the true heading on
+1 m alike rooms (0.78 rad before); positions dead-reckoned along it 0.083 m (0.64 m).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spl
+from sklearn.neighbors import NearestNeighbors
+
+__all__ = ["despike", "scan_turns", "rotate_scans", "descriptors", "loop_closures",
+           "heading_graph", "scan_headings"]
+
+TURN_SD = 0.005        # rad: sd of one step's turn in the chain (wheel odometry: 0.002 median)
+CLOSURE_SD = 0.05      # rad: sd of a loop closure's turn (scans seen from nearby places)
+CLOSURE_GATE = 0.4     # rad: a closure disagreeing more with the headings so far is left out
+CAUCHY_SCALE = 3.0     # residuals in sds where the Cauchy loss halves an edge's weight
+WINDOWS = (600, 1200, 2400, 4800, 9600)  # steps: closures admitted up to this gap, in turn
+DESCRIPTORS = 16       # Fourier magnitudes describing a scan without its rotation
+MIN_GAP = 100          # steps: closures nearer in time are left to the chain; of six walks
+                       # two ended 0.67 and 1.06 rad off with 300, 0.013 and 0.099 with 100
+
+
+def despike(X) -> np.ndarray:
+    """(T, B) each beam replaced by the median of itself and its two neighbours (circular)."""
+    X = np.asarray(X, dtype=np.float64)
+    return np.median(np.stack([np.roll(X, 1, 1), X, np.roll(X, -1, 1)]), axis=0)
+
+
+def scan_turns(A, B) -> np.ndarray:
+    """(N,) rad: the anticlockwise turn from each scan of ``A`` (N, beams) to the same row of
+    ``B``: ``B[:, j] ~ A[:, j + r beams / 2 pi]``; the shift of the circular cross-correlation's
+    peak, refined by a parabola through it and its neighbours."""
+    A = np.atleast_2d(np.asarray(A, dtype=np.float64))
+    B = np.atleast_2d(np.asarray(B, dtype=np.float64))
+    n = A.shape[1]
+    FA = np.fft.rfft(A - A.mean(1, keepdims=True), axis=1)
+    FB = np.fft.rfft(B - B.mean(1, keepdims=True), axis=1)
+    C = np.fft.irfft(np.conj(FB) * FA, n=n, axis=1)  # C[k] = sum_j B[j] A[j + k]
+    k = np.argmax(C, axis=1)
+    r = np.arange(len(C))
+    a, b, c = C[r, (k - 1) % n], C[r, k], C[r, (k + 1) % n]
+    den = a - 2 * b + c
+    s = k + np.where(den < 0, 0.5 * (a - c) / np.where(den < 0, den, -1.0), 0.0)
+    s = np.where(s > n / 2, s - n, s)
+    return s * 2 * np.pi / n
+
+
+def rotate_scans(X, angles) -> np.ndarray:
+    """(T, B) each scan as seen ``angles`` (rad, anticlockwise) further round: ``out[:, j] =
+    X[:, j - angle B / 2 pi]``, linear between beams.  Scans turned by their headings are in
+    one frame (what :func:`scan_turns` measures is undone)."""
+    X = np.asarray(X, dtype=np.float64)
+    T, n = X.shape
+    j = np.arange(n)[None, :] - np.asarray(angles, dtype=np.float64)[:, None] * n / (2 * np.pi)
+    j0 = np.floor(j).astype(np.int64)
+    f = j - j0
+    r = np.arange(T)[:, None]
+    return (1 - f) * X[r, j0 % n] + f * X[r, (j0 + 1) % n]
+
+
+def descriptors(X, n: int = DESCRIPTORS) -> np.ndarray:
+    """(T, n) the magnitudes of each scan's first ``n`` Fourier coefficients: unchanged by a
+    rotation of the scan by whole beams."""
+    X = np.asarray(X, dtype=np.float64)
+    return np.abs(np.fft.rfft(X, axis=1))[:, :n] / np.sqrt(X.shape[1])
+
+
+def loop_closures(X, every: int = 3, neighbours: int = 6, min_gap: int = MIN_GAP):
+    """Candidate loop closures ``(i, j, turn)``: every ``every``-th scan paired with its
+    ``neighbours`` nearest scans by :func:`descriptors` that lie ``min_gap`` steps or more away
+    in time, each with the turn from scan ``i`` to scan ``j`` (:func:`scan_turns`)."""
+    idx = np.arange(0, len(X), every)
+    k = min(neighbours + 1, len(idx))
+    _, nb = NearestNeighbors(n_neighbors=k).fit(descriptors(X[idx])).kneighbors(
+        descriptors(X[idx]))
+    i = np.repeat(idx, k - 1)
+    j = idx[nb[:, 1:].ravel()]
+    keep = np.abs(i - j) >= min_gap
+    i, j = i[keep], j[keep]
+    return i, j, scan_turns(X[i], X[j])
+
+
+def _wrap(a):
+    return (np.asarray(a) + np.pi) % (2 * np.pi) - np.pi
+
+
+def _solve(T, i, j, d, sd, psi, iters: int = 5):
+    """Headings minimising the Cauchy loss of ``(psi[j] - psi[i] - d) / sd`` over the edges,
+    ``psi[0]`` held; each edge's target wrapped to the nearest turn of the current solution."""
+    m = len(i)
+    A = sp.csr_matrix((np.r_[-np.ones(m), np.ones(m)], (np.r_[np.arange(m), np.arange(m)],
+                                                        np.r_[i, j])), shape=(m, T))
+    anchor = sp.csr_matrix(([1.0], ([0], [0])), shape=(T, T))
+    for _ in range(iters):
+        pred = psi[j] - psi[i]
+        target = d + 2 * np.pi * np.round((pred - d) / (2 * np.pi))
+        w = 1.0 / (1.0 + ((pred - target) / sd / CAUCHY_SCALE) ** 2) / sd ** 2
+        N = (A.T @ sp.diags(w) @ A + 1e6 * anchor).tocsc()
+        b = A.T @ (w * target)
+        b[0] += 1e6 * psi[0]
+        psi = spl.spsolve(N, b)
+    return psi
+
+
+def heading_graph(turns, closures, windows=WINDOWS, turn_sd: float = TURN_SD) -> np.ndarray:
+    """(T,) rad: the headings (``[0] = 0``) closest to the per-step ``turns`` (``turns[t]`` from
+    step ``t - 1`` to ``t``; ``turns[0]`` unused) and the ``closures`` ``(i, j, turn)``, those
+    with a gap of at most each window admitted in turn when within ``CLOSURE_GATE`` of the
+    headings solved so far."""
+    turns = np.asarray(turns, dtype=np.float64)
+    T = len(turns)
+    psi = np.r_[0.0, np.cumsum(turns[1:])]
+    ci, cj, cr = (np.asarray(c) for c in closures)
+    gap = np.abs(cj - ci)
+    chain = np.arange(T - 1)
+    for w in windows:
+        sel = np.flatnonzero(gap <= w)
+        sel = sel[np.abs(_wrap(psi[cj[sel]] - psi[ci[sel]] - cr[sel])) < CLOSURE_GATE]
+        psi = _solve(T, np.r_[chain, ci[sel]], np.r_[chain + 1, cj[sel]],
+                     np.r_[turns[1:], cr[sel]],
+                     np.r_[np.full(T - 1, turn_sd), np.full(len(sel), CLOSURE_SD)], psi)
+    return psi
+
+
+def scan_headings(X, odometry_heading=None, windows=WINDOWS) -> np.ndarray:
+    """(T,) rad: every step's heading from egocentric scans ``X`` (T, B) and, where given, the
+    wheel odometry's heading (T,): the odometry's turns calibrated against the scans' (a
+    straight-line fit, steps where both agree within 0.1 rad), or the scans' own turns, then
+    :func:`heading_graph` with :func:`loop_closures`."""
+    X = despike(X)
+    turns = np.r_[0.0, scan_turns(X[:-1], X[1:])]
+    if odometry_heading is not None:
+        odo = np.r_[0.0, _wrap(np.diff(np.asarray(odometry_heading, dtype=np.float64)))]
+        ok = np.abs(turns - odo) < 0.1
+        coef = np.linalg.lstsq(np.column_stack([np.ones(ok.sum()), odo[ok]]), turns[ok],
+                               rcond=None)[0]
+        turns = np.r_[0.0, coef[0] + coef[1] * odo[1:]]
+    return heading_graph(turns, loop_closures(X), windows)
