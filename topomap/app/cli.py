@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import logging
 import sys
-from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -249,7 +248,6 @@ def _pin(argv, key: str, value: str) -> None:
     sys.argv[1:] = [a for a in argv if not a.startswith(f"{key}=")] + [f"{key}={quoted}"]
 
 
-@dataclass
 class Plan:
     """What the command line asks for, checked before Hydra makes a folder (:func:`_plan`).
 
@@ -258,13 +256,13 @@ class Plan:
     the config composed (Hydra's part included: for a sweep, the values its jobs share);
     ``checked`` a single run's checked config and components
     (:class:`~topomap.app.run.experiment.CheckedRun`), handed to the run; ``new_folder``
-    whether the command made the run's folder."""
+    whether the command made the run's folder.  (A plain class: ``dataclasses`` would cost
+    ``topomap --version`` the import of ``inspect``.)"""
 
-    mode: str | None = None
-    folder: Path | None = None
-    config: Any = None
-    checked: Any = None
-    new_folder: bool = False
+    def __init__(self, mode: str | None = None, folder: Path | None = None, config: Any = None,
+                 checked: Any = None, new_folder: bool = False):
+        self.mode, self.folder, self.config = mode, folder, config
+        self.checked, self.new_folder = checked, new_folder
 
 
 def _plan(argv, registry: Registry) -> Plan:
