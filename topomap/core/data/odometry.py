@@ -14,6 +14,8 @@ import math
 
 import numpy as np
 
+from .positions import per_step_rows
+
 __all__ = ["check_odometry", "csv_odometry", "ODOMETRY_COLUMNS", "MAX_ODOMETRY_STEP",
            "yaw_of_quaternion", "quaternion_of_yaw"]
 
@@ -44,24 +46,8 @@ def check_odometry(values, n_steps: int, lengths=None) -> np.ndarray:
     one-line ValueError naming ``odometry`` and the step: the wrong shape, NaN or inf, or a move of
     more than :data:`MAX_ODOMETRY_STEP` metres between two steps of an episode (``lengths``: the
     episode lengths, None for one episode)."""
-    try:
-        odo = np.asarray(values)
-    except (ValueError, TypeError):
-        raise ValueError("odometry must be a rectangular array (T, 3) of numbers, not nested "
-                         "lists of unequal lengths") from None
-    if odo.dtype.kind not in "fiu":
-        raise ValueError(f"odometry must be numbers, got values of type {odo.dtype}")
-    if odo.ndim != 2 or odo.shape[1] != 3:
-        raise ValueError(f"odometry must have shape ({n_steps}, 3): x and y in metres and the "
-                         f"heading in radians; got {odo.shape}")
-    if odo.shape[0] != n_steps:
-        raise ValueError(f"odometry has {odo.shape[0]} rows but observations has {n_steps} rows; "
-                         "they must have the same length")
-    odo = odo.astype(np.float64)
-    bad = np.flatnonzero(~np.isfinite(odo).all(axis=1))
-    if bad.size:
-        raise ValueError(f"odometry contains NaN or inf in {bad.size} row(s), first at step "
-                         f"{int(bad[0])}")
+    odo = per_step_rows(values, "odometry", n_steps, (3,), "(T, 3)",
+                        f"({n_steps}, 3): x and y in metres and the heading in radians; got")
     jump = _jump(odo, lengths)
     if jump is not None:
         t, metres = jump

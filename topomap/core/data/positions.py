@@ -8,34 +8,43 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["check_positions", "POSITION_COLUMNS", "csv_positions"]
+__all__ = ["check_positions", "per_step_rows", "POSITION_COLUMNS", "csv_positions"]
 
 #: the CSV columns of a position, in order (``z`` only for positions in space)
 POSITION_COLUMNS = ("x", "y", "z")
 
 
+def per_step_rows(values, name: str, n_steps: int, widths: tuple, layout: str,
+                  shape_says: str) -> np.ndarray:
+    """``values`` as a float64 array of ``n_steps`` finite rows of one of ``widths`` columns, or a
+    one-line ValueError naming ``name``: ``layout`` is the shape in words (``"(T, 3)"``) and
+    ``shape_says`` what a wrong shape is told (``"(T, 3): x, y, heading;"``, then the shape)."""
+    try:
+        arr = np.asarray(values)
+    except (ValueError, TypeError):
+        raise ValueError(f"{name} must be a rectangular array {layout} of numbers, not nested "
+                         "lists of unequal lengths") from None
+    if arr.dtype.kind not in "fiu":
+        raise ValueError(f"{name} must be numbers, got values of type {arr.dtype}")
+    if arr.ndim != 2 or arr.shape[1] not in widths:
+        raise ValueError(f"{name} must have shape {shape_says} {arr.shape}")
+    if arr.shape[0] != n_steps:
+        raise ValueError(f"{name} has {arr.shape[0]} rows but observations has {n_steps} rows; "
+                         "they must have the same length")
+    arr = arr.astype(np.float64)
+    bad = np.flatnonzero(~np.isfinite(arr).all(axis=1))
+    if bad.size:
+        verb = "contain" if name.endswith("s") else "contains"
+        raise ValueError(f"{name} {verb} NaN or inf in {bad.size} row(s), first at step "
+                         f"{int(bad[0])}")
+    return arr
+
+
 def check_positions(values, n_steps: int) -> np.ndarray:
     """``values`` as a ``(n_steps, 2)`` or ``(n_steps, 3)`` float64 array, or a one-line
     ValueError naming ``positions``."""
-    try:
-        P = np.asarray(values)
-    except (ValueError, TypeError):
-        raise ValueError("positions must be a rectangular array (T, 2) or (T, 3) of numbers, "
-                         "not nested lists of unequal lengths") from None
-    if P.dtype.kind not in "fiu":
-        raise ValueError(f"positions must be numbers, got values of type {P.dtype}")
-    if P.ndim != 2 or P.shape[1] not in (2, 3):
-        raise ValueError(f"positions must have shape ({n_steps}, 2) or ({n_steps}, 3), "
-                         f"got {P.shape}")
-    if P.shape[0] != n_steps:
-        raise ValueError(f"positions has {P.shape[0]} rows but observations has {n_steps} rows; "
-                         "they must have the same length")
-    P = P.astype(np.float64)
-    bad = np.flatnonzero(~np.isfinite(P).all(axis=1))
-    if bad.size:
-        raise ValueError(f"positions contain NaN or inf in {bad.size} row(s), first at step "
-                         f"{int(bad[0])}")
-    return P
+    return per_step_rows(values, "positions", n_steps, (2, 3), "(T, 2) or (T, 3)",
+                         f"({n_steps}, 2) or ({n_steps}, 3), got")
 
 
 def csv_positions(header: list, columns: dict, path) -> np.ndarray | None:

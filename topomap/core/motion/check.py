@@ -228,17 +228,28 @@ def choose_places(settings: MotionSettings, X, Z, u, lengths, n_states: int, n_a
     return labels2, dict(info2, loose=first)
 
 
+def _cut(settings: MotionSettings, Z, u, lengths, n_states: int, n_actions: int,
+         **kmeans) -> tuple:
+    """The places cut from the whole log, their info, and the choice already made (None: a
+    check decides): the view clusters where no places were cut, the places where the log is too
+    short to hold a part out (or ``holdout`` is 0)."""
+    whole = cut_places(settings, Z, u, lengths, n_states, n_actions, **kmeans)
+    info = dict(whole.info)
+    if whole.places is None:
+        return whole, info, (whole.views, dict(info, chosen="views"))
+    T = len(u)
+    if settings.holdout == 0 or T * min(settings.holdout, 1 - settings.holdout) < 100:
+        return whole, info, (whole.places, dict(info, chosen="places"))
+    return whole, info, None
+
+
 def _crossfit(settings: MotionSettings, X, Z, u, lengths, n_states: int, n_actions: int,
               build, **kmeans) -> tuple[np.ndarray, dict]:
     """:func:`choose_places` by the one rule of :func:`~topomap.core.motion.crossfit.cross_fitted`:
     the places where their held-out error is below the view clusters'."""
-    whole = cut_places(settings, Z, u, lengths, n_states, n_actions, **kmeans)
-    info = dict(whole.info)
-    if whole.places is None:
-        return whole.views, dict(info, chosen="views")
-    T = len(u)
-    if settings.holdout == 0 or T * min(settings.holdout, 1 - settings.holdout) < 100:
-        return whole.places, dict(info, chosen="places")
+    whole, info, done = _cut(settings, Z, u, lengths, n_states, n_actions, **kmeans)
+    if done is not None:
+        return done
     check = cross_fitted(settings, X, Z, u, lengths, n_states, n_actions, build,
                          weight=info["weight"], **kmeans)
     if check is None:
@@ -252,13 +263,10 @@ def _crossfit(settings: MotionSettings, X, Z, u, lengths, n_states: int, n_actio
 def _choose(settings: MotionSettings, X, Z, u, lengths, n_states: int, n_actions: int,
             build, weight=None, **kmeans) -> tuple[np.ndarray, dict]:
     """:func:`choose_places` for one weight of the positions (None: the log's own)."""
-    whole = cut_places(settings, Z, u, lengths, n_states, n_actions, weight=weight, **kmeans)
-    info = dict(whole.info)
-    if whole.places is None:
-        return whole.views, dict(info, chosen="views")
-    T = len(u)
-    if settings.holdout == 0 or T * min(settings.holdout, 1 - settings.holdout) < 100:
-        return whole.places, dict(info, chosen="places")
+    whole, info, done = _cut(settings, Z, u, lengths, n_states, n_actions, weight=weight,
+                             **kmeans)
+    if done is not None:
+        return done
     if not tells_apart(settings, info):
         return whole.views, dict(info, chosen="views",
                                   check="the middle gate kept one copy per view cluster")
@@ -267,6 +275,7 @@ def _choose(settings: MotionSettings, X, Z, u, lengths, n_states: int, n_actions
         return whole.views, dict(info, chosen="views", purity=round(purity, 4),
                                   check="the places cut across the view clusters")
     kmeans = dict(kmeans, weight=info["weight"])  # the held-out parts weigh as the whole log
+    T = len(u)
     step = int(round(T * settings.holdout))
     block = max(1, int(round(settings.block_runs * info["mean_run"])))
     folds = []
