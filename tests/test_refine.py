@@ -467,3 +467,42 @@ def test_a_bad_warm_start_is_refused_in_one_line(init, message):
     seq = SymbolSequence.build([0, 1, 2, 0, 1, 2, 0, 1], np.zeros(8, int), [8], 1, 3)
     with pytest.raises(ValueError, match=message):
         EMRefinement().fit(seq, np.arange(3), 0, init=init)
+
+
+def _other(value):
+    """A value of the same kind as ``value`` and different from it."""
+    if isinstance(value, bool):
+        return not value
+    if isinstance(value, str):
+        return value + "-other"
+    if isinstance(value, float) and value == float("inf"):
+        return 1.0
+    return type(value)(value * 2 + 1)
+
+
+@pytest.mark.parametrize("group", ["hard", "growth", "soft", "reading"])
+def test_every_refine_setting_changed_from_its_default_is_in_the_maps_provenance(group):
+    from dataclasses import fields, replace
+
+    from topomap.core.refine.provenance import cscg_provenance, em_provenance
+    from topomap.core.refine.settings import (
+        CSCGRounds, Growth, HardRounds, Reading, RefineSettings)
+    em = RefineSettings(hard=HardRounds(), soft=SoftRounds(), reading=Reading(), growth=Growth())
+    cscg = RefineSettings(hard=CSCGRounds(), soft=SoftRounds(), reading=Reading())
+    for settings, provenance in ((em, em_provenance), (cscg, cscg_provenance)):
+        value = getattr(settings, group)
+        if value is None:
+            continue
+        base = provenance(settings, "auto", True) if provenance is em_provenance else \
+            provenance(settings, "auto")
+        for f in fields(value):
+            changed = replace(settings, **{group: replace(value, **{
+                f.name: _other(getattr(value, f.name))})})
+            text = provenance(changed, "auto", True) if provenance is em_provenance else \
+                provenance(changed, "auto")
+            assert text != base, f"{group}.{f.name} changed leaves the provenance as it was"
+
+
+def test_settings_the_old_form_has_no_name_for_are_written_by_their_new_names():
+    text = EMRefinement(growth={"cycle_start": "soft"}, reading={"settle": 0.0}).provenance()
+    assert "changed=(growth.cycle_start='soft', reading.settle=0.0), settings=EMSettings(" in text

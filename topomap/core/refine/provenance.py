@@ -6,15 +6,20 @@ The form is part of the file format and predates the settings groups of
 hard-round knobs as ``settings=EMSettings(...)`` (a label, not a class), its first-stage knobs
 flat, and every soft-round, reading and growth-cap setting changed from its default as one
 ``soft=SoftSettings(...)`` (:data:`~topomap.core.refine.renamed.SOFT_FIELDS` gives the old
-names and their order).  The same effective settings give the same text as before 0.3.
+names and their order).  A setting the old form has no name for (``growth.cycle_start``,
+``reading.settle``), changed from its default, is written last by its new name, as
+``changed=(growth.cycle_start='soft')``, so that every setting that changes a map is in its file.
+The same effective settings give the same text as before 0.3.
 """
 
 from __future__ import annotations
 
+from dataclasses import fields
+
 from .renamed import SOFT_FIELDS
 from .settings import Growth, HardRounds, RefineSettings
 
-__all__ = ["em_provenance", "cscg_provenance", "soft_provenance"]
+__all__ = ["em_provenance", "cscg_provenance", "soft_provenance", "changed_provenance"]
 
 #: the knobs of every EM round, in the order ``settings=EMSettings(...)`` lists them
 EM_ROUND = ("row_prior", "tol", "max_iter", "prune", "merge_threshold", "split_z", "spare",
@@ -22,6 +27,29 @@ EM_ROUND = ("row_prior", "tol", "max_iter", "prune", "merge_threshold", "split_z
 
 #: the growth settings written only when changed, in the order they are written
 _FIRST = ("first", "first_factor", "first_iter", "first_rtol")
+
+#: the settings the old form writes by its own names (``<group>.<field>``)
+_OLD_FORM = frozenset(
+    [f"hard.{k}" for k in (*EM_ROUND, "settle", "accelerate", "max_rounds", "clones_per_symbol",
+                           "pseudocount")]
+    + [f"growth.{k}" for k in (*_FIRST, "budget", "start", "clone_factor", "prefix",
+                               "prefix_visits")]
+    + list(SOFT_FIELDS.values()))
+
+
+def changed_provenance(settings: RefineSettings) -> str:
+    """``changed=(<group>.<field>=<value>, ...)``: the settings changed from their defaults that
+    the old form has no name for, in the groups' field order ("" for none)."""
+    changed = []
+    for group in ("hard", "growth", "soft", "reading"):
+        value = getattr(settings, group)
+        if value is None:
+            continue
+        default = type(value)()
+        changed += [f"{group}.{f.name}={getattr(value, f.name)!r}" for f in fields(value)
+                    if f"{group}.{f.name}" not in _OLD_FORM
+                    and getattr(value, f.name) != getattr(default, f.name)]
+    return f"changed=({', '.join(changed)})" if changed else ""
 
 
 def soft_provenance(settings: RefineSettings) -> str:
@@ -49,8 +77,8 @@ def em_provenance(settings: RefineSettings, evidence: str, guard) -> str:
         value = getattr(growth, k)
         changed += "" if value == getattr(growth0, k) else f"{k}={value!r}, "
     changed += "" if evidence == "auto" else f"evidence={evidence!r}, "
-    soft = soft_provenance(settings)
-    changed += f"{soft}, " if soft else ""
+    for part in (soft_provenance(settings), changed_provenance(settings)):
+        changed += f"{part}, " if part else ""
     return (f"EMRefinement(clone_factor={growth.clone_factor}, prefix={growth.prefix}, "
             f"prefix_visits={growth.prefix_visits}, max_rounds={hard.max_rounds}, "
             f"guard={bool(guard)}, {changed}settings=EMSettings({rounds}))")
@@ -59,7 +87,8 @@ def em_provenance(settings: RefineSettings, evidence: str, guard) -> str:
 def cscg_provenance(settings: RefineSettings, evidence: str) -> str:
     """``CSCGRefinement(...)``'s text: its four knobs, then ``evidence`` and ``soft`` only where
     changed."""
-    hard, soft = settings.hard, soft_provenance(settings)
+    hard = settings.hard
+    soft = ", ".join(p for p in (soft_provenance(settings), changed_provenance(settings)) if p)
     return (f"CSCGRefinement(clones_per_symbol={int(hard.clones_per_symbol)}, "
             f"pseudocount={float(hard.pseudocount)}, max_iter={int(hard.max_iter)}, "
             f"tol={float(hard.tol)}"
