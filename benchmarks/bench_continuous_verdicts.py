@@ -41,15 +41,15 @@ def _gains(c) -> list:
 
 def _pooled(c) -> bool:
     p, v = c["mean_misplaced"]["places"], c["mean_misplaced"]["views"]
-    return p < v and p <= ST.margin * v and v - p >= ST.min_gain
+    return p < v and p <= ST.check.margin * v and v - p >= ST.check.min_gain
 
 
 RULES = {
     "default": lambda c: _pooled(c) or c["outvoted"],
-    "each2": lambda c: len(_gains(c)) >= 2 and min(_gains(c)[:2]) >= ST.min_gain,
+    "each2": lambda c: len(_gains(c)) >= 2 and min(_gains(c)[:2]) >= ST.check.min_gain,
     "each2_pos": lambda c: len(_gains(c)) >= 2 and min(_gains(c)[:2]) > 0,
-    "maj3": lambda c: len(_gains(c)) >= 3 and sum(g >= ST.min_gain for g in _gains(c)) >= 2,
-    "all3": lambda c: len(_gains(c)) >= 3 and min(_gains(c)) >= ST.min_gain,
+    "maj3": lambda c: len(_gains(c)) >= 3 and sum(g >= ST.check.min_gain for g in _gains(c)) >= 2,
+    "all3": lambda c: len(_gains(c)) >= 3 and min(_gains(c)) >= ST.check.min_gain,
     "no_vote": _pooled,
 }
 
@@ -66,7 +66,7 @@ def keeps(row, rule: str) -> bool:
 def _loose(m) -> bool:
     rr, V = m.get("return_ratios", [0, 0]), m.get("action_vectors") or []
     plane = any(abs(x[1]) > 0 for x in V)
-    return bool(m.get("odometry")) and (max(rr) if plane else rr[0]) > ST.loose_return
+    return bool(m.get("odometry")) and (max(rr) if plane else rr[0]) > ST.places.loose_return
 
 
 def default_error(d: dict, rule: str) -> float:
