@@ -240,7 +240,7 @@ def test_the_places_are_not_checked_where_the_middle_gate_told_no_view_apart():
     from topomap.core.motion.check import tells_apart
 
     s = MotionSettings()  # gates 2.5, 3.0, 3.5: the middle one, 3.0, is the check's frame
-    assert s.min_copies == 1.0
+    assert s.check.min_copies == 1.0
     # 64 view clusters: more than 64 copies of the middle gate, whatever the others
     assert not tells_apart(s, {"view_clusters": 64, "copies": [308, 64, 308]})
     assert tells_apart(s, {"view_clusters": 64, "copies": [64, 65, 64]})
@@ -568,9 +568,9 @@ def _places_of_two_rooms_of_two_views(weight):
 
 def test_places_follow_the_view_where_drift_is_a_cell_or_so_and_keep_alike_rooms_apart():
     # the weight where odometry is loose (0.5): 1.6 * 0.5 < 1, the places are each room's views
-    assert _places_of_two_rooms_of_two_views(MotionSettings().loose_weight)("room", "view")
+    assert _places_of_two_rooms_of_two_views(MotionSettings().places.loose_weight)("room", "view")
     # at weight 1 (the default's own): 1.6 > 1, each room's drifted positions, views mixed
-    assert _places_of_two_rooms_of_two_views(MotionSettings().weight)("room", "x")
+    assert _places_of_two_rooms_of_two_views(MotionSettings().places.weight)("room", "x")
 
 
 def test_the_positions_weigh_less_where_the_odometry_closes_loops_loosely():

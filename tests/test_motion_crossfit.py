@@ -135,4 +135,4 @@ def test_an_unknown_check_is_named():
 
     with pytest.raises(ParameterError, match="motion.check.*folds, crossfit.*'cross'"):
         motion_settings({"check": "cross"})
-    assert motion_settings({"check": "crossfit"}).check == "crossfit"
+    assert motion_settings({"check": {"rule": "crossfit"}}).check.rule == "crossfit"
