@@ -25,6 +25,10 @@ from .settings import MotionSettings, mean_run
 __all__ = ["Places", "cut_places", "places_of", "place_features", "position_weight",
            "view_clusters"]
 
+#: the least view spread (the views' unit): a floor against 0 for a log whose view clusters
+#: are single points, whose views then keep their own scale
+MIN_SPREAD = 1e-12
+
 
 @dataclass
 class Places:
@@ -53,7 +57,7 @@ def _view_spread(Z, fsym, k) -> float:
     centres = np.zeros((k, Z.shape[1]))
     np.add.at(centres, fsym, Z)
     centres /= np.maximum(np.bincount(fsym, minlength=k), 1)[:, None]
-    return max(float(np.sqrt(np.mean(((Z - centres[fsym]) ** 2).sum(axis=1)))), 1e-12)
+    return max(float(np.sqrt(np.mean(((Z - centres[fsym]) ** 2).sum(axis=1)))), MIN_SPREAD)
 
 
 def place_features(views, positions, weight: float) -> np.ndarray:
