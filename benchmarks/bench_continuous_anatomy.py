@@ -16,8 +16,8 @@ a region); and per region its share of the training and of the held-out steps, w
 medians and wrong-region shares there.
 
 ``--weights W ...``: the unchecked places of the whole log cut with each positions' weight
-``W`` (``motion.weight``), their purity, and their map decoded with one pooled variance (scale
-1 and 0.1), beside K-means on the views.
+``W`` (``motion.places.weight``), their purity, and their map decoded with one pooled variance
+(scale 1 and 0.1), beside K-means on the views.
 
 Probes (where the check kept the places; ``purity`` -- the share of training steps whose place's
 view cluster is their own; ``view clusters`` are the fallback's own,
@@ -169,9 +169,9 @@ def purity(case: str, setting: str, seed: int, cache: Path) -> dict:
 def weights(case: str, setting: str, seed: int, cache: Path, ws) -> dict:
     """The places of the whole log, unchecked (``MotionSettings(check={"holdout": 0})``), cut
     with each positions' weight of ``ws`` (the loose weight too): each weight's median error,
-    the places' ``purity``, and the median error when the places' map decodes with one variance shared by
-    its states (:func:`~topomap.core.motion.learn.pooled_variances`, scale 1 and 0.1: the view
-    likelihood weighed more against the transitions)."""
+    the places' ``purity``, and the median error when the places' map decodes with one variance
+    shared by its states (:func:`~topomap.core.motion.learn.pooled_variances`, scale 1 and 0.1:
+    the view likelihood weighed more against the transitions)."""
     from topomap.core.motion.learn import pooled_variances
 
     s = dict(bc.BASE, **({} if setting == "base" else bc.SETTINGS[int(setting)]))

@@ -6,7 +6,7 @@ it does not -- judged per view cluster, not for the whole map.
 Each argument is ``case:setting:seed`` (``setting`` an index of ``bench_continuous.SETTINGS`` or
 ``base``). The default learner (``MapLearner(n_clusters, n_states, refine="em",
 random_state=0)``) is fitted on the triple's cached training walk; where it kept its places,
-the check's last ``motion.folds`` held-out parts are run again as
+the check's last ``motion.check.folds`` held-out parts are run again as
 :mod:`topomap.core.motion.check` runs them (places and view clusters cut on the steps before
 the part, at the positions' weight the whole log used, both decoding the part), and every
 held-out step with a reference is counted against the view cluster the whole log gives it

@@ -6,7 +6,7 @@ rule on the same held-out parts have kept the places where they lose on the new 
 Reads the rows of ``bench_continuous.py`` logs with the routes ``views``, ``weight1`` (positions
 at weight 1) and ``weight05`` (weight 0.5) -- or ``shipped`` where ``weight05`` is missing, as a
 run of ``--routes views weight1 shipped`` leaves it -- and puts the default together from them:
-where the odometry is loose (``motion.loose_return``) the places weighed half when the check
+where the odometry is loose (``motion.places.loose_return``) the places weighed half when the check
 keeps them, else those at weight 1 when it keeps them (the second try), else the view clusters;
 elsewhere those at weight 1 or the view clusters. Each rule re-decides a recorded check
 (``motion.check``: its folds' misplaced shares, the pooled shares, the vote); a check that gives
@@ -14,10 +14,10 @@ way is scored at the view clusters' figure (the fallback places a walk where the
 the third digit). Rules (``gain``: a fold's views' misplaced share less the places'):
 
 * ``default`` -- the check as it is (the pooled share, or the vote);
-* ``each2`` -- and each of the two pooled folds' gain at least ``motion.min_gain``;
+* ``each2`` -- and each of the two pooled folds' gain at least ``motion.check.min_gain``;
 * ``each2_pos`` -- and each of the two pooled folds' gain above zero;
-* ``maj3`` -- and at least two of the three folds' gain at least ``motion.min_gain``;
-* ``all3`` -- and all three folds' gain at least ``motion.min_gain``;
+* ``maj3`` -- and at least two of the three folds' gain at least ``motion.check.min_gain``;
+* ``all3`` -- and all three folds' gain at least ``motion.check.min_gain``;
 * ``no_vote`` -- the pooled share alone.
 
 Printed per rule and per (setting, seeds 0-4 or 0-2 / 5-6): the walks more than 1 % above the
