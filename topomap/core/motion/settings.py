@@ -182,6 +182,13 @@ def _pull(value, key):
         raise ParameterError(key, f"must be at most 1, got {value!r}")
 
 
+def _choice(options):
+    def check(value, key):
+        if value not in options:
+            raise ParameterError(key, f"must be one of {', '.join(options)}, got {value!r}")
+    return check
+
+
 _SHARE = _real(lambda v: 0 <= v < 1, "a number in [0, 1)")
 _UNIT = _real(lambda v: 0 < v <= 1, "a number in (0, 1]")
 
@@ -190,11 +197,14 @@ CHECKS = {
     PlaceSettings: {"gates": _gates, "weight": _POSITIVE, "pull": _pull,
                     "max_return": _POSITIVE, "loose_return": _SHARE, "loose_weight": _POSITIVE,
                     "n_init": _count(), "fallback_variance": _UNIT},
-    CheckSettings: {"holdout": _SHARE, "margin": _UNIT, "far": _POSITIVE, "folds": _count(),
-                    "min_gain": _SHARE, "votes": _count(0), "min_copies": _POSITIVE,
+    CheckSettings: {"rule": _choice(RULES), "holdout": _SHARE, "margin": _UNIT,
+                    "far": _POSITIVE, "folds": _count(), "min_gain": _SHARE,
+                    "votes": _count(0), "min_copies": _POSITIVE,
                     "confidence": _real(lambda v: v >= 0, "a number >= 0"),
                     "block_runs": _POSITIVE, "min_purity": _SHARE},
 }
+#: the groups of :class:`MotionSettings` and their classes
+GROUPS = {"places": PlaceSettings, "check": CheckSettings}
 
 
 def _group(cls, value, key: str):
@@ -230,9 +240,8 @@ def motion_settings(value, stacklevel: int = 2) -> MotionSettings:
         if unknown:
             raise ParameterError(f"motion.{unknown[0]}", "is not a motion setting; the "
                                                          "settings are " + ", ".join(names))
-        value = MotionSettings(**{k: (_group(PlaceSettings, v, "motion.places") if k == "places"
-                                      else _group(CheckSettings, v, "motion.check")
-                                      if k == "check" else v) for k, v in value.items()})
+        value = MotionSettings(**{k: _group(GROUPS[k], v, f"motion.{k}") if k in GROUPS else v
+                                  for k, v in value.items()})
     if not isinstance(value, MotionSettings):
         raise ParameterError("motion", f"must be one of {', '.join(MODES)}, a MotionSettings "
                                        f"or a mapping of its fields, got {value!r}")
@@ -241,11 +250,8 @@ def motion_settings(value, stacklevel: int = 2) -> MotionSettings:
                                             f"got {value.mode!r}")
     check_count(value.min_steps, "motion.min_steps")
     _POSITIVE(value.min_run, "motion.min_run")
-    _group(PlaceSettings, value.places, "motion.places")
-    _group(CheckSettings, value.check, "motion.check")
-    if value.check.rule not in RULES:
-        raise ParameterError("motion.check.rule", f"must be one of {', '.join(RULES)}, "
-                                                  f"got {value.check.rule!r}")
+    for name, cls in GROUPS.items():
+        _group(cls, getattr(value, name), f"motion.{name}")
     return value
 
 
