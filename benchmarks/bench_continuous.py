@@ -27,9 +27,10 @@ Routes: ``split`` (the paper's map, ``motion="discrete"``), ``em`` (``refine="em
 true positions: the held-out steps placed by their true position), ``shipped`` (the default
 call: ``MapLearner(n_clusters, n_states, refine="em", random_state=0)``, motion="auto"),
 ``unchecked`` (the shipped route without its held-out check: the places always,
-``MotionSettings(holdout=0)``), ``crossfit`` (the shipped route with the one cross-fitted rule,
-``MotionSettings(check="crossfit")``; ``crossfit10`` and ``crossfit15`` hold out 10 and 15 %),
-``folds`` (``check="folds"``, the default's rule, named),
+``MotionSettings(check={"holdout": 0})``), ``crossfit`` (the shipped route with the one
+cross-fitted rule, ``MotionSettings(check={"rule": "crossfit"})``; ``crossfit10`` and
+``crossfit15`` hold out 10 and 15 %), ``folds`` (``check.rule="folds"``, the default's rule,
+named),
 ``one_gate`` (the shipped route with one gate of 3 cell extents),
 ``no_odometry`` (places are the view clusters: K-means with as many clusters as states, each its
 own Gaussian, decoded by the map), ``merged_runs`` (runs of one symbol merged into one step, split
@@ -203,20 +204,24 @@ def route(name, train, held, ns, S, regions, seed):
     if name in ("shipped", "unchecked", "one_gate", "folds3", "unscaled", "no_vote",
                 "confidence2", "weight1", "weight05", "crossfit", "folds", "crossfit10",
                 "crossfit15"):
-        motion = {"shipped": MotionSettings(), "crossfit": MotionSettings(check="crossfit"),
-                  "crossfit10": MotionSettings(check="crossfit", holdout=0.1),
-                  "crossfit15": MotionSettings(check="crossfit", holdout=0.15),
-                  "folds": MotionSettings(check="folds"), "unchecked": MotionSettings(holdout=0),
-                  "one_gate": MotionSettings(gates=(3.0,)),
-                  "folds3": MotionSettings(folds=3),
-                  "unscaled": MotionSettings(fallback_variance=1.0, min_gain=0.0),
-                  "no_vote": MotionSettings(votes=0),
-                  "confidence2": MotionSettings(confidence=2.0),
-                  "weight1": MotionSettings(weight=1.0, loose_weight=1.0),
-                  "weight05": MotionSettings(weight=0.5, loose_weight=0.5)}[name]
+        motion = {"shipped": MotionSettings(),
+                  "crossfit": MotionSettings(check={"rule": "crossfit"}),
+                  "crossfit10": MotionSettings(check={"rule": "crossfit", "holdout": 0.1}),
+                  "crossfit15": MotionSettings(check={"rule": "crossfit", "holdout": 0.15}),
+                  "folds": MotionSettings(check={"rule": "folds"}),
+                  "unchecked": MotionSettings(check={"holdout": 0}),
+                  "one_gate": MotionSettings(places={"gates": (3.0,)}),
+                  "folds3": MotionSettings(check={"folds": 3}),
+                  "unscaled": MotionSettings(places={"fallback_variance": 1.0},
+                                             check={"min_gain": 0.0}),
+                  "no_vote": MotionSettings(check={"votes": 0}),
+                  "confidence2": MotionSettings(check={"confidence": 2.0}),
+                  "weight1": MotionSettings(places={"weight": 1.0, "loose_weight": 1.0}),
+                  "weight05": MotionSettings(places={"weight": 0.5, "loose_weight": 0.5})}[name]
         return _learner_row(*_fit(train, refine="em", motion=motion, **kw), train, held, regions)
     if name == "self_decoded":
-        learner, seconds = _fit(train, refine="em", motion=MotionSettings(holdout=0), **kw)
+        learner, seconds = _fit(train, refine="em", motion=MotionSettings(check={"holdout": 0}),
+                                **kw)
         labels = learner.map_.predict(train.observations, train.actions)
         unused = np.bincount(labels, minlength=learner.map_.n_states) == 0
         keep = unused[learner.labels_]  # a state the decoding never takes keeps its own rows
@@ -248,10 +253,10 @@ def route(name, train, held, ns, S, regions, seed):
         from topomap.core.motion.learn import pooled_variances
         from topomap.core.motion.places import view_clusters
 
-        labels = view_clusters(train.observations, S, MotionSettings().n_init, 0)
+        labels = view_clusters(train.observations, S, MotionSettings().places.n_init, 0)
         m = pooled_variances(_own_gaussians(train.observations, train.actions, labels,
                                             train.n_actions), train.observations, labels, 1e-3,
-                             MotionSettings().fallback_variance)
+                             MotionSettings().places.fallback_variance)
         scores = map_scores(m, labels, train, held, regions)
     elif name == "merged_runs":
         m, labels = merged_runs(train, ns, S)

@@ -16,8 +16,8 @@ a region); and per region its share of the training and of the held-out steps, w
 medians and wrong-region shares there.
 
 ``--weights W ...``: the unchecked places of the whole log cut with each positions' weight
-``W`` (``motion.weight``), their purity, and their map decoded with one pooled variance (scale
-1 and 0.1), beside K-means on the views.
+``W`` (``motion.places.weight``), their purity, and their map decoded with one pooled variance
+(scale 1 and 0.1), beside K-means on the views.
 
 Probes (where the check kept the places; ``purity`` -- the share of training steps whose place's
 view cluster is their own; ``view clusters`` are the fallback's own,
@@ -112,7 +112,7 @@ def anatomy(case: str, setting: str, seed: int, cache: Path) -> dict:
 def probes(learner, train, held, S, states, placed, dt) -> dict:
     """The four probes of the module docstring on one fit that kept its places."""
     m, X, Xh, uh = learner.map_, train.observations, held.observations, held.actions
-    vl = view_clusters(X, S, MotionSettings().n_init, 0)
+    vl = view_clusters(X, S, MotionSettings().places.n_init, 0)
     centres = label_means(vl, X, S)
     vh = pairwise_distances_argmin(Xh, centres)
     cluster_of = _majority(learner.labels_, vl, m.n_states)
@@ -153,25 +153,25 @@ def _windows(m, vl, train, held, placed, dt) -> float:
 
 def purity(case: str, setting: str, seed: int, cache: Path) -> dict:
     """The places' ``purity`` alone: the places of the whole log, unchecked
-    (``MotionSettings(holdout=0)``: the places the check decides on), against the view
+    (``MotionSettings(check={"holdout": 0})``: the places the check decides on), against the view
     clusters."""
 
     s = dict(bc.BASE, **({} if setting == "base" else bc.SETTINGS[int(setting)]))
     _, train, _, ns, S = bc.walks(case, seed, s, cache)
     learner, _ = bc._fit(train, n_clusters=ns, n_states=S, random_state=0, refine="em",
-                         motion=MotionSettings(holdout=0))
-    vl = view_clusters(train.observations, S, MotionSettings().n_init, 0)
+                         motion=MotionSettings(check={"holdout": 0}))
+    vl = view_clusters(train.observations, S, MotionSettings().places.n_init, 0)
     return {"case": case, "setting": bc.setting_name(s), "seed": seed,
             "chosen": learner.motion_info_["chosen"],
             "purity": round(view_purity(learner.labels_, vl), 3)}
 
 
 def weights(case: str, setting: str, seed: int, cache: Path, ws) -> dict:
-    """The places of the whole log, unchecked (``MotionSettings(holdout=0)``), cut with each
-    positions' weight of ``ws`` (the loose weight too): each weight's median error, the places'
-    ``purity``, and the median error when the places' map decodes with one variance shared by
-    its states (:func:`~topomap.core.motion.learn.pooled_variances`, scale 1 and 0.1: the view
-    likelihood weighed more against the transitions)."""
+    """The places of the whole log, unchecked (``MotionSettings(check={"holdout": 0})``), cut
+    with each positions' weight of ``ws`` (the loose weight too): each weight's median error,
+    the places' ``purity``, and the median error when the places' map decodes with one variance
+    shared by its states (:func:`~topomap.core.motion.learn.pooled_variances`, scale 1 and 0.1:
+    the view likelihood weighed more against the transitions)."""
     from topomap.core.motion.learn import pooled_variances
 
     s = dict(bc.BASE, **({} if setting == "base" else bc.SETTINGS[int(setting)]))
@@ -180,10 +180,11 @@ def weights(case: str, setting: str, seed: int, cache: Path, ws) -> dict:
     row = {"case": case, "setting": bc.setting_name(s), "seed": seed,
            "views": _median(label_means(km.labels_, train.positions, S)[
                km.predict(held.observations)], held.positions)}
-    vl = view_clusters(train.observations, S, MotionSettings().n_init, 0)
+    vl = view_clusters(train.observations, S, MotionSettings().places.n_init, 0)
     for w in ws:
         learner, _ = bc._fit(train, n_clusters=ns, n_states=S, random_state=0, refine="em",
-                             motion=MotionSettings(holdout=0, weight=w, loose_weight=w))
+                             motion=MotionSettings(check={"holdout": 0},
+                                                   places={"weight": w, "loose_weight": w}))
         m, labels = learner.map_, learner.labels_
         spots = label_means(labels, train.positions, m.n_states)
         r = {"places": _median(spots[m.predict(held.observations, held.actions)],

@@ -6,7 +6,7 @@ it does not -- judged per view cluster, not for the whole map.
 Each argument is ``case:setting:seed`` (``setting`` an index of ``bench_continuous.SETTINGS`` or
 ``base``). The default learner (``MapLearner(n_clusters, n_states, refine="em",
 random_state=0)``) is fitted on the triple's cached training walk; where it kept its places,
-the check's last ``motion.folds`` held-out parts are run again as
+the check's last ``motion.check.folds`` held-out parts are run again as
 :mod:`topomap.core.motion.check` runs them (places and view clusters cut on the steps before
 the part, at the positions' weight the whole log used, both decoding the part), and every
 held-out step with a reference is counted against the view cluster the whole log gives it
@@ -68,12 +68,12 @@ def cluster_gains(learner, X, u, P, n: int, vl) -> tuple[np.ndarray, np.ndarray,
     truth = {"places": [], "views": []}
     shares = {f: {"places": 0, "views": 0, "referenced": 0} for f in FARS}
     st, T = MotionSettings(), len(u)
-    step = int(round(T * st.holdout))
+    step = int(round(T * st.check.holdout))
     k = int(vl.max()) + 1
     gain, steps = np.zeros(k, dtype=int), np.zeros(k, dtype=int)
     kw = dict(n_init=learner.n_init, random_state=0, method=learner.phase1,
               weight=learner.motion_info_["weight"])
-    for i in range(st.folds):
+    for i in range(st.check.folds):
         end = T - i * step
         lengths = np.array([end])
         head, tail, cut = split_holdout(end, lengths, step / end)
@@ -85,10 +85,11 @@ def cluster_gains(learner, X, u, P, n: int, vl) -> tuple[np.ndarray, np.ndarray,
         for name, labels in (("places", part.places), ("views", part.views)):
             m = bc._own_gaussians(X[:cut], u[:cut], labels, learner.map_.n_actions)
             if name == "views":
-                m = pooled_variances(m, X[:cut], labels, learner.reg_covar, st.fallback_variance)
+                m = pooled_variances(m, X[:cut], labels, learner.reg_covar,
+                                     st.places.fallback_variance)
             decoded = m.predict(X[cut:end], u[cut:end])
             placed = _state_means(labels, part.frame)[decoded]
-            far[name] = misplaced_rows(placed[joined], frame[joined], st.far)
+            far[name] = misplaced_rows(placed[joined], frame[joined], st.check.far)
             for f in FARS:
                 shares[f][name] += misplaced_steps(placed[joined], frame[joined], f)
             truth[name].append(np.linalg.norm(label_means(labels, P[:cut], int(labels.max()) + 1)
@@ -129,7 +130,7 @@ def mixed(case: str, setting: str, seed: int, cache: Path) -> dict:
     learner, _ = bc._fit(train, n_clusters=ns, n_states=S, random_state=0, refine="em")
     X, u, m = train.observations, train.actions, learner.map_
     spots = label_means(learner.labels_, train.positions, m.n_states)
-    vl = view_clusters(X, m.n_states, MotionSettings().n_init, 0)
+    vl = view_clusters(X, m.n_states, MotionSettings().places.n_init, 0)
     vspots = label_means(vl, train.positions, m.n_states)
     nearest = pairwise_distances_argmin(held.observations, label_means(vl, X, m.n_states))
     row = {"case": case, "setting": bc.setting_name(s), "seed": seed,

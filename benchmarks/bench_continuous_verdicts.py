@@ -6,7 +6,7 @@ rule on the same held-out parts have kept the places where they lose on the new 
 Reads the rows of ``bench_continuous.py`` logs with the routes ``views``, ``weight1`` (positions
 at weight 1) and ``weight05`` (weight 0.5) -- or ``shipped`` where ``weight05`` is missing, as a
 run of ``--routes views weight1 shipped`` leaves it -- and puts the default together from them:
-where the odometry is loose (``motion.loose_return``) the places weighed half when the check
+where the odometry is loose (``motion.places.loose_return``) the places weighed half when the check
 keeps them, else those at weight 1 when it keeps them (the second try), else the view clusters;
 elsewhere those at weight 1 or the view clusters. Each rule re-decides a recorded check
 (``motion.check``: its folds' misplaced shares, the pooled shares, the vote); a check that gives
@@ -14,10 +14,10 @@ way is scored at the view clusters' figure (the fallback places a walk where the
 the third digit). Rules (``gain``: a fold's views' misplaced share less the places'):
 
 * ``default`` -- the check as it is (the pooled share, or the vote);
-* ``each2`` -- and each of the two pooled folds' gain at least ``motion.min_gain``;
+* ``each2`` -- and each of the two pooled folds' gain at least ``motion.check.min_gain``;
 * ``each2_pos`` -- and each of the two pooled folds' gain above zero;
-* ``maj3`` -- and at least two of the three folds' gain at least ``motion.min_gain``;
-* ``all3`` -- and all three folds' gain at least ``motion.min_gain``;
+* ``maj3`` -- and at least two of the three folds' gain at least ``motion.check.min_gain``;
+* ``all3`` -- and all three folds' gain at least ``motion.check.min_gain``;
 * ``no_vote`` -- the pooled share alone.
 
 Printed per rule and per (setting, seeds 0-4 or 0-2 / 5-6): the walks more than 1 % above the
@@ -41,15 +41,15 @@ def _gains(c) -> list:
 
 def _pooled(c) -> bool:
     p, v = c["mean_misplaced"]["places"], c["mean_misplaced"]["views"]
-    return p < v and p <= ST.margin * v and v - p >= ST.min_gain
+    return p < v and p <= ST.check.margin * v and v - p >= ST.check.min_gain
 
 
 RULES = {
     "default": lambda c: _pooled(c) or c["outvoted"],
-    "each2": lambda c: len(_gains(c)) >= 2 and min(_gains(c)[:2]) >= ST.min_gain,
+    "each2": lambda c: len(_gains(c)) >= 2 and min(_gains(c)[:2]) >= ST.check.min_gain,
     "each2_pos": lambda c: len(_gains(c)) >= 2 and min(_gains(c)[:2]) > 0,
-    "maj3": lambda c: len(_gains(c)) >= 3 and sum(g >= ST.min_gain for g in _gains(c)) >= 2,
-    "all3": lambda c: len(_gains(c)) >= 3 and min(_gains(c)) >= ST.min_gain,
+    "maj3": lambda c: len(_gains(c)) >= 3 and sum(g >= ST.check.min_gain for g in _gains(c)) >= 2,
+    "all3": lambda c: len(_gains(c)) >= 3 and min(_gains(c)) >= ST.check.min_gain,
     "no_vote": _pooled,
 }
 
@@ -66,7 +66,7 @@ def keeps(row, rule: str) -> bool:
 def _loose(m) -> bool:
     rr, V = m.get("return_ratios", [0, 0]), m.get("action_vectors") or []
     plane = any(abs(x[1]) > 0 for x in V)
-    return bool(m.get("odometry")) and (max(rr) if plane else rr[0]) > ST.loose_return
+    return bool(m.get("odometry")) and (max(rr) if plane else rr[0]) > ST.places.loose_return
 
 
 def default_error(d: dict, rule: str) -> float:

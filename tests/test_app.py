@@ -133,7 +133,8 @@ def test_learner_config_is_the_learner_signature(make_cfg):
     keys = ("covariance_type", "reg_covar", "n_init", "phase1", "sample_size", "refined_size",
             "motion", "heading", "window", "refit_every")
     learner = OmegaConf.to_container(cfg.learner)
-    motion = dict(dataclasses.asdict(params["motion"]), gates=list(params["motion"].gates))
+    motion = dataclasses.asdict(params["motion"])
+    motion["places"]["gates"] = list(params["motion"].places.gates)
     assert learner == {k: motion if k == "motion" else params[k] for k in keys}
 
 

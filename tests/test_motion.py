@@ -143,7 +143,7 @@ def test_the_check_holds_out_successive_quarters_and_keeps_the_places_on_their_s
     # fold i learns from the steps before 6,000 - 2,000 i and decodes the 2,000 after them; a
     # fourth fold would learn from no step, so four folds asked for give three
     learner = MapLearner(n_clusters=4, n_states=8, random_state=0,
-                         motion=MotionSettings(folds=4)).fit(Z, u)
+                         motion=MotionSettings(check={"folds": 4})).fit(Z, u)
     check = learner.motion_info_["check"]
     assert [f["learned"] for f in check["folds"]] == [6000, 4000, 2000]
     assert [f["held_out"] for f in check["folds"]] == [2000, 2000, 2000]
@@ -168,11 +168,12 @@ def test_the_held_out_frame_carries_the_filter_on_from_the_copies_learned_before
     V = np.array([[1.0, 0.0], [-1.0, 0.0]])
     P, _, _ = odometric_positions(sym[:cut], reckoned_steps(u[:cut], [cut], V), [cut], gate=2.0)
     part = Places(sym[:cut], None, V, 1.0, P, {})
-    frame, joined = held_out_frame(MotionSettings(gates=(2.0,)), part, Z, u, [x.size], cut)
+    two = MotionSettings(places={"gates": (2.0,)})
+    frame, joined = held_out_frame(two, part, Z, u, [x.size], cut)
     np.testing.assert_allclose(frame[:, 0], x[cut:])  # every later step where it is
     assert joined.all()                               # joining a copy made before the cut
     # with a wider gate alike cells share copies, pulled between their positions
-    wide, _ = held_out_frame(MotionSettings(gates=(7.0,)), part, Z, u, [x.size], cut)
+    wide, _ = held_out_frame(MotionSettings(places={"gates": (7.0,)}), part, Z, u, [x.size], cut)
     assert np.abs(wide[:, 0] - x[cut:]).max() > 0.5
 
 
@@ -186,7 +187,8 @@ def test_held_out_steps_where_the_learned_part_never_went_join_no_earlier_copy()
     V = np.array([[1.0, 0.0], [-1.0, 0.0]])
     P, _, _ = odometric_positions(sym[:cut], reckoned_steps(u[:cut], [cut], V), [cut], gate=2.0)
     part = Places(sym[:cut], None, V, 1.0, P, {})
-    frame, joined = held_out_frame(MotionSettings(gates=(2.0,)), part, Z, u, [x.size], cut)
+    two = MotionSettings(places={"gates": (2.0,)})
+    frame, joined = held_out_frame(two, part, Z, u, [x.size], cut)
     # cells 5..9 look like 0..4 but lie 5 cells off: their copies are made after the cut
     np.testing.assert_array_equal(joined, x[cut:] <= 4)
     np.testing.assert_allclose(frame[:, 0], x[cut:])
@@ -213,13 +215,13 @@ def test_the_check_falls_back_to_the_views_where_they_place_steps_alone():
     # for more than 1.5 per cluster, the check is not run at all
     assert info["view_clusters"] < info["copies"][1] < 1.5 * info["view_clusters"]
     unchecked_views = MapLearner(n_clusters=16, n_states=32, random_state=0,
-                                 motion=MotionSettings(min_copies=1.5)).fit(Z, u)
+                                 motion=MotionSettings(check={"min_copies": 1.5})).fit(Z, u)
     assert unchecked_views.motion_info_["check"] == "the middle gate kept one copy per view " \
                                                    "cluster"
     np.testing.assert_array_equal(unchecked_views.labels_, learner.labels_)
     # the states are then the view clusters: K-means on the views with as many clusters
     unchecked = MapLearner(n_clusters=16, n_states=32, random_state=0,
-                           motion=MotionSettings(holdout=0)).fit(Z, u)
+                           motion=MotionSettings(check={"holdout": 0})).fit(Z, u)
     assert unchecked.motion_info_["chosen"] == "places"
     from sklearn.cluster import KMeans
 
@@ -238,13 +240,13 @@ def test_the_places_are_not_checked_where_the_middle_gate_told_no_view_apart():
     from topomap.core.motion.check import tells_apart
 
     s = MotionSettings()  # gates 2.5, 3.0, 3.5: the middle one, 3.0, is the check's frame
-    assert s.min_copies == 1.0
+    assert s.check.min_copies == 1.0
     # 64 view clusters: more than 64 copies of the middle gate, whatever the others
     assert not tells_apart(s, {"view_clusters": 64, "copies": [308, 64, 308]})
     assert tells_apart(s, {"view_clusters": 64, "copies": [64, 65, 64]})
-    assert tells_apart(MotionSettings(gates=(3.0,), min_copies=2.0),
+    assert tells_apart(MotionSettings(places={"gates": (3.0,)}, check={"min_copies": 2.0}),
                        {"view_clusters": 8, "copies": [17]})
-    assert not tells_apart(MotionSettings(gates=(3.0,), min_copies=2.0),
+    assert not tells_apart(MotionSettings(places={"gates": (3.0,)}, check={"min_copies": 2.0}),
                            {"view_clusters": 8, "copies": [16]})
 
 
@@ -269,15 +271,15 @@ def test_places_that_cut_across_the_views_give_way_to_the_view_clusters():
 
     Z, u, _ = _alike_halves(2000)
     places = MapLearner(n_clusters=4, n_states=8, random_state=0,
-                        motion=MotionSettings(holdout=0)).fit(Z, u)
+                        motion=MotionSettings(check={"holdout": 0})).fit(Z, u)
     assert places.motion_info_["chosen"] == "places"
     purity = view_purity(places.labels_, view_clusters(Z, 8, n_init=4, random_state=0))
     assert 0 < purity < 1
     below = MapLearner(n_clusters=4, n_states=8, random_state=0,
-                       motion=MotionSettings(holdout=0.25, min_purity=purity - 1e-6)).fit(Z, u)
+                       motion={"check": {"min_purity": purity - 1e-6}}).fit(Z, u)
     assert below.motion_info_.get("check") != "the places cut across the view clusters"
     above = MapLearner(n_clusters=4, n_states=8, random_state=0,
-                       motion=MotionSettings(holdout=0.25, min_purity=purity + 1e-6)).fit(Z, u)
+                       motion={"check": {"min_purity": purity + 1e-6}}).fit(Z, u)
     info = above.motion_info_
     assert info["chosen"] == "views" and info["check"] == "the places cut across the view clusters"
     assert info["purity"] == round(purity, 4)
@@ -492,23 +494,29 @@ def test_discrete_worlds_keep_the_map_of_the_split():
     ("bogus", r"^motion\.mode must be one of auto, discrete, continuous"),
     (3, r"^motion must be one of"),
     ({"gate": 3}, r"^motion\.gate is not a motion setting"),
-    ({"gates": []}, r"^motion\.gates must be a non-empty list"),
-    (MotionSettings(weight=0), r"^motion\.weight must be a positive number"),
-    (MotionSettings(pull=1.5), r"^motion\.pull must be at most 1"),
-    ({"holdout": 1.0}, r"^motion\.holdout must be a number in \[0, 1\)"),
-    ({"margin": 0}, r"^motion\.margin must be a number in \(0, 1\]"),
-    ({"far": -1.0}, r"^motion\.far must be a positive number"),
-    ({"n_init": 0}, r"^motion\.n_init must be a positive integer"),
-    ({"folds": 1.5}, r"^motion\.folds must be a positive integer"),
-    ({"fallback_variance": 2.0}, r"^motion\.fallback_variance must be a number in \(0, 1\]"),
-    ({"fallback_variance": 0}, r"^motion\.fallback_variance must be a number in \(0, 1\]"),
-    ({"min_gain": -0.1}, r"^motion\.min_gain must be a number in \[0, 1\)"),
-    ({"votes": -1}, r"^motion\.votes must be a non-negative integer"),
-    ({"min_copies": 0}, r"^motion\.min_copies must be a positive number"),
-    ({"confidence": -1.0}, r"^motion\.confidence must be a number >= 0"),
-    ({"confidence": float("nan")}, r"^motion\.confidence must be a number >= 0"),
-    ({"block_runs": 0}, r"^motion\.block_runs must be a positive number"),
-    ({"min_purity": 1.0}, r"^motion\.min_purity must be a number in \[0, 1\)"),
+    ({"places": {"gate": 3}}, r"^motion\.places\.gate is not a motion\.places setting"),
+    ({"places": 3}, r"^motion\.places must be PlaceSettings or a mapping of its fields"),
+    ({"places": {"gates": []}}, r"^motion\.places\.gates must be a non-empty list"),
+    (MotionSettings(places={"weight": 0}), r"^motion\.places\.weight must be a positive number"),
+    (MotionSettings(places={"pull": 1.5}), r"^motion\.places\.pull must be at most 1"),
+    ({"check": {"holdout": 1.0}}, r"^motion\.check\.holdout must be a number in \[0, 1\)"),
+    ({"check": {"margin": 0}}, r"^motion\.check\.margin must be a number in \(0, 1\]"),
+    ({"check": {"far": -1.0}}, r"^motion\.check\.far must be a positive number"),
+    ({"places": {"n_init": 0}}, r"^motion\.places\.n_init must be a positive integer"),
+    ({"check": {"folds": 1.5}}, r"^motion\.check\.folds must be a positive integer"),
+    ({"places": {"fallback_variance": 2.0}},
+     r"^motion\.places\.fallback_variance must be a number in \(0, 1\]"),
+    ({"places": {"fallback_variance": 0}},
+     r"^motion\.places\.fallback_variance must be a number in \(0, 1\]"),
+    ({"check": {"min_gain": -0.1}}, r"^motion\.check\.min_gain must be a number in \[0, 1\)"),
+    ({"check": {"votes": -1}}, r"^motion\.check\.votes must be a non-negative integer"),
+    ({"check": {"min_copies": 0}}, r"^motion\.check\.min_copies must be a positive number"),
+    ({"check": {"confidence": -1.0}}, r"^motion\.check\.confidence must be a number >= 0"),
+    ({"check": {"confidence": float("nan")}},
+     r"^motion\.check\.confidence must be a number >= 0"),
+    ({"check": {"block_runs": 0}}, r"^motion\.check\.block_runs must be a positive number"),
+    ({"check": {"min_purity": 1.0}}, r"^motion\.check\.min_purity must be a number in \[0, 1\)"),
+    ({"check": {"rule": "cross"}}, r"^motion\.check\.rule must be one of folds, crossfit"),
 ])
 def test_bad_motion_is_named(motion, message):
     Z, u, _ = _alike_halves(500)
@@ -560,15 +568,15 @@ def _places_of_two_rooms_of_two_views(weight):
 
 def test_places_follow_the_view_where_drift_is_a_cell_or_so_and_keep_alike_rooms_apart():
     # the weight where odometry is loose (0.5): 1.6 * 0.5 < 1, the places are each room's views
-    assert _places_of_two_rooms_of_two_views(MotionSettings().loose_weight)("room", "view")
+    assert _places_of_two_rooms_of_two_views(MotionSettings().places.loose_weight)("room", "view")
     # at weight 1 (the default's own): 1.6 > 1, each room's drifted positions, views mixed
-    assert _places_of_two_rooms_of_two_views(MotionSettings().weight)("room", "x")
+    assert _places_of_two_rooms_of_two_views(MotionSettings().places.weight)("room", "x")
 
 
 def test_the_positions_weigh_less_where_the_odometry_closes_loops_loosely():
     from topomap.core.motion.places import position_weight
 
-    s = MotionSettings(weight=1.0, loose_return=0.26, loose_weight=0.5)
+    s = MotionSettings(places={"weight": 1.0, "loose_return": 0.26, "loose_weight": 0.5})
     assert position_weight(s, [0.2, 0.25]) == 1.0    # both returns within 0.26: tight
     assert position_weight(s, [0.2, 0.26]) == 1.0    # at the bar: still tight
     assert position_weight(s, [0.2, 0.3]) == 0.5     # the weaker direction keeps 0.3: loose
@@ -583,11 +591,12 @@ def test_the_held_out_parts_cut_their_places_with_the_whole_logs_weight():
     # a walk on a line: the odometry keeps one direction, and its return ratio is the one read
     assert not np.asarray(whole.info["action_vectors"])[:, 1].any()
     ratio = whole.info["return_ratios"][0]
-    loose = cut_places(MotionSettings(loose_return=ratio / 2), Z, u, [u.size], 8, 2)
-    tight = cut_places(MotionSettings(loose_return=ratio * 1.001), Z, u, [u.size], 8, 2)
+    loose = cut_places(MotionSettings(places={"loose_return": ratio / 2}), Z, u, [u.size], 8, 2)
+    tight = cut_places(MotionSettings(places={"loose_return": ratio * 1.001}), Z, u, [u.size], 8, 2)
     assert loose.info["weight"] == 0.5 and tight.info["weight"] == 1.0
     # a given weight wins over the log's own (what the held-out check passes on)
-    given = cut_places(MotionSettings(loose_return=ratio / 2), Z, u, [u.size], 8, 2, weight=1.0)
+    given = cut_places(MotionSettings(places={"loose_return": ratio / 2}), Z, u, [u.size], 8, 2,
+                       weight=1.0)
     assert given.info["weight"] == 1.0
     np.testing.assert_array_equal(given.places, tight.places)
     # the check's first part (the first 1,500 steps) closes its loops a little more loosely
@@ -597,7 +606,7 @@ def test_the_held_out_parts_cut_their_places_with_the_whole_logs_weight():
     bar = (ratio + part.info["return_ratios"][0]) / 2
     assert part.info["return_ratios"][0] > bar > ratio
     learner = MapLearner(n_clusters=4, n_states=8, random_state=0,
-                         motion=MotionSettings(loose_return=bar)).fit(Z, u)
+                         motion=MotionSettings(places={"loose_return": bar})).fit(Z, u)
     folds = learner.motion_info_["check"]["folds"]
     assert learner.motion_info_["weight"] == 1.0 and folds
     assert all(f["weight"] == 1.0 for f in folds)
@@ -608,13 +617,13 @@ def test_places_at_the_default_weight_are_checked_where_the_loosely_weighted_one
     # every log loose (a bar of 0.001), its loose weight so small that the places are all but
     # the view clusters, which cannot tell the alike halves apart: the check gives them up,
     # and the places at weight 1 -- those the check keeps on this log -- are checked in turn
-    motion = MotionSettings(loose_return=0.001, loose_weight=0.01)
+    motion = MotionSettings(places={"loose_return": 0.001, "loose_weight": 0.01})
     learner = MapLearner(n_clusters=4, n_states=8, random_state=0, motion=motion).fit(Z, u)
     info = learner.motion_info_
     assert info["loose"]["weight"] == 0.01 and info["loose"]["chosen"] == "views"
     assert info["chosen"] == "places" and info["weight"] == 1.0
     assert _mixed_share(learner.labels_, x) < 0.02
     # no second try where the default weight is the loose one
-    same = MotionSettings(loose_return=0.001, loose_weight=1.0)
+    same = MotionSettings(places={"loose_return": 0.001, "loose_weight": 1.0})
     info = MapLearner(n_clusters=4, n_states=8, random_state=0, motion=same).fit(Z, u).motion_info_
     assert "loose" not in info and info["chosen"] == "places"

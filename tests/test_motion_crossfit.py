@@ -104,7 +104,7 @@ def test_the_cross_fitted_check_keeps_the_view_clusters_where_places_are_built_t
     # odometry's positions (weight 10), which drift by 30 % of a move each step, lose to them
     Z, u, x = _line()
     kw = dict(n_clusters=16, n_states=32, random_state=0)
-    lose = MotionSettings(check="crossfit", weight=10.0, loose_weight=10.0)
+    lose = MotionSettings(check={"rule": "crossfit"}, places={"weight": 10.0, "loose_weight": 10.0})
     places = MapLearner(**kw, motion=replace(lose, holdout=0)).fit(Z, u)
     assert places.motion_info_["chosen"] == "places"
     with pytest.warns(UserWarning, match="no nearer"):
@@ -118,7 +118,7 @@ def test_the_cross_fitted_check_keeps_the_view_clusters_where_places_are_built_t
 def test_the_cross_fitted_check_keeps_places_that_tell_alike_halves_apart():
     Z, u, x = _line(jitter=0.1, period=1.0)  # the view of x is that of x + 1
     learner = MapLearner(n_clusters=4, n_states=8, random_state=0,
-                         motion=MotionSettings(check="crossfit")).fit(Z, u)
+                         motion=MotionSettings(check={"rule": "crossfit"})).fit(Z, u)
     check = learner.motion_info_["check"]
     assert learner.motion_info_["chosen"] == "places" and check["places"] < check["views"]
     halves = x > 1.0
@@ -135,4 +135,4 @@ def test_an_unknown_check_is_named():
 
     with pytest.raises(ParameterError, match="motion.check.*folds, crossfit.*'cross'"):
         motion_settings({"check": "cross"})
-    assert motion_settings({"check": "crossfit"}).check == "crossfit"
+    assert motion_settings({"check": {"rule": "crossfit"}}).check.rule == "crossfit"

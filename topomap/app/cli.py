@@ -372,7 +372,8 @@ def _main(argv: list[str]) -> None:
     """:func:`main` past ``--version`` and a kept ``--help``."""
     import hydra
 
-    from .compose.command_line import CONFIG_MODULE, overrides_of, screen_command_line
+    from .compose.command_line import (CONFIG_MODULE, overrides_of, renamed_overrides,
+                                       screen_command_line)
     from .compose.registry import Registry
     from .run.interrupts import take_interrupts
 
@@ -382,6 +383,7 @@ def _main(argv: list[str]) -> None:
         return
     plan = Plan()
     try:
+        argv = sys.argv[1:] = renamed_overrides(argv)  # old keys of settings: their keys now
         registry = screen_command_line(overrides_of(argv), user_configs=_user_configs(argv))
         plan = _plan(argv, registry)
     except ValueError as exc:

@@ -95,7 +95,7 @@ class MapLearner(StreamFit, MapMethods, BaseEstimator):
         same-symbol states, or further splits); ``"free"`` keeps the number the refinement chose.
     motion : MotionSettings, "auto", "discrete" or "continuous"
         How a log recorded at 10-50 Hz is mapped: places instead of a refinement, or why not
-        (:class:`~topomap.core.motion.MotionSettings`, docs/continuous.md).
+        (:class:`~topomap.core.motion.MotionSettings` or a mapping; docs/continuous.md).
     heading : {"auto", "on", "off"}
         Phase 1's states as (symbol, heading) pairs, the heading integrated from actions that
         turn the view (:mod:`topomap.core.phase1.heading`): ``"auto"`` where the data support

@@ -41,7 +41,7 @@ __all__ = ["placement_scores", "score_units", "map_scores", "true_places", "spli
            "VIEW_STARTS"]
 
 #: k-means++ starts of the yardstick's view clusters: those of the view clusters a continuous
-#: log's map falls back to (``MotionSettings.n_init``'s default)
+#: log's map falls back to (``MotionSettings().places.n_init``)
 VIEW_STARTS = 4
 
 

@@ -20,7 +20,7 @@ from .registry import Registry
 from .store import store_configs
 
 __all__ = ["CONFIG_MODULE", "NOT_A_RUN", "hydra_arguments", "overrides_of", "plugins_named",
-           "screen_command_line", "compose"]
+           "renamed_overrides", "screen_command_line", "compose"]
 
 #: the package of topomap's Hydra configs (``conf/``)
 CONFIG_MODULE = "topomap.conf"
@@ -45,6 +45,30 @@ def overrides_of(argv) -> list[str]:
     completion (``install=bash``, ``query=bash``), not keys of the config."""
     args = hydra_arguments(argv)
     return [] if args.shell_completion else list(args.overrides or [])
+
+
+def renamed_overrides(words) -> list[str]:
+    """The words of a command line with the keys the learner's settings had before a rename
+    (``learner.motion.holdout``, ``learner.motion.check=crossfit``) under their keys now
+    (``learner.motion.check.holdout``, ``learner.motion.check.rule``), a ``FutureWarning``
+    naming the new key for each (:func:`topomap.core.motion.renamed.moved_override`); Hydra
+    then composes the new keys.  A ``ValueError`` where the new key is given too."""
+    words = list(words)
+    if not any("learner.motion." in w for w in words):
+        return words  # the learner's core is not imported for a command that names none
+    from ...core.motion.renamed import moved_override
+
+    moved = [moved_override(w) for w in words]
+    given = {_key(w) for w, m in zip(words, moved) if w == m}
+    for word, new in zip(words, moved):
+        if word != new and _key(new) in given:
+            raise ValueError(f"{_key(word)} is the old key of {_key(new)}: give {_key(new)} "
+                             "only")
+    return moved
+
+
+def _key(word: str) -> str:
+    return word.lstrip("+~").partition("=")[0]
 
 
 def plugins_named(overrides) -> list[str]:
@@ -88,6 +112,7 @@ def compose(overrides=(), registry: Registry | None = None, *, screened: bool = 
     from hydra import compose as hydra_compose
     from hydra import initialize_config_module
 
+    overrides = renamed_overrides(overrides)
     if not (screened and registry is not None):
         screen_command_line(overrides, registry)
     with initialize_config_module(version_base="1.3", config_module=CONFIG_MODULE):

@@ -254,15 +254,14 @@ def _check_component_keys(parsed, chosen: dict, registry) -> None:
 def _schema_of_key(key: str, chosen: dict, registry) -> list:
     """The config dataclasses that hold ``key`` for the components the command line selects
     (several in a sweep of a group), and the key's field name in them; for a key of a nested
-    settings config (``refine.hard.max_iter``), that config's dataclass."""
+    settings config (``refine.hard.max_iter``, ``learner.motion.check.holdout``), that config's
+    dataclass."""
     from .schemas import OutputConf
 
     section, dot, name = key.partition(".")
     if not dot:
         return [(config_schema(), section)]
     group, dot, name = name.rpartition(".")
-    if "." in group:
-        return []  # deeper than a nested settings config: OmegaConf checks it
     if section == "learner":
         schemas = [learner_schema()]
     elif section == "output":
@@ -273,9 +272,9 @@ def _schema_of_key(key: str, chosen: dict, registry) -> list:
                    if o in registry.names(section)]
     else:
         return []
-    if group:  # a field of a nested settings config (refine.hard.max_iter)
+    for part in group.split(".") if group else ():  # into a nested settings config
         schemas = [f.type for schema in schemas for f in dataclasses.fields(schema)
-                   if f.name == group and dataclasses.is_dataclass(f.type)]
+                   if f.name == part and dataclasses.is_dataclass(f.type)]
     return [(schema, name) for schema in schemas]
 
 

@@ -11,16 +11,16 @@ positions of the held-out steps are the same filter run on
 (:func:`~topomap.core.motion.odometry.odometric_positions`, its copies learned on the first part
 and carried on).  What alike rooms cost the view clusters is a held-out step placed in the other
 room: far off, not a little off.  So the check counts the held-out steps each map places more
-than ``settings.far`` cell extents from their odometric position (:func:`misplaced_share`),
+than ``check.far`` cell extents from their odometric position (:func:`misplaced_share`),
 among the held-out steps that joined a copy made before the held-out part: where the log's end
 goes where its start had not been, the filter makes new copies there, whose positions neither
 map was learned on (a fold where no step joined one gives no reference).
-One held-out part is one draw of where the log happens to end; ``settings.folds`` parts are held
+One held-out part is one draw of where the log happens to end; ``check.folds`` parts are held
 out one after another from the end (each learned from the steps before it), and the places are
 kept only when their share over the folds' held-out steps with a reference (:func:`pooled_shares`:
 each such step counted once) is below the view clusters', at most
-``settings.margin`` times it and at least ``settings.min_gain`` below it, or when most of the
-last ``settings.votes`` parts, each on its own, find the places' share ``settings.min_gain``
+``check.margin`` times it and at least ``check.min_gain`` below it, or when most of the
+last ``check.votes`` parts, each on its own, find the places' share ``check.min_gain``
 below the view clusters' (:func:`outvoted`; a third part, learned from the first quarter
 alone, is too weak to average in -- on Tanni's rat path its mean kept places that placed the
 new walk 35 % farther off than the view clusters -- but not to vote); in doubt -- the two
@@ -59,9 +59,9 @@ def held_out_frame(settings: MotionSettings, part: Places, Z, u, lengths, cut: i
     centres /= np.maximum(np.bincount(part.views, minlength=k), 1)[:, None]
     later = pairwise_distances_argmin(Z[cut:], centres)
     fsym = np.concatenate([part.views, later])
-    gate = settings.gates[len(settings.gates) // 2] * part.extent
+    gate = settings.places.gates[len(settings.places.gates) // 2] * part.extent
     P, copy, _ = odometric_positions(fsym, reckoned_steps(u, lengths, part.V), lengths, gate,
-                                     pull=settings.pull)
+                                     pull=settings.places.pull)
     return P[cut:] / part.extent, copy[cut:] <= copy[:cut].max()
 
 
@@ -107,13 +107,13 @@ def outvoted(folds: list, votes: int, min_gain: float) -> bool:
 
 def tells_apart(settings: MotionSettings, info: dict) -> bool:
     """Whether the odometry of a log told sightings of one view apart: its middle gate's
-    filter (the check's frame) kept more than ``settings.min_copies`` times as many copies as
+    filter (the check's frame) kept more than ``check.min_copies`` times as many copies as
     there are view clusters (``info`` of :func:`cut_places`).  Where it kept one copy per view
     cluster, no view was seen in two places at that gate, and the places can beat the view
     clusters in the check only by following the frame's own drift (poor odometry: six beams
     between pillars)."""
-    copies = info["copies"][len(settings.gates) // 2]
-    return copies > settings.min_copies * info["view_clusters"]
+    copies = info["copies"][len(settings.places.gates) // 2]
+    return copies > settings.check.min_copies * info["view_clusters"]
 
 
 def view_purity(places, views) -> float:
@@ -194,7 +194,7 @@ def _fold(settings: MotionSettings, X, Z, u, lengths, end: int, held: int, build
             X[cut:], u[cut:], lengths=tail)
         placed = _state_means(labels, part.frame)[decoded]
         errors[name] = round(frame_error(placed, frame), 4)
-        far[name] = misplaced_rows(placed[joined], frame[joined], settings.far)
+        far[name] = misplaced_rows(placed[joined], frame[joined], settings.check.far)
         steps[name] = int(np.count_nonzero(far[name]))
         misplaced[name] = round(steps[name] / referenced, 4)
     return {"learned": cut, "held_out": end - cut, "weight": part.info["weight"],
@@ -210,16 +210,17 @@ def choose_places(settings: MotionSettings, X, Z, u, lengths, n_states: int, n_a
     makes a map of labelled steps (``pooled=True``: one variance shared by its states, the view
     clusters' map); ``kmeans``: ``n_init``, ``random_state``, ``method``.  Where the odometry is
     loose (:func:`~topomap.core.motion.places.position_weight`) and the places cut with the
-    loose weight give way to the view clusters, the places cut with ``settings.weight`` are
+    loose weight give way to the view clusters, the places cut with ``places.weight`` are
     checked in turn (on ``ring`` at 50 Hz, seed 0, those kept alike rooms apart where the loosely
     weighted ones did not); ``info["loose"]`` then says what the first try chose and why."""
-    if settings.check == "crossfit":
+    if settings.check.rule == "crossfit":
         return _crossfit(settings, X, Z, u, lengths, n_states, n_actions, build, **kmeans)
     labels, info = _choose(settings, X, Z, u, lengths, n_states, n_actions, build, **kmeans)
-    if info["chosen"] == "places" or info.get("weight", settings.weight) == settings.weight:
+    weight = settings.places.weight
+    if info["chosen"] == "places" or info.get("weight", weight) == weight:
         return labels, info
     labels2, info2 = _choose(settings, X, Z, u, lengths, n_states, n_actions, build,
-                             weight=settings.weight, **kmeans)
+                             weight=settings.places.weight, **kmeans)
     if info2["chosen"] != "places":
         return labels, info
     first = {k: info[k] for k in ("weight", "chosen", "check", "purity") if k in info}
@@ -238,7 +239,8 @@ def _cut(settings: MotionSettings, Z, u, lengths, n_states: int, n_actions: int,
     if whole.places is None:
         return whole, info, (whole.views, dict(info, chosen="views"))
     T = len(u)
-    if settings.holdout == 0 or T * min(settings.holdout, 1 - settings.holdout) < 100:
+    holdout = settings.check.holdout
+    if holdout == 0 or T * min(holdout, 1 - holdout) < 100:
         return whole, info, (whole.places, dict(info, chosen="places"))
     return whole, info, None
 
@@ -271,15 +273,15 @@ def _choose(settings: MotionSettings, X, Z, u, lengths, n_states: int, n_actions
         return whole.views, dict(info, chosen="views",
                                   check="the middle gate kept one copy per view cluster")
     purity = view_purity(whole.places, whole.views)
-    if purity < settings.min_purity:
+    if purity < settings.check.min_purity:
         return whole.views, dict(info, chosen="views", purity=round(purity, 4),
                                   check="the places cut across the view clusters")
     kmeans = dict(kmeans, weight=info["weight"])  # the held-out parts weigh as the whole log
     T = len(u)
-    step = int(round(T * settings.holdout))
-    block = max(1, int(round(settings.block_runs * info["mean_run"])))
+    step = int(round(T * settings.check.holdout))
+    block = max(1, int(round(settings.check.block_runs * info["mean_run"])))
     folds = []
-    for i in range(max(settings.folds, settings.votes)):
+    for i in range(max(settings.check.folds, settings.check.votes)):
         if T - (i + 1) * step < 100:
             break
         fold = _fold(settings, X, Z, u, lengths, T - i * step, step, build, n_states,
@@ -290,11 +292,11 @@ def _choose(settings: MotionSettings, X, Z, u, lengths, n_states: int, n_actions
     if not folds:
         return whole.views, dict(info, chosen="views",
                                   check="no held-out part with odometry and a reference")
-    misplaced = pooled_shares(folds[:settings.folds])
-    gain, noise = gain_noise(folds[:settings.folds])
-    by_mean = keeps_places(misplaced, settings.margin, settings.min_gain) and clears_noise(
-        gain, noise, settings.confidence)
-    by_vote = outvoted(folds, settings.votes, settings.min_gain)
+    misplaced = pooled_shares(folds[:settings.check.folds])
+    gain, noise = gain_noise(folds[:settings.check.folds])
+    by_mean = keeps_places(misplaced, settings.check.margin, settings.check.min_gain) and (
+        clears_noise(gain, noise, settings.check.confidence))
+    by_vote = outvoted(folds, settings.check.votes, settings.check.min_gain)
     chosen = "places" if by_mean or by_vote else "views"
     info.update(chosen=chosen, check=dict(folds[0], folds=folds, mean_misplaced=misplaced,
                                           gain_noise=[round(gain, 4), round(noise, 4)],

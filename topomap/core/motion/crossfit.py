@@ -1,6 +1,6 @@
 """The cross-fitted check: places against view clusters on a part of the log neither saw.
 
-The last ``settings.holdout`` share of the log is held out.  Places and view clusters are learned
+The last ``check.holdout`` share of the log is held out.  Places and view clusters are learned
 again on the steps before it (:func:`~topomap.core.motion.places.cut_places`: view clusters,
 moves, cell extent and the places from those steps' own odometric positions); each
 decodes the held-out steps (:meth:`~topomap.core.map.model.TopologicalMap.predict`, as any new
@@ -60,15 +60,15 @@ def cross_fitted(settings: MotionSettings, X, Z, u, lengths, n_states: int, n_ac
     ``random_state``, ``method``, ``weight``) as
     :func:`~topomap.core.motion.check.choose_places`'s."""
     T = len(u)
-    head, tail, cut = split_holdout(T, lengths, settings.holdout)
+    head, tail, cut = split_holdout(T, lengths, settings.check.holdout)
     part = cut_places(settings, Z[:cut], u[:cut], head, n_states, n_actions, **kmeans)
     if part.places is None:
         return None
-    gate = settings.gates[len(settings.gates) // 2]
+    gate = settings.places.gates[len(settings.places.gates) // 2]
     learned = graph_positions(part.views, u[:cut], head, part.V, part.extent, gate,
-                              settings.pull)
+                              settings.places.pull)
     held = graph_positions(_nearest_views(part.views, Z, cut), u[cut:], tail, part.V,
-                           part.extent, gate, settings.pull)
+                           part.extent, gate, settings.places.pull)
     out = {"learned": cut, "held_out": T - cut}
     for name, labels in (("places", part.places), ("views", part.views)):
         decoded = build(X[:cut], u[:cut], labels, head, pooled=name == "views").predict(

@@ -87,7 +87,7 @@ def fit_places(learner, data, settings: MotionSettings, metric, odometry=None) -
             state_parent=np.full(S, -1), n_actions=data.n_actions,
             covariance_type=learner.covariance_type, reg_covar=learner.reg_covar, **fields)
         return pooled_variances(m, X, labels, learner.reg_covar,
-                                settings.fallback_variance) if pooled else m
+                                settings.places.fallback_variance) if pooled else m
 
     labels, info = choose_places(settings, data.X, Z, data.u, data.lengths,
                                  learner.map_split_.n_states, data.n_actions, build,

@@ -28,8 +28,51 @@ import numpy as np
 from numba import njit
 from scipy.linalg import eigh
 
+from .settings import PlaceSettings
+
 __all__ = ["view_change_basis", "action_vectors", "reckoned_steps", "dead_reckoning",
            "cell_extent", "odometric_positions"]
+
+# Set when the learned odometry was written and not varied since (benchmarks/notes/continuous.md
+# records no run that changes them); each says why it is what it is.
+#: directions of the action space kept from the views' changes: the plane's 2, plus 1 for
+#: views that change non-linearly with position (directions)
+BASIS_DIM = 3
+#: a (view cluster, action) pair enters the basis once seen this often (steps; rarer pairs
+#: weigh nothing)
+MIN_PAIR_STEPS = 5
+#: random windows whose action counts and returns fix the plane (windows; about 17 per step
+#: of a 30-minute log at 10 Hz)
+N_WINDOWS = 300_000
+#: windows last up to this many mean runs of one view cluster (runs): long enough to leave a
+#: cluster and come back ...
+RETURN_RUNS = 6
+#: ... and at least this many steps (steps)
+MIN_LAG = 10
+#: a line (one direction) is kept where its return share is at most this share of
+#: ``max_return`` (share; 0.03 on a walk along a line, turn / forward commands 0.22-0.38)
+LINE_RETURN = 0.5
+#: the ridge added to the random windows' covariance, relative to its trace (share): keeps the
+#: generalised eigenproblem defined where a direction never moves
+RIDGE = 1e-12
+#: a direction whose variance is below this share of the other's is none: a line (share) ...
+DEGENERATE = 1e-12
+#: ... and the smallest variance that share is taken of (a floor against 0)
+TINY = 1e-300
+#: the cell extent is measured on returns after this many mean runs of one view cluster, up to
+#: twice as many: the motion has forgotten its direction, drift is still small (runs) ...
+TAU_RUNS = 3
+#: ... at least this many steps (steps) ...
+MIN_TAU = 2
+#: ... over this many lags between them (lags)
+N_LAGS = 8
+#: the cell extent of a log with no return to a view cluster (the moves' own unit) ...
+NO_EXTENT = 1.0
+#: ... and the least one measured (the moves' unit): a floor against 0
+MIN_EXTENT = 1e-6
+#: a copy's position is the running mean of the positions that joined it, over at most this
+#: many (steps): old sightings, made with more drift, are forgotten
+COPY_MEMORY = 50
 
 
 def _inner(lengths) -> np.ndarray:
@@ -40,8 +83,8 @@ def _inner(lengths) -> np.ndarray:
     return inner
 
 
-def view_change_basis(Z, fsym, u, lengths, n_actions: int, dim: int = 3,
-                      min_count: int = 5) -> np.ndarray:
+def view_change_basis(Z, fsym, u, lengths, n_actions: int, dim: int = BASIS_DIM,
+                      min_count: int = MIN_PAIR_STEPS) -> np.ndarray:
     """(A, dim) orthonormal basis of the action space that holds the actions' displacements.
 
     ``B[k, :, a]`` is the mean of ``Z[t + 1] - Z[t]`` over the steps of view cluster ``k`` taking
@@ -75,8 +118,9 @@ def _window_counts(fsym, u, lengths, n_actions, max_lag, n_pairs, rng):
     return C[t] - C[s], fsym[s] == fsym[t]
 
 
-def action_vectors(Z, fsym, u, lengths, n_actions: int, *, max_return: float = 0.35,
-                   max_lag: int | None = None, n_pairs: int = 300_000, seed: int = 0):
+def action_vectors(Z, fsym, u, lengths, n_actions: int, *,
+                   max_return: float = PlaceSettings.max_return, max_lag: int | None = None,
+                   n_pairs: int = N_WINDOWS, seed: int = 0):
     """``(V, ratios)``: (A, 2) displacement of every action, up to a rotation and mirror of the
     plane (which change no closed loop), scaled so that steps move alike in every direction, 1
     on average; and, for the two leading directions, the share of a random window's
@@ -87,11 +131,12 @@ def action_vectors(Z, fsym, u, lengths, n_actions: int, *, max_return: float = 0
     when the same walks are given turn / forward commands, whose displacement depends on the
     heading); else the first alone (a line) where its share is at most half that (0.03 on a walk
     along a line; turn / forward commands 0.22-0.38, refused); else none, and ``V`` is zero: no
-    odometry.  Windows are 2 to ``max_lag`` steps long (None: 6 x the mean run of one cluster,
-    at least 10)."""
+    odometry.  Windows are 2 to ``max_lag`` steps long (None: :data:`RETURN_RUNS` x the mean
+    run of one cluster, at least :data:`MIN_LAG`)."""
     Q = view_change_basis(Z, fsym, u, lengths, n_actions)
     if max_lag is None:  # windows long enough to leave a cluster and come back: 6 mean runs
-        max_lag = max(int(round(6 * fsym.size / (1 + np.count_nonzero(np.diff(fsym))))), 10)
+        max_lag = max(int(round(RETURN_RUNS * fsym.size
+                                / (1 + np.count_nonzero(np.diff(fsym))))), MIN_LAG)
     D, ret = _window_counts(fsym, u, lengths, n_actions, max_lag, n_pairs,
                             np.random.default_rng(seed))
     V = np.zeros((n_actions, 2))
@@ -100,11 +145,11 @@ def action_vectors(Z, fsym, u, lengths, n_actions: int, *, max_return: float = 0
     Dq = D @ Q
     on_returns = Dq[ret].T @ Dq[ret] / ret.sum()
     overall = Dq.T @ Dq / len(Dq)
-    lam, w = eigh(on_returns, overall + 1e-12 * np.trace(overall) * np.eye(Q.shape[1]))
+    lam, w = eigh(on_returns, overall + RIDGE * np.trace(overall) * np.eye(Q.shape[1]))
     if lam[1] <= max_return:
         kept = np.array([True, True])  # a plane
     else:
-        kept = np.array([lam[0] <= max_return / 2, False])  # a line, or nothing
+        kept = np.array([lam[0] <= max_return * LINE_RETURN, False])  # a line, or nothing
     V[:, kept] = (Q @ w[:, :2])[:, kept]
     return (_isotropic(V, u) if kept.any() else V), lam[:2]
 
@@ -116,7 +161,7 @@ def _isotropic(V, u) -> np.ndarray:
     steps = V[u]
     cov = steps.T @ steps / max(len(u), 1)
     vals, vecs = np.linalg.eigh(cov)
-    if vals[0] <= 1e-12 * max(vals[1], 1e-300):  # a line: scale only
+    if vals[0] <= DEGENERATE * max(vals[1], TINY):  # a line: scale only
         scale = np.sqrt(vals[1])
         return V / scale if scale > 0 else V
     return V @ vecs @ np.diag(1.0 / np.sqrt(2.0 * vals)) @ vecs.T
@@ -137,17 +182,17 @@ def cell_extent(fsym, P, lengths) -> float:
     T = fsym.size
     inner = _inner(lengths)
     runs = T / (1 + np.count_nonzero(fsym[1:] != fsym[:-1]))
-    tau = max(int(round(3 * runs)), 2)
+    tau = max(int(round(TAU_RUNS * runs)), MIN_TAU)
     episode = np.repeat(np.arange(len(lengths)), lengths)
     sq = []
-    for lag in np.unique(np.linspace(tau, 2 * tau, 8).astype(np.int64)):
+    for lag in np.unique(np.linspace(tau, 2 * tau, N_LAGS).astype(np.int64)):
         s = np.arange(max(T - lag, 0))
         ret = (fsym[s] == fsym[s + lag]) & (episode[s] == episode[s + lag])
         sq.append(((P[s + lag] - P[s]) ** 2).sum(axis=1)[ret])
     sq = np.concatenate(sq) if sq else np.zeros(0)
     if sq.size == 0 or not inner.any():
-        return 1.0
-    return float(max(np.sqrt(sq.mean() / 4.0), 1e-6))
+        return NO_EXTENT
+    return float(max(np.sqrt(sq.mean() / 4.0), MIN_EXTENT))
 
 
 @njit(cache=True)
@@ -203,8 +248,8 @@ def reckoned_steps(u, lengths, V) -> np.ndarray:
     return steps
 
 
-def odometric_positions(fsym, steps, lengths, gate: float, *, pull: float = 0.2,
-                        cap: int = 50):
+def odometric_positions(fsym, steps, lengths, gate: float, *,
+                        pull: float = PlaceSettings.pull, cap: int = COPY_MEMORY):
     """``(P, copy, n_copies)``: (T, 2) positions from dead reckoning of the moves ``steps``
     (:func:`reckoned_steps`) corrected by copies of the view clusters, the copy every step
     joined, and the number of copies.  A step joins the nearest copy of its cluster within

@@ -25,6 +25,10 @@ from .settings import MotionSettings, mean_run
 __all__ = ["Places", "cut_places", "places_of", "place_features", "position_weight",
            "view_clusters"]
 
+#: the least view spread (the views' unit): a floor against 0 for a log whose view clusters
+#: are single points, whose views then keep their own scale
+MIN_SPREAD = 1e-12
+
 
 @dataclass
 class Places:
@@ -53,7 +57,7 @@ def _view_spread(Z, fsym, k) -> float:
     centres = np.zeros((k, Z.shape[1]))
     np.add.at(centres, fsym, Z)
     centres /= np.maximum(np.bincount(fsym, minlength=k), 1)[:, None]
-    return max(float(np.sqrt(np.mean(((Z - centres[fsym]) ** 2).sum(axis=1)))), 1e-12)
+    return max(float(np.sqrt(np.mean(((Z - centres[fsym]) ** 2).sum(axis=1)))), MIN_SPREAD)
 
 
 def place_features(views, positions, weight: float) -> np.ndarray:
@@ -68,13 +72,13 @@ def place_features(views, positions, weight: float) -> np.ndarray:
 
 
 def position_weight(settings: MotionSettings, ratios) -> float:
-    """The positions' weight beside the views: ``settings.loose_weight`` where the odometry
+    """The positions' weight beside the views: ``places.loose_weight`` where the odometry
     closes loops loosely -- the largest of the return ratios of the directions it kept (the
     share of a random window's displacement that windows returning to their view cluster keep,
     :func:`~topomap.core.motion.odometry.action_vectors`; two in a plane, one on a line) above
-    ``settings.loose_return`` -- else ``settings.weight``."""
-    return float(settings.loose_weight if max(ratios) > settings.loose_return
-                 else settings.weight)
+    ``places.loose_return`` -- else ``places.weight``."""
+    return float(settings.places.loose_weight if max(ratios) > settings.places.loose_return
+                 else settings.places.weight)
 
 
 def cut_places(settings: MotionSettings, Z, u, lengths, n_states: int, n_actions: int, *,
@@ -83,13 +87,13 @@ def cut_places(settings: MotionSettings, Z, u, lengths, n_states: int, n_actions
     """``n_states`` places for the steps of ``Z`` (observations in the metric's space), the view
     clusters beside them, and what was measured on the way (:class:`Places`): the view clusters,
     the actions' displacements learned from them, the cell extent, and for each gate of
-    ``settings.gates`` the copies of view clusters its positions kept.  ``weight``: the
+    ``places.gates`` the copies of view clusters its positions kept.  ``weight``: the
     positions' weight (None: :func:`position_weight` of this log's odometry)."""
     lengths = np.asarray(lengths, dtype=np.int64)
     k = min(int(n_states), int(np.unique(Z, axis=0).shape[0]))
-    fsym = view_clusters(Z, k, settings.n_init, random_state)
+    fsym = view_clusters(Z, k, settings.places.n_init, random_state)
     V, ratios = action_vectors(Z, fsym, u, lengths, n_actions, seed=random_state,
-                               max_return=settings.max_return)
+                               max_return=settings.places.max_return)
     info = {"mean_run": round(mean_run(fsym, lengths), 3), "view_clusters": k,
             "return_ratios": np.round(ratios, 4).tolist(),
             "action_vectors": np.round(V, 4).tolist()}
@@ -113,9 +117,9 @@ def places_of(settings: MotionSettings, views, fsym, u, lengths, V, extent: floa
     was measured before) gains the cell extent, the copies of every gate and the weight."""
     steps = reckoned_steps(u, lengths, V)
     positions, copies = [], []
-    for gate in settings.gates:
+    for gate in settings.places.gates:
         P, _, n_copies = odometric_positions(fsym, steps, lengths, gate * extent,
-                                             pull=settings.pull)
+                                             pull=settings.places.pull)
         positions.append(P / extent)
         copies.append(n_copies)
     F = place_features(views, positions, float(weight))

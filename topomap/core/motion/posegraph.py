@@ -32,6 +32,10 @@ STEP_SD = 0.35
 #: cell extents: the first step of every episode is held at 0 this loosely -- it only fixes
 #: where an episode that shares no copy with another sits, not its shape.
 ANCHOR_SD = 1e3
+#: the rms move of a log without one (the moves' unit), and the least a move's standard
+#: deviation may be (the moves' unit): floors against 0, so that every factor has a weight
+NO_MOVE = 1.0
+MIN_SD = 1e-12
 
 
 def pose_graph(steps, copy, n_copies: int, lengths, cell: float,
@@ -45,8 +49,8 @@ def pose_graph(steps, copy, n_copies: int, lengths, cell: float,
     T = steps.shape[0]
     first = np.cumsum(lengths) - np.asarray(lengths)
     inner = np.setdiff1d(np.arange(T), first)
-    move = float(np.sqrt(np.mean(np.sum(steps[inner] ** 2, axis=1)))) if inner.size else 1.0
-    w_step, w_close = 1.0 / max(step_sd * move, 1e-12), 1.0 / cell
+    move = float(np.sqrt(np.mean(np.sum(steps[inner] ** 2, axis=1)))) if inner.size else NO_MOVE
+    w_step, w_close = 1.0 / max(step_sd * move, MIN_SD), 1.0 / cell
     n_odo = inner.size
     rows = np.concatenate([np.arange(n_odo), np.arange(n_odo), n_odo + np.arange(T),
                            n_odo + np.arange(T), n_odo + T + np.arange(first.size)])

@@ -1,9 +1,30 @@
 """How a log recorded at 10-50 Hz is recognised and mapped: :class:`MotionSettings`, the
-``motion`` parameter of :class:`topomap.MapLearner` (``learner.motion.<key>`` in the config), and
-:func:`mean_run`, the statistic that recognises such a log."""
+``motion`` parameter of :class:`topomap.MapLearner` (``learner.motion.<key>`` in the config),
+and :func:`mean_run`, the statistic that recognises such a log.
+
+======================  =========================  ==========================================
+object                  config key                 what it sets
+======================  =========================  ==========================================
+:class:`MotionSettings` ``learner.motion``         which logs are continuous (``mode``,
+                                                   ``min_run``, ``min_steps``), and the two
+                                                   groups below
+:class:`PlaceSettings`  ``learner.motion.places``  how the places are cut from views and
+                                                   odometry, and the view clusters beside them
+:class:`CheckSettings`  ``learner.motion.check``   the held-out check that keeps the places or
+                                                   gives them up for the view clusters
+======================  =========================  ==========================================
+
+Distances are in cell extents: the spread of the reckoned positions over which one view
+cluster is seen.  Why each default is what it is: ``benchmarks/notes/continuous.md`` (its
+sections "How each setting of the continuous path was chosen" and "``MotionSettings``: the
+calibration notes of its docstring").  The flat names of before 0.3 (``holdout``, ``check``
+for the rule) still work until 0.4 with a ``FutureWarning``
+(:mod:`topomap.core.motion.renamed`).
+"""
 
 from __future__ import annotations
 
+import functools
 import numbers
 from collections.abc import Mapping
 from dataclasses import dataclass, fields
@@ -11,101 +32,215 @@ from dataclasses import dataclass, fields
 import numpy as np
 
 from ..checks import ParameterError, check_count
+from .renamed import fold_motion
 
-__all__ = ["MODES", "MotionSettings", "motion_settings", "mean_run", "is_continuous"]
+__all__ = ["MODES", "RULES", "PlaceSettings", "CheckSettings", "MotionSettings",
+           "motion_settings", "mean_run", "is_continuous"]
 
 #: what ``MotionSettings.mode`` (or ``motion`` given as a string) accepts
 MODES = ("auto", "discrete", "continuous")
-#: what ``MotionSettings.check`` accepts
-CHECKS = ("folds", "crossfit")
+#: what ``CheckSettings.rule`` accepts
+RULES = ("folds", "crossfit")
+
+
+@dataclass(frozen=True)
+class PlaceSettings:
+    """``motion.places``: how the places are cut from views and odometry (docs/continuous.md)."""
+
+    gates: tuple[float, ...] = (2.5, 3.0, 3.5)
+    """A step joins a copy of its view cluster within each gate of its reckoned position, one
+    position estimate per gate, all of them in the K-means (cell extents; one gate alone: a
+    tight one splits an open room by drift, a wide one joins alike rooms)."""
+    weight: float = 1.0
+    """The positions' weight beside the view in the K-means that cuts the places (view cluster
+    extents per cell extent; :func:`~topomap.core.motion.places.place_features`)."""
+    pull: float = 0.2
+    """How far a joining step's reckoned position moves towards its copy (share, 0-1)."""
+    max_return: float = 0.35
+    """Odometry is used only where walks returning to a view cluster keep at most this much of a
+    random walk's displacement (share; compass commands 0.17-0.27, turn / forward 0.42-0.82)."""
+    loose_return: float = 0.26
+    """Returns keeping more than this (share) make the odometry loose: ``loose_weight`` then
+    (boundary-vector cells keep 0.20-0.37, the range finder 0.11-0.25 at 10 Hz)."""
+    loose_weight: float = 0.5
+    """The positions' weight where the odometry is loose (as ``weight``; at 0.5 a cell or so of
+    drift inside a room leaves a step with its view, alike rooms stay apart)."""
+    n_init: int = 4
+    """k-means++ starts of the view clusters (starts; scikit-learn's ``KMeans``, as the
+    yardstick *K-means on the views* runs it)."""
+    fallback_variance: float = 0.01
+    """A map of view clusters gives every state one variance, pooled, times this (share, (0, 1];
+    at 1 its decoding placed walks up to 2 % farther off than the nearest centre)."""
+
+
+@dataclass(frozen=True)
+class CheckSettings:
+    """``motion.check``: the held-out check between places and view clusters
+    (:mod:`topomap.core.motion.check`; docs/continuous.md)."""
+
+    rule: str = "folds"
+    """``"folds"``: the fields below; ``"crossfit"``: one rule, the places cut again before the
+    last ``holdout`` and kept where they place it nearer its own pose graph (no other field)."""
+    holdout: float = 0.25
+    """The share of the log held out at its end (share; 0, or a part under 100 steps: no check)."""
+    margin: float = 0.9
+    """The places are kept at most this many times the views' misplaced share (ratio, (0, 1])..."""
+    far: float = 2.0
+    """... a held-out step misplaced when its state stands farther off its position (cell
+    extents)."""
+    folds: int = 2
+    """Held-out parts, one after another from the end, pooled (parts)."""
+    min_gain: float = 0.02
+    """... and at least this below the views' share (share; a hundredth is a handful of runs)."""
+    votes: int = 3
+    """Or kept when most of the last this many parts, each alone, find that gain (parts; 0:
+    no vote; a third part averaged in kept losing places on Tanni's rat path)."""
+    min_copies: float = 1.0
+    """The view clusters, unchecked, where the middle gate kept no more copies per view cluster
+    (copies per view cluster; the odometry told no sighting apart)."""
+    confidence: float = 0.0
+    """The pooled gain must also be this many times its noise (standard errors; 0: off -- a bar
+    of 1 gave up ``arena_two_rooms``' places at half the views' error)..."""
+    block_runs: float = 50.0
+    """... measured over stretches of this many mean runs of one view (runs)."""
+    min_purity: float = 0.2
+    """The view clusters, unchecked, where fewer of the steps lie in their place's view cluster
+    (share; 0: never; such places lost as often as they won, 0.14-0.16 on boundary cells)."""
 
 
 @dataclass(frozen=True)
 class MotionSettings:
-    """How :meth:`topomap.MapLearner.fit` maps a log recorded at 10-50 Hz (docs/continuous.md;
-    the measured reason for each default is in benchmarks/notes/continuous.md).  Distances are in
-    cell extents: the spread of the reckoned positions over which one view cluster is seen.
-
-    ``mode``: ``"auto"`` recognises such a log (:func:`is_continuous`; a log given odometry always
-    is) and cuts its places from
-    views and odometry learned from the data; ``"discrete"`` never does (the paper's map, refined
-    as ``refine`` says); ``"continuous"`` always does.  A continuous log gets no ``refine``.
-    ``min_steps`` (steps) and ``min_run`` (steps, the mean run of one phase-1 symbol): the least a
-    log needs to be recognised.
-
-    ``gates`` (cell extents): a step joins a copy of its view cluster within each gate of its
-    reckoned position (:func:`topomap.core.motion.odometry.odometric_positions`), one position
-    estimate per gate.  ``pull`` (a share, 0-1): how far a joining step's position moves towards
-    the copy.  ``max_return`` (a share of a random walk's displacement): odometry is used only
-    where walks that come back to a view cluster keep at most this much
-    (:func:`topomap.core.motion.odometry.action_vectors`); else the places are the view clusters.
-    ``weight``: the positions' weight beside the view in the K-means that cuts the places
-    (:func:`topomap.core.motion.places.place_features`); ``loose_weight`` their weight where walks
-    that return keep more than ``loose_return`` of a random walk's displacement
-    (:func:`topomap.core.motion.places.position_weight`).
-
-    The held-out check (:mod:`topomap.core.motion.check`): ``holdout`` (a share of the log; 0, or
-    a part under 100 steps: no check) is held out at the end, ``folds`` such parts one after
-    another; a held-out step is misplaced when its decoded state stands more than ``far`` cell
-    extents from its odometric position.  The places are kept when their misplaced share is at most ``margin`` times the
-    view clusters' and at least ``min_gain`` below it, or when most of the last ``votes`` parts
-    (0: no vote) find it ``min_gain`` below; ``confidence`` (0: off) also asks the gain to be that
-    many times its noise over stretches of ``block_runs`` mean runs of one view
-    (:func:`topomap.core.motion.check.gain_noise`).  The view clusters are the map's states,
-    unchecked, where the check's filter kept no more than ``min_copies`` copies per view cluster
-    (:func:`topomap.core.motion.check.tells_apart`) or fewer than ``min_purity`` of the steps lie
-    in their place's view cluster (:func:`topomap.core.motion.check.view_purity`; 0: never).
-
-    ``check``: ``"folds"`` (the rule above) or ``"crossfit"`` -- one rule instead: the places
-    are cut again on the log before its last ``holdout`` share, from those steps' own positions,
-    and kept where they place the held-out steps nearer the held-out part's own pose graph than
-    the view clusters do (:mod:`topomap.core.motion.crossfit`; ``gates``' middle one and
-    ``pull`` make both pose graphs, no other setting of the check is read).
-
-    ``n_init``: the k-means++ starts of the view clusters (scikit-learn's ``KMeans`` on every
-    row).  A map of view clusters gives every state one variance, pooled over the states and the
-    features, times ``fallback_variance``, so that its decoding ranks states by the distance of
-    a view to their means.
-    """
+    """How :meth:`topomap.MapLearner.fit` maps a log recorded at 10-50 Hz (docs/continuous.md):
+    whether a log is one, and two groups, :class:`PlaceSettings` and :class:`CheckSettings`
+    (each a settings object or a mapping of some of its fields)."""
 
     mode: str = "auto"
+    """``"auto"``: places where :func:`is_continuous` says (a log given odometry always is);
+    ``"discrete"``: never (the paper's map, refined as ``refine`` says); ``"continuous"``:
+    always.  A continuous log gets no ``refine``."""
     min_run: float = 1.6
+    """The least mean run of one phase-1 symbol of such a log (steps; discrete worlds run
+    1.0-1.3, compass walkers 13-16 and a robot's own-frame scans 2.0-5.0 at 10 Hz)."""
     min_steps: int = 1000
-    gates: tuple[float, ...] = (2.5, 3.0, 3.5)
-    weight: float = 1.0
-    pull: float = 0.2
-    max_return: float = 0.35
-    holdout: float = 0.25
-    margin: float = 0.9
-    far: float = 2.0
-    n_init: int = 4
-    folds: int = 2
-    fallback_variance: float = 0.01
-    min_gain: float = 0.02
-    votes: int = 3
-    min_copies: float = 1.0
-    confidence: float = 0.0
-    block_runs: float = 50.0
-    min_purity: float = 0.2
-    loose_return: float = 0.26
-    loose_weight: float = 0.5
-    check: str = "folds"
+    """The least steps of such a log (steps)."""
+    places: PlaceSettings = PlaceSettings()
+    """How the places are cut (``motion.places``)."""
+    check: CheckSettings = CheckSettings()
+    """The held-out check (``motion.check``)."""
+
+    def __post_init__(self):
+        for name, cls in (("places", PlaceSettings), ("check", CheckSettings)):
+            value = getattr(self, name)
+            if isinstance(value, Mapping) and set(value) <= {f.name for f in fields(cls)}:
+                object.__setattr__(self, name, cls(**_listed(value)))
 
 
-def motion_settings(value) -> MotionSettings:
-    """``value`` -- a mode name, a :class:`MotionSettings`, or a mapping of some of its fields
-    (the config's ``learner.motion``) -- as checked settings; a :class:`ParameterError` names
-    ``motion`` or ``motion.<field>``."""
-    names = [f.name for f in fields(MotionSettings)]
-    if isinstance(value, str):
-        value = {"mode": value}
+def _taking_old_names(init):
+    """``MotionSettings.__init__`` taking the flat names of before 0.3 too, with a warning."""
+
+    @functools.wraps(init)
+    def __init__(self, *args, **kwargs):
+        init(self, *args, **fold_motion(kwargs, stacklevel=2))
+
+    return __init__
+
+
+MotionSettings.__init__ = _taking_old_names(MotionSettings.__init__)
+
+
+def _listed(value: Mapping) -> dict:
+    """A mapping of settings with ``gates`` (a list, say) as a tuple."""
+    gates = value.get("gates")
+    if gates is not None and not isinstance(gates, (str, tuple)) and hasattr(gates, "__iter__"):
+        return {**value, "gates": tuple(gates)}
+    return dict(value)
+
+
+def _real(ok, what: str):
+    def check(value, key):
+        if not (isinstance(value, numbers.Real) and not isinstance(value, bool)
+                and np.isfinite(value) and ok(value)):
+            raise ParameterError(key, f"must be {what}, got {value!r}")
+    return check
+
+
+def _count(minimum: int = 1):
+    return lambda value, key: check_count(value, key, minimum=minimum)
+
+
+def _gates(value, key):
+    if not isinstance(value, tuple) or not value or not all(_positive(g) for g in value):
+        raise ParameterError(key, f"must be a non-empty list of positive numbers, got {value!r}")
+
+
+_POSITIVE = _real(lambda v: v > 0, "a positive number")
+
+
+def _pull(value, key):
+    _POSITIVE(value, key)
+    if value > 1:
+        raise ParameterError(key, f"must be at most 1, got {value!r}")
+
+
+def _choice(options):
+    def check(value, key):
+        if value not in options:
+            raise ParameterError(key, f"must be one of {', '.join(options)}, got {value!r}")
+    return check
+
+
+_SHARE = _real(lambda v: 0 <= v < 1, "a number in [0, 1)")
+_UNIT = _real(lambda v: 0 < v <= 1, "a number in (0, 1]")
+
+#: what every field of a group must be
+CHECKS = {
+    PlaceSettings: {"gates": _gates, "weight": _POSITIVE, "pull": _pull,
+                    "max_return": _POSITIVE, "loose_return": _SHARE, "loose_weight": _POSITIVE,
+                    "n_init": _count(), "fallback_variance": _UNIT},
+    CheckSettings: {"rule": _choice(RULES), "holdout": _SHARE, "margin": _UNIT,
+                    "far": _POSITIVE, "folds": _count(), "min_gain": _SHARE,
+                    "votes": _count(0), "min_copies": _POSITIVE,
+                    "confidence": _real(lambda v: v >= 0, "a number >= 0"),
+                    "block_runs": _POSITIVE, "min_purity": _SHARE},
+}
+#: the groups of :class:`MotionSettings` and their classes
+GROUPS = {"places": PlaceSettings, "check": CheckSettings}
+
+
+def _group(cls, value, key: str):
+    """``value`` -- a ``cls`` or a mapping of some of its fields -- as checked settings; a
+    :class:`ParameterError` names ``<key>.<field>``."""
+    names = [f.name for f in fields(cls)]
     if isinstance(value, Mapping):
         unknown = sorted(set(value) - set(names))
         if unknown:
-            raise ParameterError(f"motion.{unknown[0]}", "is not a motion setting; the settings "
+            raise ParameterError(f"{key}.{unknown[0]}", f"is not a {key} setting; the settings "
                                                         "are " + ", ".join(names))
-        value = MotionSettings(**{k: (tuple(v) if k == "gates" and not isinstance(v, str)
-                                      and hasattr(v, "__iter__") else v)
+        value = cls(**_listed(value))
+    if not isinstance(value, cls):
+        raise ParameterError(key, f"must be {cls.__name__} or a mapping of its fields, got "
+                                  f"{value!r}")
+    for name, check in CHECKS[cls].items():
+        check(getattr(value, name), f"{key}.{name}")
+    return value
+
+
+def motion_settings(value, stacklevel: int = 2) -> MotionSettings:
+    """``value`` -- a mode name, a :class:`MotionSettings`, or a mapping of some of its fields
+    (the config's ``learner.motion``; a group a mapping of some of its own) -- as checked
+    settings; a :class:`ParameterError` names ``motion`` or ``motion.<group>.<field>``.  The
+    names of before 0.3 are moved to their groups with a ``FutureWarning``
+    (:func:`~topomap.core.motion.renamed.fold_motion`)."""
+    if isinstance(value, str):
+        value = {"mode": value}
+    if isinstance(value, Mapping):
+        value = fold_motion(value, stacklevel=stacklevel + 1)
+        names = [f.name for f in fields(MotionSettings)]
+        unknown = sorted(set(value) - set(names))
+        if unknown:
+            raise ParameterError(f"motion.{unknown[0]}", "is not a motion setting; the "
+                                                         "settings are " + ", ".join(names))
+        value = MotionSettings(**{k: _group(GROUPS[k], v, f"motion.{k}") if k in GROUPS else v
                                   for k, v in value.items()})
     if not isinstance(value, MotionSettings):
         raise ParameterError("motion", f"must be one of {', '.join(MODES)}, a MotionSettings "
@@ -113,35 +248,10 @@ def motion_settings(value) -> MotionSettings:
     if value.mode not in MODES:
         raise ParameterError("motion.mode", f"must be one of {', '.join(MODES)}, "
                                             f"got {value.mode!r}")
-    if value.check not in CHECKS:
-        raise ParameterError("motion.check", f"must be one of {', '.join(CHECKS)}, "
-                                             f"got {value.check!r}")
     check_count(value.min_steps, "motion.min_steps")
-    check_count(value.n_init, "motion.n_init")
-    check_count(value.folds, "motion.folds")
-    check_count(value.votes, "motion.votes", minimum=0)
-    gates = value.gates
-    if not isinstance(gates, tuple) or not gates or not all(_positive(g) for g in gates):
-        raise ParameterError("motion.gates", f"must be a non-empty list of positive numbers, "
-                                             f"got {gates!r}")
-    for name in ("min_run", "weight", "loose_weight", "pull", "max_return", "far", "min_copies",
-                 "block_runs"):
-        if not _positive(getattr(value, name)):
-            raise ParameterError(f"motion.{name}", f"must be a positive number, "
-                                                   f"got {getattr(value, name)!r}")
-    for name in ("holdout", "min_gain", "min_purity", "loose_return"):
-        v = getattr(value, name)
-        if not (isinstance(v, numbers.Real) and not isinstance(v, bool) and 0 <= v < 1):
-            raise ParameterError(f"motion.{name}", f"must be a number in [0, 1), got {v!r}")
-    for name in ("margin", "fallback_variance"):
-        v = getattr(value, name)
-        if not _positive(v) or v > 1:
-            raise ParameterError(f"motion.{name}", f"must be a number in (0, 1], got {v!r}")
-    c = value.confidence
-    if not (isinstance(c, numbers.Real) and not isinstance(c, bool) and np.isfinite(c) and c >= 0):
-        raise ParameterError("motion.confidence", f"must be a number >= 0, got {c!r}")
-    if value.pull > 1:
-        raise ParameterError("motion.pull", f"must be at most 1, got {value.pull!r}")
+    _POSITIVE(value.min_run, "motion.min_run")
+    for name, cls in GROUPS.items():
+        _group(cls, getattr(value, name), f"motion.{name}")
     return value
 
 
