@@ -40,8 +40,8 @@ def fallback_reason(info: dict) -> str | None:
     if not info.get("odometry", True):
         return ("no odometry could be learned from the actions: walks that return to a view do "
                 f"not cancel their commands' moves (return ratios {info['return_ratios']}, at "
-                "most max_return kept); turn / forward commands move a robot differently with "
-                "its heading")
+                "most places.max_return kept); turn / forward commands move a robot differently "
+                "with its heading")
     if "mean_misplaced" not in check:  # the cross-fitted check: one error per map
         return (f"the held-out check placed the log's last {check['held_out']} steps no nearer "
                 f"their own pose graph with the places ({check['places']:.3f} cell extents) than "
