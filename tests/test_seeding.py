@@ -5,7 +5,8 @@ import pytest
 from sklearn.cluster import KMeans, kmeans_plusplus
 
 from topomap.core.phase1.clustering import Euclidean, FixedClusters, cluster_observations
-from topomap.core.phase1.seeding import MIN_CLUSTERS, PrunedPlusPlus, _rows_within_reach
+from topomap.core.phase1.seeding import (MIN_CLUSTERS, PRUNED_CLUSTERS, PrunedPlusPlus,
+                                         _rows_within_reach)
 
 
 def blobs(n_blobs, per_blob, dim, seed, spread=0.05):
@@ -86,3 +87,53 @@ def test_ties_are_broken_as_scikit_learn_breaks_them(seed):
     theirs, _ = kmeans_plusplus(X, 450, random_state=np.random.RandomState(seed))
     ours = PrunedPlusPlus()(X, 450, np.random.RandomState(seed))
     assert np.array_equal(ours, theirs)
+
+
+def test_from_pruned_clusters_on_the_pruned_seeding_gives_scikit_learns_labels(monkeypatch):
+    """Between PRUNED_CLUSTERS and MIN_CLUSTERS clusters phase 1 seeds with the pruned k-means++
+    (and iterates by Lloyd's algorithm): the labels of the plain KMeans, numbered by first
+    appearance -- and the pruned seeding is the one that ran."""
+    import topomap.core.phase1.clustering as clustering
+
+    ns = (PRUNED_CLUSTERS + MIN_CLUSTERS) // 2
+    X = blobs(ns, 12, 6, 11, spread=0.01)
+    calls = []
+    real = clustering.PrunedPlusPlus
+
+    class Counted(real):
+        def __call__(self, *args, **kwargs):
+            calls.append(args[1])
+            return super().__call__(*args, **kwargs)
+
+    monkeypatch.setattr(clustering, "PrunedPlusPlus", Counted)
+    ours, details = cluster_observations(X, FixedClusters(ns), Euclidean(), n_init=2,
+                                         random_state=0)
+    plain = KMeans(n_clusters=ns, n_init=2, random_state=0).fit_predict(X)
+    assert details["method"] == "full" and calls == [ns, ns]  # one seeding per start
+    _, first, inverse = np.unique(plain, return_index=True, return_inverse=True)
+    rank = np.argsort(np.argsort(first))
+    assert np.array_equal(ours, rank[inverse])
+
+
+def test_below_pruned_clusters_scikit_learns_own_seeding_runs(monkeypatch):
+    import topomap.core.phase1.clustering as clustering
+
+    assert PRUNED_CLUSTERS > 10
+    monkeypatch.setattr(clustering, "PrunedPlusPlus", None)  # calling it would fail
+    X = blobs(10, 20, 3, 12, spread=0.01)  # ten tight blobs: ten clusters, one each
+    labels, _ = cluster_observations(X, FixedClusters(10), Euclidean(), n_init=2,
+                                     random_state=0)
+    assert np.unique(labels).size == 10
+
+
+def test_one_blas_thread_limits_every_blas_and_restores_it():
+    from threadpoolctl import threadpool_info
+
+    from topomap.core.phase1.clustering import one_blas_thread
+
+    before = [lib["num_threads"] for lib in threadpool_info() if lib["user_api"] == "blas"]
+    with one_blas_thread():
+        inside = [lib["num_threads"] for lib in threadpool_info() if lib["user_api"] == "blas"]
+    after = [lib["num_threads"] for lib in threadpool_info() if lib["user_api"] == "blas"]
+    assert inside and all(n == 1 for n in inside)
+    assert after == before

@@ -32,10 +32,10 @@ How K-means runs (``method`` of :func:`cluster_observations`, ``MapLearner(phase
     on a seeded sample of that size), else ``"sample"``.  So every run of up to 20,000 steps
     whose rows do not repeat gets the exact full fit.
 
-All methods run with single-threaded BLAS (see :func:`_run`).  From ``MIN_CLUSTERS`` (100)
-clusters on, ``KMeans`` is seeded by :class:`~topomap.core.phase1.seeding.PrunedPlusPlus` and
-iterated by Elkan's algorithm: scikit-learn's own k-means++ and Lloyd iterations with the
-distances the triangle inequality rules out left uncomputed.  From that many clusters on, the
+All methods run with single-threaded BLAS (see :func:`_run`).  From ``PRUNED_CLUSTERS`` (50)
+clusters on, ``KMeans`` is seeded by :class:`~topomap.core.phase1.seeding.PrunedPlusPlus`, and
+from ``MIN_CLUSTERS`` (100) on also iterated by Elkan's algorithm: scikit-learn's own k-means++
+and Lloyd iterations with the distances the triangle inequality rules out left uncomputed.  From that many clusters on, the
 ``"full"``, ``"distinct"`` and ``"sample"`` fits are also checked for a view cut in two
 (:mod:`topomap.core.phase1.repair`): two centres closer than half their clusters' rms spread are
 joined and K-means runs again, kept only when its inertia falls by at least 1 %; what was found
@@ -49,13 +49,13 @@ from numba import njit
 from sklearn import config_context
 from sklearn.cluster import KMeans, MiniBatchKMeans
 from sklearn.mixture import GaussianMixture
-from threadpoolctl import threadpool_limits
+from threadpoolctl import ThreadpoolController
 
 from ..checks import ParameterError, check_count
 from ..progress import report
 from .distinct import distinct_rows
 from .repair import repair_cut_views
-from .seeding import MIN_CLUSTERS, PrunedPlusPlus
+from .seeding import MIN_CLUSTERS, PRUNED_CLUSTERS, PrunedPlusPlus
 
 __all__ = [
     "Euclidean",
@@ -243,7 +243,7 @@ def view_clusters(Z, k: int, n_init: int, random_state) -> np.ndarray:
     The one clustering of the views into as many clusters as a map has states: the view
     clusters a continuous log's map falls back to (:mod:`topomap.core.motion`) and the
     yardstick "K-means on the views" (:func:`topomap.evaluation.metres.kmeans_view_scores`)."""
-    with threadpool_limits(limits=1, user_api="blas"):
+    with one_blas_thread():
         labels = KMeans(int(k), n_init=int(n_init), random_state=random_state).fit(Z).labels_
     labels = np.asarray(labels, dtype=np.int64)
     rename, _ = first_appearance_order(labels, int(k))
@@ -251,12 +251,16 @@ def view_clusters(Z, k: int, n_init: int, random_state) -> np.ndarray:
 
 
 def _kmeans(ns, n_init, random_state, sample_weight=None):
-    """scikit-learn's ``KMeans``; from :data:`MIN_CLUSTERS` clusters on seeded by
-    :class:`PrunedPlusPlus` (its k-means++ with fewer distances computed) and run by Elkan's
-    algorithm (Lloyd's iterations with the distances the triangle inequality rules out skipped:
-    FourRooms' 450 clusters in 0.6 of Lloyd's time, the same labels)."""
-    if ns < MIN_CLUSTERS:
+    """scikit-learn's ``KMeans``; from :data:`PRUNED_CLUSTERS` clusters on seeded by
+    :class:`PrunedPlusPlus` (its k-means++ with fewer distances computed, the same centres), from
+    :data:`MIN_CLUSTERS` on also run by Elkan's algorithm (Lloyd's iterations with the distances
+    the triangle inequality rules out skipped: FourRooms' 450 clusters in 0.6 of Lloyd's time,
+    the same labels)."""
+    if ns < PRUNED_CLUSTERS:
         return KMeans(n_clusters=ns, n_init=n_init, random_state=random_state)
+    if ns < MIN_CLUSTERS:
+        return KMeans(n_clusters=ns, init=PrunedPlusPlus(sample_weight), n_init=n_init,
+                      random_state=random_state)
     return KMeans(n_clusters=ns, init=PrunedPlusPlus(sample_weight), n_init=n_init,
                   random_state=random_state, algorithm="elkan")
 
@@ -322,13 +326,24 @@ _FITTERS = {"full": _fit_full, "distinct": _fit_distinct, "sample": _fit_sample,
             "minibatch": _fit_minibatch}
 
 
+_BLAS = []
+
+
+def one_blas_thread():
+    """``threadpoolctl``'s limit of every BLAS to one thread, from one controller made at the
+    first call (a ``threadpool_limits`` looks up every loaded library anew: about 5 ms)."""
+    if not _BLAS:
+        _BLAS.append(ThreadpoolController())
+    return _BLAS[0].limit(limits=1, user_api="blas")
+
+
 def _run(method, Z, ns, **kw):
     """Run a fitter with single-threaded BLAS.  k-means++ multiplies many small matrices, which
     multithreaded OpenBLAS makes 3-15x slower on a busy 2-core machine (scikit-learn already
     limits BLAS inside its Lloyd and assignment loops).  Each product's entries are computed
     the same way whatever the thread count: the full fit's labels were checked identical with
     and without the limit (12 data sets, and every configuration of the identity tests)."""
-    with threadpool_limits(limits=1, user_api="blas"):
+    with one_blas_thread():
         return _FITTERS[method](Z, ns, **kw)
 
 
