@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numbers
 
-__all__ = ["ParameterError", "check_count"]
+__all__ = ["ParameterError", "check_count", "checked_group"]
 
 
 class ParameterError(ValueError):
@@ -50,3 +50,26 @@ def check_count(value, param: str, *, minimum: int = 1, allow_none: bool = False
         raise ParameterError(param, f"must be {what}{' or None' if allow_none else ''}, "
                                     f"got {value!r}")
     return int(value)
+
+
+def checked_group(cls, value, key: str, checks: dict, convert=dict):
+    """``value`` -- a ``cls`` (a frozen settings dataclass) or a mapping of some of its fields,
+    made a ``cls`` through ``convert`` -- with each field passed to its check of ``checks``
+    (``check(value, "<key>.<field>")``); a :class:`ParameterError` names ``<key>.<field>``, or
+    ``key`` for a value of another kind."""
+    from collections.abc import Mapping
+    from dataclasses import fields
+
+    names = [f.name for f in fields(cls)]
+    if isinstance(value, Mapping):
+        unknown = sorted(set(value) - set(names))
+        if unknown:
+            raise ParameterError(f"{key}.{unknown[0]}", f"is not a {key} setting; the "
+                                                        f"settings are {', '.join(names)}")
+        value = cls(**convert(value))
+    if not isinstance(value, cls):
+        raise ParameterError(key, f"must be {cls.__name__} or a mapping of its fields, got "
+                                  f"{value!r}")
+    for name, check in checks.items():
+        check(getattr(value, name), f"{key}.{name}")
+    return value

@@ -31,7 +31,7 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
-from ..checks import ParameterError, check_count
+from ..checks import ParameterError, check_count, checked_group
 from .renamed import fold_motion
 
 __all__ = ["MODES", "RULES", "PlaceSettings", "CheckSettings", "MotionSettings",
@@ -210,19 +210,7 @@ GROUPS = {"places": PlaceSettings, "check": CheckSettings}
 def _group(cls, value, key: str):
     """``value`` -- a ``cls`` or a mapping of some of its fields -- as checked settings; a
     :class:`ParameterError` names ``<key>.<field>``."""
-    names = [f.name for f in fields(cls)]
-    if isinstance(value, Mapping):
-        unknown = sorted(set(value) - set(names))
-        if unknown:
-            raise ParameterError(f"{key}.{unknown[0]}", f"is not a {key} setting; the settings "
-                                                        "are " + ", ".join(names))
-        value = cls(**_listed(value))
-    if not isinstance(value, cls):
-        raise ParameterError(key, f"must be {cls.__name__} or a mapping of its fields, got "
-                                  f"{value!r}")
-    for name, check in CHECKS[cls].items():
-        check(getattr(value, name), f"{key}.{name}")
-    return value
+    return checked_group(cls, value, key, CHECKS[cls], _listed)
 
 
 def motion_settings(value, stacklevel: int = 2) -> MotionSettings:

@@ -24,12 +24,11 @@ what it is: ``benchmarks/notes/settings.md``.
 from __future__ import annotations
 
 import numbers
-from collections.abc import Mapping
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 
 import numpy as np
 
-from ..checks import ParameterError, check_count
+from ..checks import ParameterError, check_count, checked_group
 from .accelerate import ACCELERATIONS
 from .budget import BUDGETS
 from .first_stage import FIRSTS
@@ -282,16 +281,4 @@ def settings_of(cls, value, group: str):
     """``value`` -- a ``cls`` (one of the settings classes above) or a mapping of some of its
     fields -- as checked settings; a :class:`~topomap.core.checks.ParameterError` names
     ``<group>.<field>`` (``hard.max_iter``), or ``group`` for a value of another kind."""
-    names = [f.name for f in fields(cls)]
-    if isinstance(value, Mapping):
-        unknown = sorted(set(value) - set(names))
-        if unknown:
-            raise ParameterError(f"{group}.{unknown[0]}", f"is not a {group} setting; the "
-                                                          f"settings are {', '.join(names)}")
-        value = cls(**value)
-    if not isinstance(value, cls):
-        raise ParameterError(group, f"must be {cls.__name__} or a mapping of its fields, got "
-                                    f"{value!r}")
-    for name, check in CHECKS[cls].items():
-        check(getattr(value, name), f"{group}.{name}")
-    return value
+    return checked_group(cls, value, group, CHECKS[cls])
