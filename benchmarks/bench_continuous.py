@@ -29,8 +29,9 @@ call: ``MapLearner(n_clusters, n_states, refine="em", random_state=0)``, motion=
 ``unchecked`` (the shipped route without its held-out check: the places always,
 ``MotionSettings(check={"holdout": 0})``), ``crossfit`` (the shipped route with the one
 cross-fitted rule, ``MotionSettings(check={"rule": "crossfit"})``; ``crossfit10`` and
-``crossfit15`` hold out 10 and 15 %), ``folds`` (``check.rule="folds"``, the default's rule,
-named),
+``crossfit15`` hold out 10 and 15 %), ``bootstrap`` (``check.rule="bootstrap"``, the
+default's rule, named: the crossfit's figures, the places kept unless the view clusters beat them
+by two bootstrap standard errors), ``folds`` (``check.rule="folds"``, the rule before),
 ``one_gate`` (the shipped route with one gate of 3 cell extents),
 ``no_odometry`` (places are the view clusters: K-means with as many clusters as states, each its
 own Gaussian, decoded by the map), ``merged_runs`` (runs of one symbol merged into one step, split
@@ -203,8 +204,9 @@ def route(name, train, held, ns, S, regions, seed):
                                   **kw), train, held, regions)
     if name in ("shipped", "unchecked", "one_gate", "folds3", "unscaled", "no_vote",
                 "confidence2", "weight1", "weight05", "crossfit", "folds", "crossfit10",
-                "crossfit15"):
+                "crossfit15", "bootstrap"):
         motion = {"shipped": MotionSettings(),
+                  "bootstrap": MotionSettings(check={"rule": "bootstrap"}),
                   "crossfit": MotionSettings(check={"rule": "crossfit"}),
                   "crossfit10": MotionSettings(check={"rule": "crossfit", "holdout": 0.1}),
                   "crossfit15": MotionSettings(check={"rule": "crossfit", "holdout": 0.15}),
