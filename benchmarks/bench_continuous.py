@@ -80,7 +80,7 @@ ROOMS = ("two_rooms", "four_rooms", "corridor", "open", "alcoves")
 #: floor plans kept out of the main table: layouts the default was not developed on
 UNSEEN = ("l_rooms", "pillars", "three_rooms", "grid6", "ring", "sizes")
 ROUTES = ("split", "em", "views", "ceiling", "positions", "shipped", "unchecked", "crossfit",
-          "folds", "crossfit10", "crossfit15", "one_gate",
+          "folds", "crossfit10", "crossfit15", "bootstrap", "one_gate",
           "no_odometry", "merged_runs", "fallback", "folds3", "unscaled", "no_vote",
           "confidence2", "self_decoded", "weight1", "weight05")
 #: the main sensor: 12 compass beams, max range 3 m, noise 0.02; random motion 0.16 m/s, 10 Hz
