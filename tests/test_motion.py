@@ -11,6 +11,9 @@ from topomap.core.motion.odometry import (action_vectors, dead_reckoning, odomet
 from topomap.core.motion import MotionSettings, is_continuous, mean_run
 from topomap.worlds import GridRoom, RandomExplorer
 
+#: the rule these tests of the folds and their votes are about (not the default)
+FOLDS = MotionSettings(check={"rule": "folds"})
+
 
 def test_mean_run_counts_runs_within_episodes():
     # one episode: runs 00 | 111 | 2 -> 6 steps / 3 runs
@@ -143,7 +146,7 @@ def test_the_check_holds_out_successive_quarters_and_keeps_the_places_on_their_s
     # fold i learns from the steps before 6,000 - 2,000 i and decodes the 2,000 after them; a
     # fourth fold would learn from no step, so four folds asked for give three
     learner = MapLearner(n_clusters=4, n_states=8, random_state=0,
-                         motion=MotionSettings(check={"folds": 4})).fit(Z, u)
+                         motion=MotionSettings(check={"rule": "folds", "folds": 4})).fit(Z, u)
     check = learner.motion_info_["check"]
     assert [f["learned"] for f in check["folds"]] == [6000, 4000, 2000]
     assert [f["held_out"] for f in check["folds"]] == [2000, 2000, 2000]
@@ -206,7 +209,7 @@ def test_the_check_falls_back_to_the_views_where_they_place_steps_alone():
     # every view is seen at one place: positions add nothing the views do not say, so the
     # places cannot misplace fewer held-out steps than the view clusters do
     Z, u, _ = _distinct_line()
-    learner = MapLearner(n_clusters=16, n_states=32, random_state=0).fit(Z, u)
+    learner = MapLearner(n_clusters=16, n_states=32, random_state=0, motion=FOLDS).fit(Z, u)
     info = learner.motion_info_
     assert info["odometry"] and info["chosen"] == "views"
     misplaced = info["check"]["mean_misplaced"]  # over the two held-out quarters
@@ -215,7 +218,7 @@ def test_the_check_falls_back_to_the_views_where_they_place_steps_alone():
     # for more than 1.5 per cluster, the check is not run at all
     assert info["view_clusters"] < info["copies"][1] < 1.5 * info["view_clusters"]
     unchecked_views = MapLearner(n_clusters=16, n_states=32, random_state=0,
-                                 motion=MotionSettings(check={"min_copies": 1.5})).fit(Z, u)
+                                 motion=MotionSettings(check={"rule": "folds", "min_copies": 1.5})).fit(Z, u)
     assert unchecked_views.motion_info_["check"] == "the middle gate kept one copy per view " \
                                                    "cluster"
     np.testing.assert_array_equal(unchecked_views.labels_, learner.labels_)
@@ -276,10 +279,10 @@ def test_places_that_cut_across_the_views_give_way_to_the_view_clusters():
     purity = view_purity(places.labels_, view_clusters(Z, 8, n_init=4, random_state=0))
     assert 0 < purity < 1
     below = MapLearner(n_clusters=4, n_states=8, random_state=0,
-                       motion={"check": {"min_purity": purity - 1e-6}}).fit(Z, u)
+                       motion={"check": {"rule": "folds", "min_purity": purity - 1e-6}}).fit(Z, u)
     assert below.motion_info_.get("check") != "the places cut across the view clusters"
     above = MapLearner(n_clusters=4, n_states=8, random_state=0,
-                       motion={"check": {"min_purity": purity + 1e-6}}).fit(Z, u)
+                       motion={"check": {"rule": "folds", "min_purity": purity + 1e-6}}).fit(Z, u)
     info = above.motion_info_
     assert info["chosen"] == "views" and info["check"] == "the places cut across the view clusters"
     assert info["purity"] == round(purity, 4)
@@ -445,7 +448,8 @@ def test_most_of_three_quarters_each_alone_outvote_a_mean_of_two():
     assert not outvoted(three[:2], votes=2, min_gain=0.02)    # one of two is not most
     # a default fit holds out three quarters, the mean read on the last two
     Z, u, _ = _alike_halves()
-    check = MapLearner(n_clusters=4, n_states=8, random_state=0).fit(Z, u).motion_info_["check"]
+    check = MapLearner(n_clusters=4, n_states=8, random_state=0,
+                       motion=FOLDS).fit(Z, u).motion_info_["check"]
     assert [f["learned"] for f in check["folds"]] == [6000, 4000, 2000]
     for name in ("places", "views"):
         pooled = (sum(f["misplaced_steps"][name] for f in check["folds"][:2])
@@ -516,7 +520,7 @@ def test_discrete_worlds_keep_the_map_of_the_split():
      r"^motion\.check\.confidence must be a number >= 0"),
     ({"check": {"block_runs": 0}}, r"^motion\.check\.block_runs must be a positive number"),
     ({"check": {"min_purity": 1.0}}, r"^motion\.check\.min_purity must be a number in \[0, 1\)"),
-    ({"check": {"rule": "cross"}}, r"^motion\.check\.rule must be one of folds, crossfit"),
+    ({"check": {"rule": "cross"}}, r"^motion\.check\.rule must be one of bootstrap, crossfit, folds"),
 ])
 def test_bad_motion_is_named(motion, message):
     Z, u, _ = _alike_halves(500)
@@ -606,7 +610,8 @@ def test_the_held_out_parts_cut_their_places_with_the_whole_logs_weight():
     bar = (ratio + part.info["return_ratios"][0]) / 2
     assert part.info["return_ratios"][0] > bar > ratio
     learner = MapLearner(n_clusters=4, n_states=8, random_state=0,
-                         motion=MotionSettings(places={"loose_return": bar})).fit(Z, u)
+                         motion=MotionSettings(places={"loose_return": bar},
+                                                 check={"rule": "folds"})).fit(Z, u)
     folds = learner.motion_info_["check"]["folds"]
     assert learner.motion_info_["weight"] == 1.0 and folds
     assert all(f["weight"] == 1.0 for f in folds)
@@ -617,13 +622,15 @@ def test_places_at_the_default_weight_are_checked_where_the_loosely_weighted_one
     # every log loose (a bar of 0.001), its loose weight so small that the places are all but
     # the view clusters, which cannot tell the alike halves apart: the check gives them up,
     # and the places at weight 1 -- those the check keeps on this log -- are checked in turn
-    motion = MotionSettings(places={"loose_return": 0.001, "loose_weight": 0.01})
+    motion = MotionSettings(places={"loose_return": 0.001, "loose_weight": 0.01},
+                            check={"rule": "folds"})
     learner = MapLearner(n_clusters=4, n_states=8, random_state=0, motion=motion).fit(Z, u)
     info = learner.motion_info_
     assert info["loose"]["weight"] == 0.01 and info["loose"]["chosen"] == "views"
     assert info["chosen"] == "places" and info["weight"] == 1.0
     assert _mixed_share(learner.labels_, x) < 0.02
     # no second try where the default weight is the loose one
-    same = MotionSettings(places={"loose_return": 0.001, "loose_weight": 1.0})
+    same = MotionSettings(places={"loose_return": 0.001, "loose_weight": 1.0},
+                          check={"rule": "folds"})
     info = MapLearner(n_clusters=4, n_states=8, random_state=0, motion=same).fit(Z, u).motion_info_
     assert "loose" not in info and info["chosen"] == "places"

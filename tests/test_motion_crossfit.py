@@ -133,6 +133,60 @@ def test_an_unknown_check_is_named():
     from topomap.core.checks import ParameterError
     from topomap.core.motion import motion_settings
 
-    with pytest.raises(ParameterError, match="motion.check.*folds, crossfit.*'cross'"):
+    with pytest.raises(ParameterError, match="motion.check.*bootstrap, crossfit, folds.*'cross'"):
         motion_settings({"check": "cross"})
     assert motion_settings({"check": {"rule": "crossfit"}}).check.rule == "crossfit"
+
+
+def test_each_held_out_block_is_moved_by_its_own_offset():
+    from topomap.core.motion.crossfit import aligned_distances
+
+    frame = np.arange(20.0).reshape(10, 2)
+    placed = frame.copy()
+    groups = np.repeat([0, 1], 5)
+    placed[groups == 1] += [7.0, -2.0]  # the second block's frame starts elsewhere
+    np.testing.assert_allclose(aligned_distances(placed, frame, groups), 0.0, atol=1e-12)
+    placed[0] += [0.0, 3.0]  # one step of five off: the median offset stays, the step is 3 off
+    np.testing.assert_allclose(aligned_distances(placed, frame, groups),
+                               [3, 0, 0, 0, 0, 0, 0, 0, 0, 0], atol=1e-12)
+    # one group for all: the offset (3.5, -1) between the median blocks puts every step 3.6 off
+    assert np.all(aligned_distances(placed, frame, np.zeros(10)) > 3.6)
+
+
+def test_the_median_gap_and_its_noise_over_stretches():
+    from topomap.core.motion.crossfit import median_gap
+
+    places = np.tile([1.0, 2.0, 3.0], 10)
+    gap, se = median_gap(places, places + 0.5, stretch=3)
+    # every stretch holds the same three distances: every draw gives the same gap
+    assert gap == pytest.approx(0.5) and se == pytest.approx(0.0)
+    assert median_gap(places, places, stretch=30)[1] == float("inf")  # one stretch: no spread
+    rng = np.random.default_rng(0)
+    noisy = places + rng.normal(0.0, 1.0, places.size)
+    assert median_gap(places, noisy, stretch=3)[1] > 0.1
+
+
+def test_the_default_check_keeps_the_view_clusters_where_places_are_built_to_lose():
+    Z, u, x = _line()
+    kw = dict(n_clusters=16, n_states=32, random_state=0)
+    heavy = {"weight": 10.0, "loose_weight": 10.0}  # positions outweigh the views
+    places = MapLearner(**kw, motion={"places": heavy, "check": {"holdout": 0}}).fit(Z, u)
+    with pytest.warns(UserWarning, match="standard errors"):
+        checked = MapLearner(**kw, motion={"places": heavy}).fit(Z, u)
+    check = checked.motion_info_["check"]
+    assert check["rule"] == "bootstrap"  # the default rule
+    assert checked.motion_info_["chosen"] == "views" and check["gap"] < -2 * check["se"]
+    assert (check["learned"], check["held_out"]) == (6000, 2000)
+    assert _new_walk_error(places, x) > _new_walk_error(checked, x)  # the truth agrees
+
+
+def test_the_default_check_keeps_places_that_tell_alike_halves_apart():
+    Z, u, x = _line(jitter=0.1, period=1.0)  # the view of x is that of x + 1
+    learner = MapLearner(n_clusters=4, n_states=8, random_state=0).fit(Z, u)
+    assert learner.motion_info_["chosen"] == "places"
+    assert learner.motion_info_["check"]["rule"] == "bootstrap"
+    halves = x > 1.0
+    purity = sum(max(np.sum(halves & (learner.labels_ == s)),
+                     np.sum(~halves & (learner.labels_ == s)))
+                 for s in np.unique(learner.labels_)) / x.size
+    assert purity > 0.95

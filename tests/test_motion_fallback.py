@@ -43,7 +43,8 @@ def test_places_kept_say_nothing():
 def test_the_check_that_prefers_the_view_clusters_is_named_with_its_shares():
     Z, u = _line(period=2.0)  # every view at one place: positions add nothing
     with pytest.warns(ContinuousFallbackWarning, match="held-out check") as caught:
-        learner = MapLearner(n_clusters=16, n_states=32, random_state=0).fit(Z, u)
+        learner = MapLearner(n_clusters=16, n_states=32, random_state=0,
+                             motion={"check": {"rule": "folds"}}).fit(Z, u)
     info = learner.motion_info_
     assert info["chosen"] == "views"
     shares = info["check"]["mean_misplaced"]

@@ -37,7 +37,7 @@ from sklearn.metrics import pairwise_distances_argmin
 
 from ..size import split_holdout
 from ..stats import majority_share
-from .crossfit import cross_fitted
+from .crossfit import FOLD_STARTS, MARGIN_SE, cross_fitted
 from .odometry import odometric_positions, reckoned_steps
 from .places import Places, cut_places
 from .settings import MotionSettings
@@ -213,7 +213,7 @@ def choose_places(settings: MotionSettings, X, Z, u, lengths, n_states: int, n_a
     loose weight give way to the view clusters, the places cut with ``places.weight`` are
     checked in turn (on ``ring`` at 50 Hz, seed 0, those kept alike rooms apart where the loosely
     weighted ones did not); ``info["loose"]`` then says what the first try chose and why."""
-    if settings.check.rule == "crossfit":
+    if settings.check.rule in ("crossfit", "bootstrap"):
         return _crossfit(settings, X, Z, u, lengths, n_states, n_actions, build, **kmeans)
     labels, info = _choose(settings, X, Z, u, lengths, n_states, n_actions, build, **kmeans)
     weight = settings.places.weight
@@ -247,17 +247,27 @@ def _cut(settings: MotionSettings, Z, u, lengths, n_states: int, n_actions: int,
 
 def _crossfit(settings: MotionSettings, X, Z, u, lengths, n_states: int, n_actions: int,
               build, **kmeans) -> tuple[np.ndarray, dict]:
-    """:func:`choose_places` by the one rule of :func:`~topomap.core.motion.crossfit.cross_fitted`:
-    the places where their held-out error is below the view clusters'."""
+    """:func:`choose_places` by one rule: ``check.rule="bootstrap"``, the places unless the
+    view clusters' held-out error is below theirs by more than
+    :data:`~topomap.core.motion.crossfit.MARGIN_SE` standard errors (its ``gap`` and ``se``);
+    ``"crossfit"``, the places where their error is below the view clusters'
+    (:func:`~topomap.core.motion.crossfit.cross_fitted`'s figures)."""
     whole, info, done = _cut(settings, Z, u, lengths, n_states, n_actions, **kmeans)
     if done is not None:
         return done
+    bootstrap = settings.check.rule == "bootstrap"
     check = cross_fitted(settings, X, Z, u, lengths, n_states, n_actions, build,
-                         weight=info["weight"], **kmeans)
+                         starts=FOLD_STARTS if bootstrap else None, weight=info["weight"],
+                         **kmeans)
     if check is None:
         return whole.views, dict(info, chosen="views",
                                   check="the held-out check's first part gave no odometry")
-    chosen = "places" if check["places"] < check["views"] else "views"
+    if bootstrap:
+        check = dict(check, rule="bootstrap")
+        lose = check["gap"] < -MARGIN_SE * check["se"]
+    else:
+        lose = not check["places"] < check["views"]
+    chosen = "views" if lose else "places"
     return (whole.places if chosen == "places" else whole.views), dict(info, chosen=chosen,
                                                                       check=check)
 

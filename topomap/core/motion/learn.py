@@ -19,6 +19,7 @@ import numpy as np
 
 from ..map.model import TopologicalMap
 from .check import choose_places
+from .crossfit import MARGIN_SE
 from .settings import MotionSettings, is_continuous
 
 __all__ = ["fit_places", "pooled_variances", "fallback_reason", "ContinuousFallbackWarning"]
@@ -42,6 +43,11 @@ def fallback_reason(info: dict) -> str | None:
                 f"not cancel their commands' moves (return ratios {info['return_ratios']}, at "
                 "most places.max_return kept); turn / forward commands move a robot differently "
                 "with its heading")
+    if check.get("rule") == "bootstrap":  # the views' gain beyond its noise
+        return (f"the held-out check placed the log's last {check['held_out']} steps nearer "
+                f"their own pose graph with the view clusters ({check['views']:.3f} cell "
+                f"extents) than with the places ({check['places']:.3f}), by more than "
+                f"{MARGIN_SE:g} standard errors ({check['se']:.3f})")
     if "mean_misplaced" not in check:  # the cross-fitted check: one error per map
         return (f"the held-out check placed the log's last {check['held_out']} steps no nearer "
                 f"their own pose graph with the places ({check['places']:.3f} cell extents) than "
