@@ -3,8 +3,9 @@
 Places cut from views and odometry (:func:`~topomap.core.motion.places.cut_places`) beat the view
 clusters where alike rooms are told apart by the way in, but can lose to them where alike views
 carry no history worth the cost: in an open room, where the view alone places a step as well, a
-place that straddles the noise of the odometry only adds it.  No positions are known, so the
-check asks the geometry the log has: both maps are learned on the first part of the log and
+place that straddles the noise of the odometry only adds it.  The default rule
+(``check.rule="bootstrap"``, and ``"crossfit"``) is :mod:`topomap.core.motion.crossfit`'s; what
+follows is the ``"folds"`` rule.  No positions are known, so the check asks the geometry the log has: both maps are learned on the first part of the log and
 decode the rest (:meth:`~topomap.core.map.model.TopologicalMap.predict`, as any new walk); each
 decoded state stands at the mean odometric position of its training steps; the odometric
 positions of the held-out steps are the same filter run on
@@ -41,6 +42,10 @@ from .crossfit import FOLD_STARTS, MARGIN_SE, cross_fitted
 from .odometry import odometric_positions, reckoned_steps
 from .places import Places, cut_places
 from .settings import MotionSettings
+
+#: steps: the least a held-out part holds (a shorter log, or a fold that would leave fewer
+#: before it, is not checked); a few dozen runs of one view at 10-50 Hz, not varied
+MIN_PART = 100
 
 __all__ = ["held_out_frame", "frame_error", "misplaced_rows", "misplaced_steps", "misplaced_share",
            "keeps_places", "outvoted", "pooled_shares", "gain_blocks", "gain_noise", "clears_noise",
@@ -240,7 +245,7 @@ def _cut(settings: MotionSettings, Z, u, lengths, n_states: int, n_actions: int,
         return whole, info, (whole.views, dict(info, chosen="views"))
     T = len(u)
     holdout = settings.check.holdout
-    if holdout == 0 or T * min(holdout, 1 - holdout) < 100:
+    if holdout == 0 or T * min(holdout, 1 - holdout) < MIN_PART:
         return whole, info, (whole.places, dict(info, chosen="places"))
     return whole, info, None
 
@@ -292,7 +297,7 @@ def _choose(settings: MotionSettings, X, Z, u, lengths, n_states: int, n_actions
     block = max(1, int(round(settings.check.block_runs * info["mean_run"])))
     folds = []
     for i in range(max(settings.check.folds, settings.check.votes)):
-        if T - (i + 1) * step < 100:
+        if T - (i + 1) * step < MIN_PART:
             break
         fold = _fold(settings, X, Z, u, lengths, T - i * step, step, build, n_states,
                      n_actions, block=block, **kmeans)
