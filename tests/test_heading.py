@@ -230,3 +230,22 @@ def test_no_turns_same_map():
 def test_bad_heading_names_the_parameter():
     with pytest.raises(ParameterError, match="^heading must be one of auto, on, off"):
         MapLearner(heading="yes").fit(np.zeros((10, 2)), np.zeros(10, dtype=int))
+
+
+def test_partial_fit_learns_the_heading_as_fit_does():
+    """Passes on every step seen pair the views with the heading as ``fit`` does; once steps
+    leave the window, the codebook's symbols are the views the pairs were made of."""
+    sym, u, poses = walk(3000, mark=(1, 1))
+    X, n_views = one_hot(sym), int(sym.max()) + 1
+    kw = dict(n_clusters=n_views, n_states=16, random_state=0)
+    online = MapLearner(**kw)
+    for rows in np.array_split(np.arange(sym.size), 3):
+        online.partial_fit(X[rows], u[rows])
+    assert online.heading_["used"] and online.map_phase1_.n_states == np.unique(
+        sym * 4 + poses % 4).size
+    assert adjusted_rand(poses, online.labels_) == 1.0
+    small = MapLearner(**kw, window=1000, refit_every=500)
+    for rows in np.array_split(np.arange(sym.size), 6):
+        small.partial_fit(X[rows], u[rows])
+    assert small.heading_["used"]
+    assert adjusted_rand(poses[-1000:], small.labels_[-1000:]) == 1.0

@@ -24,7 +24,7 @@ from .split.criteria import CRITERIA
 from .split.stopping import TargetStates
 
 __all__ = ["make_components", "make_refinement", "fit_refinement", "refinement_label", "naming",
-           "within_told_size", "fold_renamed", "set_params", "RENAMED"]
+           "within_told_size", "fold_renamed", "set_params", "RENAMED", "phase1_symbols"]
 
 #: the learner's own parameter behind a parameter of a component it makes itself
 #: (``FixedClusters(n_clusters)``, ``TargetStates(n_states)``)
@@ -183,14 +183,14 @@ def symbol_hint(learner, data, refinement):
     if growth is None or growth.first != "auto" or \
             "ambiguity" not in inspect.signature(refinement.fit).parameters:
         return None
-    labels, rows = _symbols_of(learner)
+    labels, rows = phase1_symbols(learner)
     m = learner.map_phase1_
     learner.symbol_ambiguity_ = symbol_ambiguity(data.X, labels, m.means[rows],
                                                  m.covariances[rows], learner.random_state)
     return learner.symbol_ambiguity_
 
 
-def _symbols_of(learner):
+def phase1_symbols(learner):
     """``(labels, rows)``: every step's K-means symbol (GDS steps ``ns + g``) and the phase-1
     map's state of every symbol, whose observation model is the symbol's: the phase-1 labels
     and states themselves, unless phase 1's states are (symbol, heading) pairs
@@ -212,7 +212,7 @@ def observation_hint(learner, data, refinement, steps=None):
     if reading is None or "observed" not in inspect.signature(refinement.fit).parameters or \
             reading.temperature == 0:
         return None
-    (_, rows), m = _symbols_of(learner), learner.map_phase1_
+    (_, rows), m = phase1_symbols(learner), learner.map_phase1_
     X = data.X if steps is None else data.X[:steps]
     headed = getattr(learner, "_headed", None)
 

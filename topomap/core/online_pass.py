@@ -12,6 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 from sklearn.base import clone
 
+from .components import phase1_symbols
 from .data.trajectory import check_fit_data
 from .online import OnlineState, lengths_of
 from .refining import symbol_map
@@ -68,7 +69,7 @@ def wider_pass(learner, state: OnlineState, X_call) -> None:
         capped = learner.cluster_choice_.get("capped")
         if capped is not None:
             note_cap(learner, state, capped)
-        state.learn_codebook(X_call, Xw, plain, learner.labels_phase1_[plain],
+        state.learn_codebook(X_call, Xw, plain, phase1_symbols(learner)[0][plain],
                              learner.n_clusters_, first, 0 if capped is None else capped["asked"])
         if state.clusters:
             state.clusters["symbols"] = state.codebook.size
