@@ -94,7 +94,7 @@ class TopologicalMap:
         GDS id); ``reg_covar`` times the mean feature variance of the data is added to every
         variance so that a constant feature does not make the density degenerate.
         """
-        X = as_float_observations(observations)
+        X = as_float_observations(observations, keep_float32=True)
         u = np.asarray(actions, dtype=np.int64)
         x = np.asarray(labels, dtype=np.int64)
         T = X.shape[0]
