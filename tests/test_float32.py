@@ -67,6 +67,10 @@ def test_float32_observations_give_the_float64_labels_on_separated_views(refine)
     assert b.map_.means.dtype == np.float64
     assert np.abs(a.map_.means - b.map_.means).max() < 5 * np.finfo(np.float32).eps
     assert np.array_equal(a.map_.transition_counts, b.map_.transition_counts)
+    f = MapLearner(n_clusters=4, n_states=6, refine=refine).fit(
+        np.asfortranarray(X, dtype=np.float32), u)  # Fortran order: summed the other way
+    assert np.array_equal(f.labels_, b.labels_)
+    assert np.allclose(f.map_.covariances, b.map_.covariances, rtol=1e-12, atol=0)
 
 
 def test_float32_fit_makes_no_float64_copy_of_the_observations():
