@@ -102,3 +102,19 @@ def test_float32_observations_too_large_to_square_in_float32_are_refused():
                        r"large: .* would overflow float32 \(\|x\| must stay below 3.1e\+17\)"):
         MapLearner(n_clusters=3, n_states=4).fit(X.astype(np.float32), u)
     assert fit_data(X, u).X.dtype == np.float64  # accepted as float64
+
+
+@pytest.mark.parametrize("covariance_type", ["diag", "full"])
+def test_models_of_float32_observations_are_summed_in_float64(covariance_type):
+    """float32 -> float64 is exact, and the models' sums run in float64 in step order either
+    way: the same means and covariances, bit for bit, as from the values widened first."""
+    from topomap import TopologicalMap
+
+    X, u, places = ring_walk(500)
+    X32 = X.astype(np.float32)
+    labels = VIEW_OF_PLACE[places]
+    kw = dict(state_symbol=np.arange(4), state_gds=np.full(4, -1), state_parent=np.full(4, -1),
+              n_actions=3, covariance_type=covariance_type)
+    a = TopologicalMap.from_labels(X32, u, labels, **kw)
+    b = TopologicalMap.from_labels(X32.astype(np.float64), u, labels, **kw)
+    assert np.array_equal(a.means, b.means) and np.array_equal(a.covariances, b.covariances)
