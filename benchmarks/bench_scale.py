@@ -7,6 +7,8 @@
     python benchmarks/bench_scale.py --report                          # reprint the last results
     python benchmarks/bench_scale.py --end-to-end 1e6                 # `topomap data=file` at T = 1e6
     python benchmarks/bench_scale.py --sizes 1e7 --refine-max-T 0 --no-fourrooms --one-thread
+    python benchmarks/bench_scale.py --sizes 1e6 1e7 --refine-max-T 0 --no-fourrooms --float32 \
+        --baseline-checkout /path/to/old/checkout --baseline-max-T 1e7 --save-labels /tmp/labels
     python benchmarks/bench_scale.py --stream /data/logs --sizes 1e7 1e8 --repeats 1  # fit_stream
 
 ``--stream DIR`` times the streamed fit (``MapLearner.fit_stream``) on folders of 100 logs of
@@ -21,7 +23,9 @@ that both are timed under the same load; ``--baseline-max-T`` limits its sizes.
 ``--baseline-checkout DIR`` does the same with this Python and the ``topomap/`` of another
 checkout (``DIR`` put first on ``PYTHONPATH`` of the baseline's processes).
 ``--one-thread`` also times this checkout with ``NUMBA_NUM_THREADS=1`` (rows ``1th``: the split's
-passes and proposals on one thread; the same labels).
+passes and proposals on one thread; the same labels).  ``--float32`` also times this checkout on
+the walk's observations as float32 (rows ``f32``: half the data's memory).  ``--save-labels DIR``
+writes every walk fit's ``labels_`` to ``DIR`` (named by checkout, T and dtype) to compare them.
 
 Worlds:
 
@@ -69,6 +73,7 @@ REFINED = ("em", sys.executable)
 ONE_THREAD = {"NUMBA_NUM_THREADS": "1"}
 #: variables set on top of this process's for the children of a version (by its label)
 ENVS = {"1th": ONE_THREAD}
+SAVE = []  #: ``save=DIR`` with ``--save-labels DIR``: every walk child writes its labels there
 WALK_SIZES = {10**4: (50, 100), 10**5: (50, 100), 10**6: (100, 200), 10**7: (100, 200)}
 FOURROOMS = ("MiniGrid-FourRooms-v0", 0, 1036)
 TARGETS = {10**5: (1.0, None), 10**6: (8.0, 1.0), 10**7: (100.0, 6.0)}
@@ -85,19 +90,21 @@ def _walk(succ, actions):
     return places
 
 
-def aliased_walk_blocks(T, D, ns, n_places, n_actions, seed=0, block=1 << 20):
-    """``bench_fit.aliased_walk`` (same random streams, same numbers), made block by block."""
+def aliased_walk_blocks(T, D, ns, n_places, n_actions, seed=0, block=1 << 18,
+                        dtype=np.float64):
+    """``bench_fit.aliased_walk`` (same random streams, same numbers), made block by block (as
+    float32: the float64 values rounded)."""
     rng = np.random.default_rng(seed)
     succ = rng.integers(0, n_places, size=(n_places, n_actions))
     symbol = np.concatenate([np.arange(ns), rng.integers(0, ns, n_places - ns)])
     centres = rng.uniform(0, 1, size=(ns, D))
     actions = rng.integers(0, n_actions, size=T)
     places = _walk(succ, actions)
-    X = np.empty((T, D))
+    X = np.empty((T, D), dtype=dtype)
     for start in range(0, T, block):
         stop = min(start + block, T)
-        X[start:stop] = centres[symbol[places[start:stop]]]
-        X[start:stop] += rng.normal(0, 0.02, size=(stop - start, D))
+        X[start:stop] = centres[symbol[places[start:stop]]] + rng.normal(  # the float64 sum
+            0, 0.02, size=(stop - start, D))
     return X, actions, places
 
 
@@ -134,13 +141,20 @@ def _fit_record(X, u, places, ns, S, **kw):
                      "method": getattr(learner, "phase1_method_", "full")}
 
 
-def child_walk(T, refine=None):
+def child_walk(T, *flags):
+    """Fit the walk of T steps; ``flags``: ``em`` (``refine="em"``), ``f32`` (float32
+    observations), ``save=DIR`` (write ``labels_`` to ``DIR/labels-<checkout>-<T>-<dtype>.npy``)."""
     ns, S = WALK_SIZES[T]
-    X, u, places = aliased_walk_blocks(T, 15, ns, S, 17)
+    dtype = np.float32 if "f32" in flags else np.float64
+    X, u, places = aliased_walk_blocks(T, 15, ns, S, 17, dtype=dtype)
     data_rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
-    kw = {"refine": refine} if refine else {}
+    kw = {"refine": "em"} if "em" in flags else {}
     _learner(n_clusters=20, n_states=30, **kw).fit(X[:2000], u[:2000])  # warm caches, compile
-    return {**_fit_record(X, u, places, ns, S, **kw)[1], "data_rss_kb": data_rss}
+    learner, rec = _fit_record(X, u, places, ns, S, **kw)
+    for folder in (f[5:] for f in flags if f.startswith("save=")):
+        name = Path(sys.modules["topomap"].__file__).resolve().parents[1].name
+        np.save(Path(folder) / f"labels-{name}-{T}-{np.dtype(dtype).name}.npy", learner.labels_)
+    return {**rec, "data_rss_kb": data_rss}
 
 
 def child_fourrooms(T, data, score_steps):
@@ -206,8 +220,8 @@ def walk_rows(sizes, repeats, versions, baseline_max_T, refine_max_T):
         for _ in range(repeats):
             for impl, python in todo:
                 load = os.getloadavg()[0]
-                rec = run_child(python, "walk", T, *(["em"] if impl == "em" else []),
-                                env=ENVS.get(impl))
+                flags = {"em": ["em"], "f32": ["f32"]}.get(impl, []) + SAVE
+                rec = run_child(python, "walk", T, *flags, env=ENVS.get(impl))
                 records[impl].append({**rec, "load": load})
         for impl, _ in todo:
             rec = median_record(records[impl])
@@ -221,7 +235,7 @@ def fourrooms_rows(repeats, data, versions):
     rows = []
     for T, score in ((10_000, 0), (50_000, 50_000)):
         for impl, python in versions:
-            if impl in ("em", "1th"):
+            if impl in ("em", "1th", "f32"):
                 continue
             steps = min(score, 1000) if impl == "old" else score
             rec = measure(repeats if T < 50_000 or impl == "new" else 1, python, "fourrooms", T,
@@ -350,6 +364,10 @@ def main():
                     help="largest T also fitted with refine=em (0: none)")
     ap.add_argument("--one-thread", action="store_true",
                     help="also time this checkout with NUMBA_NUM_THREADS=1 (rows 1th)")
+    ap.add_argument("--float32", action="store_true",
+                    help="also time this checkout on float32 observations (rows f32)")
+    ap.add_argument("--save-labels", metavar="DIR",
+                    help="every walk fit writes its labels_ to DIR (to compare versions)")
     ap.add_argument("--no-fourrooms", action="store_true")
     ap.add_argument("--out", default=str(HERE / "results"))
     ap.add_argument("--report", action="store_true", help="reprint the last run's results")
@@ -383,6 +401,11 @@ def main():
     versions = ([("old", args.baseline)] if args.baseline else []) + [CURRENT, REFINED]
     if args.one_thread:
         versions.insert(-1, ("1th", sys.executable))
+    if args.float32:
+        versions.insert(-1, ("f32", sys.executable))  # float32 observations
+    if args.save_labels:
+        Path(args.save_labels).mkdir(parents=True, exist_ok=True)
+        SAVE.append(f"save={Path(args.save_labels).resolve()}")
     rows = walk_rows([int(s) for s in args.sizes], args.repeats, versions, args.baseline_max_T,
                      args.refine_max_T)
     if not args.no_fourrooms:

@@ -188,10 +188,11 @@ class MapLearner(StreamFit, MapMethods, BaseEstimator):
             gds_names: Sequence[str] | None = None) -> Self:
         """Learn the map.  Returns ``self``.
 
-        ``observations`` (T, D), ``actions`` (T,) ints in ``[0, n_actions)``, ``gds`` (T,) ints with
-        -1 for "no GDS", ``lengths`` the episode lengths when several episodes are concatenated,
-        ``odometry`` (T, 3) the robot's dead reckoning (:mod:`topomap.core.motion.inputs`).
-        A fit forgets any earlier :meth:`partial_fit`.
+        ``observations`` (T, D): float64, or float32 used as it is (half the memory; K-means
+        computes in float32), other types as float64; ``actions`` (T,) ints in ``[0,
+        n_actions)``, ``gds`` (T,) ints with -1 for "no GDS", ``lengths`` the episode lengths
+        when several episodes are concatenated, ``odometry`` (T, 3) the robot's dead reckoning
+        (:mod:`topomap.core.motion.inputs`).  A fit forgets any earlier :meth:`partial_fit`.
         """
         data = check_fit_data(observations, actions, gds, lengths, n_actions, action_names,
                               gds_names)

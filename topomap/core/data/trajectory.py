@@ -78,14 +78,17 @@ def _as_int_array(values, name: str, length: int | None = None) -> np.ndarray:
     return arr if arr.dtype == np.int64 else arr.astype(np.int64)
 
 
-def as_float_observations(observations) -> np.ndarray:
+def as_float_observations(observations, keep_float32: bool = False) -> np.ndarray:
     """``observations`` as a float64 array, copied only when it is not one already: a contiguous
-    float64 array is used as it is (at T = 10^7, D = 15 a copy would be 1.2 GB)."""
+    float64 array is used as it is (at T = 10^7, D = 15 a copy would be 1.2 GB).
+    ``keep_float32``: a contiguous float32 array is used as it is too (half the memory; what
+    :meth:`~topomap.core.learner.MapLearner.fit` takes), any other input becomes float64."""
     X = _as_array(observations, "observations")
     if X.dtype.kind not in "fiub":
         raise ValueError(f"observations must be numbers, got values of type {X.dtype}")
     contiguous = X.flags.c_contiguous or X.flags.f_contiguous
-    return X if X.dtype == np.float64 and contiguous else X.astype(np.float64)
+    kept = (np.float64, np.float32) if keep_float32 else (np.float64,)
+    return X if X.dtype in kept and contiguous else X.astype(np.float64)
 
 
 _BLOCK_ROWS = 1 << 16
@@ -103,9 +106,10 @@ def _nonfinite_rows(X: np.ndarray) -> np.ndarray:
 
 def _check_magnitude(X: np.ndarray) -> None:
     """A ValueError when the observations are so large that the squares the learner sums over
-    them (variances, K-means distances, summed over T x D values) overflow float64: every
-    ``|x|`` must stay below ``sqrt(max float64 / (T D)) / 2`` (about 7e148 at T D = 1e8)."""
-    limit = 0.5 * np.sqrt(np.finfo(np.float64).max / max(X.size, 1))
+    them (variances, K-means distances, summed over T x D values) overflow their float type:
+    every ``|x|`` must stay below ``sqrt(max float / (T D)) / 2`` (about 7e148 at T D = 1e8 in
+    float64, 9e14 in float32, where K-means computes its distances in float32)."""
+    limit = 0.5 * np.sqrt(np.finfo(X.dtype).max / max(X.size, 1))
     for start in range(0, X.shape[0], _BLOCK_ROWS):
         block = X[start:start + _BLOCK_ROWS]
         if max(block.max(), -block.min()) < limit:
@@ -114,18 +118,20 @@ def _check_magnitude(X: np.ndarray) -> None:
         raise ValueError(
             f"observations hold {block[step, column]:.3g} (step {start + int(step)}, column "
             f"{int(column)}), too large: the variances and distances the learner sums over these "
-            f"{X.shape[0]} x {X.shape[1]} values would overflow float64 (|x| must stay below "
+            f"{X.shape[0]} x {X.shape[1]} values would overflow {X.dtype} (|x| must stay below "
             f"{limit:.2g}); rescale the observations (e.g. to SI units)")
 
 
-def check_sequences(observations, actions, gds=None, lengths=None, *, min_length: int = 3):
+def check_sequences(observations, actions, gds=None, lengths=None, *, min_length: int = 3,
+                    keep_float32: bool = False):
     """Validate learner input and return it as arrays ``(X, u, gds, lengths)``.
 
     Every problem is reported as a :class:`ValueError` whose message names the argument.
     ``gds`` defaults to all ``-1`` (no GDS) and ``lengths`` to one episode of length ``T``.
-    ``X`` is the caller's array when that is contiguous float64 already (not a copy).
+    ``X`` is the caller's array when that is contiguous float64 already (not a copy), or
+    contiguous float32 with ``keep_float32`` (:func:`as_float_observations`).
     """
-    X = as_float_observations(observations)
+    X = as_float_observations(observations, keep_float32)
     if X.ndim == 1:
         raise ValueError(
             f"observations must be a 2-D array (T, D), got a 1-D array of shape {X.shape}; "
@@ -186,8 +192,9 @@ class FitData:
 
 def check_fit_data(observations, actions, gds, lengths, n_actions, action_names,
                    gds_names) -> FitData:
-    """:func:`check_sequences`, and the number of actions and the names checked against it."""
-    X, u, g, L = check_sequences(observations, actions, gds, lengths)
+    """:func:`check_sequences` (float32 observations kept as they are), and the number of
+    actions and the names checked against it."""
+    X, u, g, L = check_sequences(observations, actions, gds, lengths, keep_float32=True)
     A = int(u.max()) + 1 if n_actions is None else int(n_actions)
     if action_names is not None and n_actions is None:
         A = max(A, len(action_names))

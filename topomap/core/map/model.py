@@ -92,9 +92,10 @@ class TopologicalMap:
 
         The observation model of a state is the Gaussian of all steps sharing its symbol (or its
         GDS id); ``reg_covar`` times the mean feature variance of the data is added to every
-        variance so that a constant feature does not make the density degenerate.
+        variance so that a constant feature does not make the density degenerate.  Float32
+        observations are read as they are (not copied to float64) and summed in float64.
         """
-        X = as_float_observations(observations)
+        X = as_float_observations(observations, keep_float32=True)
         u = np.asarray(actions, dtype=np.int64)
         x = np.asarray(labels, dtype=np.int64)
         T = X.shape[0]

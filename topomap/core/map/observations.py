@@ -64,10 +64,11 @@ def _column_var_rowwise(X):
 
 
 def feature_variance(X: np.ndarray) -> np.ndarray:
-    """``X.var(axis=0)`` bit for bit, without the (T, D) temporary when X is C-contiguous."""
+    """``X.var(axis=0)`` bit for bit, without the (T, D) temporary when X is C-contiguous
+    (float32 observations: summed in float64 as well)."""
     if X.flags.c_contiguous and X.shape[1] >= 2:
         return _column_var_rowwise(X)
-    return X.var(axis=0)
+    return X.var(axis=0) if X.dtype == np.float64 else X.var(axis=0, dtype=np.float64)
 
 
 def _full_covariances(X, model, means, n_models, reg):

@@ -365,7 +365,8 @@ def cluster_observations(X: np.ndarray, policy, metric, *, n_init: int = 10,
     """
     if method not in METHODS:
         raise ParameterError("method", f"={method!r} is unknown; choose one of {', '.join(METHODS)}")
-    Z = np.ascontiguousarray(metric.fit_transform(X), dtype=np.float64)
+    Z = metric.fit_transform(X)  # float32 stays float32: scikit-learn's K-means computes in it
+    Z = np.ascontiguousarray(Z, dtype=np.float32 if Z.dtype == np.float32 else np.float64)
     choice = policy.choose(Z, random_state)
     ns, details = choice if isinstance(choice, tuple) else (choice, {})
     ns = int(ns)
