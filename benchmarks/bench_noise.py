@@ -263,7 +263,7 @@ def side_by_side(args, registry) -> None:
             count[kind] += 1
             return fn(*a)
         return run
-    clones.clone_forward = counted("hard", clones.clone_forward)
+    clones.clone_forward_into = counted("hard", clones.clone_forward_into)
     evidence_module.soft_forward = counted("soft", evidence_module.soft_forward)
     evidence_module.soft_forward_read = counted("soft", evidence_module.soft_forward_read)
     print(f"load average at start {os.getloadavg()[0]:.2f}; variants {variants}")

@@ -5,11 +5,12 @@ import itertools
 import numpy as np
 import pytest
 
-from topomap.core.refine import kernels
-from topomap.core.refine.clones import make_layout, m_step
-from topomap.core.refine.kernels import clone_backward_counts as backward_counts
+from topomap.core.refine import backward
+from topomap.core.refine.backward import clone_backward_counts as backward_counts
+from topomap.core.refine.clones import EStepWork, _e_step, make_layout, m_step
 from topomap.core.refine.kernels import clone_forward as forward
 from topomap.core.refine.kernels import clone_normalize_blocks as normalize_blocks
+from topomap.core.refine.kernels import clone_normalize_into as normalize_into
 from topomap.core.refine.kernels import clone_path_counts as path_counts
 from topomap.core.refine.kernels import clone_step_offsets as step_offsets
 from topomap.core.refine.kernels import clone_viterbi as viterbi
@@ -193,6 +194,10 @@ def test_normalize_zero_rows_stay_zero():
                                lay.triples[:, 2].copy(), lay.triples[:, 0].copy(), lay.n_actions,
                                0.0, 0.0)
     assert (vals == 0).all() and (Z == 0).all()
+    out = np.full(counts.size, np.nan)  # an M-step into kept arrays writes every entry
+    normalize_into(lay.tables, counts, lay.triples[:, 1].copy(), lay.triples[:, 2].copy(),
+                   lay.triples[:, 0].copy(), lay.n_actions, 0.0, 0.0, out)
+    assert (out == 0).all()
 
 
 @pytest.mark.parametrize("seed", range(3))
@@ -230,18 +235,48 @@ def test_column_pass_gives_the_row_pass_bits(prune):
     lay = make_layout(sym, u, np.array([1500, 1, 2499]), clones, 2)
     steps = np.flatnonzero(lay.blk >= 0)
     work = (clones[sym[steps]] * clones[sym[steps + 1]]).sum()
-    assert work >= kernels.COLUMN_PASS_WORK * lay.boff[-1]  # the column pass is the one taken
+    assert work >= backward.COLUMN_PASS_WORK * lay.boff[-1]  # the column pass is the one taken
     vals = m_step(lay, rng.random(int(lay.boff[-1])) ** 4, 1e-3, joint=False)
     alpha, log_c = forward(lay.tables, vals, prune)
     assert prune == 0.0 or (alpha == 0).any()
     start_counts, start_occ = rng.random(vals.size), rng.random(lay.n_clones)
     rows = (start_counts.copy(), start_occ.copy())
-    kernels._backward_rows(lay.tables, vals, alpha, log_c, *rows)
+    backward._backward_rows(lay.tables, vals, alpha, log_c, *rows)
     cols = (start_counts.copy(), start_occ.copy())
     backward_counts(lay.tables, vals, alpha, log_c, *cols)
     np.testing.assert_array_equal(cols[0], rows[0])
     np.testing.assert_array_equal(cols[1], rows[1])
     assert not np.array_equal(rows[0], start_counts)
+
+
+@pytest.mark.parametrize("T, column", [(4000, True), (40, False)])
+def test_e_steps_on_kept_arrays_give_the_bits_of_new_ones(T, column):
+    """E-steps written into one :class:`EStepWork` (arrays holding garbage, then the last
+    E-step's results) give the bits of the passes on new zeroed arrays, three E-steps in a row,
+    in the column pass and in the row pass."""
+    rng = np.random.default_rng(5)
+    clones = np.array([5, 3, 6])
+    sym, u = rng.integers(0, 3, T), rng.integers(0, 2, T)
+    lay = make_layout(sym, u, np.array([T // 2, T - T // 2]), clones, 2)
+    steps = np.flatnonzero(lay.blk >= 0)
+    work_done = (clones[sym[steps]] * clones[sym[steps + 1]]).sum()
+    assert (work_done >= backward.COLUMN_PASS_WORK * lay.boff[-1]) == column
+    work = EStepWork.of(lay)
+    for array in vars(work).values():
+        array[:] = np.nan
+    counts = new_counts = rng.random(int(lay.boff[-1])) ** 4
+    for _ in range(3):
+        vals = m_step(lay, counts, 1e-3, joint=False)
+        alpha, log_c = forward(lay.tables, vals, 1e-3)
+        expect, expect_occ = np.zeros(vals.size), np.zeros(lay.n_clones)
+        backward_counts(lay.tables, vals, alpha, log_c, expect, expect_occ)
+        new_counts, occ, ll, got_alpha = _e_step(
+            lay, m_step(lay, new_counts, 1e-3, False, work.vals), 1e-3, work)
+        for got, want in [(work.vals, vals), (got_alpha, alpha), (new_counts, expect),
+                          (occ, expect_occ)]:
+            np.testing.assert_array_equal(got, want)
+        assert ll == log_c.sum() and new_counts is work.counts
+        counts = expect
 
 
 def test_the_decoded_path_is_every_steps_most_probable_clone_and_settles_when_it_stops_moving():

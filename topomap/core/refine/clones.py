@@ -29,13 +29,15 @@ from numba import njit
 from ..progress import report
 from .accelerate import squarem
 from .convergence import ConvergenceMonitor
-from .kernels import (CloneTables, clone_backward_counts, clone_forward, clone_normalize_blocks,
-                      clone_path_counts, clone_step_offsets, clone_viterbi)
+from .backward import clone_counts_into
+from .kernels import (CloneTables, clone_forward_into, clone_normalize_into, clone_path_counts,
+                      clone_step_offsets, clone_viterbi)
 
 __all__ = [
     "Layout",
     "make_layout",
     "m_step",
+    "EStepWork",
     "e_step",
     "baum_welch",
     "capped_baum_welch",
@@ -143,31 +145,56 @@ def _row_keys(lay: Layout, joint: bool):
     return np.ascontiguousarray(lay.triples[:, 0]), lay.n_actions, lay.n_clones
 
 
-def m_step(lay: Layout, counts, pseudocount: float, joint: bool) -> np.ndarray:
+def m_step(lay: Layout, counts, pseudocount: float, joint: bool, out=None) -> np.ndarray:
     """Block probabilities from counts (see
-    :func:`topomap.core.refine.kernels.clone_normalize_blocks`)."""
+    :func:`topomap.core.refine.kernels.clone_normalize_blocks`), written into ``out`` if given."""
     key, n_keys, width = _row_keys(lay, joint)
-    vals, _ = clone_normalize_blocks(lay.tables, counts, np.ascontiguousarray(lay.triples[:, 1]),
-                                     np.ascontiguousarray(lay.triples[:, 2]), key, n_keys,
-                                     pseudocount, pseudocount * width)
+    vals, _ = clone_normalize_into(lay.tables, counts, np.ascontiguousarray(lay.triples[:, 1]),
+                                   np.ascontiguousarray(lay.triples[:, 2]), key, n_keys,
+                                   pseudocount, pseudocount * width,
+                                   np.empty(counts.size) if out is None else out)
     return vals
+
+
+@dataclass(frozen=True)
+class EStepWork:
+    """The arrays an E-step and its M-step write (model, its column-major copy, counts and their
+    copy, occupancy, forward messages, log scaling factors), made once for a layout and
+    overwritten by every E-step of a Baum-Welch run: new arrays of a few MB each E-step cost a
+    page fault every 4 KB (about 465 an E-step, a sixth of the 12x12 room's E-step time)."""
+
+    vals: np.ndarray
+    vals_t: np.ndarray
+    counts: np.ndarray
+    counts_t: np.ndarray
+    occupancy: np.ndarray
+    alpha: np.ndarray
+    log_c: np.ndarray
+
+    @classmethod
+    def of(cls, lay: Layout) -> "EStepWork":
+        """New arrays for the E-steps of ``lay``."""
+        size = int(lay.boff[-1])
+        return cls(*(np.empty(n) for n in (size, size, size, size, lay.n_clones,
+                                           int(lay.pos[-1]), lay.sym.size)))
 
 
 def e_step(lay: Layout, vals, prune: float = 0.0):
     """Expected counts, expected clone occupancy and log-likelihood under ``vals`` (``prune``: see
     :func:`topomap.core.refine.kernels.clone_forward`)."""
-    counts, occupancy, ll, _ = _e_step(lay, vals, prune)
+    counts, occupancy, ll, _ = _e_step(lay, vals, prune, EStepWork.of(lay))
     return counts, occupancy, ll
 
 
-def _e_step(lay: Layout, vals, prune: float):
-    """:func:`e_step`, and the filtered distributions ``alpha`` of its forward pass."""
+def _e_step(lay: Layout, vals, prune: float, work: EStepWork):
+    """:func:`e_step` into ``work`` (its counts, occupancy and forward messages are returned and
+    overwritten by the next E-step on it), and the filtered distributions ``alpha`` of its
+    forward pass."""
     tables = lay.tables
-    alpha, log_c = clone_forward(tables, vals, prune)
-    counts = np.zeros(vals.size)
-    occupancy = np.zeros(lay.n_clones)
-    clone_backward_counts(tables, vals, alpha, log_c, counts, occupancy)
-    return counts, occupancy, float(log_c.sum()), alpha
+    clone_forward_into(tables, vals, prune, work.alpha, work.log_c)
+    clone_counts_into(tables, vals, work.alpha, work.log_c, work.counts, work.occupancy,
+                      work.vals_t, work.counts_t)
+    return work.counts, work.occupancy, float(work.log_c.sum()), work.alpha
 
 
 def baum_welch(lay: Layout, counts, pseudocount: float, joint: bool, *, max_iter: int,
@@ -189,9 +216,10 @@ def baum_welch(lay: Layout, counts, pseudocount: float, joint: bool, *, max_iter
                                    tol=tol, min_iter=min_iter, prune=prune)
     monitor = ConvergenceMonitor(tol * lay.sym.size, max_iter, min_iter=min_iter)
     occupancy = np.zeros(lay.n_clones)
+    work = EStepWork.of(lay)  # the counts read by an M-step are written by the E-step after it
     while not (monitor.converged or path is not None and monitor.iter > min_iter and path.settled):
-        counts, occupancy, ll, alpha = _e_step(lay, m_step(lay, counts, pseudocount, joint),
-                                               prune)
+        counts, occupancy, ll, alpha = _e_step(
+            lay, m_step(lay, counts, pseudocount, joint, work.vals), prune, work)
         monitor.report(ll)
         if path is not None:
             path.report(alpha)
@@ -223,11 +251,14 @@ def capped_baum_welch(lay: Layout, init, pseudocount: float, *, max_iter: int, t
 def _squarem_baum_welch(lay: Layout, counts, pseudocount: float, joint: bool, path, *,
                         max_iter: int, tol: float, min_iter: int, prune: float):
     """:func:`baum_welch` by SQUAREM's cycles (``path``: its :class:`SettledPath`, or None)."""
-    def em_step(c):
-        new, occupancy, ll, alpha = _e_step(lay, m_step(lay, c, pseudocount, joint), prune)
+    work = EStepWork.of(lay)
+
+    def em_step(c):  # SQUAREM keeps the counts of several E-steps: copied out of ``work``
+        new, occupancy, ll, alpha = _e_step(lay, m_step(lay, c, pseudocount, joint, work.vals),
+                                            prune, work)
         if path is not None:
             path.report(alpha)
-        return new, occupancy, ll
+        return new.copy(), occupancy.copy(), ll
 
     counts, occupancy, history, _ = squarem(
         em_step, counts, max_iter=max_iter, tol=tol * lay.sym.size, min_iter=min_iter,

@@ -1,4 +1,5 @@
-"""Compiled kernels of the clone EM: forward-backward, Viterbi and counts over clone blocks."""
+"""Compiled kernels of the clone EM: the forward pass, Viterbi and counts over clone blocks (the
+backward pass and its expected counts: :mod:`topomap.core.refine.backward`)."""
 
 from __future__ import annotations
 
@@ -7,9 +8,9 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-__all__ = ["CloneTables", "clone_step_offsets", "clone_forward", "clone_backward_counts",
-           "clone_viterbi", "clone_path_counts", "clone_normalize_blocks", "normalise_block",
-           "viterbi_buffers"]
+__all__ = ["CloneTables", "clone_step_offsets", "clone_forward", "clone_forward_into",
+           "clone_viterbi", "clone_path_counts", "clone_normalize_blocks", "clone_normalize_into",
+           "normalise_block", "viterbi_buffers"]
 
 # ======================================================================================
 # Clone-structured, action-conditioned HMMs (the refinement phase, topomap.core.refine.clones)
@@ -80,7 +81,8 @@ def clone_step_offsets(sym, start):
 
 @njit(cache=True)
 def clone_forward(tables, vals, prune):
-    """Scaled forward pass over the clone layout ``tables`` (:class:`CloneTables`).
+    """Scaled forward pass over the clone layout ``tables`` (:class:`CloneTables`), into new
+    arrays (:func:`clone_forward_into`).
 
     Returns ``(alpha, log_c)``: ``alpha`` (pos[-1],) holds the filtered distribution
     ``P(x_t | s_1..s_t, u_1..u_{t-1})`` of every step over the clones of ``sym[t]``; ``log_c`` (T,)
@@ -90,10 +92,16 @@ def clone_forward(tables, vals, prune):
     yields ``log_c = -inf`` and a zero message.  A step's message is summed in a buffer of its own
     (the compiler cannot vectorise a sum into the array it reads from).
     """
+    T = tables.sym.size
+    return clone_forward_into(tables, vals, prune, np.empty(tables.pos[T]), np.empty(T))
+
+
+@njit(cache=True)
+def clone_forward_into(tables, vals, prune, alpha, log_c):
+    """:func:`clone_forward` written into ``alpha`` (pos[-1],) and ``log_c`` (T,) (every entry
+    overwritten; arrays kept from one E-step to the next spare the page faults of new ones)."""
     sym, blk, start, boff, pos = tables
     T = sym.size
-    alpha = np.zeros(pos[T])
-    log_c = np.zeros(T)
     buf = np.zeros(_widest(start))
     for t in range(T):
         a0 = pos[t]
@@ -101,6 +109,7 @@ def clone_forward(tables, vals, prune):
         if t == 0 or blk[t - 1] < 0:
             for j in range(n):
                 alpha[a0 + j] = 1.0 / n
+            log_c[t] = 0.0
             continue
         p0 = pos[t - 1]
         o = boff[blk[t - 1]]
@@ -150,179 +159,6 @@ def _clone_active(alpha, a0, n, out):
             out[k] = j
             k += 1
     return k
-
-
-#: ``sum_t n(sym[t]) n(sym[t + 1])`` over a block array's size from which the backward pass runs
-#: on column-major copies of the blocks (the copies cost about one pass over the array)
-COLUMN_PASS_WORK = 10.0
-
-
-@njit(cache=True)
-def clone_backward_counts(tables, vals, alpha, log_c, counts, occupancy):
-    """Scaled backward pass that accumulates the E-step statistics in place.
-
-    ``counts`` (same layout as ``vals``) receives the expected transition counts
-    ``sum_t P(x_t = i, x_{t+1} = j | data)`` and ``occupancy`` (S,) the expected number of steps
-    spent in every clone.  ``alpha`` and ``log_c`` come from :func:`clone_forward` on the same
-    model; clones with ``alpha = 0`` are skipped (their backward message is never needed).
-
-    Two loop orders give the same bits (every sum is taken over the same terms in the same
-    order): row by row (a step costs (active clones at t) x (active clones at t + 1)), or, where
-    the blocks are large next to the steps' work, column by column on column-major copies of
-    the blocks, which sums the messages of all clones of a step at once (vectorised).
-    """
-    sym, blk, start, boff, pos = tables
-    work = 0
-    for t in range(sym.size):
-        if blk[t] >= 0:
-            work += (pos[t + 1] - pos[t]) * (pos[t + 2] - pos[t + 1])
-    if work < COLUMN_PASS_WORK * vals.size:
-        return _backward_rows(tables, vals, alpha, log_c, counts, occupancy)
-    rows = _block_rows(tables, boff.size - 1)
-    vals_t, counts_t = np.empty(vals.size), np.empty(vals.size)
-    _transpose_blocks(boff, rows, vals, vals_t, True)
-    _transpose_blocks(boff, rows, counts, counts_t, True)
-    _backward_columns(tables, vals_t, alpha, log_c, counts_t, occupancy)
-    _transpose_blocks(boff, rows, counts_t, counts, False)
-    return counts, occupancy
-
-
-@njit(cache=True)
-def _backward_rows(tables, vals, alpha, log_c, counts, occupancy):
-    """:func:`clone_backward_counts` row by row on the row-major blocks."""
-    sym, blk, start, boff, pos = tables
-    width = _widest(start)
-    beta, beta_next = np.zeros(width), np.zeros(width)
-    act, act_next = np.empty(width, dtype=np.int64), np.empty(width, dtype=np.int64)
-    n_next = 0
-    for t in range(sym.size - 1, -1, -1):
-        a0 = pos[t]
-        n_act = _clone_active(alpha, a0, pos[t + 1] - a0, act)
-        if blk[t] < 0:
-            for k in range(n_act):
-                beta[act[k]] = 1.0
-        else:
-            nn = pos[t + 2] - pos[t + 1]
-            inv_c = np.exp(-log_c[t + 1])
-            o = boff[blk[t]]
-            for k in range(n_act):
-                i = act[k]
-                row = o + i * nn
-                w = alpha[a0 + i] * inv_c
-                acc = 0.0
-                for kk in range(n_next):
-                    j = act_next[kk]
-                    v = vals[row + j] * beta_next[j]
-                    acc += v
-                    counts[row + j] += w * v
-                beta[i] = acc * inv_c
-        c0 = start[sym[t]]
-        for k in range(n_act):
-            i = act[k]
-            occupancy[c0 + i] += alpha[a0 + i] * beta[i]
-        beta, beta_next = beta_next, beta
-        act, act_next = act_next, act
-        n_next = n_act
-    return counts, occupancy
-
-
-@njit(cache=True)
-def _backward_columns(tables, vals_t, alpha, log_c, counts_t, occupancy):
-    """:func:`clone_backward_counts` column by column on column-major blocks (``vals_t``,
-    ``counts_t``: block ``b``'s entry ``(i, j)`` at ``boff[b] + j * n(src_b) + i``).  Where at
-    least half of a step's clones are active, every clone gets a message and a count (an
-    inactive one's weight is 0, so its counts gain exactly 0, and its message is never read);
-    elsewhere the active clones one by one."""
-    sym, blk, start, boff, pos = tables
-    width = _widest(start)
-    beta, beta_next = np.zeros(width), np.zeros(width)
-    act, act_next = np.empty(width, dtype=np.int64), np.empty(width, dtype=np.int64)
-    w = np.empty(width)
-    n_next = 0
-    for t in range(sym.size - 1, -1, -1):
-        a0 = pos[t]
-        n = pos[t + 1] - a0
-        n_act = _clone_active(alpha, a0, n, act)
-        if blk[t] < 0:
-            for k in range(n_act):
-                beta[act[k]] = 1.0
-        else:
-            inv_c = np.exp(-log_c[t + 1])
-            o = boff[blk[t]]
-            if 2 * n_act < n:  # few active clones: one by one
-                for k in range(n_act):
-                    w[act[k]] = alpha[a0 + act[k]] * inv_c
-                _sparse_columns(vals_t, counts_t, o, n, act[:n_act], act_next[:n_next], w,
-                                beta_next, beta)
-                for k in range(n_act):
-                    beta[act[k]] *= inv_c
-            else:
-                for i in range(n):
-                    w[i] = alpha[a0 + i] * inv_c
-                    beta[i] = 0.0
-                for kk in range(n_next):
-                    j = act_next[kk]
-                    bj = beta_next[j]
-                    col = vals_t[o + j * n:o + (j + 1) * n]
-                    cnt = counts_t[o + j * n:o + (j + 1) * n]
-                    for i in range(n):
-                        v = col[i] * bj
-                        beta[i] += v
-                        cnt[i] += w[i] * v
-                for i in range(n):
-                    beta[i] = beta[i] * inv_c
-        c0 = start[sym[t]]
-        for k in range(n_act):
-            i = act[k]
-            occupancy[c0 + i] += alpha[a0 + i] * beta[i]
-        beta, beta_next = beta_next, beta
-        act, act_next = act_next, act
-        n_next = n_act
-    return counts_t, occupancy
-
-
-@njit(cache=True)
-def _sparse_columns(vals_t, counts_t, o, n, act, act_next, w, beta_next, beta):
-    """One step of :func:`_backward_columns` active clone by active clone (the row pass's loops
-    on the column-major block at ``o`` with ``n`` rows, over the active clones ``act`` and
-    ``act_next``); ``beta`` gets the unscaled sums."""
-    for k in range(act.size):
-        i = act[k]
-        acc = 0.0
-        for kk in range(act_next.size):
-            j = act_next[kk]
-            v = vals_t[o + j * n + i] * beta_next[j]
-            acc += v
-            counts_t[o + j * n + i] += w[i] * v
-        beta[i] = acc
-
-
-@njit(cache=True)
-def _block_rows(tables, n_blocks):
-    """Rows of every block (the clones of its source symbol; 0 for a block no step uses)."""
-    sym, blk, start, _, _ = tables
-    rows = np.zeros(n_blocks, dtype=np.int64)
-    for t in range(sym.size):
-        if blk[t] >= 0:
-            rows[blk[t]] = start[sym[t] + 1] - start[sym[t]]
-    return rows
-
-
-@njit(cache=True)
-def _transpose_blocks(boff, rows, src, dst, to_columns):
-    """Copy every block of ``src`` into ``dst``, row-major to column-major (``to_columns``) or
-    back."""
-    for b in range(rows.size):
-        o, n = boff[b], rows[b]
-        if n == 0:
-            continue
-        nn = (boff[b + 1] - o) // n
-        for i in range(n):
-            for j in range(nn):
-                if to_columns:
-                    dst[o + j * n + i] = src[o + i * nn + j]
-                else:
-                    dst[o + i * nn + j] = src[o + j * n + i]
 
 
 @njit(cache=True)
@@ -418,6 +254,13 @@ def clone_normalize_blocks(tables, counts, bsrc, bdst, bkey, n_keys, pseudocount
     columns of a dense row).  Rows with ``Z = 0`` become 0.  Returns ``(vals, Z)``, ``Z`` of shape
     ``(n_keys, S)``.
     """
+    return clone_normalize_into(tables, counts, bsrc, bdst, bkey, n_keys, pseudocount, smooth,
+                                np.empty(counts.size))
+
+
+@njit(cache=True)
+def clone_normalize_into(tables, counts, bsrc, bdst, bkey, n_keys, pseudocount, smooth, vals):
+    """:func:`clone_normalize_blocks` written into ``vals`` (every entry overwritten)."""
     start, boff = tables.start, tables.boff
     S = start[start.size - 1]
     Z = np.zeros((n_keys, S))
@@ -434,16 +277,16 @@ def clone_normalize_blocks(tables, counts, bsrc, bdst, bkey, n_keys, pseudocount
     for key in range(n_keys):
         for x in range(S):
             Z[key, x] += smooth
-    vals = np.zeros(counts.size)
     for b in range(B):
         c0 = start[bsrc[b]]
         n = start[bsrc[b] + 1] - c0
         nn = start[bdst[b] + 1] - start[bdst[b]]
         for i in range(n):
             z = Z[bkey[b], c0 + i]
-            if z <= 0.0:
-                continue
             row = boff[b] + i * nn
+            if z <= 0.0:
+                vals[row:row + nn] = 0.0
+                continue
             for j in range(nn):
                 vals[row + j] = (counts[row + j] + pseudocount) / z
     return vals, Z
