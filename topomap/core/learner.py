@@ -93,7 +93,7 @@ class MapLearner(StreamFit, MapMethods, BaseEstimator):
         :class:`~topomap.core.split.stopping.TargetStates` rule): ``"told"`` (default) brings the
         refined map to that number (:mod:`topomap.core.refine.resize`: the least costly merges of
         same-symbol states, or further splits); ``"free"`` keeps the number the refinement chose.
-    motion : MotionSettings, "auto", "discrete" or "continuous"
+    motion : MotionSettings, "auto", "discrete", "continuous" or "robot"
         How a log recorded at 10-50 Hz is mapped: places instead of a refinement, or why not
         (:class:`~topomap.core.motion.MotionSettings` or a mapping; docs/continuous.md).
     heading : {"auto", "on", "off"}
@@ -132,7 +132,8 @@ class MapLearner(StreamFit, MapMethods, BaseEstimator):
     heading_ : dict -- whether phase 1's states hold a heading (``used``), why not
         (``reason``), the turns (``turns``: headings turned by each action) and the measurements
     motion_info_ : dict -- what the places of a continuous log measured, the check's errors and
-        which map was ``chosen`` (``"places"`` or ``"views"``; only on a continuous log)
+        which map was ``chosen`` (``"places"``, ``"views"``, ``"robot"``; a continuous log's)
+    robot_map_ : RobotMap -- ``motion="robot"``: the cells ``predict`` places a walk on
     size_choice_ : dict -- with ``stop=auto``: the criterion, the chosen count and every score
     n_clusters_ : int -- the ``ns`` actually used
     cluster_choice_ : dict -- what the cluster-count policy measured (e.g. ``{"bic": {...}}``)
