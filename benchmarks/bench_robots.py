@@ -85,6 +85,7 @@ def base_route(name, tw, hw, regions, seed):
         placed = learner.predict(held.observations, held.actions, odometry=hw.odometry)
         return {"states": learner.map_.n_states, "chosen": learner.motion_info_["chosen"],
                 "fit_only_s": round(sum(learner.timings_.values()), 2),
+                "symmetry": learner.motion_info_["symmetry"]["ratio"],
                 **score_units(learner.labels_, train.positions, placed, held.positions,
                               learner.map_.n_states, _pair(train, held, regions))}
     return None
