@@ -199,3 +199,31 @@ def test_a_robot_s_held_out_walk_is_placed_better_than_by_its_views():
     assert ours["median_error"] < 0.5 * views["median_error"]
     assert ours["wrong_region"] < views["wrong_region"]
     assert learner.motion_info_["chosen"] == "robot"
+
+
+def _grid_map(asymmetry):
+    """A RobotMap of 8 x 4 cells 0.25 m apart over a 2 x 1 m plan centred on (1, 0.5); each cell's
+    scan (16 beams) the projection of its offset from the centre on every beam's direction, plus
+    ``asymmetry`` times its x offset (unchanged by the 180-degree turn, which the projection is
+    not: it breaks the symmetry)."""
+    from topomap.core.motion.robot import RobotMap
+
+    xs, ys = np.meshgrid(np.arange(8) * 0.25 + 0.125, np.arange(4) * 0.25 + 0.125)
+    C = np.column_stack([xs.ravel(), ys.ravel()])
+    a = 2 * np.pi * np.arange(16) / 16
+    off = C - [1.0, 0.5]
+    M = 2 + off @ np.vstack([np.cos(a), np.sin(a)]) + asymmetry * off[:, :1]
+    n = len(C)
+    return RobotMap(C, M, 0.01, np.arange(n + 1), np.arange(n), 0.25, np.zeros(n),
+                    np.zeros(n, dtype=np.int64))
+
+
+def test_a_map_that_is_its_own_point_reflection_is_found():
+    """Turned by 180 degrees about (1, 0.5) the symmetric map is itself (mismatch 0, ratio 0); the
+    asymmetric one is not (each scan off by twice its x offset, a neighbour's by a quarter)."""
+    from topomap.core.motion.symmetry import SYMMETRY_RATIO, point_symmetry
+
+    same = point_symmetry(_grid_map(0.0))
+    assert same["ratio"] == pytest.approx(0.0, abs=1e-9)
+    assert same["centre"] == pytest.approx([1.0, 0.5])
+    assert point_symmetry(_grid_map(1.0))["ratio"] > SYMMETRY_RATIO
