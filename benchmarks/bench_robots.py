@@ -16,6 +16,8 @@ of another seed is placed by each route, each step at its state's mean training 
 ``views``      K-means on the views, 64 clusters (:func:`kmeans_view_scores`)
 ``shipped``    ``MapLearner(n_clusters=32, n_states=64, random_state=0).fit(X, u, odometry=...)``
 ``no_odometry`` the same without the odometry
+``robot_mode`` the same with ``motion="robot"``, the held-out walk placed by
+               ``predict(X, u, odometry=...)`` with its own odometry
 
 and the research routes of ``robot_routes.py`` and ``robot_slam.py``.  Every row goes to
 ``--log`` (JSON lines; a run skips rows already there); the table printed is the median over the seeds of every (plan, robot,
@@ -77,10 +79,20 @@ def base_route(name, tw, hw, regions, seed):
         return {"states": learner.map_.n_states, "chosen": info.get("chosen"),
                 "reason": info.get("reason"),
                 **map_scores(learner.map_, learner.labels_, train, held, regions)}
+    if name == "robot_mode":
+        learner = MapLearner(N_CLUSTERS, N_STATES, motion="robot", random_state=0).fit(
+            train.observations, train.actions, n_actions=train.n_actions, odometry=tw.odometry)
+        placed = learner.predict(held.observations, held.actions, odometry=hw.odometry)
+        return {"states": learner.map_.n_states, "chosen": learner.motion_info_["chosen"],
+                "fit_only_s": round(sum(learner.timings_.values()), 2),
+                "symmetry": learner.motion_info_["symmetry"]["ratio"],
+                **score_units(learner.labels_, train.positions, placed, held.positions,
+                              learner.map_.n_states, _pair(train, held, regions))}
     return None
 
 
-ROUTES = ("ideal", "ceiling", "views", "shipped", "no_odometry", *RR.ROUTES, *RS.ROUTES)
+ROUTES = ("ideal", "ceiling", "views", "shipped", "no_odometry", "robot_mode", *RR.ROUTES,
+          *RS.ROUTES)
 
 
 def route(name, tw, hw, regions, seed):

@@ -93,7 +93,7 @@ class MapLearner(StreamFit, MapMethods, BaseEstimator):
         :class:`~topomap.core.split.stopping.TargetStates` rule): ``"told"`` (default) brings the
         refined map to that number (:mod:`topomap.core.refine.resize`: the least costly merges of
         same-symbol states, or further splits); ``"free"`` keeps the number the refinement chose.
-    motion : MotionSettings, "auto", "discrete" or "continuous"
+    motion : MotionSettings, "auto", "discrete", "continuous" or "robot"
         How a log recorded at 10-50 Hz is mapped: places instead of a refinement, or why not
         (:class:`~topomap.core.motion.MotionSettings` or a mapping; docs/continuous.md).
     heading : {"auto", "on", "off"}
@@ -129,10 +129,10 @@ class MapLearner(StreamFit, MapMethods, BaseEstimator):
         wider pass from the last map: the map its refinement started from)
     refine_info_ : dict -- the refinement's stages (with ``refine``)
     symbol_ambiguity_ : float -- the share of steps phase 1 may misread (``refine="em"``)
-    heading_ : dict -- whether phase 1's states hold a heading (``used``), why not
-        (``reason``), the turns (``turns``: headings turned by each action) and the measurements
+    heading_ : dict -- phase 1's heading: ``used``, ``reason`` if not, ``turns``, measurements
     motion_info_ : dict -- what the places of a continuous log measured, the check's errors and
-        which map was ``chosen`` (``"places"`` or ``"views"``; only on a continuous log)
+        which map was ``chosen`` (``"places"``, ``"views"``, ``"robot"``; a continuous log's)
+    robot_map_ : RobotMap -- ``motion="robot"``: the cells ``predict`` places a walk on
     size_choice_ : dict -- with ``stop=auto``: the criterion, the chosen count and every score
     n_clusters_ : int -- the ``ns`` actually used
     cluster_choice_ : dict -- what the cluster-count policy measured (e.g. ``{"bic": {...}}``)
@@ -214,10 +214,9 @@ class MapLearner(StreamFit, MapMethods, BaseEstimator):
         self.n_features_in_ = data.X.shape[1]
         t0 = time.perf_counter()
         told = stopping.n_states if isinstance(stopping, TargetStates) else None
+        heading = "off" if warm and warm.old is not None else self.heading  # afresh: as fit
         splitter = self._phase1(data, clusters, metric, criterion, stopping, symbols,
-                                capped=warm is not None,
-                                heading="off" if warm and warm.old is not None else self.heading,
-                                told=told)
+                                capped=warm is not None, heading=heading, told=told)
         auto = stopping if isinstance(stopping, AutoStates) else None
         if auto is not None:
             stopping = TargetStates(self._choose_size(data, splitter, auto))

@@ -7,7 +7,9 @@ and hmmlearn's names of a fitted model (``n_components``, ``startprob_``, ``tran
 
 ``predict`` and ``score`` take the robot's ``odometry`` as ``fit`` does, checked
 (:func:`topomap.core.motion.inputs.check_odometry`): a map localises a walk from its views and
-actions alone, and the decoding does not use the odometry."""
+actions alone, and the decoding does not use the odometry -- except ``predict`` on a map learned
+with ``motion="robot"``, which places the walk by its own odometry and needs it
+(:func:`topomap.core.motion.robot_fit.predict_robot`)."""
 
 from __future__ import annotations
 
@@ -16,6 +18,7 @@ from numpy.typing import ArrayLike
 from sklearn.utils.validation import check_is_fitted
 
 from .motion.inputs import check_odometry
+from .motion.robot_fit import predict_robot
 
 __all__ = ["MapMethods"]
 
@@ -91,9 +94,13 @@ class MapMethods:
         """The most likely state of every step of a new sequence (Viterbi on the learned map:
         :meth:`TopologicalMap.predict <topomap.core.map.model.TopologicalMap.predict>`);
         without ``actions``, on the map with its actions summed out; ``odometry`` is checked,
-        not used (see the module docstring).
+        not used (see the module docstring) -- after a fit with ``motion="robot"`` it is
+        required, and each step gets the place the robot route puts it in.
         Raises scikit-learn's ``NotFittedError`` before :meth:`fit` (or :meth:`partial_fit`)."""
         check_is_fitted(self, "map_")
+        robot = getattr(self, "robot_map_", None)
+        if robot is not None:
+            return predict_robot(robot, observations, lengths, odometry)
         self._check_odometry(odometry, observations, lengths)
         return self.map_.predict(observations, actions, gds=gds, lengths=lengths)
 

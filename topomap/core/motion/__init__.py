@@ -5,7 +5,11 @@
 (``renamed``: the settings' flat names of before 0.3); ``odometry`` -- the actions' displacements learned from the data, and positions
 corrected by copies of the views; ``places`` -- places cut from views and positions; ``check``
 -- the held-out check that keeps them or falls back to the view clusters; ``learn`` -- the
-branch of :meth:`topomap.MapLearner.fit` that uses them.
+branch of :meth:`topomap.MapLearner.fit` that uses them.  ``motion="robot"``: ``scans`` --
+headings from egocentric scans closed by loops; ``reckoning`` -- poses and keyframes;
+``robot`` -- cells and places on the reckoned positions, a walk placed by its own odometry;
+``robot_decode`` -- that decoder; ``symmetry`` -- whether the map is its own point reflection;
+``robot_fit`` -- the branch of :meth:`topomap.MapLearner.fit` and ``predict`` that uses them.
 """
 
 from .settings import (MODES, CheckSettings, MotionSettings, PlaceSettings, is_continuous,

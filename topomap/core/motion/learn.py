@@ -20,6 +20,7 @@ import numpy as np
 from ..map.model import TopologicalMap
 from .check import choose_places
 from .crossfit import MARGIN_SE
+from .robot_fit import fit_robot
 from .settings import MotionSettings, is_continuous
 
 __all__ = ["fit_places", "pooled_variances", "fallback_reason", "ContinuousFallbackWarning"]
@@ -77,7 +78,10 @@ def pooled_variances(tmap: TopologicalMap, X, labels, reg_covar: float,
 def fit_places(learner, data, settings: MotionSettings, metric, odometry=None) -> bool:
     """When ``data`` are continuous, replace ``learner``'s map and labels by places (as many
     states as its split map, observations in ``metric``'s space), record what was measured in
-    ``motion_info_`` and the seconds in ``timings_["places"]``, and return True; else False."""
+    ``motion_info_`` and the seconds in ``timings_["places"]``, and return True; else False.
+    ``settings.mode == "robot"``: the robot route instead (:func:`.robot_fit.fit_robot`)."""
+    if settings.mode == "robot":  # the robot route (:mod:`topomap.core.motion.robot_fit`)
+        return fit_robot(learner, data, settings, odometry)
     if not is_continuous(settings, learner.labels_phase1_, data.lengths, data.gds,
                          odometry is not None):
         return False

@@ -38,7 +38,7 @@ __all__ = ["MODES", "RULES", "PlaceSettings", "CheckSettings", "MotionSettings",
            "motion_settings", "mean_run", "is_continuous"]
 
 #: what ``MotionSettings.mode`` (or ``motion`` given as a string) accepts
-MODES = ("auto", "discrete", "continuous")
+MODES = ("auto", "discrete", "continuous", "robot")
 #: what ``CheckSettings.rule`` accepts
 RULES = ("bootstrap", "crossfit", "folds")
 
@@ -119,7 +119,9 @@ class MotionSettings:
     mode: str = "auto"
     """``"auto"``: places where :func:`is_continuous` says (a log given odometry always is);
     ``"discrete"``: never (the paper's map, refined as ``refine`` says); ``"continuous"``:
-    always.  A continuous log gets no ``refine``."""
+    always; ``"robot"``: a robot's egocentric range scans and wheel odometry, mapped by the robot
+    route (:mod:`topomap.core.motion.robot`; ``predict`` then needs the walk's odometry).  A
+    continuous log gets no ``refine``."""
     min_run: float = 1.6
     """The least mean run of one phase-1 symbol of such a log (steps; discrete worlds run
     1.0-1.3, compass walkers 13-16 and a robot's own-frame scans 2.0-5.0 at 10 Hz)."""

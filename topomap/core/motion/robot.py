@@ -1,0 +1,144 @@
+"""The robot route: a metric map of cells from headings closed by loops, places on it, and a
+held-out walk placed by its own odometry (``MotionSettings(mode="robot")``; docs/robot-logs.md).
+
+Learning from one walk of egocentric range scans ``X`` (T, B: a ring of ``B`` beams, beam 0
+straight ahead, anticlockwise) and wheel odometry (T, 3) (:func:`learn_robot`):
+
+1. every step's heading from :func:`~topomap.core.motion.scans.scan_headings` (the odometry's
+   turns calibrated against the scans' turns, closed by scan-matched loop closures), and
+   positions dead-reckoned along it with the odometry's travel (:func:`~.reckoning.reckon`);
+2. ``CELLS`` cells by K-means on the squares the walk entered (:func:`cells`), each cell's mean
+   scan turned into the map frame, one pooled variance, each cell's successors between
+   keyframes (:func:`successors`);
+3. ``n_places`` places by K-means on the positions; each cell belongs to the place most of its
+   steps are in.
+
+Placing a walk (:func:`place_walk`): its keyframes' moves from its own odometry, a Viterbi over
+(cell, heading bin) (:mod:`topomap.core.motion.robot_decode`), each step the place of its
+keyframe's cell.  Measured (``benchmarks/notes/robots.md``): 1.16-1.38x the error of K-means on
+the true positions on three furnished 1 m plans; it fails on point-symmetric plans (the walk and
+its point reflection look alike) and on plans a 30-minute walk covers thinly.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from sklearn.cluster import KMeans
+
+from ..stats import label_means
+from . import scans as S
+from .reckoning import forward_moves, keyframes, reckon
+from .robot_decode import emission, heading_kernel, viterbi
+
+__all__ = ["RobotMap", "learn_robot", "place_walk", "cells", "successors", "CELLS",
+           "SQUARES_PER_CELL", "KEYFRAME_SPACING", "MOVE_SD", "HEADING_SD_BINS", "JUMP",
+           "PLACE_STARTS"]
+
+#: cells of the metric map (cells): 0.07-0.1 m apart on the 1 m plans, about a third of a
+#: place; the research route's value, 1.16-1.38x ideal there (not tuned further)
+CELLS = 256
+#: grid squares per cell spacing (squares): cells are cut on the squares a quarter of a cell wide
+#: that the walk entered, each once -- K-means on the steps made the room visited longer finer,
+#: and pulled a whole held-out walk into the wrong alike room (robot_alike seed 1: 1.32 m against
+#: 0.105 m)
+SQUARES_PER_CELL = 4
+#: a keyframe every this much of the cells' spacing travelled (share)
+KEYFRAME_SPACING = 0.5
+#: the sd of where a move lands around a successor cell (share of the cells' spacing)
+MOVE_SD = 0.5
+#: the sd of a keyframe's heading about the odometry's turn (heading bins of 2 pi / B rad)
+HEADING_SD_BINS = 0.5
+#: a jump anywhere (probability a keyframe): none -- at 1e-4 a held-out stay of 4,900 steps in
+#: one of two identical rooms drifted to the other (0.72 m against 0.096 m without)
+JUMP = 1e-300
+#: k-means++ starts of the cells and the places (starts)
+PLACE_STARTS = 2
+
+
+@dataclass(frozen=True)
+class RobotMap:
+    """The metric map a walk is placed on: ``centres`` (N, 2) [m] of the cells in the map frame,
+    ``scans`` (N, B) their mean scans turned into the map frame [m], ``variance`` [m^2] of a
+    beam about them, each cell's successors in CSR (``successor_ptr`` (N + 1,),
+    ``successor_idx``), ``spacing`` [m] the median distance of a cell to its nearest,
+    ``log_prior`` (N,) the share of training steps in each cell (log) and ``place`` (N,) the
+    place of each cell."""
+
+    centres: np.ndarray
+    scans: np.ndarray
+    variance: float
+    successor_ptr: np.ndarray
+    successor_idx: np.ndarray
+    spacing: float
+    log_prior: np.ndarray
+    place: np.ndarray
+
+    @property
+    def n_cells(self) -> int:
+        return len(self.centres)
+
+
+def cells(xy, n: int, random_state) -> tuple[np.ndarray, np.ndarray]:
+    """``(labels (T,), centres (N, 2))``: at most ``n`` K-means cells on the grid squares
+    ``SQUARES_PER_CELL`` to a cell spacing that the positions ``xy`` (T, 2) [m] entered, each
+    square once (cells as dense where the walk went once as where it went often); only cells
+    holding a step are kept, numbered in order."""
+    xy = np.asarray(xy, dtype=np.float64)
+    extent = np.maximum(xy.max(0) - xy.min(0), 1e-9)
+    side = np.sqrt(np.prod(extent) / n) / SQUARES_PER_CELL
+    squares = np.unique(np.round(xy / side), axis=0) * side
+    km = KMeans(min(n, len(squares)), n_init=PLACE_STARTS, random_state=random_state).fit(squares)
+    labels = km.predict(xy)
+    used, labels = np.unique(labels, return_inverse=True)
+    return labels, km.cluster_centers_[used]
+
+
+def successors(cells_kf, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """CSR ``(ptr, idx)`` of each of ``n`` cells' successors: the cells the keyframes'
+    ``cells_kf`` step to from it, itself included."""
+    A = np.eye(n, dtype=bool)
+    A[cells_kf[:-1], cells_kf[1:]] = True
+    return np.r_[0, np.cumsum(A.sum(1))].astype(np.int64), np.nonzero(A)[1].astype(np.int64)
+
+
+def learn_robot(X, odometry, n_places: int, random_state=0, n_cells: int = CELLS,
+                odometry_turns: bool = True) -> tuple[RobotMap, np.ndarray, np.ndarray]:
+    """``(map, places (T,), poses (T, 3))`` from one walk: scans ``X`` (T, B) in the robot's frame
+    and its wheel ``odometry`` (T, 3); ``poses`` the reckoned x [m], y [m], heading [rad].
+    ``odometry_turns=False``: the headings from the scans' turns alone (odometry whose heading
+    is no measurement, e.g. :func:`~.reckoning.command_poses`)."""
+    odometry = np.asarray(odometry, dtype=np.float64)
+    P = reckon(forward_moves(odometry),
+               S.scan_headings(X, odometry[:, 2] if odometry_turns else None))
+    cell, cent = cells(P[:, :2], n_cells, random_state)
+    N = len(cent)
+    R = S.rotate_scans(S.despike(X), P[:, 2])
+    M = label_means(cell, R, N)
+    var = float(((R - M[cell]) ** 2).mean())
+    gaps = np.linalg.norm(cent[:, None] - cent[None], axis=2) + np.diag(np.full(N, np.inf))
+    spacing = float(np.median(gaps.min(1))) if N > 1 else 1.0
+    ptr, idx = successors(cell[keyframes(P, spacing * KEYFRAME_SPACING)], N)
+    n_places = min(n_places, len(np.unique(P[:, :2], axis=0)))
+    places = KMeans(n_places, n_init=PLACE_STARTS, random_state=random_state).fit(
+        P[:, :2]).labels_
+    votes = np.zeros((N, n_places))
+    np.add.at(votes, (cell, places), 1)
+    prior = np.log(np.bincount(cell, minlength=N) / len(cell))
+    model = RobotMap(cent, M, var, ptr, idx, spacing, prior, votes.argmax(1))
+    return model, places, P
+
+
+def place_walk(model: RobotMap, X, odometry, jump: float = JUMP) -> tuple[np.ndarray, np.ndarray]:
+    """``(places (T,), cells (T,))`` of one walk: scans ``X`` (T, B) and its own ``odometry``
+    (T, 3), placed keyframe by keyframe (the module docstring; ``jump`` the probability of a
+    jump anywhere a keyframe); each step takes its keyframe's cell."""
+    O = np.asarray(odometry, dtype=np.float64)
+    kf = keyframes(O, model.spacing * KEYFRAME_SPACING)
+    E = emission(S.despike(X)[kf], model.scans, model.variance)
+    path, _ = viterbi(E, forward_moves(O[kf]), model.centres, model.successor_ptr,
+                      model.successor_idx, model.spacing * MOVE_SD,
+                      heading_kernel(HEADING_SD_BINS), model.log_prior, np.log(jump))
+    step_cells = path[np.searchsorted(kf, np.arange(len(O)), "right") - 1]
+    return model.place[step_cells], step_cells
