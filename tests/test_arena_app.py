@@ -298,3 +298,22 @@ def test_the_summary_line_and_a_sweep_compare_the_metres(tmp_path):
         cells = [row.split(",")[header.index(column)] for row in rows[1:]]
         assert len(cells) == 2 and all(float(c) >= 0 for c in cells), column
     assert "median localisation error, held-out [m]" in r.stdout  # the report shows the metres
+
+
+def test_a_robot_mode_run_writes_the_cells_it_places_walks_on(tmp_path, make_cfg):
+    """learner.motion.mode=robot: the run adds robot_map.npz, whose places are the map's states
+    and on which a walk is placed by its own odometry."""
+    from topomap.core.motion.robot_fit import predict_robot
+    from topomap.core.motion.robot_io import load_robot_map
+
+    run(make_cfg(["experiment=arena_robot", "learner.motion.mode=robot", "data.n_steps=3000",
+                  "data.heldout_steps=300", "output.figures=false", "output.progress=false"]),
+        tmp_path)
+    cells = load_robot_map(tmp_path / "robot_map.npz")
+    m = TopologicalMap.load(tmp_path / "map.json")
+    assert m.info["motion_info"]["chosen"] == "robot"
+    assert set(np.unique(cells.place)) <= set(range(m.n_states))
+    walk = load_trajectory(tmp_path / "trajectory.npz")
+    places = predict_robot(cells, walk.observations[:500], None, walk.odometry[:500])
+    assert places.shape == (500,) and places.max() < m.n_states
+    assert (tmp_path / "robot_map.npz") in own_files(tmp_path)

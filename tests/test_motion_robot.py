@@ -227,3 +227,30 @@ def test_a_map_that_is_its_own_point_reflection_is_found():
     assert same["ratio"] == pytest.approx(0.0, abs=1e-9)
     assert same["centre"] == pytest.approx([1.0, 0.5])
     assert point_symmetry(_grid_map(1.0))["ratio"] > SYMMETRY_RATIO
+
+
+def test_the_robot_map_file_places_a_walk_as_the_learner_does(tmp_path):
+    """robot_map.npz keeps every field: a walk placed on the loaded map gets the places the
+    learner gives it; a file missing a field, or whose arrays do not fit, is refused by name."""
+    from topomap.core.motion.robot_fit import predict_robot
+    from topomap.core.motion.robot_io import load_robot_map, save_robot_map
+
+    _, walk, held = _arena_robot(3000, 600)
+    learner = MapLearner(8, 16, motion="robot", random_state=0).fit_trajectory(walk)
+    path = save_robot_map(learner.robot_map_, tmp_path / "robot_map.npz")
+    loaded = load_robot_map(path)
+    np.testing.assert_array_equal(loaded.scans, learner.robot_map_.scans)
+    np.testing.assert_array_equal(
+        predict_robot(loaded, held.observations, None, held.odometry),
+        learner.predict(held.observations, held.actions, odometry=held.odometry))
+    with np.load(path, allow_pickle=False) as f:
+        fields = {k: f[k] for k in f.files}
+    np.savez(tmp_path / "no_place.npz", **{k: v for k, v in fields.items() if k != "place"})
+    with pytest.raises(ValueError, match="place is missing"):
+        load_robot_map(tmp_path / "no_place.npz")
+    np.savez(tmp_path / "short.npz", **dict(fields, log_prior=fields["log_prior"][:-1]))
+    with pytest.raises(ValueError, match="log_prior has shape"):
+        load_robot_map(tmp_path / "short.npz")
+    (tmp_path / "text.npz").write_text("not a map")
+    with pytest.raises(ValueError, match="not a robot map file"):
+        load_robot_map(tmp_path / "text.npz")

@@ -53,6 +53,11 @@ OUTPUT_FILES = {
     "states.csv": "step, state after phase 1, final state (and ground-truth place)",
     METRICS_FILE: "entropies, ARI/NMI/purity/compound states, splits, timings, versions, config",
 }
+#: the file a run learned with ``learner.motion.mode=robot`` adds: the cells a walk is placed on
+ROBOT_FILES = {
+    "robot_map.npz": "the robot mode's metric map: cells, their scans and successors, places "
+                     "(topomap.core.motion.robot_io.load_robot_map)",
+}
 #: files a ``task=localize`` run writes
 LOCALIZE_FILES = {
     "states.csv": "step, filtered state (argmax of the belief), Viterbi state (and place)",

@@ -17,7 +17,7 @@ import numpy as np
 from ...core.data.atomic import atomic_write
 from ...core.data.trajectory import save_trajectory
 from ..results import (FIGURE_FILES, LOCALIZE_FILES, MAPPING_FIGURES, METRICS_FILE, OUTPUT_FILES,
-                       PATH_FIGURES, STATUS_FILE)
+                       PATH_FIGURES, ROBOT_FILES, STATUS_FILE)
 from .interrupts import held_signals, stop_if_interrupted
 
 __all__ = ["write_outputs", "write_localization", "versions", "write_json", "staged",
@@ -31,12 +31,12 @@ STAGE_PREFIX = ".topomap-partial-"
 def own_files(out) -> list[Path]:
     """The files of ``out`` that a topomap run writes (every file of :data:`OUTPUT_FILES`,
     :data:`FIGURE_FILES`, :data:`PATH_FIGURES`, :data:`MAPPING_FIGURES`, :data:`LOCALIZE_FILES`,
-    ``status.json``, and
+    :data:`ROBOT_FILES`, ``status.json``, and
     any staging folder a killed run left); never a file topomap does not know, nor Hydra's
     ``.hydra/`` and log."""
     out = Path(out)
     names = {*OUTPUT_FILES, *FIGURE_FILES, *PATH_FIGURES, *MAPPING_FIGURES, *LOCALIZE_FILES,
-             STATUS_FILE}
+             *ROBOT_FILES, STATUS_FILE}
     if not out.is_dir():
         return []
     return sorted(p for p in out.iterdir()
@@ -194,6 +194,9 @@ def _write_outputs(out: Path, traj, learner, results, cfg, env=None) -> None:
     m = learner.map_
     m.save(out / "map.json")
     m.to_graphml(out / "map.graphml", min_prob=cfg["output"]["min_prob"])
+    if getattr(learner, "robot_map_", None) is not None:  # learner.motion.mode=robot
+        from ...core.motion.robot_io import save_robot_map
+        save_robot_map(learner.robot_map_, out / next(iter(ROBOT_FILES)))
     write_states(out / "states.csv", traj, state_phase1=learner.labels_phase1_,
                  state=learner.labels_)
     if cfg["output"]["figures"]:
