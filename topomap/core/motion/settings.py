@@ -81,7 +81,7 @@ class CheckSettings:
     rule: str = "bootstrap"
     """``"bootstrap"``: the places cut again before the last ``holdout``, kept unless the view
     clusters place it nearer its own pose graph by over two bootstrap standard errors (no field
-    below but ``holdout``; never 1 % above the views on 20 walks); ``"crossfit"``: kept where
+    below but ``holdout``; over 1 % above the views on 2 of 36 walks); ``"crossfit"``: kept where
     nearer at all; ``"folds"``: the fields below."""
     holdout: float = 0.25
     """The share of the log held out at its end (share; 0, or a part under 100 steps: no check)."""
