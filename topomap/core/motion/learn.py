@@ -13,12 +13,13 @@ from __future__ import annotations
 
 import time
 import warnings
-from dataclasses import asdict, replace
+from dataclasses import replace
 
 import numpy as np
 
 from ..map.model import TopologicalMap
 from .check import choose_places
+from .bind import bind_places
 from .crossfit import MARGIN_SE
 from .robot_fit import fit_robot
 from .settings import MotionSettings, is_continuous
@@ -106,18 +107,9 @@ def fit_places(learner, data, settings: MotionSettings, metric, odometry=None) -
     names = dict(action_names=data.action_names, gds_names=data.gds_names,
                  split_history=learner.split_history_)
     m = build(data.X, data.u, labels, data.lengths, pooled=info["chosen"] == "views", **names)
-    S = int(labels.max()) + 1
     reason = fallback_reason(info)
     if reason is not None:
         info["reason"] = reason
         warnings.warn(f"continuous log: the map's states are the view clusters (K-means on the "
                       f"views), not places: {reason}", ContinuousFallbackWarning, stacklevel=4)
-    learner.motion_info_ = info
-    learner.entropies_.append(dict(m.entropies(), n_states=S, stage="places",
-                                   iteration=len(learner.split_history_) + 1))
-    learner.labels_ = labels
-    learner.map_ = replace(m, entropy_history=learner.entropies_, info=dict(
-        learner.map_split_.info, motion=asdict(settings), motion_info=info))
-    learner.timings_["places"] = time.perf_counter() - start
-    learner._emit("refine", labels=labels, entropies=learner.entropies_[-1], map=learner.map_)
-    return True
+    return bind_places(learner, m, labels, info, settings, start)

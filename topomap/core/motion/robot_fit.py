@@ -6,8 +6,9 @@
 each a state with its own Gaussian of the scans (``labels_`` the place of every step); the
 metric map the places were cut on, which :meth:`MapLearner.predict
 <topomap.MapLearner.predict>` places a new walk on with that walk's odometry, is kept as
-``robot_map_`` (:class:`~topomap.core.motion.robot.RobotMap`; it is not part of a saved map, whose
-``predict`` decodes the scans and actions alone).  :func:`predict_robot` is that ``predict``.
+``robot_map_`` (:class:`~topomap.core.motion.robot.RobotMap`; a run writes it as
+``robot_map.npz``, :mod:`topomap.core.motion.robot_io`; a saved ``map.json`` alone decodes the
+scans and actions).  :func:`predict_robot` is that ``predict``.
 
 Where the cells' map is its own point reflection (:mod:`topomap.core.motion.symmetry`: the
 walk's odometry then cannot tell a walk from the walk turned by 180 degrees) the map is K-means on
@@ -19,13 +20,13 @@ from __future__ import annotations
 
 import time
 import warnings
-from dataclasses import asdict, replace
 
 import numpy as np
 from sklearn.cluster import KMeans
 
 from ..checks import ParameterError
 from ..map.model import TopologicalMap
+from .bind import bind_places
 from .inputs import check_odometry
 from .robot import learn_robot, place_walk
 from .symmetry import SYMMETRY_RATIO, point_symmetry
@@ -106,15 +107,7 @@ def fit_robot(learner, data, settings, odometry) -> bool:
     else:
         m = _places_map(learner, data, labels)
         learner.robot_map_ = model
-    learner.motion_info_ = info
-    learner.entropies_.append(dict(m.entropies(), n_states=m.n_states, stage="places",
-                                   iteration=len(learner.split_history_) + 1))
-    learner.labels_ = labels
-    learner.map_ = replace(m, entropy_history=learner.entropies_, info=dict(
-        learner.map_split_.info, motion=asdict(settings), motion_info=info))
-    learner.timings_["places"] = time.perf_counter() - start
-    learner._emit("refine", labels=labels, entropies=learner.entropies_[-1], map=learner.map_)
-    return True
+    return bind_places(learner, m, labels, info, settings, start)
 
 
 def predict_robot(model, observations, lengths, odometry) -> np.ndarray:
