@@ -2,7 +2,6 @@
 fields at the top, two small groups, each field documented and checked by name; the flat names
 of before 0.3 still work with a warning naming the new one, in Python and on the command line."""
 
-import ast
 import dataclasses
 import inspect
 import textwrap
@@ -10,6 +9,7 @@ import warnings
 
 import pytest
 
+from settings_helpers import field_docstrings
 from topomap import MapLearner
 from topomap.core.checks import ParameterError
 from topomap.core.motion import odometry
@@ -66,13 +66,7 @@ def test_a_settings_object_fits_on_one_screen_and_documents_every_field(cls):
     source = inspect.getsource(cls)
     assert len(source.splitlines()) <= 60 and len(dataclasses.fields(cls)) <= 12
     assert len(textwrap.wrap(repr(cls()), 100)) < 40
-    body = ast.parse(textwrap.dedent(source)).body[0].body
-    docs = {}
-    for field, after in zip(body, body[1:]):
-        if isinstance(field, ast.AnnAssign):
-            assert isinstance(after, ast.Expr) and isinstance(after.value.value, str), \
-                field.target.id
-            docs[field.target.id] = after.value.value
+    docs = field_docstrings(cls)
     assert set(docs) == set(_names(cls))
     for f in dataclasses.fields(cls):
         if f.type in ("int", "float", "tuple[float, ...]"):

@@ -2,7 +2,6 @@
 field documented and checked by name; the names of before 0.3 still work with a warning, in
 Python and in the config; map.json's text of a refinement is the one the version before wrote."""
 
-import ast
 import dataclasses
 import inspect
 import warnings
@@ -11,6 +10,7 @@ import numpy as np
 import pytest
 from sklearn.base import clone
 
+from settings_helpers import field_docstrings
 from topomap import MapLearner
 from topomap.core.checks import ParameterError
 from topomap.core.refine import settings as settings_module
@@ -51,13 +51,7 @@ def test_a_settings_object_fits_on_one_screen_and_documents_every_field(cls):
     says what it does and, for a number, its unit in brackets (or what 0 / inf means)."""
     source = inspect.getsource(cls)
     assert len(source.splitlines()) <= 60 and len(dataclasses.fields(cls)) <= 16
-    body = ast.parse(source).body[0].body
-    docs = {}
-    for field, after in zip(body, body[1:]):
-        if isinstance(field, ast.AnnAssign):
-            assert isinstance(after, ast.Expr) and isinstance(after.value.value, str), \
-                field.target.id
-            docs[field.target.id] = after.value.value
+    docs = field_docstrings(cls)
     assert set(docs) == {f.name for f in dataclasses.fields(cls)}
     for f in dataclasses.fields(cls):
         if f.type in ("int", "float"):
