@@ -76,9 +76,16 @@ def base_route(name, tw, hw, regions, seed):
             learner = MapLearner(N_CLUSTERS, N_STATES, random_state=0).fit(
                 train.observations, train.actions, n_actions=train.n_actions)
         info = getattr(learner, "motion_info_", None) or {}
-        return {"states": learner.map_.n_states, "chosen": info.get("chosen"),
-                "reason": info.get("reason"),
-                **map_scores(learner.map_, learner.labels_, train, held, regions)}
+        row = {"states": learner.map_.n_states, "chosen": info.get("chosen"),
+               "reason": info.get("reason"), "check": info.get("check"),
+               "unwalked": info.get("unwalked"),
+               "symmetry": (info.get("symmetry") or {}).get("ratio"),
+               "fit_only_s": round(sum(learner.timings_.values()), 2)}
+        if getattr(learner, "robot_map_", None) is None:
+            return {**row, **map_scores(learner.map_, learner.labels_, train, held, regions)}
+        placed = learner.predict(held.observations, held.actions, odometry=hw.odometry)
+        return {**row, **score_units(learner.labels_, train.positions, placed, held.positions,
+                                     learner.map_.n_states, _pair(train, held, regions))}
     if name == "robot_mode":
         learner = MapLearner(N_CLUSTERS, N_STATES, motion="robot", random_state=0).fit(
             train.observations, train.actions, n_actions=train.n_actions, odometry=tw.odometry)

@@ -132,7 +132,7 @@ class MapLearner(StreamFit, MapMethods, BaseEstimator):
     heading_ : dict -- phase 1's heading: ``used``, ``reason`` if not, ``turns``, measurements
     motion_info_ : dict -- what the places of a continuous log measured, the check's errors and
         which map was ``chosen`` (``"places"``, ``"views"``, ``"robot"``; a continuous log's)
-    robot_map_ : RobotMap -- ``motion="robot"``: the cells ``predict`` places a walk on
+    robot_map_ : RobotMap -- the robot route's cells (``"robot"`` chosen) ``predict`` places on
     size_choice_ : dict -- with ``stop=auto``: the criterion, the chosen count and every score
     n_clusters_ : int -- the ``ns`` actually used
     cluster_choice_ : dict -- what the cluster-count policy measured (e.g. ``{"bic": {...}}``)

@@ -21,7 +21,7 @@ from ..map.model import TopologicalMap
 from .check import choose_places
 from .bind import bind_places
 from .crossfit import MARGIN_SE
-from .robot_fit import fit_robot
+from .robot_fit import fit_robot, is_robot_log
 from .settings import MotionSettings, is_continuous
 
 __all__ = ["fit_places", "pooled_variances", "fallback_reason", "ContinuousFallbackWarning"]
@@ -107,6 +107,9 @@ def fit_places(learner, data, settings: MotionSettings, metric, odometry=None) -
     names = dict(action_names=data.action_names, gds_names=data.gds_names,
                  split_history=learner.split_history_)
     m = build(data.X, data.u, labels, data.lengths, pooled=info["chosen"] == "views", **names)
+    if is_robot_log(data, odometry, info):  # turn commands and odometry: the robot route
+        return fit_robot(learner, data, settings, odometry, fallback=(labels, m, info),
+                         start=start)
     reason = fallback_reason(info)
     if reason is not None:
         info["reason"] = reason

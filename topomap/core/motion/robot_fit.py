@@ -14,6 +14,12 @@ Where the cells' map is its own point reflection (:mod:`topomap.core.motion.symm
 walk's odometry then cannot tell a walk from the walk turned by 180 degrees) the map is K-means on
 the views instead, with a :class:`~topomap.core.motion.learn.ContinuousFallbackWarning` and
 ``motion_info_["reason"]``, and ``predict`` decodes it as any map (the odometry checked, unused).
+
+The default, ``mode="auto"``, takes this route on a continuous log given odometry whose actions
+gave no odometry of their own (turn commands: :func:`is_robot_log`), behind two more guards:
+floor the scans saw but the walk never entered (:mod:`topomap.core.motion.coverage`) and the
+held-out check (:mod:`topomap.core.motion.robot_check`); where one fails, the map is the view
+clusters the continuous path made (the same map as without odometry), with the reason.
 """
 
 from __future__ import annotations
@@ -27,14 +33,25 @@ from sklearn.cluster import KMeans
 from ..checks import ParameterError
 from ..map.model import TopologicalMap
 from .bind import bind_places
+from .coverage import FAR, MAX_UNWALKED, unwalked_share
 from .inputs import check_odometry
 from .robot import learn_robot, place_walk
+from .robot_check import check_reason, robot_check, robot_wins
 from .symmetry import SYMMETRY_RATIO, point_symmetry
 
-__all__ = ["fit_robot", "predict_robot", "MIN_BEAMS"]
+__all__ = ["fit_robot", "predict_robot", "is_robot_log", "MIN_BEAMS"]
 
 #: beams a row must hold to be read as a ring of range beams (a beam and its two neighbours)
 MIN_BEAMS = 3
+
+
+def is_robot_log(data, odometry, info: dict) -> bool:
+    """Whether ``mode="auto"`` tries the robot route on a continuous log: odometry given, no
+    odometry learned from the actions (``info["odometry"]`` False: turn commands, which move a
+    robot differently with its heading), and a log the route learns from (one episode, no GDS,
+    a ring of :data:`MIN_BEAMS` beams or more a row)."""
+    return (odometry is not None and info.get("odometry") is False and len(data.lengths) == 1
+            and not np.any(data.gds >= 0) and data.X.shape[1] >= MIN_BEAMS)
 
 
 def _check_log(data, odometry) -> None:
@@ -70,16 +87,27 @@ def _places_map(learner, data, labels, pooled: float | None = None) -> Topologic
     return m if pooled is None else pooled_variances(m, data.X, labels, learner.reg_covar, pooled)
 
 
+def _symmetry_reason(info: dict) -> str:
+    """Why a map that is its own point reflection gives way to the view clusters (one line)."""
+    return (f"the robot route's map looks the same turned by 180 degrees about "
+            f"{tuple(info['symmetry']['centre'])} (mirror mismatch "
+            f"{info['symmetry']['ratio']:.2f} times a neighbour's, below {SYMMETRY_RATIO}): its "
+            f"odometry cannot tell a walk from its point reflection")
+
+
+def _coverage_reason(info: dict) -> str:
+    """Why a map whose scans saw floor its walk never entered gives way (one line)."""
+    return (f"the robot's scans saw floor its walk never entered ({info['unwalked']:.1%} of the "
+            f"points along the cells' beams lie over {FAR:g} cell spacings from every cell, "
+            f"above {MAX_UNWALKED:.0%}): the robot route cannot place a new walk there")
+
+
 def _view_clusters(learner, data, settings, info: dict):
     """``(labels, map)`` of K-means on the views, as many clusters as the split map has states,
     where the robot route's map is its own point reflection; a warning says so."""
     from .learn import ContinuousFallbackWarning
 
-    info.update(chosen="views", reason=(
-        f"the robot route's map looks the same turned by 180 degrees about "
-        f"{tuple(info['symmetry']['centre'])} (mirror mismatch {info['symmetry']['ratio']:.2f} "
-        f"times a neighbour's, below {SYMMETRY_RATIO}): its odometry cannot tell a walk from "
-        f"its point reflection"))
+    info.update(chosen="views", reason=_symmetry_reason(info))
     warnings.warn(f"robot log: the map's states are the view clusters (K-means on the views), "
                   f"not places: {info['reason']}", ContinuousFallbackWarning, stacklevel=5)
     labels = KMeans(learner.map_split_.n_states, n_init=settings.places.n_init,
@@ -87,27 +115,74 @@ def _view_clusters(learner, data, settings, info: dict):
     return labels, _places_map(learner, data, labels, settings.places.fallback_variance)
 
 
-def fit_robot(learner, data, settings, odometry) -> bool:
+def fit_robot(learner, data, settings, odometry, fallback=None,
+              start: float | None = None) -> bool:
     """Replace ``learner``'s map and labels by the robot route's places and keep its metric map as
     ``robot_map_`` -- or, where that map is its own point reflection
     (:func:`~.symmetry.point_symmetry`), by the view clusters, with a
     :class:`~.learn.ContinuousFallbackWarning`; record ``motion_info_`` and the seconds in
-    ``timings_["places"]``; True."""
+    ``timings_["places"]``; True.  ``fallback``: ``(labels, map, info)`` of the view clusters
+    that ``mode="auto"`` made of the log (:func:`~.learn.fit_places`): the route must then also
+    have walked the floor its scans saw (:func:`~.coverage.unwalked_share` at most
+    :data:`~.coverage.MAX_UNWALKED`) and pass the held-out check
+    (:func:`~.robot_check.robot_check`), else that map stays, with the warning (a point
+    reflection, too); ``info`` is kept in ``motion_info_``.  ``start``: when the seconds began
+    (``time.perf_counter``; None: now)."""
     _check_log(data, odometry)
-    start = time.perf_counter()
+    start = time.perf_counter() if start is None else start
     model, labels, poses = learn_robot(data.X, odometry, learner.map_split_.n_states,
                                        learner.random_state)
-    info = {"chosen": "robot", "cells": model.n_cells, "places": int(labels.max()) + 1,
+    info = {**({} if fallback is None else fallback[2]), "chosen": "robot",
+            "cells": model.n_cells, "places": int(labels.max()) + 1,
             "cell_spacing_m": round(model.spacing, 4),
             "beam_variance_m2": round(model.variance, 6),
             "path_m": round(float(np.hypot(*np.diff(poses[:, :2], axis=0).T).sum()), 2),
             "symmetry": point_symmetry(model)}
-    if info["symmetry"]["ratio"] < SYMMETRY_RATIO:
+    mirrored = info["symmetry"]["ratio"] < SYMMETRY_RATIO
+    if fallback is not None and mirrored:
+        return _fall_back(learner, settings, fallback, info, _symmetry_reason(info), start)
+    if fallback is not None:
+        info["unwalked"] = round(unwalked_share(model), 4)
+        if info["unwalked"] > MAX_UNWALKED:
+            return _fall_back(learner, settings, fallback, info, _coverage_reason(info), start)
+        info["check"] = robot_check(data.X, data.u, odometry, learner.map_split_.n_states,
+                                    _views_builder(learner, data, settings),
+                                    settings.check.holdout, learner.random_state,
+                                    learner.labels_phase1_, poses[:, 2])
+        if not robot_wins(info["check"]):
+            return _fall_back(learner, settings, fallback, info, check_reason(info["check"]),
+                              start)
+    if mirrored:
         labels, m = _view_clusters(learner, data, settings, info)
     else:
         m = _places_map(learner, data, labels)
         learner.robot_map_ = model
     return bind_places(learner, m, labels, info, settings, start)
+
+
+def _views_builder(learner, data, settings):
+    """``(X, u, labels) -> map`` of view clusters with one pooled variance, as the fallback's."""
+    from .learn import pooled_variances
+
+    def build(X, u, labels):
+        S = int(labels.max()) + 1
+        m = TopologicalMap.from_labels(
+            X, u, labels, lengths=[len(X)], state_symbol=np.arange(S),
+            state_gds=np.full(S, -1), state_parent=np.full(S, -1), n_actions=data.n_actions,
+            covariance_type=learner.covariance_type, reg_covar=learner.reg_covar)
+        return pooled_variances(m, X, labels, learner.reg_covar,
+                                settings.places.fallback_variance)
+    return build
+
+
+def _fall_back(learner, settings, fallback, info: dict, reason: str, start: float) -> bool:
+    """Bind ``fallback``'s view clusters (labels, map) with ``info`` and ``reason``, warning."""
+    from .learn import ContinuousFallbackWarning
+
+    info.update(chosen="views", reason=reason)
+    warnings.warn(f"robot log: the map's states are the view clusters (K-means on the views), "
+                  f"not places: {reason}", ContinuousFallbackWarning, stacklevel=5)
+    return bind_places(learner, fallback[1], fallback[0], info, settings, start)
 
 
 def predict_robot(model, observations, lengths, odometry) -> np.ndarray:

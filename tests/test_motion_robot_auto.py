@@ -1,0 +1,87 @@
+"""The default (``motion="auto"``) on a robot's log with odometry: the robot route behind three
+guards -- the map's point symmetry, floor its scans saw that its walk never entered
+(:mod:`topomap.core.motion.coverage`) and the held-out check
+(:mod:`topomap.core.motion.robot_check`) -- else the view clusters, with the reason."""
+
+from __future__ import annotations
+
+import math
+import warnings
+
+import numpy as np
+import pytest
+
+from topomap import MapLearner
+from topomap.core.motion.coverage import FAR, MARGIN, unwalked_share
+from topomap.core.motion.learn import ContinuousFallbackWarning
+from topomap.core.motion.robot import RobotMap
+from topomap.core.motion.robot_check import (ROBOT_MARGIN_SE, check_reason, continued_poses,
+                                              robot_wins)
+
+
+def _two_cells(north_range):
+    """Cells at (0, 0) and (1, 0), spacing 1, four beams (east, north, west, south): both see a
+    wall 2.5 east and 1.5 elsewhere, except that cell 0 sees ``north_range`` north."""
+    M = np.full((2, 4), 1.5)
+    M[:, 0] = 2.5
+    M[0, 1] = north_range
+    C = np.array([[0.0, 0.0], [1.0, 0.0]])
+    return RobotMap(C, M, 0.01, np.array([0, 1, 2]), np.array([0, 1]), 1.0, np.zeros(2),
+                    np.zeros(2, dtype=np.int64))
+
+
+def test_unwalked_share_by_hand():
+    """Points every spacing along a beam while still a spacing (``MARGIN``) short of its range:
+    the east beams give (1, 0) and (2, 0), 0 and 1 from a cell; the 1.5 beams none.  A north
+    beam of 10 from cell 0 adds (0, 1) ... (0, 8), s from cell 0, of which s = 3 ... 8 lie over
+    ``FAR`` = 2 from every cell: 6 of 10."""
+    assert (FAR, MARGIN) == (2.0, 1.0)
+    assert unwalked_share(_two_cells(1.5)) == 0.0
+    assert unwalked_share(_two_cells(10.0)) == pytest.approx(6 / 10)
+
+
+def test_continued_poses_go_on_from_the_start_pose():
+    """A walk driving 1 m a step along its own heading 0.3 rad, started at (1, 2) facing north:
+    it goes on north, 1 m a step, from the start pose (the first step is the start itself)."""
+    O = np.array([[0, 0, 0], [1, 0, 0], [2, 0, 0]], dtype=float)
+    P = continued_poses(O, np.full(3, 0.3), (1.0, 2.0, math.pi / 2))
+    np.testing.assert_allclose(P, [[1, 3, math.pi / 2], [1, 4, math.pi / 2]], atol=1e-12)
+
+
+def test_the_robot_route_wins_only_by_more_than_its_noise():
+    assert robot_wins({"gap": 0.5, "se": 0.1}) is (0.5 > ROBOT_MARGIN_SE * 0.1)
+    assert not robot_wins({"gap": 0.1, "se": 0.1})
+    assert not robot_wins({"gap": -0.8, "se": 0.05})
+    line = check_reason({"held_out": 900, "robot": 1.5, "views": 0.8, "gap": -0.7, "se": 0.05})
+    assert "last 900 steps 1.500 m" in line and "0.800 m with the view clusters" in line
+
+
+def _robot_world(plan_dict, n_steps, seed=0):
+    pytest.importorskip("ratinabox")
+    from topomap.worlds.arena import ArenaWorld, RangeFinder, floorplan_from_dict
+
+    world = ArenaWorld(floorplan_from_dict(plan_dict, "plan"),
+                       sensor=RangeFinder(frame="egocentric", n_beams=60), actions="turns",
+                       odometry="wheel")
+    return world.simulate(n_steps, None, np.random.default_rng(seed))
+
+
+def test_a_thinly_walked_plan_keeps_the_view_clusters_and_says_why():
+    """3,000 steps (5 minutes) in an 8 x 4 m room: the scans see most of the floor, the walk
+    enters a corner of it (measured: 64 % of the points along the beams unwalked), so the
+    default keeps today's map -- the view clusters, the same as without odometry -- and says
+    why."""
+    walk = _robot_world({"boundary": [[0, 0], [8, 0], [8, 4], [0, 4]],
+                         "holes": [[[1, 1], [1.5, 1], [1.5, 1.5], [1, 1.5]]]}, 3000)
+    with pytest.warns(ContinuousFallbackWarning, match="saw floor its walk never entered"):
+        learner = MapLearner(8, 16, random_state=0).fit_trajectory(walk)
+    info = learner.motion_info_
+    assert info["chosen"] == "views" and info["unwalked"] > 0.5
+    assert getattr(learner, "robot_map_", None) is None
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ContinuousFallbackWarning)
+        plain = MapLearner(8, 16, random_state=0).fit(walk.observations, walk.actions,
+                                                      n_actions=walk.n_actions)
+    np.testing.assert_array_equal(learner.labels_, plain.labels_)
+    np.testing.assert_array_equal(learner.map_.means, plain.map_.means)
+    assert "no odometry could be learned" in plain.motion_info_["reason"]
