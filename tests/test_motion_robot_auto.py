@@ -85,3 +85,28 @@ def test_a_thinly_walked_plan_keeps_the_view_clusters_and_says_why():
     np.testing.assert_array_equal(learner.labels_, plain.labels_)
     np.testing.assert_array_equal(learner.map_.means, plain.map_.means)
     assert "no odometry could be learned" in plain.motion_info_["reason"]
+
+
+@pytest.mark.slow
+def test_auto_with_odometry_takes_the_robot_route_where_the_check_prefers_it(monkeypatch):
+    """Two 1 m rooms with a table each (8,000 steps; mirror ratio 3.7, 0.1 % unwalked: the
+    first two guards pass).  Its own held-out check does not prefer the route (measured: 0.570
+    m against the views' 0.557 m, se 0.22), so the default keeps the view clusters and names the
+    check; where the check prefers the route (its figures replaced), the default's map is
+    ``motion="robot"``'s and ``predict`` places a walk by its odometry."""
+    import topomap.core.motion.robot_fit as robot_fit
+    from test_motion_robot import _arena_robot
+
+    _, walk, held = _arena_robot(8000, 300)
+    with pytest.warns(ContinuousFallbackWarning, match="held-out check placed"):
+        kept = MapLearner(8, 16, random_state=0).fit_trajectory(walk)
+    assert kept.motion_info_["chosen"] == "views" and kept.motion_info_["unwalked"] <= 0.01
+    monkeypatch.setattr(robot_fit, "robot_check", lambda *a, **k: {
+        "learned": 6000, "held_out": 2000, "robot": 0.1, "views": 0.5, "gap": 0.4, "se": 0.05})
+    auto = MapLearner(8, 16, random_state=0).fit_trajectory(walk)
+    robot = MapLearner(8, 16, motion="robot", random_state=0).fit_trajectory(walk)
+    assert auto.motion_info_["chosen"] == "robot" and auto.robot_map_ is not None
+    np.testing.assert_array_equal(auto.labels_, robot.labels_)
+    np.testing.assert_array_equal(
+        auto.predict(held.observations, held.actions, odometry=held.odometry),
+        robot.predict(held.observations, held.actions, odometry=held.odometry))

@@ -8,8 +8,8 @@ nearest view alone, hedges.  The walk's own scans show such floor: :func:`unwalk
 every beam of every cell's mean scan (turned into the map frame) from the cell outwards, a point
 every cell spacing up to :data:`MARGIN` spacings short of the beam's range, and counts the points
 farther than :data:`FAR` spacings from every cell -- floor seen, never walked.  Measured
-(``benchmarks/notes/robots.md``, seeds 0-2): 0-0.2 % on the four 1 m plans, 5-7 % on the
-9 x 4.2 m ones.
+(``benchmarks/notes/robots.md``, seeds 0-2): 0-0.17 % on the 12 walks of the four 1 m plans,
+3.0-7.2 % on the six of the two 9 x 4.2 m plans.
 """
 
 from __future__ import annotations
@@ -26,7 +26,7 @@ FAR = 2.0
 #: floor a robot keeps clear of beside it)
 MARGIN = 1.0
 #: share: a map whose scans saw more unwalked floor is too thinly walked for the robot route
-#: (1 m plans 0-0.2 %, 9 x 4.2 m plans 5-7 %, seeds 0-2; set between them)
+#: (1 m plans 0-0.17 %, 9 x 4.2 m plans 3.0-7.2 %, seeds 0-2; set between them)
 MAX_UNWALKED = 0.01
 
 

@@ -43,7 +43,8 @@ __all__ = ["robot_check", "robot_wins", "check_reason", "continued_poses",
 #: standard errors: the robot route is kept only where the views' held-out median distance
 #: exceeds its own by more than this many bootstrap standard errors of the difference (the
 #: continuous path's ``MARGIN_SE``, the other way round: the route must win; measured gaps
-#: 3.7-32 standard errors where it wins, -17 where it loses, benchmarks/notes/robots.md)
+#: 2.5-24 standard errors on the nine furnished 1 m walks it wins, -13.9 on a point-symmetric
+#: plan where it loses; benchmarks/notes/robots.md)
 ROBOT_MARGIN_SE = 2.0
 
 
