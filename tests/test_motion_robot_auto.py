@@ -1,6 +1,6 @@
 """The default (``motion="auto"``) on a robot's log with odometry: the robot route behind three
 guards -- the map's point symmetry, floor its scans saw that its walk never entered
-(:mod:`topomap.core.motion.coverage`) and the held-out check
+(:mod:`topomap.core.motion.unwalked`) and the held-out check
 (:mod:`topomap.core.motion.robot_check`) -- else the view clusters, with the reason."""
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from topomap import MapLearner
-from topomap.core.motion.coverage import FAR, MARGIN, unwalked_share
+from topomap.core.motion.unwalked import FAR, MARGIN, unwalked_share
 from topomap.core.motion.learn import ContinuousFallbackWarning
 from topomap.core.motion.robot import RobotMap
 from topomap.core.motion.robot_check import (ROBOT_MARGIN_SE, check_reason, continued_poses,

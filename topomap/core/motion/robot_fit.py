@@ -17,7 +17,7 @@ the views instead, with a :class:`~topomap.core.motion.learn.ContinuousFallbackW
 
 The default, ``mode="auto"``, takes this route on a continuous log given odometry whose actions
 gave no odometry of their own (turn commands: :func:`is_robot_log`), behind two more guards:
-floor the scans saw but the walk never entered (:mod:`topomap.core.motion.coverage`) and the
+floor the scans saw but the walk never entered (:mod:`topomap.core.motion.unwalked`) and the
 held-out check (:mod:`topomap.core.motion.robot_check`); where one fails, the map is the view
 clusters the continuous path made (the same map as without odometry), with the reason.
 """
@@ -33,7 +33,7 @@ from sklearn.cluster import KMeans
 from ..checks import ParameterError
 from ..map.model import TopologicalMap
 from .bind import bind_places
-from .coverage import FAR, MAX_UNWALKED, unwalked_share
+from .unwalked import FAR, MAX_UNWALKED, unwalked_share
 from .inputs import check_odometry
 from .robot import learn_robot, place_walk
 from .robot_check import check_reason, robot_check, robot_wins
@@ -123,8 +123,8 @@ def fit_robot(learner, data, settings, odometry, fallback=None,
     :class:`~.learn.ContinuousFallbackWarning`; record ``motion_info_`` and the seconds in
     ``timings_["places"]``; True.  ``fallback``: ``(labels, map, info)`` of the view clusters
     that ``mode="auto"`` made of the log (:func:`~.learn.fit_places`): the route must then also
-    have walked the floor its scans saw (:func:`~.coverage.unwalked_share` at most
-    :data:`~.coverage.MAX_UNWALKED`) and pass the held-out check
+    have walked the floor its scans saw (:func:`~.unwalked.unwalked_share` at most
+    :data:`~.unwalked.MAX_UNWALKED`) and pass the held-out check
     (:func:`~.robot_check.robot_check`), else that map stays, with the warning (a point
     reflection, too); ``info`` is kept in ``motion_info_``.  ``start``: when the seconds began
     (``time.perf_counter``; None: now)."""
