@@ -38,6 +38,7 @@ from sklearn.metrics import pairwise_distances_argmin
 
 from ..size import split_holdout
 from ..stats import majority_share
+from .coverage import novel_span
 from .crossfit import FOLD_STARTS, MARGIN_SE, cross_fitted
 from .odometry import odometric_positions, reckoned_steps
 from .places import Places, cut_places
@@ -218,7 +219,7 @@ def choose_places(settings: MotionSettings, X, Z, u, lengths, n_states: int, n_a
     loose weight give way to the view clusters, the places cut with ``places.weight`` are
     checked in turn (on ``ring`` at 50 Hz, seed 0, those kept alike rooms apart where the loosely
     weighted ones did not); ``info["loose"]`` then says what the first try chose and why."""
-    if settings.check.rule in ("crossfit", "bootstrap"):
+    if settings.check.rule in ("crossfit", "bootstrap", "coverage"):
         return _crossfit(settings, X, Z, u, lengths, n_states, n_actions, build, **kmeans)
     labels, info = _choose(settings, X, Z, u, lengths, n_states, n_actions, build, **kmeans)
     weight = settings.places.weight
@@ -260,7 +261,8 @@ def _crossfit(settings: MotionSettings, X, Z, u, lengths, n_states: int, n_actio
     whole, info, done = _cut(settings, Z, u, lengths, n_states, n_actions, **kmeans)
     if done is not None:
         return done
-    bootstrap = settings.check.rule == "bootstrap"
+    rule = settings.check.rule
+    bootstrap = rule in ("bootstrap", "coverage")
     check = cross_fitted(settings, X, Z, u, lengths, n_states, n_actions, build,
                          starts=FOLD_STARTS if bootstrap else None, weight=info["weight"],
                          **kmeans)
@@ -268,10 +270,17 @@ def _crossfit(settings: MotionSettings, X, Z, u, lengths, n_states: int, n_actio
         return whole.views, dict(info, chosen="views",
                                   check="the held-out check's first part gave no odometry")
     if bootstrap:
-        check = dict(check, rule="bootstrap")
+        check = dict(check, rule=rule)
         lose = check["gap"] < -MARGIN_SE * check["se"]
     else:
         lose = not check["places"] < check["views"]
+    span = novel_span(whole.places, settings.check.holdout) if rule == "coverage" else None
+    if span is not None and not lose:  # ground the last part never visits, held out too
+        novel = cross_fitted(settings, X, Z, u, lengths, n_states, n_actions, build,
+                             starts=FOLD_STARTS, span=span, weight=info["weight"], **kmeans)
+        if novel is not None:
+            check = dict(check, novel=dict(novel, span=list(span)))
+            lose = novel["gap"] < 0
     chosen = "views" if lose else "places"
     return (whole.places if chosen == "places" else whole.views), dict(info, chosen=chosen,
                                                                       check=check)

@@ -40,7 +40,7 @@ __all__ = ["MODES", "RULES", "PlaceSettings", "CheckSettings", "MotionSettings",
 #: what ``MotionSettings.mode`` (or ``motion`` given as a string) accepts
 MODES = ("auto", "discrete", "continuous", "robot")
 #: what ``CheckSettings.rule`` accepts
-RULES = ("bootstrap", "crossfit", "folds")
+RULES = ("bootstrap", "coverage", "crossfit", "folds")
 
 
 @dataclass(frozen=True)
