@@ -32,8 +32,9 @@ cross-fitted rule, ``MotionSettings(check={"rule": "crossfit"})``; ``crossfit10`
 ``crossfit15`` hold out 10 and 15 %), ``bootstrap`` (``check.rule="bootstrap"``, the
 default's rule, named: the crossfit's figures, the places kept unless the view clusters beat them
 by two bootstrap standard errors), ``coverage`` (``check.rule="coverage"``: ``bootstrap``,
-and where the last quarter keeps the places, the quarter most in places the rest of the log
-seldom visits held out too, :mod:`topomap.core.motion.coverage`), ``folds``
+but where a quarter lies mostly in places the rest of the log seldom visits, that quarter held
+out instead of the last and the places kept only where no farther off,
+:mod:`topomap.core.motion.coverage`), ``folds``
 (``check.rule="folds"``, the rule before),
 ``one_gate`` (the shipped route with one gate of 3 cell extents),
 ``no_odometry`` (places are the view clusters: K-means with as many clusters as states, each its

@@ -257,30 +257,31 @@ def _crossfit(settings: MotionSettings, X, Z, u, lengths, n_states: int, n_actio
     view clusters' held-out error is below theirs by more than
     :data:`~topomap.core.motion.crossfit.MARGIN_SE` standard errors (its ``gap`` and ``se``);
     ``"crossfit"``, the places where their error is below the view clusters'
-    (:func:`~topomap.core.motion.crossfit.cross_fitted`'s figures)."""
+    (:func:`~topomap.core.motion.crossfit.cross_fitted`'s figures); ``"coverage"``, as
+    ``"bootstrap"`` but where a part of the log lies in places the rest of it seldom visits
+    (:func:`~topomap.core.motion.coverage.novel_span`), that part held out instead of the last,
+    the places kept only where the view clusters are no nearer there."""
     whole, info, done = _cut(settings, Z, u, lengths, n_states, n_actions, **kmeans)
     if done is not None:
         return done
     rule = settings.check.rule
     bootstrap = rule in ("bootstrap", "coverage")
+    # under "coverage", the part of the log the rest seldom visits where there is one
+    span = novel_span(whole.places, settings.check.holdout) if rule == "coverage" else None
     check = cross_fitted(settings, X, Z, u, lengths, n_states, n_actions, build,
-                         starts=FOLD_STARTS if bootstrap else None, weight=info["weight"],
-                         **kmeans)
+                         starts=FOLD_STARTS if bootstrap else None, span=span,
+                         weight=info["weight"], **kmeans)
     if check is None:
         return whole.views, dict(info, chosen="views",
                                   check="the held-out check's first part gave no odometry")
-    if bootstrap:
+    if span is not None:  # on ground new to the rest: the places only where no farther off
+        check = dict(check, rule=rule, span=list(span))
+        lose = check["gap"] < 0
+    elif bootstrap:
         check = dict(check, rule=rule)
         lose = check["gap"] < -MARGIN_SE * check["se"]
     else:
         lose = not check["places"] < check["views"]
-    span = novel_span(whole.places, settings.check.holdout) if rule == "coverage" else None
-    if span is not None and not lose:  # ground the last part never visits, held out too
-        novel = cross_fitted(settings, X, Z, u, lengths, n_states, n_actions, build,
-                             starts=FOLD_STARTS, span=span, weight=info["weight"], **kmeans)
-        if novel is not None:
-            check = dict(check, novel=dict(novel, span=list(span)))
-            lose = novel["gap"] < 0
     chosen = "views" if lose else "places"
     return (whole.places if chosen == "places" else whole.views), dict(info, chosen=chosen,
                                                                       check=check)

@@ -8,11 +8,12 @@ where the check found them better.  :func:`novelty` measures, for a part of the 
 of its steps in places (the whole log's) that hold at most :data:`RARE` of their steps outside
 it; :func:`novel_span` names the part of the log, of as many as the held-out share makes,
 whose novelty is highest, where it reaches :data:`NOVEL_SHARE` and it is not the last part
-(that one is held out already).  Under ``check.rule="coverage"`` the places the last quarter
-keeps are checked again on that part, held out with the rest learned
-(:func:`~topomap.core.motion.crossfit.cross_fitted` with ``span``), and give way to the view
-clusters where the view clusters place it nearer its own pose graph at all
-(benchmarks/notes/continuous.md, "2026-12-02: ground the last quarter never visits").
+(the default's part).  Under ``check.rule="coverage"`` that part is held out instead of the
+last, the rest learned (:func:`~topomap.core.motion.crossfit.cross_fitted` with ``span``), and
+the places give way to the view clusters where the view clusters place it nearer its own pose
+graph at all -- not only by two standard errors: on ground one stay made, the places commit
+to one of alike rooms where the view clusters hedge (benchmarks/notes/continuous.md,
+"2026-12-02: ground the last quarter never visits"); one fold, as ``"bootstrap"``.
 """
 
 from __future__ import annotations

@@ -45,12 +45,11 @@ def fallback_reason(info: dict) -> str | None:
                 f"not cancel their commands' moves (return ratios {info['return_ratios']}, at "
                 "most places.max_return kept); turn / forward commands move a robot differently "
                 "with its heading")
-    novel = check.get("novel")
-    if novel is not None and novel["gap"] < 0:  # the part of the log the rest seldom visits
-        return (f"the held-out check placed steps {novel['span'][0]}-{novel['span'][1]} of the "
+    if "span" in check:  # the part of the log the rest seldom visits, held out
+        return (f"the held-out check placed steps {check['span'][0]}-{check['span'][1]} of the "
                 f"log, in places its other steps seldom visit, nearer their own pose graph with "
-                f"the view clusters ({novel['views']:.3f} cell extents) than with the places "
-                f"({novel['places']:.3f})")
+                f"the view clusters ({check['views']:.3f} cell extents) than with the places "
+                f"({check['places']:.3f})")
     if check.get("rule") in ("bootstrap", "coverage"):  # the views' gain beyond its noise
         return (f"the held-out check placed the log's last {check['held_out']} steps nearer "
                 f"their own pose graph with the view clusters ({check['views']:.3f} cell "
