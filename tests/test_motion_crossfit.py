@@ -133,7 +133,7 @@ def test_an_unknown_check_is_named():
     from topomap.core.checks import ParameterError
     from topomap.core.motion import motion_settings
 
-    with pytest.raises(ParameterError, match="motion.check.*bootstrap, crossfit, folds.*'cross'"):
+    with pytest.raises(ParameterError, match="motion.check.*bootstrap, coverage, crossfit, folds.*'cross'"):
         motion_settings({"check": "cross"})
     assert motion_settings({"check": {"rule": "crossfit"}}).check.rule == "crossfit"
 
