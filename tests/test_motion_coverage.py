@@ -106,7 +106,7 @@ def test_the_coverage_rule_checks_a_part_only_where_one_is_new_ground():
     Z, u, x = _line(first=2000)
     assert x[:2000].min() >= 2.0 - 0.02 and x[2200:].max() <= 2.0
     kw = dict(n_clusters=4, n_states=8, random_state=0)
-    kept = MapLearner(**kw).fit(Z, u)
+    kept = MapLearner(**kw, motion={"check": {"rule": "bootstrap"}}).fit(Z, u)
     assert kept.motion_info_["chosen"] == "places" and "span" not in kept.motion_info_["check"]
     with pytest.warns(UserWarning, match="steps 0-2000 of the log"):
         learner = MapLearner(**kw, motion={"check": {"rule": "coverage"}}).fit(Z, u)

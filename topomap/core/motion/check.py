@@ -4,7 +4,8 @@ Places cut from views and odometry (:func:`~topomap.core.motion.places.cut_place
 clusters where alike rooms are told apart by the way in, but can lose to them where alike views
 carry no history worth the cost: in an open room, where the view alone places a step as well, a
 place that straddles the noise of the odometry only adds it.  The default rule
-(``check.rule="bootstrap"``, and ``"crossfit"``) is :mod:`topomap.core.motion.crossfit`'s; what
+(``check.rule="coverage"``, and ``"bootstrap"`` and ``"crossfit"``) is
+:mod:`topomap.core.motion.crossfit`'s (:mod:`topomap.core.motion.coverage`); what
 follows is the ``"folds"`` rule.  No positions are known, so the check asks the geometry the log has: both maps are learned on the first part of the log and
 decode the rest (:meth:`~topomap.core.map.model.TopologicalMap.predict`, as any new walk); each
 decoded state stands at the mean odometric position of its training steps; the odometric

@@ -12,9 +12,11 @@ a place that follows the first part's drift gains nothing.  The two frames share
 orientation and scale, not their origin: the held-out frame is moved by the median offset of
 the placed steps from it.  The error of a map is then the median distance of the held-out steps
 from their placed positions (cell extents), and the rule is one comparison: the places are kept
-where their error is below the view clusters' (``check.rule="crossfit"``), or -- the default,
+where their error is below the view clusters' (``check.rule="crossfit"``), or --
 ``check.rule="bootstrap"`` -- unless the view clusters' median distance is below theirs by more
-than :data:`MARGIN_SE` bootstrap standard errors (:func:`median_gap`).
+than :data:`MARGIN_SE` bootstrap standard errors (:func:`median_gap`).  The default,
+``check.rule="coverage"``, holds out an earlier part instead where the rest of the log seldom
+visits its places (:mod:`topomap.core.motion.coverage`).
 """
 
 from __future__ import annotations
