@@ -520,7 +520,7 @@ def test_discrete_worlds_keep_the_map_of_the_split():
      r"^motion\.check\.confidence must be a number >= 0"),
     ({"check": {"block_runs": 0}}, r"^motion\.check\.block_runs must be a positive number"),
     ({"check": {"min_purity": 1.0}}, r"^motion\.check\.min_purity must be a number in \[0, 1\)"),
-    ({"check": {"rule": "cross"}}, r"^motion\.check\.rule must be one of bootstrap, crossfit, folds"),
+    ({"check": {"rule": "cross"}}, r"^motion\.check\.rule must be one of bootstrap, coverage, crossfit, folds"),
 ])
 def test_bad_motion_is_named(motion, message):
     Z, u, _ = _alike_halves(500)

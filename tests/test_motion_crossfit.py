@@ -133,7 +133,7 @@ def test_an_unknown_check_is_named():
     from topomap.core.checks import ParameterError
     from topomap.core.motion import motion_settings
 
-    with pytest.raises(ParameterError, match="motion.check.*bootstrap, crossfit, folds.*'cross'"):
+    with pytest.raises(ParameterError, match="motion.check.*bootstrap, coverage, crossfit, folds.*'cross'"):
         motion_settings({"check": "cross"})
     assert motion_settings({"check": {"rule": "crossfit"}}).check.rule == "crossfit"
 
@@ -174,7 +174,8 @@ def test_the_default_check_keeps_the_view_clusters_where_places_are_built_to_los
     with pytest.warns(UserWarning, match="standard errors"):
         checked = MapLearner(**kw, motion={"places": heavy}).fit(Z, u)
     check = checked.motion_info_["check"]
-    assert check["rule"] == "bootstrap"  # the default rule
+    assert check["rule"] == "coverage"  # the default rule: no quarter of this walk is new ground
+    assert "span" not in check
     assert checked.motion_info_["chosen"] == "views" and check["gap"] < -2 * check["se"]
     assert (check["learned"], check["held_out"]) == (6000, 2000)
     assert _new_walk_error(places, x) > _new_walk_error(checked, x)  # the truth agrees
@@ -184,7 +185,7 @@ def test_the_default_check_keeps_places_that_tell_alike_halves_apart():
     Z, u, x = _line(jitter=0.1, period=1.0)  # the view of x is that of x + 1
     learner = MapLearner(n_clusters=4, n_states=8, random_state=0).fit(Z, u)
     assert learner.motion_info_["chosen"] == "places"
-    assert learner.motion_info_["check"]["rule"] == "bootstrap"
+    assert learner.motion_info_["check"]["rule"] == "coverage"
     halves = x > 1.0
     purity = sum(max(np.sum(halves & (learner.labels_ == s)),
                      np.sum(~halves & (learner.labels_ == s)))

@@ -91,7 +91,7 @@ def test_defaults_the_code_repeats_are_the_settings_own():
 
 @pytest.mark.parametrize("value, message", [
     ({"check": {"holdout": 1.0}}, r"motion.check.holdout must be a number in \[0, 1\), got 1.0"),
-    ({"check": {"rule": "cross"}}, "motion.check.rule must be one of bootstrap, crossfit, folds, got "
+    ({"check": {"rule": "cross"}}, "motion.check.rule must be one of bootstrap, coverage, crossfit, folds, got "
                                    "'cross'"),
     ({"places": {"gates": []}}, r"motion.places.gates must be a non-empty list of positive "
                                 r"numbers, got \(\)"),

@@ -4,7 +4,8 @@ Places cut from views and odometry (:func:`~topomap.core.motion.places.cut_place
 clusters where alike rooms are told apart by the way in, but can lose to them where alike views
 carry no history worth the cost: in an open room, where the view alone places a step as well, a
 place that straddles the noise of the odometry only adds it.  The default rule
-(``check.rule="bootstrap"``, and ``"crossfit"``) is :mod:`topomap.core.motion.crossfit`'s; what
+(``check.rule="coverage"``, and ``"bootstrap"`` and ``"crossfit"``) is
+:mod:`topomap.core.motion.crossfit`'s (:mod:`topomap.core.motion.coverage`); what
 follows is the ``"folds"`` rule.  No positions are known, so the check asks the geometry the log has: both maps are learned on the first part of the log and
 decode the rest (:meth:`~topomap.core.map.model.TopologicalMap.predict`, as any new walk); each
 decoded state stands at the mean odometric position of its training steps; the odometric
@@ -38,6 +39,7 @@ from sklearn.metrics import pairwise_distances_argmin
 
 from ..size import split_holdout
 from ..stats import majority_share
+from .coverage import novel_span
 from .crossfit import FOLD_STARTS, MARGIN_SE, cross_fitted
 from .odometry import odometric_positions, reckoned_steps
 from .places import Places, cut_places
@@ -218,7 +220,7 @@ def choose_places(settings: MotionSettings, X, Z, u, lengths, n_states: int, n_a
     loose weight give way to the view clusters, the places cut with ``places.weight`` are
     checked in turn (on ``ring`` at 50 Hz, seed 0, those kept alike rooms apart where the loosely
     weighted ones did not); ``info["loose"]`` then says what the first try chose and why."""
-    if settings.check.rule in ("crossfit", "bootstrap"):
+    if settings.check.rule in ("crossfit", "bootstrap", "coverage"):
         return _crossfit(settings, X, Z, u, lengths, n_states, n_actions, build, **kmeans)
     labels, info = _choose(settings, X, Z, u, lengths, n_states, n_actions, build, **kmeans)
     weight = settings.places.weight
@@ -256,19 +258,28 @@ def _crossfit(settings: MotionSettings, X, Z, u, lengths, n_states: int, n_actio
     view clusters' held-out error is below theirs by more than
     :data:`~topomap.core.motion.crossfit.MARGIN_SE` standard errors (its ``gap`` and ``se``);
     ``"crossfit"``, the places where their error is below the view clusters'
-    (:func:`~topomap.core.motion.crossfit.cross_fitted`'s figures)."""
+    (:func:`~topomap.core.motion.crossfit.cross_fitted`'s figures); ``"coverage"``, as
+    ``"bootstrap"`` but where a part of the log lies in places the rest of it seldom visits
+    (:func:`~topomap.core.motion.coverage.novel_span`), that part held out instead of the last,
+    the places kept only where the view clusters are no nearer there."""
     whole, info, done = _cut(settings, Z, u, lengths, n_states, n_actions, **kmeans)
     if done is not None:
         return done
-    bootstrap = settings.check.rule == "bootstrap"
+    rule = settings.check.rule
+    bootstrap = rule in ("bootstrap", "coverage")
+    # under "coverage", the part of the log the rest seldom visits where there is one
+    span = novel_span(whole.places, settings.check.holdout) if rule == "coverage" else None
     check = cross_fitted(settings, X, Z, u, lengths, n_states, n_actions, build,
-                         starts=FOLD_STARTS if bootstrap else None, weight=info["weight"],
-                         **kmeans)
+                         starts=FOLD_STARTS if bootstrap else None, span=span,
+                         weight=info["weight"], **kmeans)
     if check is None:
         return whole.views, dict(info, chosen="views",
                                   check="the held-out check's first part gave no odometry")
-    if bootstrap:
-        check = dict(check, rule="bootstrap")
+    if span is not None:  # on ground new to the rest: the places only where no farther off
+        check = dict(check, rule=rule, span=list(span))
+        lose = check["gap"] < 0
+    elif bootstrap:
+        check = dict(check, rule=rule)
         lose = check["gap"] < -MARGIN_SE * check["se"]
     else:
         lose = not check["places"] < check["views"]

@@ -12,9 +12,11 @@ a place that follows the first part's drift gains nothing.  The two frames share
 orientation and scale, not their origin: the held-out frame is moved by the median offset of
 the placed steps from it.  The error of a map is then the median distance of the held-out steps
 from their placed positions (cell extents), and the rule is one comparison: the places are kept
-where their error is below the view clusters' (``check.rule="crossfit"``), or -- the default,
+where their error is below the view clusters' (``check.rule="crossfit"``), or --
 ``check.rule="bootstrap"`` -- unless the view clusters' median distance is below theirs by more
-than :data:`MARGIN_SE` bootstrap standard errors (:func:`median_gap`).
+than :data:`MARGIN_SE` bootstrap standard errors (:func:`median_gap`).  The default,
+``check.rule="coverage"``, holds out an earlier part instead where the rest of the log seldom
+visits its places (:mod:`topomap.core.motion.coverage`).
 """
 
 from __future__ import annotations
@@ -30,7 +32,8 @@ from .posegraph import graph_positions
 from .settings import MotionSettings
 
 __all__ = ["translated_error", "state_positions", "cross_fitted", "BLOCKS", "MARGIN_SE",
-           "STRETCH_RUNS", "DRAWS", "FOLD_STARTS", "aligned_distances", "median_gap"]
+           "STRETCH_RUNS", "DRAWS", "FOLD_STARTS", "aligned_distances", "median_gap",
+           "split_span"]
 
 
 #: the held-out part's own pose graph drifts away from the learned part's: its steps are moved
@@ -68,44 +71,64 @@ def state_positions(labels, P) -> np.ndarray:
     return np.column_stack([np.bincount(labels, weights=P[:, j]) for j in range(2)]) / counts
 
 
-def _nearest_views(views, Z, cut: int) -> np.ndarray:
-    """The view cluster of every step from ``cut`` on: the nearest centre of ``views`` (the
-    clusters of the steps before ``cut``)."""
+def _nearest_views(views, Z_learned, Z_held) -> np.ndarray:
+    """The view cluster of every held-out step (rows of ``Z_held``): the nearest centre of
+    ``views`` (the clusters of the learned steps, rows of ``Z_learned``)."""
     k = int(views.max()) + 1
-    centres = np.zeros((k, Z.shape[1]))
-    np.add.at(centres, views, Z[:cut])
+    centres = np.zeros((k, Z_learned.shape[1]))
+    np.add.at(centres, views, Z_learned)
     centres /= np.maximum(np.bincount(views, minlength=k), 1)[:, None]
-    return pairwise_distances_argmin(Z[cut:], centres)
+    return pairwise_distances_argmin(Z_held, centres)
+
+
+def split_span(lengths, a: int, b: int) -> tuple[np.ndarray, np.ndarray]:
+    """``(learned, held)``: the episode lengths of the steps outside ``a:b`` and of those inside
+    it (an episode the span cuts through leaves a piece before it and one after it)."""
+    ends = np.cumsum(lengths)
+    starts = ends - np.asarray(lengths)
+    before = [min(e, a) - s for s, e in zip(starts, ends) if s < a]
+    inside = [min(e, b) - max(s, a) for s, e in zip(starts, ends) if s < b and e > a]
+    after = [e - max(s, b) for s, e in zip(starts, ends) if e > b]
+    return np.array(before + after, dtype=np.int64), np.array(inside, dtype=np.int64)
 
 
 def cross_fitted(settings: MotionSettings, X, Z, u, lengths, n_states: int, n_actions: int,
-                 build, starts: int | None = None, **kmeans) -> dict | None:
+                 build, starts: int | None = None, span: tuple[int, int] | None = None,
+                 **kmeans) -> dict | None:
     """The check's figures: ``{"learned", "held_out", "places", "views", "gap", "se"}`` -- the
-    steps before the cut, after it, each map's error (:func:`translated_error`, cell extents),
-    and the views' median distance less the places' with its bootstrap standard error (the
-    held-out steps moved by their median offset in blocks of one :data:`BLOCKS`-th of the log,
-    :func:`aligned_distances`, :func:`median_gap`); None where the learned part gives no
-    odometry.  ``starts``: the k-means++ starts of the learned part's view clusters (None:
-    ``places.n_init``).  ``build`` and ``kmeans`` (``n_init``,
+    steps learned from, those held out, each map's error (:func:`translated_error`, cell
+    extents), and the views' median distance less the places' with its bootstrap standard error
+    (the held-out steps moved by their median offset in blocks of one :data:`BLOCKS`-th of the
+    log, :func:`aligned_distances`, :func:`median_gap`); None where the learned part gives no
+    odometry.  ``span``: the steps ``a:b`` held out, the rest learned from (None: the last
+    ``check.holdout`` share).  ``starts``: the k-means++ starts of the learned part's view
+    clusters (None: ``places.n_init``).  ``build`` and ``kmeans`` (``n_init``,
     ``random_state``, ``method``, ``weight``) as
     :func:`~topomap.core.motion.check.choose_places`'s."""
     T = len(u)
-    head, tail, cut = split_holdout(T, lengths, settings.check.holdout)
+    if span is None:
+        head, tail, cut = split_holdout(T, lengths, settings.check.holdout)
+        span = (cut, T)
+    else:
+        head, tail = split_span(lengths, *span)
+    a, b = span
+    keep = np.r_[0:a, b:T]
+    Xl, Zl, ul = X[keep], Z[keep], u[keep]
     fold = settings if starts is None else replace(
         settings, places=replace(settings.places, n_init=int(starts)))
-    part = cut_places(fold, Z[:cut], u[:cut], head, n_states, n_actions, **kmeans)
+    part = cut_places(fold, Zl, ul, head, n_states, n_actions, **kmeans)
     if part.places is None:
         return None
     gate = settings.places.gates[len(settings.places.gates) // 2]
-    learned = graph_positions(part.views, u[:cut], head, part.V, part.extent, gate,
+    learned = graph_positions(part.views, ul, head, part.V, part.extent, gate,
                               settings.places.pull)
-    held = graph_positions(_nearest_views(part.views, Z, cut), u[cut:], tail, part.V,
+    held = graph_positions(_nearest_views(part.views, Zl, Z[a:b]), u[a:b], tail, part.V,
                            part.extent, gate, settings.places.pull)
-    out, dist = {"learned": cut, "held_out": T - cut}, {}
-    block = (np.arange(cut, T) * BLOCKS) // T
+    out, dist = {"learned": int(keep.size), "held_out": b - a}, {}
+    block = (np.arange(a, b) * BLOCKS) // T
     for name, labels in (("places", part.places), ("views", part.views)):
-        decoded = build(X[:cut], u[:cut], labels, head, pooled=name == "views").predict(
-            X[cut:], u[cut:], lengths=tail)
+        decoded = build(Xl, ul, labels, head, pooled=name == "views").predict(
+            X[a:b], u[a:b], lengths=tail)
         placed = state_positions(labels, learned)[decoded]
         out[name] = round(translated_error(placed, held), 4)
         dist[name] = aligned_distances(placed, held, block)

@@ -45,7 +45,12 @@ def fallback_reason(info: dict) -> str | None:
                 f"not cancel their commands' moves (return ratios {info['return_ratios']}, at "
                 "most places.max_return kept); turn / forward commands move a robot differently "
                 "with its heading")
-    if check.get("rule") == "bootstrap":  # the views' gain beyond its noise
+    if "span" in check:  # the part of the log the rest seldom visits, held out
+        return (f"the held-out check placed steps {check['span'][0]}-{check['span'][1]} of the "
+                f"log, in places its other steps seldom visit, nearer their own pose graph with "
+                f"the view clusters ({check['views']:.3f} cell extents) than with the places "
+                f"({check['places']:.3f})")
+    if check.get("rule") in ("bootstrap", "coverage"):  # the views' gain beyond its noise
         return (f"the held-out check placed the log's last {check['held_out']} steps nearer "
                 f"their own pose graph with the view clusters ({check['views']:.3f} cell "
                 f"extents) than with the places ({check['places']:.3f}), by more than "
