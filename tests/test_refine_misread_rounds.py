@@ -73,12 +73,29 @@ def test_cycle_start_soft_warm_starts_the_hard_round_after_an_observed_soft_roun
     starts = []
     hard_round = EMRefinement._hard_round
 
-    def recorded(self, seq, split_state_symbol, random_state, init=None, split_labels=None):
+    def recorded(self, seq, split_state_symbol, random_state, init=None, split_labels=None,
+                 **kw):
         starts.append(init is not None)
-        return hard_round(self, seq, split_state_symbol, random_state, init, split_labels)
+        return hard_round(self, seq, split_state_symbol, random_state, init, split_labels, **kw)
     monkeypatch.setattr(EMRefinement, "_hard_round", recorded)
     fit, place = _fit(reading=EARLY, growth={"cycle_start": "soft"})
     assert starts and all(starts) and same_partition(fit.labels_, place)
     starts.clear()
     fit, _ = _fit(reading=EARLY, growth={"cycle_start": "random"})
     assert not any(starts)
+
+
+def test_warm_cycle_rounds_merge_leftovers_and_no_other_round_does(monkeypatch):
+    from topomap.core.refine import methods
+    calls = []
+    merge = methods.merge_leftovers
+
+    def recorded(*args):
+        calls.append(1)
+        return merge(*args)
+    monkeypatch.setattr(methods, "merge_leftovers", recorded)
+    fit, place = _fit(reading=EARLY, growth={"cycle_start": "soft"})
+    assert calls and same_partition(fit.labels_, place)
+    calls.clear()
+    _fit(reading=EARLY, growth={"cycle_start": "random"})
+    assert not calls

@@ -46,7 +46,7 @@ from .sequence import SymbolSequence
 from .settings import STARTS, CSCGRounds, Growth, HardRounds, Reading, SoftRounds
 from .soft import successor_surprise
 from .soft_states import successor_pairing
-from .structure import merge_states, same_partition, split_compounds
+from .structure import merge_leftovers, merge_states, same_partition, split_compounds
 
 __all__ = ["CloneFit", "CloneRefinement", "EMRefinement", "CSCGRefinement", "REFINEMENTS"]
 
@@ -108,10 +108,12 @@ class EMRefinement(CloneRefinement):
         return em_provenance(self.settings(), self.evidence, self.guard)
 
     def _hard_round(self, seq: SymbolSequence, split_state_symbol, random_state: int,
-                    init=None, split_labels=None) -> CloneFit:
+                    init=None, split_labels=None, *, cycle: bool = False) -> CloneFit:
         """The refinement taking every step's symbol as exact (stages 1 to 3 above; from
-        ``init`` instead of stages 1 and 2 when given)."""
-        return _finish(self._stages(seq, split_state_symbol, random_state, init, split_labels))
+        ``init`` instead of stages 1 and 2 when given; ``cycle``: ``init`` is a soft round's
+        labelling of the symbols it corrected, :meth:`_stages`)."""
+        return _finish(self._stages(seq, split_state_symbol, random_state, init, split_labels,
+                                    cycle=cycle))
 
     def _first_hard_round(self, seq: SymbolSequence, split_state_symbol, random_state: int,
                           init=None, split_labels=None, *, cycle: bool = False):
@@ -136,22 +138,25 @@ class EMRefinement(CloneRefinement):
         return _finish(stages)
 
     def _stages(self, seq: SymbolSequence, split_state_symbol, random_state: int, init=None,
-                split_labels=None):
+                split_labels=None, *, cycle: bool = False):
         """Stages 1 to 3 as a generator: it yields ``(labels, state_symbol, info)`` of stage 2's
         last labelling, then returns the round's :class:`CloneFit` (:func:`_finish`).  With
         ``init``, a labelling ``(labels, state_symbol)`` of all steps, one EM round on all steps
-        started from it (:meth:`_warm_round`) replaces stages 1 and 2, and stage 3 is kept
-        short: at most :data:`WARM_ROUNDS` rounds of :data:`WARM_ITER` EM iterations."""
+        started from it (:meth:`_warm_round`) replaces stages 1 and 2, and stage 3's rounds
+        are short, :data:`WARM_ITER` EM iterations, and at most :data:`WARM_ROUNDS`; from a
+        soft round's labelling (``cycle``) as many as ``hard.max_rounds``, each merging the
+        duplicates the soft round's states leave
+        (:func:`~topomap.core.refine.structure.merge_leftovers`)."""
         rng = np.random.default_rng(random_state)
         hard, growth = self.settings_.hard, self.settings_.growth
         if init is not None:
-            short = {"max_rounds": min(hard.max_rounds, WARM_ROUNDS),
-                     "max_iter": min(hard.max_iter, WARM_ITER)}
+            rounds_cap = hard.max_rounds if cycle else min(hard.max_rounds, WARM_ROUNDS)
+            short = {"max_rounds": rounds_cap, "max_iter": min(hard.max_iter, WARM_ITER)}
             labels, state_symbol, iters = self._warm_round(seq, *init, rng, short["max_iter"])
             stages = [(seq.T, int(state_symbol.size), iters)]
             yield labels, state_symbol, {"stages": list(stages), "warm_start": True}
             (labels, state_symbol), rounds = self._rounds_on_all_steps(
-                seq, labels, state_symbol, rng, stages, **short)
+                seq, labels, state_symbol, rng, stages, **short, leftovers=cycle)
             return CloneFit(labels, state_symbol, {"stages": stages, "warm_start": True,
                                                    "rounds_on_all_steps": rounds})
         split_state_symbol = np.asarray(split_state_symbol)
@@ -262,20 +267,23 @@ class EMRefinement(CloneRefinement):
         labels, state_symbol, _ = compact_labels(path, lay.clone_symbol)
         return labels, state_symbol, len(em_history)
 
-    def _restructure(self, seq: SymbolSequence, labels, state_symbol):
-        """Merge bisimilar states, then split compound ones.  Returns the merged labelling, the
-        split labelling (each as ``(labels, state_symbol)``) and whether either step changed
-        anything."""
+    def _restructure(self, seq: SymbolSequence, labels, state_symbol, leftovers: bool = False):
+        """Merge bisimilar states (``leftovers``: and the duplicates the first pass leaves,
+        :func:`~topomap.core.refine.structure.merge_leftovers`), then split compound ones.
+        Returns the merged labelling, the split labelling (each as ``(labels, state_symbol)``)
+        and whether either step changed anything."""
         has_prev, has_next = seq.masks()
         hard = self.settings_.hard
-        merged = merge_states(labels, state_symbol, seq.u, has_next, hard.merge_threshold)
+        merge = merge_leftovers if leftovers else merge_states
+        merged = merge(labels, state_symbol, seq.u, has_next, hard.merge_threshold)
         split = split_compounds(*merged, seq.u, has_prev, has_next, seq.n_actions,
                                 z=hard.split_z, splittable=merged[1] < seq.n_symbols)
         changed = split[1].size > merged[1].size or merged[1].size < state_symbol.size
         return merged, split, changed
 
     def _rounds_on_all_steps(self, seq: SymbolSequence, labels, state_symbol, rng, stages,
-                             max_rounds: int | None = None, max_iter: int | None = None):
+                             max_rounds: int | None = None, max_iter: int | None = None,
+                             leftovers: bool = False):
         """Stage 3: rounds on all steps until nothing is merged or split, a round's merged
         labelling is the one of the round before, or ``max_rounds`` rounds (EM rounds of at most
         ``max_iter`` iterations; defaults: ``hard.max_rounds``, ``hard.max_iter``); appends every
@@ -283,7 +291,7 @@ class EMRefinement(CloneRefinement):
         previous, rounds = None, 0
         max_rounds = self.settings_.hard.max_rounds if max_rounds is None else max_rounds
         while True:
-            merged, split, changed = self._restructure(seq, labels, state_symbol)
+            merged, split, changed = self._restructure(seq, labels, state_symbol, leftovers)
             rounds += 1
             if not changed or rounds >= max_rounds or (
                     previous is not None and same_partition(previous, merged[0])):
@@ -303,7 +311,10 @@ SPLIT_TRUST = 0.02
 
 #: rounds on all steps at most after a warm start (``init``), and the EM iterations of each: the
 #: labelling it starts from has had its rounds already (the last map's), so a few short EM
-#: rounds with their merges and splits bring it to the steps it had not seen
+#: rounds with their merges and splits bring it to the steps it had not seen.  A hard round on
+#: a soft round's corrections (``cycle``) runs up to ``hard.max_rounds`` of them instead: with 3,
+#: gridroom 8x6 at 18.2 % misreads, seed 2, kept states the later soft rounds drained in 69
+#: E-steps instead of 27 (``benchmarks/notes/misread-views.md``, 2026-12-02)
 WARM_ROUNDS = 3
 WARM_ITER = 15
 
@@ -347,9 +358,9 @@ class CSCGRefinement(CloneRefinement):
         return cscg_provenance(self.settings(), self.evidence)
 
     def _hard_round(self, seq: SymbolSequence, split_state_symbol, random_state: int,
-                    init=None, split_labels=None) -> CloneFit:
-        """EM alone taking every step's symbol as exact (neither the split, ``init`` nor
-        ``split_labels`` is used)."""
+                    init=None, split_labels=None, *, cycle: bool = False) -> CloneFit:
+        """EM alone taking every step's symbol as exact (neither the split, ``init``,
+        ``split_labels`` nor ``cycle`` is used)."""
         hard = self.settings_.hard
         lay = seq.layout(clone_budget(seq.n_symbols, seq.n_gds, hard.clones_per_symbol))
         rng = np.random.default_rng(random_state)

@@ -176,7 +176,7 @@ class CloneRefinement(BaseEstimator):
         return self.settings()
 
     def _hard_round(self, seq: SymbolSequence, split_state_symbol, random_state: int,
-                    init=None, split_labels=None) -> CloneFit:
+                    init=None, split_labels=None, *, cycle: bool = False) -> CloneFit:
         raise NotImplementedError
 
     def _first_hard_round(self, seq: SymbolSequence, split_state_symbol, random_state: int,
@@ -249,8 +249,9 @@ class CloneRefinement(BaseEstimator):
 
     def _cycle_hard_round(self, seq: SymbolSequence, soft, random_state: int, detect: float):
         """The hard round on the symbols the soft round ``soft`` corrected -- started from its
-        labelling (a few short rounds, :meth:`EMRefinement._stages`) with
-        ``growth.cycle_start="soft"`` where it read the per-step evidence; else from random counts,
+        labelling (short rounds on all steps, which also merge the duplicates its states leave:
+        :meth:`EMRefinement._stages`) with ``growth.cycle_start="soft"`` where it
+        read the per-step evidence; else from random counts,
         cut short like the first where misreads still show, the next soft round correcting what
         is left, unless the soft round corrected fewer than ``CUT_CORRECTED`` x ``detect`` of
         the steps -- and
@@ -263,7 +264,7 @@ class CloneRefinement(BaseEstimator):
         if (growth is not None and growth.cycle_start == "soft"
                 and soft.info.get("evidence") == "observed"):
             hard = self._hard_round(read, split_symbol, random_state,
-                                    init=(soft.labels, soft.state_symbol))
+                                    init=(soft.labels, soft.state_symbol), cycle=True)
         elif soft.info["corrected"] < CUT_CORRECTED * detect:  # hardly any misreads to cut for
             hard = self._hard_round(read, split_symbol, random_state)
         else:

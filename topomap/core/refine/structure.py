@@ -24,7 +24,8 @@ import numpy as np
 
 from ..split.engine import SplitEngine, merge_groups
 
-__all__ = ["bisimilar_blocks", "merge_states", "split_compounds", "same_partition"]
+__all__ = ["bisimilar_blocks", "merge_states", "merge_leftovers", "split_compounds",
+           "same_partition"]
 
 
 def _g_statistic(c1: dict, c2: dict) -> float:
@@ -160,6 +161,41 @@ def merge_states(labels, state_symbol, u, has_next, threshold: float):
     merged_symbol = np.empty(int(blocks.max()) + 1, dtype=np.int64)
     merged_symbol[blocks] = state_symbol
     return blocks[labels], merged_symbol
+
+
+def merge_leftovers(labels, state_symbol, u, has_next, threshold: float):
+    """:func:`merge_states`, then every state merged into the largest other state of its symbol
+    whose signature under the merged states agrees with its own (:func:`_compatible`), smallest
+    first, and :func:`merge_states` again, until no state merges.  The greedy grouping of
+    :func:`bisimilar_blocks` can put a small duplicate of a place, seen under few actions, with
+    another place at its first pass and leave it alone once that group splits; its neighbours'
+    duplicates then stay apart as well (a chain no pass merges).  Returns the merged labels and
+    the symbol of every merged state."""
+    labels, state_symbol = merge_states(labels, state_symbol, u, has_next, threshold)
+    t = np.flatnonzero(has_next)
+    for _ in range(state_symbol.size):  # every pass but the last merges a state
+        S = state_symbol.size
+        sig = _signatures(labels[t], u[t], labels[t + 1], np.arange(S), np.ones(S, bool))
+        size = np.bincount(labels, minlength=S)
+        target, touched = np.arange(S), np.zeros(S, bool)
+        by_size = np.argsort(-size, kind="stable")  # the largest first
+        for x in by_size[::-1].tolist():
+            if touched[x]:
+                continue
+            for y in by_size.tolist():
+                if size[y] < size[x] or (size[y] == size[x] and y >= x):
+                    break
+                if (state_symbol[y] == state_symbol[x] and not touched[y]
+                        and _compatible(sig[x], sig[y], threshold)):
+                    target[x], touched[x], touched[y] = y, True, True
+                    break
+        if not touched.any():
+            return labels, state_symbol
+        keep = target == np.arange(S)
+        rename = np.cumsum(keep) - 1
+        labels, state_symbol = rename[target[labels]], state_symbol[keep]
+        labels, state_symbol = merge_states(labels, state_symbol, u, has_next, threshold)
+    return labels, state_symbol
 
 
 def same_partition(a, b) -> bool:
