@@ -207,9 +207,10 @@ class EMRefinement(CloneRefinement):
         the split joined; with ``"auto"``, as ``"split"`` where the split's labelling of the
         prefix predicts the next symbol of all but a ``SPLIT_TRUST`` share of its transitions
         (:func:`~topomap.core.refine.soft.successor_surprise`), else from random counts.  From
-        the split, the warm-started EM (``hard.accelerate`` applies; ``"auto"`` is plain EM).  The hard rounds on the
-        symbols a soft round corrected have no split labelling: random counts.  ``rough``: on a
-        short prefix (:func:`~topomap.core.refine.first_stage.first_settings`)."""
+        the split, the warm-started EM (``hard.accelerate`` applies; ``"auto"`` is plain EM).
+        The hard rounds on the symbols a soft round corrected have no split labelling: random
+        counts.  ``rough``: on a short prefix
+        (:func:`~topomap.core.refine.first_stage.first_settings`)."""
         hard, growth = self.settings_.hard, self.settings_.growth
         start = growth.start
         from_split = start != "random" and split_labels is not None  # none: corrected
