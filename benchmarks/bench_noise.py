@@ -58,7 +58,7 @@ from topomap.app.run.data import load_data
 from topomap.app.run.experiment import _as_dict, make_learner
 from topomap.app.compose.registry import Registry
 from topomap import metrics as M
-from topomap.core.refine.accelerate import ACCELERATIONS
+from topomap.core.refine.first_stage import HARD_ACCELERATIONS
 from topomap.core.refine.methods import CSCGRefinement, EMRefinement
 from topomap.core.refine.renamed import SOFT_FIELDS
 from topomap.core.refine.settings import Growth, HardRounds, Reading, SoftRounds
@@ -168,7 +168,7 @@ def main():
                     help=f"{QUICK['worlds']}, levels {QUICK['levels']}, seed 0")
     ap.add_argument("--soft", nargs="+", default=[], metavar="KEY=VALUE",
                     help="settings of em_soft and cscg_soft (e.g. growth.stage_cap=15)")
-    ap.add_argument("--accelerate", default="none", choices=ACCELERATIONS,
+    ap.add_argument("--accelerate", default="auto", choices=HARD_ACCELERATIONS,
                     help="EM's acceleration in em_hard and em_soft (refine.hard.accelerate)")
     ap.add_argument("--overrides", nargs="+", default=[], metavar="KEY=VALUE",
                     help="config overrides added to every world's command (e.g. "
@@ -292,11 +292,11 @@ def side_by_side(args, registry) -> None:
     print(f"load average at end {os.getloadavg()[0]:.2f}")
 
 
-def set_soft(pairs, accelerate: str = "none") -> None:
+def set_soft(pairs, accelerate: str = "auto") -> None:
     """The soft methods of ``METHODS`` with the settings ``GROUP.FIELD=VALUE`` of ``pairs``
     (:func:`soft_values`), and EM's ``hard.accelerate`` in ``em_hard`` and ``em_soft``."""
     hard = {"hard": {"accelerate": accelerate}}
-    if accelerate != "none":
+    if accelerate != "auto":
         print(f"accelerate: {accelerate}")
         METHODS["em_hard"] = lambda: EMRefinement(evidence="hard", **hard)
         METHODS["em_soft"] = lambda: EMRefinement(evidence="auto", **hard)

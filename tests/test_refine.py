@@ -391,7 +391,7 @@ def test_the_repr_is_the_estimators_and_the_provenance_the_form_map_json_stores(
     (EMRefinement, dict(hard={"settle": -0.1}), r"hard.settle must be in \[0, 1\], got -0.1"),
     (EMRefinement, dict(hard={"init_noise": "x"}), "hard.init_noise must be >= 0, got 'x'"),
     (EMRefinement, dict(hard={"accelerate": "fast"}),
-     "hard.accelerate must be one of none, squarem, got 'fast'$"),
+     "hard.accelerate must be one of auto, none, squarem, got 'fast'$"),
     (CSCGRefinement, dict(hard={"clones_per_symbol": 0}),
      "hard.clones_per_symbol must be a positive integer"),
     (CSCGRefinement, dict(hard={"max_iter": 0}), "hard.max_iter must be a positive integer, got 0"),

@@ -50,6 +50,18 @@ def test_a_rough_first_stage_still_finds_every_cell_of_the_grid(seed):
     assert fit.n_states_ == 12 and adjusted_rand_score(places, fit.labels_) == 1.0
 
 
+@pytest.mark.parametrize("first, same_as", [("rough", "squarem"), ("plain", "none")])
+def test_auto_acceleration_is_squarem_after_a_rough_first_stage_only(first, same_as):
+    """``hard.accelerate="auto"`` (the default): after a rough stage 1 the warm-started rounds
+    are SQUAREM's, after a plain one plain EM -- stage for stage the fit of ``"squarem"`` or of
+    ``"none"``, which differ on this grid (stage 1 the same in all three)."""
+    seq, _ = grid(0)
+    fits = {acc: EMRefinement(growth={**ROUGH, "first": first}, hard={"accelerate": acc}).fit(
+        seq, ROOM.place_symbols, 0).info_["stages"] for acc in ("auto", "none", "squarem")}
+    assert fits["none"][0] == fits["squarem"][0] and fits["none"][1:] != fits["squarem"][1:]
+    assert fits["auto"] == fits[same_as]
+
+
 def factors_used(monkeypatch):
     """The clone factors the first stages size their budget with, in order."""
     used, evidence = [], methods.BUDGETS["evidence"]

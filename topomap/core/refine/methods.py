@@ -38,7 +38,7 @@ from .budget import BUDGETS
 from .clones import (Layout, capped_baum_welch, clone_budget, compact_labels, fit_clones,
                      init_from_path, random_counts, spread_states, states_to_clones,
                      viterbi_training)
-from .first_stage import ROUGH, first_settings, rough_first
+from .first_stage import ROUGH, first_settings, rough_first, warm_acceleration
 from .provenance import cscg_provenance, em_provenance
 from .renamed import CSCG_RENAMED, EM_RENAMED
 from .rounds import CAP_SURPRISE, CUT_SURPRISE, PAIRED_READ, CloneFit, CloneRefinement
@@ -72,8 +72,9 @@ class EMRefinement(CloneRefinement):
     Every EM round is a *hard round* (``hard``, :class:`~topomap.core.refine.settings.HardRounds`):
     Baum-Welch with ``row_prior`` per row of ``P(x'|x,u)`` (``row_prior / S`` per entry for ``S``
     clones), stopped by ``max_iter``, ``tol`` (and ``settle``), every warm-started round by
-    SQUAREM's cycles with ``accelerate="squarem"``; merges by ``merge_threshold`` and splits by
-    ``split_z`` (:mod:`topomap.core.refine.structure`).
+    SQUAREM's cycles with ``accelerate="squarem"`` (``"auto"``, the default: those after a rough
+    stage 1); merges by ``merge_threshold`` and splits by ``split_z``
+    (:mod:`topomap.core.refine.structure`).
 
     ``evidence`` (:data:`~topomap.core.refine.soft.EVIDENCE`): ``"auto"`` (default) corrects
     misread symbols when the first soft round finds some (the first hard round stops before
@@ -172,11 +173,12 @@ class EMRefinement(CloneRefinement):
             settled = (len(stages) > 1 + rough and stages[-1][1] == stages[-2][1]
                        and not (rough and changed))
             n = seq.T if settled else min(2 * n, seq.T)
-            labels, state_symbol, iters = self._warm_round(seq.head(n), *split, rng, cap=cap)
+            labels, state_symbol, iters = self._warm_round(seq.head(n), *split, rng, cap=cap,
+                                                           rough=rough)
             stages.append((n, int(state_symbol.size), iters))
         yield labels, state_symbol, {"stages": list(stages), **first}
         (labels, state_symbol), rounds = self._rounds_on_all_steps(seq, labels, state_symbol,
-                                                                   rng, stages)
+                                                                   rng, stages, rough=rough)
         return CloneFit(labels, state_symbol, {"stages": stages, "rounds_on_all_steps": rounds,
                                                **first})
 
@@ -210,9 +212,10 @@ class EMRefinement(CloneRefinement):
         the split joined; with ``"auto"``, as ``"split"`` where the split's labelling of the
         prefix predicts the next symbol of all but a ``SPLIT_TRUST`` share of its transitions
         (:func:`~topomap.core.refine.soft.successor_surprise`), else from random counts.  From
-        the split, the warm-started EM (``hard.accelerate`` applies).  The hard rounds on the
-        symbols a soft round corrected have no split labelling: random counts.  ``rough``: on a
-        short prefix (:func:`~topomap.core.refine.first_stage.first_settings`)."""
+        the split, the warm-started EM (``hard.accelerate`` applies; ``"auto"`` is plain EM).
+        The hard rounds on the symbols a soft round corrected have no split labelling: random
+        counts.  ``rough``: on a short prefix
+        (:func:`~topomap.core.refine.first_stage.first_settings`)."""
         hard, growth = self.settings_.hard, self.settings_.growth
         start = growth.start
         from_split = start != "random" and split_labels is not None  # none: corrected
@@ -225,34 +228,36 @@ class EMRefinement(CloneRefinement):
         budget = BUDGETS[growth.budget](split_state_symbol, seq, factor, hard.spare)
         if not from_split:
             lay = seq.layout(budget)
-            return self._fit_layout(lay, random_counts(lay, rng), cap=cap, warm=False)
+            return self._fit_layout(lay, random_counts(lay, rng), cap=cap)
         budget = np.maximum(budget, np.bincount(state_symbol, minlength=budget.size))
         lay = seq.layout(budget)
         path = spread_states(labels, state_symbol, budget, rng)
         return self._fit_layout(lay, init_from_path(lay, path, seq.T, rng, hard.init_noise),
-                                cap=cap)
+                                cap=cap, accelerate=warm_acceleration(hard.accelerate, False))
 
     def _warm_round(self, seq: SymbolSequence, labels, state_symbol, rng, max_iter=None,
-                    cap=None):
+                    cap=None, *, rough: bool = False):
         """One EM round on ``seq`` started from a labelling of its first ``labels.size`` steps:
         each state becomes a clone, every K-means symbol gets ``hard.spare`` more (at most
         ``max_iter`` EM iterations, default: ``hard.max_iter``; ``cap`` as for
-        :meth:`_fit_layout`)."""
+        :meth:`_fit_layout`; accelerated as ``hard.accelerate`` says after a stage 1 that was
+        ``rough`` or not, :func:`~topomap.core.refine.first_stage.warm_acceleration`)."""
         hard = self.settings_.hard
         budget, path = states_to_clones(labels, state_symbol, seq.n_ids, seq.n_symbols,
                                         hard.spare)
         lay = seq.layout(budget)
         return self._fit_layout(lay, init_from_path(lay, path, labels.size, rng,
-                                                    hard.init_noise), max_iter, cap)
+                                                    hard.init_noise), max_iter, cap,
+                                accelerate=warm_acceleration(hard.accelerate, rough))
 
-    def _fit_layout(self, lay: Layout, init, max_iter=None, cap=None, *, warm: bool = True):
+    def _fit_layout(self, lay: Layout, init, max_iter=None, cap=None, *,
+                    accelerate: str = "none"):
         """Baum-Welch then Viterbi training on ``lay`` from ``init`` (at most ``max_iter`` EM
         iterations, default: ``hard.max_iter``; with ``cap``, ``(iterations, rtol)``, Baum-Welch
-        as :func:`capped_baum_welch`; ``hard.accelerate`` only where ``warm``); returns the
-        labels and state symbols of the clones the path uses, and the number of EM iterations."""
+        as :func:`capped_baum_welch`; ``accelerate`` as there); returns the labels and state
+        symbols of the clones the path uses, and the number of EM iterations."""
         hard = self.settings_.hard
         max_iter = hard.max_iter if max_iter is None else max_iter
-        accelerate = hard.accelerate if warm else "none"
         pseudocount = hard.row_prior / lay.n_clones
         if cap is None or cap[0] >= max_iter:
             labels, state_symbol, em_history, _ = fit_clones(
@@ -283,11 +288,12 @@ class EMRefinement(CloneRefinement):
 
     def _rounds_on_all_steps(self, seq: SymbolSequence, labels, state_symbol, rng, stages,
                              max_rounds: int | None = None, max_iter: int | None = None,
-                             leftovers: bool = False):
+                             leftovers: bool = False, *, rough: bool = False):
         """Stage 3: rounds on all steps until nothing is merged or split, a round's merged
         labelling is the one of the round before, or ``max_rounds`` rounds (EM rounds of at most
-        ``max_iter`` iterations; defaults: ``hard.max_rounds``, ``hard.max_iter``); appends every
-        EM round to ``stages``.  Returns the last merged labelling and the number of rounds."""
+        ``max_iter`` iterations; defaults: ``hard.max_rounds``, ``hard.max_iter``; ``rough``: as
+        for :meth:`_warm_round`); appends every EM round to ``stages``.  Returns the last merged
+        labelling and the number of rounds."""
         previous, rounds = None, 0
         max_rounds = self.settings_.hard.max_rounds if max_rounds is None else max_rounds
         while True:
@@ -297,7 +303,8 @@ class EMRefinement(CloneRefinement):
                     previous is not None and same_partition(previous, merged[0])):
                 return merged, rounds
             previous = merged[0]
-            labels, state_symbol, iters = self._warm_round(seq, *split, rng, max_iter)
+            labels, state_symbol, iters = self._warm_round(seq, *split, rng, max_iter,
+                                                           rough=rough)
             stages.append((seq.T, int(state_symbol.size), iters))
 
 

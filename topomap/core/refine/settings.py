@@ -31,7 +31,7 @@ import numpy as np
 from ..checks import ParameterError, check_count, checked_group
 from .accelerate import ACCELERATIONS
 from .budget import BUDGETS
-from .first_stage import FIRSTS
+from .first_stage import FIRSTS, HARD_ACCELERATIONS
 
 __all__ = ["HardRounds", "CSCGRounds", "Growth", "SoftRounds", "Reading", "RefineSettings",
            "settings_of", "STARTS", "OBSERVED_IN"]
@@ -61,8 +61,9 @@ class HardRounds:
     settle: float = 0.0
     """A round also stops once its decoded path moved on fewer than this share of the steps at
     three E-steps in a row (share of steps; 0: off)."""
-    accelerate: str = "none"
-    """``"squarem"``: the warm-started rounds' Baum-Welch as SQUAREM's cycles; ``"none"``."""
+    accelerate: str = "auto"
+    """``"squarem"``: the warm-started rounds' Baum-Welch as SQUAREM's cycles; ``"none"``;
+    ``"auto"``: SQUAREM where stage 1 is rough (symbols read exactly), else plain."""
     prune: float = 1e-4
     """Filtered probabilities below this are dropped in the forward pass (probability)."""
     merge_threshold: float = 6.63
@@ -249,7 +250,8 @@ _SHARE = _real(lambda v: 0 <= v <= 1, "in [0, 1]")
 CHECKS = {
     HardRounds: {
         "row_prior": _POSITIVE, "tol": _NON_NEGATIVE, "max_iter": _count(), "settle": _SHARE,
-        "accelerate": _choice(ACCELERATIONS), "prune": _PROBABILITY, "merge_threshold": _NUMBER,
+        "accelerate": _choice(HARD_ACCELERATIONS), "prune": _PROBABILITY,
+        "merge_threshold": _NUMBER,
         "split_z": _NUMBER, "spare": _count(0), "init_noise": _NON_NEGATIVE,
         "max_rounds": _count()},
     CSCGRounds: {"clones_per_symbol": _count(), "pseudocount": _POSITIVE, "max_iter": _count(),
