@@ -72,6 +72,7 @@ from pathlib import Path
 import numpy as np
 
 from topomap import MapLearner, Trajectory
+from walk_stamp import walk_stamp
 from topomap.core.map.model import TopologicalMap
 from topomap.evaluation.metres import (ceiling_scores, kmeans_view_scores, map_scores,
                                           score_units)
@@ -134,7 +135,7 @@ def _noisy(traj, sigma: float, seed: int, wrong: float = 0.0):
 def walks(case: str, seed: int, s: dict, cache: Path, n_train: int = 18_000):
     """``(world, train, heldout, ns, n_states)``; the walks are cached as npz files."""
     world = _world(case, s)
-    name = cache / f"{case}-{setting_name(s)}-{seed}-{n_train}.npz"
+    name = cache / f"{case}-{setting_name(s)}-{seed}-{n_train}-{walk_stamp()}.npz"
     if name.exists():
         with np.load(name, allow_pickle=False) as f:
             parts = [Trajectory(f[f"{p}X"], f[f"{p}u"], positions=f[f"{p}P"],

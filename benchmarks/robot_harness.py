@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from topomap import Trajectory
+from walk_stamp import walk_stamp
 
 HERE = Path(__file__).resolve().parent
 #: the robot floor plans (metres as they stand)
@@ -178,7 +179,7 @@ def walk(plan: str, n_steps: int, seed: int, robot: Robot = Robot(),
     """:func:`simulate`, cached as an npz in ``cache``."""
     if cache is None:
         return simulate(plan, n_steps, seed, robot)
-    name = Path(cache) / f"robot-{plan}-{robot.name()}-{seed}-{n_steps}.npz"
+    name = Path(cache) / f"robot-{plan}-{robot.name()}-{seed}-{n_steps}-{walk_stamp()}.npz"
     if name.exists():
         with np.load(name, allow_pickle=False) as f:
             traj = Trajectory(f["X"], f["u"], positions=f["P"],
