@@ -113,7 +113,7 @@ def fit_places(learner, data, settings: MotionSettings, metric, odometry=None) -
                  split_history=learner.split_history_)
     m = build(data.X, data.u, labels, data.lengths, pooled=info["chosen"] == "views", **names)
     if is_robot_log(data, odometry, info):  # turn commands and odometry: the robot route
-        return fit_robot(learner, data, settings, odometry, fallback=(labels, m, info),
+        return fit_robot(learner, data, settings, odometry, fallback=(labels, m, info, build),
                          start=start)
     reason = fallback_reason(info)
     if reason is not None:

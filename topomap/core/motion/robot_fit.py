@@ -121,9 +121,11 @@ def fit_robot(learner, data, settings, odometry, fallback=None,
     ``robot_map_`` -- or, where that map is its own point reflection
     (:func:`~.symmetry.point_symmetry`), by the view clusters, with a
     :class:`~.learn.ContinuousFallbackWarning`; record ``motion_info_`` and the seconds in
-    ``timings_["places"]``; True.  ``fallback``: ``(labels, map, info)`` of the view clusters
-    that ``mode="auto"`` made of the log (:func:`~.learn.fit_places`): the route must then also
-    have walked the floor its scans saw (:func:`~.unwalked.unwalked_share` at most
+    ``timings_["places"]``; True.  ``fallback``: ``(labels, map, info, build)`` of the view
+    clusters that ``mode="auto"`` made of the log and the map builder it made them with
+    (:func:`~.learn.fit_places`; the held-out check builds its view clusters by it): the
+    route must then also have walked the floor its scans saw
+    (:func:`~.unwalked.unwalked_share` at most
     :data:`~.unwalked.MAX_UNWALKED`) and pass the held-out check
     (:func:`~.robot_check.robot_check`), else that map stays, with the warning (a point
     reflection, too); ``info`` is kept in ``motion_info_``.  ``start``: when the seconds began
@@ -146,7 +148,8 @@ def fit_robot(learner, data, settings, odometry, fallback=None,
         if info["unwalked"] > MAX_UNWALKED:
             return _fall_back(learner, settings, fallback, info, _coverage_reason(info), start)
         info["check"] = robot_check(data.X, data.u, odometry, learner.map_split_.n_states,
-                                    _views_builder(learner, data, settings),
+                                    lambda X, u, views: fallback[3](X, u, views, [len(X)],
+                                                                    pooled=True),
                                     settings.check.holdout, learner.random_state,
                                     learner.labels_phase1_, poses[:, 2])
         if not robot_wins(info["check"]):
@@ -158,21 +161,6 @@ def fit_robot(learner, data, settings, odometry, fallback=None,
         m = _places_map(learner, data, labels)
         learner.robot_map_ = model
     return bind_places(learner, m, labels, info, settings, start)
-
-
-def _views_builder(learner, data, settings):
-    """``(X, u, labels) -> map`` of view clusters with one pooled variance, as the fallback's."""
-    from .learn import pooled_variances
-
-    def build(X, u, labels):
-        S = int(labels.max()) + 1
-        m = TopologicalMap.from_labels(
-            X, u, labels, lengths=[len(X)], state_symbol=np.arange(S),
-            state_gds=np.full(S, -1), state_parent=np.full(S, -1), n_actions=data.n_actions,
-            covariance_type=learner.covariance_type, reg_covar=learner.reg_covar)
-        return pooled_variances(m, X, labels, learner.reg_covar,
-                                settings.places.fallback_variance)
-    return build
 
 
 def _fall_back(learner, settings, fallback, info: dict, reason: str, start: float) -> bool:
