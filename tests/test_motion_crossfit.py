@@ -8,6 +8,7 @@ import pytest
 
 from topomap import MapLearner
 from topomap.core.motion import MotionSettings
+from topomap.core.motion.check import gives_way
 from topomap.core.motion.crossfit import state_positions, translated_error
 from topomap.core.motion.posegraph import pose_graph
 
@@ -191,3 +192,21 @@ def test_the_default_check_keeps_places_that_tell_alike_halves_apart():
                      np.sum(~halves & (learner.labels_ == s)))
                  for s in np.unique(learner.labels_)) / x.size
     assert purity > 0.95
+
+
+def test_each_rule_gives_the_places_up_on_its_own_bar():
+    # the views nearer by 0.1 cell extents, with a standard error of 0.04: 2.5 errors
+    near = {"places": 1.0, "views": 0.9, "gap": -0.1, "se": 0.04}
+    assert gives_way(near, "bootstrap", span=False)  # -0.1 < -2 x 0.04
+    assert gives_way(near, "coverage", span=False)
+    # a standard error of 0.06: 1.7 errors, under the bar of 2 -- the places stay ...
+    noisy = dict(near, se=0.06)
+    assert not gives_way(noisy, "bootstrap", span=False)
+    assert not gives_way(noisy, "coverage", span=False)
+    # ... but not on an earlier part held out for ground new to the rest (nearer at all)
+    assert gives_way(noisy, "coverage", span=True)
+    assert not gives_way(dict(noisy, gap=0.0), "coverage", span=True)
+    # crossfit compares the two errors alone, whatever the noise
+    assert gives_way(noisy, "crossfit", span=False)
+    assert not gives_way({"places": 0.8, "views": 0.9, "gap": 0.1, "se": 1.0}, "crossfit",
+                         span=False)

@@ -51,7 +51,7 @@ MIN_PART = 100
 
 __all__ = ["held_out_frame", "frame_error", "misplaced_rows", "misplaced_steps", "misplaced_share",
            "keeps_places", "outvoted", "pooled_shares", "gain_blocks", "gain_noise", "clears_noise",
-           "tells_apart", "view_purity", "choose_places"]
+           "tells_apart", "view_purity", "gives_way", "choose_places"]
 
 
 def held_out_frame(settings: MotionSettings, part: Places, Z, u, lengths, cut: int):
@@ -252,6 +252,20 @@ def _cut(settings: MotionSettings, Z, u, lengths, n_states: int, n_actions: int,
     return whole, info, None
 
 
+def gives_way(check: dict, rule: str, span: bool) -> bool:
+    """Whether :func:`~topomap.core.motion.crossfit.cross_fitted`'s figures (``check``) give
+    the places up for the view clusters under ``rule``: ``span`` (an earlier part held out in
+    place of the last, ``"coverage"``), where the view clusters are nearer at all (``gap``
+    below 0); ``"bootstrap"`` and ``"coverage"``, where ``gap`` is below
+    -:data:`~topomap.core.motion.crossfit.MARGIN_SE` standard errors (``se``); ``"crossfit"``,
+    where the places' error is not below the view clusters'."""
+    if span:
+        return check["gap"] < 0
+    if rule in ("bootstrap", "coverage"):
+        return check["gap"] < -MARGIN_SE * check["se"]
+    return not check["places"] < check["views"]
+
+
 def _crossfit(settings: MotionSettings, X, Z, u, lengths, n_states: int, n_actions: int,
               build, **kmeans) -> tuple[np.ndarray, dict]:
     """:func:`choose_places` by one rule: ``check.rule="bootstrap"``, the places unless the
@@ -275,14 +289,11 @@ def _crossfit(settings: MotionSettings, X, Z, u, lengths, n_states: int, n_actio
     if check is None:
         return whole.views, dict(info, chosen="views",
                                   check="the held-out check's first part gave no odometry")
+    lose = gives_way(check, rule, span is not None)
     if span is not None:  # on ground new to the rest: the places only where no farther off
         check = dict(check, rule=rule, span=list(span))
-        lose = check["gap"] < 0
     elif bootstrap:
         check = dict(check, rule=rule)
-        lose = check["gap"] < -MARGIN_SE * check["se"]
-    else:
-        lose = not check["places"] < check["views"]
     chosen = "views" if lose else "places"
     return (whole.places if chosen == "places" else whole.views), dict(info, chosen=chosen,
                                                                       check=check)
