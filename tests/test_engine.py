@@ -178,3 +178,61 @@ def test_the_gain_by_hand():
     assert entropy_gain(np.array([[3, 0], [0, 3]]), np.array([False, True])) == 1.0
     # both rows in the same half: nothing gained
     assert entropy_gain(np.array([[3, 0], [0, 3]]), np.array([False, False])) == 0.0
+
+
+@pytest.mark.parametrize("K", list(range(1, 20)) + [31, 64, 127, 128, 129, 200])
+def test_a_merged_pair_sum_is_numpys_sum(K):
+    """The merge's pair sum, read straight into numpy's eight accumulators up to 128 columns and
+    through a buffer above, is numpy's ``table[work[a] + work[b]].sum()`` bit for bit (a table of
+    values over a wide range of magnitudes, so the order of additions shows)."""
+    from topomap.core.split.merge_kernels import _merged_sum
+
+    rng = np.random.default_rng(K)
+    work = rng.integers(0, 50, (3, K))
+    table = np.abs(wild(rng, 101))
+    for a, b in [(0, 1), (1, 2), (2, 0)]:
+        got = _merged_sum(work, table, a, b, np.empty(K))
+        assert bits(got) == bits(table[work[a] + work[b]].sum())
+
+
+def test_the_sum_of_a_pair_by_hand():
+    from topomap.core.split.merge_kernels import _merged_sum
+
+    table = np.arange(10.0) ** 2  # table[c] = c^2
+    work = np.array([[1, 0, 2], [0, 3, 1]])
+    assert _merged_sum(work, table, 0, 1, np.empty(3)) == 1 + 9 + 9
+
+
+@pytest.mark.parametrize("seed,K", [(0, 129), (1, 150), (2, 9), (3, 40)])
+def test_wide_count_matrices_merge_as_numpy_does(seed, K):
+    rng = np.random.default_rng(seed)
+    counts = rng.integers(0, 30, (int(rng.integers(3, 9)), K)) * (rng.random((1, K)) < 0.4)
+    counts[counts.sum(1) == 0, 0] = 1
+    assert np.array_equal(merge_groups(counts), ref.merge_groups(counts))
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_merge_and_gain_in_one_call_is_the_two_calls(seed):
+    from topomap.core.split.engine import entropy_gain, merge_and_gain
+
+    rng = np.random.default_rng(seed)
+    G, K = int(rng.integers(2, 40)), int(rng.integers(1, 70))
+    counts = rng.integers(0, 10 ** int(rng.integers(1, 4)), (G, K)) * (rng.random((G, K)) < 0.4)
+    counts[counts.sum(1) == 0, 0] = 1
+    side, gain = merge_and_gain(counts)
+    assert np.array_equal(side, merge_groups(counts))
+    assert bits(gain) == bits(entropy_gain(counts, side))
+
+
+def test_merge_and_gain_edge_cases():
+    from topomap.core.split.engine import merge_and_gain
+    from topomap.core.split.merge_kernels import count_range
+
+    assert count_range(np.array([[3, 0], [-2, 4]])) == (-2, 5)
+    assert merge_and_gain(np.array([[1, 2]])) is None  # one group: nothing to split
+    side, gain = merge_and_gain(np.array([[3, 0], [0, 3]]))
+    assert side.tolist() == [False, True] and gain == 1.0
+    side, gain = merge_and_gain(np.zeros((2, 2), dtype=np.int64))
+    assert side.tolist() == [False, True] and np.isnan(gain)
+    with pytest.raises(ValueError, match="non-negative"):
+        merge_and_gain(np.array([[1, -1], [0, 2]]))

@@ -38,12 +38,19 @@ def _dense_block(a, lo, n):
         for i in range(n):
             res += a[lo + i]
         return res
-    r = a[lo:lo + 8].copy()
+    r0, r1, r2, r3 = a[lo], a[lo + 1], a[lo + 2], a[lo + 3]
+    r4, r5, r6, r7 = a[lo + 4], a[lo + 5], a[lo + 6], a[lo + 7]
     m = n - n % 8
-    for i in range(8, m, 8):
-        for j in range(8):
-            r[j] += a[lo + i + j]
-    res = ((r[0] + r[1]) + (r[2] + r[3])) + ((r[4] + r[5]) + (r[6] + r[7]))
+    for i in range(lo + 8, lo + m, 8):  # eight scalars: no array made a call
+        r0 += a[i]
+        r1 += a[i + 1]
+        r2 += a[i + 2]
+        r3 += a[i + 3]
+        r4 += a[i + 4]
+        r5 += a[i + 5]
+        r6 += a[i + 6]
+        r7 += a[i + 7]
+    res = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
     for i in range(m, n):
         res += a[lo + i]
     return res

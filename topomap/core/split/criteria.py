@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .engine import entropy_gain, merge_groups
+from .engine import merge_and_gain
 
 __all__ = ["EntropyCriterion", "CRITERIA"]
 
@@ -29,11 +29,11 @@ class EntropyCriterion:
     def propose(self, counts: np.ndarray):
         """Return ``(side, gain)`` -- ``side[g]`` is True for the groups of the second half -- or
         ``None`` when the state has fewer than two groups."""
-        counts = np.asarray(counts)
-        if counts.shape[0] < 2:
+        found = merge_and_gain(np.asarray(counts))
+        if found is None:
             return None
-        side = merge_groups(counts)
-        return side, float(max(entropy_gain(counts, side), 0.0))
+        side, gain = found
+        return side, float(max(gain, 0.0))
 
     def __repr__(self) -> str:
         return "EntropyCriterion()"

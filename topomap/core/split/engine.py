@@ -35,10 +35,12 @@ from numba import njit
 from .kernels import (action_table, centre_pairs, follow_keys, merge_tallies, split_table,
                       tally_codes, tally_pairs, touched_codes, transition_table)
 from .threads import beside
-from .merge_kernels import count_matrix_kernel, gain_kernel, merge_groups_kernel
+from .merge_kernels import (count_matrix_kernel, count_range, gain_kernel, merge_gain_kernel,
+                            merge_groups_kernel)
 from ..stats import conditional_entropy, sparse_conditional_entropy, xlogx
 
-__all__ = ["merge_groups", "entropy_gain", "Proposal", "SplitEngine", "Splitter"]
+__all__ = ["merge_groups", "entropy_gain", "merge_and_gain", "Proposal", "SplitEngine",
+           "Splitter"]
 
 #: merge costs are rounded to this many decimals so that ties that are exact in real arithmetic
 #: are exact in floating point too and are broken by index order, not by rounding noise
@@ -92,6 +94,21 @@ def entropy_gain(counts: np.ndarray, side: np.ndarray) -> float:
         return float("nan")  # 0 / 0, as numpy gives it
     table = _TABLE.upto(total)
     return gain_kernel(work, np.ascontiguousarray(side, dtype=np.bool_), table)
+
+
+def merge_and_gain(counts: np.ndarray):
+    """``(side, gain)``: :func:`merge_groups` and :func:`entropy_gain` of its halves, the same
+    arrays and floats, in one compiled call (the paper's split of one state); ``None`` below two
+    rows."""
+    work = np.ascontiguousarray(counts, dtype=np.int64)
+    if work.ndim != 2 or work.shape[0] < 2:
+        return None
+    low, total = count_range(work)
+    if low < 0:
+        raise ValueError("counts must be non-negative")
+    if total == 0:
+        return merge_groups(work), float("nan")
+    return merge_gain_kernel(work, _TABLE.upto(2 * total), _TIE_DECIMALS)
 
 
 @dataclass

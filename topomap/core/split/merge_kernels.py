@@ -7,9 +7,10 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ..sums import pairwise_sum
+from ..sums import _BLOCK, pairwise_sum
 
-__all__ = ["merge_groups_kernel", "gain_kernel", "count_matrix_kernel"]
+__all__ = ["merge_groups_kernel", "gain_kernel", "merge_gain_kernel", "count_range",
+           "count_matrix_kernel"]
 
 
 @njit(cache=True)
@@ -20,11 +21,37 @@ def _round(x, scale):
 
 @njit(cache=True)
 def _merged_sum(work, table, a, b, buf):
-    """``table[work[a] + work[b]].sum()`` in numpy's order."""
+    """``table[work[a] + work[b]].sum()`` in numpy's order: up to 128 columns (one block of
+    numpy's pairwise sum) read straight into its eight accumulators, more through ``buf``."""
     K = work.shape[1]
-    for k in range(K):
-        buf[k] = table[work[a, k] + work[b, k]]
-    return 0.0 + pairwise_sum(buf, 0, K)
+    if K > _BLOCK:
+        for k in range(K):
+            buf[k] = table[work[a, k] + work[b, k]]
+        return 0.0 + pairwise_sum(buf, 0, K)
+    wa, wb = work[a], work[b]
+    if K < 8:
+        res = -0.0
+        for k in range(K):
+            res += table[wa[k] + wb[k]]
+        return 0.0 + res
+    r0, r1 = table[wa[0] + wb[0]], table[wa[1] + wb[1]]
+    r2, r3 = table[wa[2] + wb[2]], table[wa[3] + wb[3]]
+    r4, r5 = table[wa[4] + wb[4]], table[wa[5] + wb[5]]
+    r6, r7 = table[wa[6] + wb[6]], table[wa[7] + wb[7]]
+    m = K - K % 8
+    for i in range(8, m, 8):
+        r0 += table[wa[i] + wb[i]]
+        r1 += table[wa[i + 1] + wb[i + 1]]
+        r2 += table[wa[i + 2] + wb[i + 2]]
+        r3 += table[wa[i + 3] + wb[i + 3]]
+        r4 += table[wa[i + 4] + wb[i + 4]]
+        r5 += table[wa[i + 5] + wb[i + 5]]
+        r6 += table[wa[i + 6] + wb[i + 6]]
+        r7 += table[wa[i + 7] + wb[i + 7]]
+    res = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
+    for i in range(m, K):
+        res += table[wa[i] + wb[i]]
+    return 0.0 + res
 
 
 @njit(cache=True)
@@ -167,6 +194,26 @@ def gain_kernel(counts, side, table):
     for h in range(2):
         parts[h] = _weighted_entropy(halves[h], table, buf)
     return (whole - (0.0 + pairwise_sum(parts, 0, 2))) / (halves[0].sum() + halves[1].sum())
+
+
+@njit(cache=True)
+def merge_gain_kernel(counts, table, decimals):
+    """:func:`merge_groups_kernel`, then :func:`gain_kernel` of its halves, in one call (``table``
+    as for the first)."""
+    side = merge_groups_kernel(counts, table, decimals)
+    return side, gain_kernel(counts, side, table)
+
+
+@njit(cache=True)
+def count_range(counts):
+    """The smallest entry and the sum of an int64 matrix (0, 0 when it is empty), in one pass."""
+    low, total = 0, 0
+    for g in range(counts.shape[0]):
+        for c in range(counts.shape[1]):
+            v = counts[g, c]
+            low = min(low, v)
+            total += v
+    return low, total
 
 
 @njit(cache=True)
