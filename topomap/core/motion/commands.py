@@ -11,9 +11,9 @@ turns alike and explains nothing; heading drift changes no single step's turn.
 
 The continuous path's own test -- whether walks that return to a view cancel their commands'
 moves (:func:`~topomap.core.motion.odometry.action_vectors`) -- is made without odometry and can
-pass turn commands: on ``robot_office`` at a third of its size it passed them on five of six
-walks, so the robot route was never tried there.  Measured (``benchmarks/notes/robots.md``,
-2026-12-02, late): the robots of ``benchmarks/bench_robots.py`` 0.26-0.32 on 15 walks of five
+pass turn commands: on ``robot_office`` (10 x 6 m, and a third of that) it passed them on five of
+six walks, so the robot route was never tried there.  Measured (``benchmarks/notes/robots.md``,
+2026-12-02, evening): the robots of ``benchmarks/bench_robots.py`` 0.26-0.32 on 15 walks of five
 plans, the arena's ``actions=turns`` walker 0.51-0.64 on ten walks of five plans, its compass
 walker 0.001-0.003 on the same ten.
 """
