@@ -21,8 +21,10 @@ from ..map.model import TopologicalMap
 from .check import choose_places
 from .bind import bind_places
 from .crossfit import MARGIN_SE
+from .commands import turn_share
+from .places import view_clusters
 from .robot_fit import fit_robot, is_robot_log
-from .settings import MotionSettings, is_continuous
+from .settings import MotionSettings, is_continuous, mean_run
 
 __all__ = ["fit_places", "pooled_variances", "fallback_reason", "ContinuousFallbackWarning"]
 
@@ -105,16 +107,27 @@ def fit_places(learner, data, settings: MotionSettings, metric, odometry=None) -
         return pooled_variances(m, X, labels, learner.reg_covar,
                                 settings.places.fallback_variance) if pooled else m
 
+    names = dict(action_names=data.action_names, gds_names=data.gds_names,
+                 split_history=learner.split_history_)
+    if is_robot_log(data, odometry):  # the odometry shows turn commands: the robot route
+        k = min(int(learner.map_split_.n_states), int(np.unique(Z, axis=0).shape[0]))
+
+        def views():  # the view clusters, as the log gets them without odometry
+            labels = view_clusters(Z, k, settings.places.n_init, learner.random_state)
+            return labels, build(data.X, data.u, labels, data.lengths, pooled=True, **names), {
+                "view_clusters": k, "mean_run": round(mean_run(labels, data.lengths), 3)}
+
+        info = {"turn_share": round(turn_share(odometry, data.u), 4)}
+        return fit_robot(learner, data, settings, odometry, fallback=(views, info, build),
+                         start=start)
     labels, info = choose_places(settings, data.X, Z, data.u, data.lengths,
                                  learner.map_split_.n_states, data.n_actions, build,
                                  n_init=learner.n_init, random_state=learner.random_state,
                                  method=learner.phase1)
-    names = dict(action_names=data.action_names, gds_names=data.gds_names,
-                 split_history=learner.split_history_)
     m = build(data.X, data.u, labels, data.lengths, pooled=info["chosen"] == "views", **names)
-    if is_robot_log(data, odometry, info):  # turn commands and odometry: the robot route
-        return fit_robot(learner, data, settings, odometry, fallback=(labels, m, info, build),
-                         start=start)
+    if is_robot_log(data, odometry, info):  # no odometry learned from the actions: the route
+        return fit_robot(learner, data, settings, odometry,
+                         fallback=(lambda: (labels, m, {}), info, build), start=start)
     reason = fallback_reason(info)
     if reason is not None:
         info["reason"] = reason

@@ -9,7 +9,7 @@ straight ahead, anticlockwise) and wheel odometry (T, 3) (:func:`learn_robot`):
    positions dead-reckoned along it with the odometry's travel (:func:`~.reckoning.reckon`);
 2. ``CELLS`` cells by K-means on the squares the walk entered (:func:`cells`), each cell's mean
    scan turned into the map frame, one pooled variance, each cell's successors between
-   keyframes (:func:`successors`);
+   keyframes and the cells within ``REACH`` spacings of it (:func:`successors`);
 3. ``n_places`` places by K-means on the positions; each cell belongs to the place most of its
    steps are in.
 
@@ -25,6 +25,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.spatial import cKDTree
 from sklearn.cluster import KMeans
 
 from ..stats import label_means
@@ -33,7 +34,7 @@ from .reckoning import forward_moves, keyframes, reckon
 from .robot_decode import emission, heading_kernel, viterbi
 
 __all__ = ["RobotMap", "learn_robot", "place_walk", "cells", "successors", "CELLS",
-           "SQUARES_PER_CELL", "KEYFRAME_SPACING", "MOVE_SD", "HEADING_SD_BINS", "JUMP",
+           "SQUARES_PER_CELL", "KEYFRAME_SPACING", "REACH", "MOVE_SD", "HEADING_SD_BINS", "JUMP",
            "PLACE_STARTS"]
 
 #: cells of the metric map (cells): 0.07-0.1 m apart on the 1 m plans, about a third of a
@@ -50,6 +51,13 @@ KEYFRAME_SPACING = 0.5
 MOVE_SD = 0.5
 #: the sd of a keyframe's heading about the odometry's turn (heading bins of 2 pi / B rad)
 HEADING_SD_BINS = 0.5
+#: a cell's successors include every cell within this many cell spacings (spacings): a new walk
+#: steps between neighbouring cells the training walk never stepped between at consecutive
+#: keyframes -- 10-19 % of a held-out walk's keyframe moves on the 1 m plans and
+#: ``robot_office`` at a third of its size; the decoder, held to the walked successors, lost
+#: ``robot_office`` seed 1's held-out walk (1.59 m off against 0.08 m with a reach of 2;
+#: 1.5: 0.09 m, but seed 2 0.49 m against 0.14 m; 3: no better, twice the successors)
+REACH = 2.0
 #: a jump anywhere (probability a keyframe): none -- at 1e-4 a held-out stay of 4,900 steps in
 #: one of two identical rooms drifted to the other (0.72 m against 0.096 m without)
 JUMP = 1e-300
@@ -95,23 +103,31 @@ def cells(xy, n: int, random_state) -> tuple[np.ndarray, np.ndarray]:
     return labels, km.cluster_centers_[used]
 
 
-def successors(cells_kf, n: int) -> tuple[np.ndarray, np.ndarray]:
+def successors(cells_kf, n: int, centres=None,
+               reach: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
     """CSR ``(ptr, idx)`` of each of ``n`` cells' successors: the cells the keyframes'
-    ``cells_kf`` step to from it, itself included."""
+    ``cells_kf`` step to from it, itself included, and the cells whose ``centres`` (n, 2) [m]
+    lie within ``reach`` [m] of its own."""
     A = np.eye(n, dtype=bool)
     A[cells_kf[:-1], cells_kf[1:]] = True
+    if centres is not None and reach > 0:
+        for i, near in enumerate(cKDTree(centres).query_ball_point(centres, reach)):
+            A[i, near] = True
     return np.r_[0, np.cumsum(A.sum(1))].astype(np.int64), np.nonzero(A)[1].astype(np.int64)
 
 
 def learn_robot(X, odometry, n_places: int, random_state=0, n_cells: int = CELLS,
-                odometry_turns: bool = True) -> tuple[RobotMap, np.ndarray, np.ndarray]:
+                odometry_turns: bool = True,
+                headings=None) -> tuple[RobotMap, np.ndarray, np.ndarray]:
     """``(map, places (T,), poses (T, 3))`` from one walk: scans ``X`` (T, B) in the robot's frame
     and its wheel ``odometry`` (T, 3); ``poses`` the reckoned x [m], y [m], heading [rad].
     ``odometry_turns=False``: the headings from the scans' turns alone (odometry whose heading
-    is no measurement, e.g. :func:`~.reckoning.command_poses`)."""
+    is no measurement, e.g. :func:`~.reckoning.command_poses`); ``headings`` (T,) [rad]: the
+    steps' headings solved already (:func:`~.scans.scan_headings`; None: solved here)."""
     odometry = np.asarray(odometry, dtype=np.float64)
-    P = reckon(forward_moves(odometry),
-               S.scan_headings(X, odometry[:, 2] if odometry_turns else None))
+    if headings is None:
+        headings = S.scan_headings(X, odometry[:, 2] if odometry_turns else None)
+    P = reckon(forward_moves(odometry), np.asarray(headings, dtype=np.float64))
     cell, cent = cells(P[:, :2], n_cells, random_state)
     N = len(cent)
     R = S.rotate_scans(S.despike(X), P[:, 2])
@@ -119,7 +135,8 @@ def learn_robot(X, odometry, n_places: int, random_state=0, n_cells: int = CELLS
     var = float(((R - M[cell]) ** 2).mean())
     gaps = np.linalg.norm(cent[:, None] - cent[None], axis=2) + np.diag(np.full(N, np.inf))
     spacing = float(np.median(gaps.min(1))) if N > 1 else 1.0
-    ptr, idx = successors(cell[keyframes(P, spacing * KEYFRAME_SPACING)], N)
+    ptr, idx = successors(cell[keyframes(P, spacing * KEYFRAME_SPACING)], N, cent,
+                          spacing * REACH)
     n_places = min(n_places, len(np.unique(P[:, :2], axis=0)))
     places = KMeans(n_places, n_init=PLACE_STARTS, random_state=random_state).fit(
         P[:, :2]).labels_

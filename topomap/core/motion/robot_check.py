@@ -68,13 +68,16 @@ def robot_check(X, u, odometry, n_states: int, views_map, holdout: float, random
     bootstrap standard error.  ``views_map(X, u, labels)``: the view clusters' map of labelled
     steps; ``symbols`` (T,): phase 1's symbols, whose mean run sets the bootstrap's stretch
     (None: one stretch per :data:`~.crossfit.STRETCH_RUNS` steps); ``headings`` (T,): the whole
-    log's headings (:func:`~.scans.scan_headings`; None: solved here)."""
+    log's headings (:func:`~.scans.scan_headings`; None: solved here), which the learned part
+    takes too (its own headings solved again cost as much as the whole log's and differ only
+    in the closures into the held-out part, which say nothing of which room a step is in)."""
     X, u = np.asarray(X, dtype=np.float64), np.asarray(u)
     O = np.asarray(odometry, dtype=np.float64)
     _, _, cut = split_holdout(len(X), [len(X)], holdout)
-    model, places, P = learn_robot(X[:cut], O[:cut], n_states, random_state)
     if headings is None:
         headings = scan_headings(X, O[:, 2])
+    model, places, P = learn_robot(X[:cut], O[:cut], n_states, random_state,
+                                   headings=headings[:cut])
     frame = continued_poses(O[cut - 1:], headings[cut - 1:], P[-1])[:, :2]
     robot_placed = state_positions(places, P)[model.place[place_walk(model, X[cut:],
                                                                      O[cut:])[1]]]

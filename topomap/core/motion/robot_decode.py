@@ -5,7 +5,8 @@ States are the map's ``N`` cells (centres ``cent`` (N, 2) [m], mean scans in the
 ``B`` heading bins (one per beam, ``2 pi / B`` rad each).  A keyframe's move ``(forward, left,
 turn)`` in the frame of the keyframe before takes cell ``c`` at heading bin ``h`` to
 ``cent[c] + R(2 pi h / B) (forward, left)``; each successor ``c'`` of ``c`` (cells walked from
-``c`` to ``c'`` between two keyframes of the training walk, ``c`` itself included) is weighted by
+``c`` to ``c'`` between two keyframes of the training walk, the cells near ``c`` and ``c``
+itself: :func:`~topomap.core.motion.robot.successors`) is weighted by
 ``exp(-d^2 / 2 sd^2)`` of its distance ``d`` from there, normalised over the successors; the
 heading bin turns by the move's turn rounded to bins, spread by the kernel ``log_turn`` over
 ``+-W`` bins.  The emission (:func:`emission`) is a Gaussian of the scan against the cell's mean

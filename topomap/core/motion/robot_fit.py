@@ -15,11 +15,14 @@ walk's odometry then cannot tell a walk from the walk turned by 180 degrees) the
 the views instead, with a :class:`~topomap.core.motion.learn.ContinuousFallbackWarning` and
 ``motion_info_["reason"]``, and ``predict`` decodes it as any map (the odometry checked, unused).
 
-The default, ``mode="auto"``, takes this route on a continuous log given odometry whose actions
-gave no odometry of their own (turn commands: :func:`is_robot_log`), behind two more guards:
-floor the scans saw but the walk never entered (:mod:`topomap.core.motion.unwalked`) and the
-held-out check (:mod:`topomap.core.motion.robot_check`); where one fails, the map is the view
-clusters the continuous path made (the same map as without odometry), with the reason.
+The default, ``mode="auto"``, takes this route on a log given odometry whose commands turn the
+robot (:func:`is_robot_log`: the given odometry's turns explained by the commands,
+:mod:`topomap.core.motion.commands`; or a continuous log whose actions gave no odometry of their
+own), behind two more guards: floor the scans saw but the walk never entered
+(:mod:`topomap.core.motion.unwalked`) and the held-out check
+(:mod:`topomap.core.motion.robot_check`); where one fails, the map is the view clusters -- the
+same map as without odometry where the continuous path finds no odometry in the commands --
+with the reason.
 """
 
 from __future__ import annotations
@@ -33,6 +36,7 @@ from sklearn.cluster import KMeans
 from ..checks import ParameterError
 from ..map.model import TopologicalMap
 from .bind import bind_places
+from .commands import MIN_TURN_SHARE, turn_share
 from .unwalked import FAR, MAX_UNWALKED, unwalked_share
 from .inputs import check_odometry
 from .robot import learn_robot, place_walk
@@ -45,13 +49,19 @@ __all__ = ["fit_robot", "predict_robot", "is_robot_log", "MIN_BEAMS"]
 MIN_BEAMS = 3
 
 
-def is_robot_log(data, odometry, info: dict) -> bool:
-    """Whether ``mode="auto"`` tries the robot route on a continuous log: odometry given, no
-    odometry learned from the actions (``info["odometry"]`` False: turn commands, which move a
-    robot differently with its heading), and a log the route learns from (one episode, no GDS,
-    a ring of :data:`MIN_BEAMS` beams or more a row)."""
-    return (odometry is not None and info.get("odometry") is False and len(data.lengths) == 1
-            and not np.any(data.gds >= 0) and data.X.shape[1] >= MIN_BEAMS)
+def is_robot_log(data, odometry, info: dict | None = None) -> bool:
+    """Whether ``mode="auto"`` tries the robot route on a continuous log: odometry given, a log
+    the route learns from (one episode, no GDS, a ring of :data:`MIN_BEAMS` beams or more a
+    row), and turn commands -- read off the given odometry (its turns explained by the commands,
+    :func:`~.commands.turn_share` at least :data:`~.commands.MIN_TURN_SHARE`) or, with ``info``
+    of the continuous path, no odometry learned from the actions (``info["odometry"]`` False:
+    commands that move a robot differently with its heading)."""
+    if not (odometry is not None and len(data.lengths) == 1 and not np.any(data.gds >= 0)
+            and data.X.shape[1] >= MIN_BEAMS):
+        return False
+    if info is not None:
+        return info.get("odometry") is False
+    return turn_share(odometry, data.u) >= MIN_TURN_SHARE
 
 
 def _check_log(data, odometry) -> None:
@@ -121,20 +131,21 @@ def fit_robot(learner, data, settings, odometry, fallback=None,
     ``robot_map_`` -- or, where that map is its own point reflection
     (:func:`~.symmetry.point_symmetry`), by the view clusters, with a
     :class:`~.learn.ContinuousFallbackWarning`; record ``motion_info_`` and the seconds in
-    ``timings_["places"]``; True.  ``fallback``: ``(labels, map, info, build)`` of the view
-    clusters that ``mode="auto"`` made of the log and the map builder it made them with
-    (:func:`~.learn.fit_places`; the held-out check builds its view clusters by it): the
-    route must then also have walked the floor its scans saw
-    (:func:`~.unwalked.unwalked_share` at most
+    ``timings_["places"]``; True.  ``fallback``: ``(views, info, build)`` where ``mode="auto"``
+    chose the route -- ``views()`` gives ``(labels, map, info)`` of the view clusters of the log
+    (made only where a guard fails: the map the log gets without odometry; ``info`` what their
+    making measured), ``info`` what was measured before, ``build`` the map builder (:func:`~.learn.fit_places`; the
+    held-out check builds its view clusters by it): the route must then also have walked the
+    floor its scans saw (:func:`~.unwalked.unwalked_share` at most
     :data:`~.unwalked.MAX_UNWALKED`) and pass the held-out check
-    (:func:`~.robot_check.robot_check`), else that map stays, with the warning (a point
-    reflection, too); ``info`` is kept in ``motion_info_``.  ``start``: when the seconds began
-    (``time.perf_counter``; None: now)."""
+    (:func:`~.robot_check.robot_check`), else the view clusters' map stays, with the warning (a
+    point reflection, too); ``info`` is kept in ``motion_info_``.  ``start``: when the seconds
+    began (``time.perf_counter``; None: now)."""
     _check_log(data, odometry)
     start = time.perf_counter() if start is None else start
     model, labels, poses = learn_robot(data.X, odometry, learner.map_split_.n_states,
                                        learner.random_state)
-    info = {**({} if fallback is None else fallback[2]), "chosen": "robot",
+    info = {**({} if fallback is None else fallback[1]), "chosen": "robot",
             "cells": model.n_cells, "places": int(labels.max()) + 1,
             "cell_spacing_m": round(model.spacing, 4),
             "beam_variance_m2": round(model.variance, 6),
@@ -148,7 +159,7 @@ def fit_robot(learner, data, settings, odometry, fallback=None,
         if info["unwalked"] > MAX_UNWALKED:
             return _fall_back(learner, settings, fallback, info, _coverage_reason(info), start)
         info["check"] = robot_check(data.X, data.u, odometry, learner.map_split_.n_states,
-                                    lambda X, u, views: fallback[3](X, u, views, [len(X)],
+                                    lambda X, u, views: fallback[2](X, u, views, [len(X)],
                                                                     pooled=True),
                                     settings.check.holdout, learner.random_state,
                                     learner.labels_phase1_, poses[:, 2])
@@ -164,13 +175,15 @@ def fit_robot(learner, data, settings, odometry, fallback=None,
 
 
 def _fall_back(learner, settings, fallback, info: dict, reason: str, start: float) -> bool:
-    """Bind ``fallback``'s view clusters (labels, map) with ``info`` and ``reason``, warning."""
+    """Bind ``fallback``'s view clusters (``views()``: labels, map) with ``info`` and
+    ``reason``, warning."""
     from .learn import ContinuousFallbackWarning
 
-    info.update(chosen="views", reason=reason)
+    labels, m, measured = fallback[0]()
+    info.update(measured, chosen="views", reason=reason)
     warnings.warn(f"robot log: the map's states are the view clusters (K-means on the views), "
                   f"not places: {reason}", ContinuousFallbackWarning, stacklevel=5)
-    return bind_places(learner, fallback[1], fallback[0], info, settings, start)
+    return bind_places(learner, m, labels, info, settings, start)
 
 
 def predict_robot(model, observations, lengths, odometry) -> np.ndarray:

@@ -15,6 +15,7 @@ median mismatch of a cell's scan with its nearest neighbour's, is the ``ratio``.
 from __future__ import annotations
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from .scans import rotate_scans
 
@@ -28,14 +29,13 @@ SEARCH = 8
 SYMMETRY_RATIO = 3.0
 
 
-def _mirror_mismatch(centres, scans, turned, spacing, c0) -> float:
+def _mirror_mismatch(tree, scans, turned, spacing, c0) -> float:
     """The median scan mismatch of every cell with the cell nearest its point reflection about
-    ``c0`` (infinite where that lies a spacing or more from any cell)."""
-    image = 2 * c0 - centres
-    d = np.linalg.norm(image[:, None] - centres[None], axis=2)
-    j = d.argmin(1)
+    ``c0`` (infinite where that lies a spacing or more from any cell); ``tree`` the cells'
+    :class:`~scipy.spatial.cKDTree`."""
+    d, j = tree.query(2 * c0 - tree.data)
     e = ((scans[j] - turned) ** 2).mean(1)
-    return float(np.median(np.where(d[np.arange(len(j)), j] < spacing, e, np.inf)))
+    return float(np.median(np.where(d < spacing, e, np.inf)))
 
 
 def point_symmetry(model) -> dict:
@@ -48,11 +48,11 @@ def point_symmetry(model) -> dict:
     d = np.linalg.norm(C[:, None] - C[None], axis=2) + np.diag(np.full(len(C), np.inf))
     own = float(np.median(((M - M[d.argmin(1)]) ** 2).mean(1)))
     steps = np.arange(-SEARCH, SEARCH + 1) * sp / 2
-    best, centre = np.inf, C.mean(0)
+    best, centre, tree = np.inf, C.mean(0), cKDTree(C)
     for dx in steps:
         for dy in steps:
             c0 = C.mean(0) + (dx, dy)
-            e = _mirror_mismatch(C, M, turned, sp, c0)
+            e = _mirror_mismatch(tree, M, turned, sp, c0)
             if e < best:
                 best, centre = e, c0
     return {"ratio": best / max(own, 1e-12), "centre": [round(float(v), 3) for v in centre]}
