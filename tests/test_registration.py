@@ -1,0 +1,82 @@
+"""Odometry from egocentric scans alone: registration of a scan of a rectangular room."""
+
+import numpy as np
+import pytest
+
+from topomap.core.motion import registration as R
+
+W, H = 2.0, 1.2     # m: a rectangular room, wider than deep (no turn by 90 degrees maps it onto
+B = 60              # itself, nor by 180 degrees about a point off its centre); beams
+MAX_RANGE = 3.5
+
+
+def _scan(x, y, heading, n=B):
+    """(n,) exact ranges from ``(x, y)`` inside the room [0, W] x [0, H], beam ``k`` at
+    ``heading + 2 pi k / n``: the nearest of the four walls along each beam."""
+    a = heading + 2 * np.pi * np.arange(n) / n
+    c, s = np.cos(a), np.sin(a)
+    with np.errstate(divide="ignore"):
+        tx = np.where(c > 0, (W - x) / c, np.where(c < 0, -x / c, np.inf))
+        ty = np.where(s > 0, (H - y) / s, np.where(s < 0, -y / s, np.inf))
+    return np.minimum(np.minimum(tx, ty), MAX_RANGE)
+
+
+def test_points_of_a_scan_drop_beams_with_no_return():
+    scan = _scan(0.6, 0.5, 0.0)
+    scan[[3, 40]] = MAX_RANGE
+    P, valid = R.scan_points(scan, MAX_RANGE)
+    assert not valid[3] and not valid[40] and valid.sum() == B - 2
+    # beam 0 points along the heading (x), beam B / 4 to the left (y)
+    assert P[0] == pytest.approx([W - 0.6, 0.0])
+    assert P[B // 4] == pytest.approx([0.0, H - 0.5], abs=1e-12)
+
+
+def test_compose_and_relative_undo_each_other():
+    a, b = np.array([0.3, -0.2, 0.7]), np.array([0.05, 0.02, -0.3])
+    np.testing.assert_allclose(R._relative(a, R.compose(a, b)), b, atol=1e-12)
+
+
+@pytest.mark.parametrize("move", [(0.03, 0.0, 0.0), (0.02, 0.01, 0.15), (-0.01, 0.02, -0.25)])
+def test_registration_recovers_a_known_rigid_motion(move):
+    # the robot at (0.7, 0.45) heading 0.3 rad moves by ``move`` in its own frame; the scan
+    # there, registered against the first from no motion at all, gives that move.  Beams are
+    # 6 degrees apart, points on the walls 0.05-0.15 m apart; a line through a point and its
+    # neighbours is exact on a wall, wrong only for the 8 points of 60 beside the four corners,
+    # whose line cuts the corner and lies up to ~1.5 cm off either wall: averaged over the 60
+    # points, up to 8 x 1.5 / 60 = 2 mm of translation, and 2 mm over the mean range (0.6 m)
+    # of turn.  A wrong match is off by centimetres and tenths of a radian.
+    start = np.array([0.7, 0.45, 0.3])
+    end = R.compose(start, np.array(move))
+    m, paired, _ = R.register(_scan(*start), _scan(*end), MAX_RANGE - 1e-9)
+    assert paired == B
+    np.testing.assert_allclose(m[:2], move[:2], atol=2e-3)
+    assert m[2] == pytest.approx(move[2], abs=2e-3 / 0.6)
+
+
+def test_scan_odometry_follows_a_walk_and_a_sudden_half_turn():
+    # 60 steps of 1 cm forward turning 0.02 rad a step, a sudden turn of 2 rad (a robot bounced
+    # off a wall: beyond every start but the retry's sweep), then 30 more steps.  Every step's
+    # pose from the scans alone, from (0, 0, 0) at the first step, is the true pose in the
+    # first step's frame; a keyframe every 5 cm (and at the sudden turn), so at most 18
+    # registrations chain, each within 2 mm and 2 mm / 0.6 m of turn (the test above): the
+    # walk within 18 x 2 mm and 18 x 3.3e-3 rad.  Missing the sudden turn costs 2 rad.
+    poses = [np.array([0.5, 0.4, 0.2])]
+    for t in range(90):
+        turn = 2.0 if t == 60 else 0.02
+        poses.append(R.compose(poses[-1], np.array([0.01, 0.0, turn])))
+    X = np.array([_scan(*p) for p in poses])
+    est = R.scan_odometry(X, MAX_RANGE)
+    truth = np.array([R._relative(poses[0], p) for p in poses])
+    np.testing.assert_allclose(est[:, :2], truth[:, :2], atol=18 * 2e-3)
+    np.testing.assert_allclose(est[:, 2], truth[:, 2], atol=18 * 2e-3 / 0.6)
+
+
+def test_scan_odometry_reads_the_largest_range_as_no_return():
+    poses = [np.array([0.5, 0.4, 0.0])]
+    for _ in range(20):
+        poses.append(R.compose(poses[-1], np.array([0.01, 0.0, 0.0])))
+    X = np.array([_scan(*p) for p in poses])
+    X[:, 7] = 9.0  # one beam never returns: the largest reading, left out
+    est = R.scan_odometry(X)
+    # 4 keyframes of 5 cm, each within 2 mm (above)
+    assert est[-1] == pytest.approx([0.2, 0.0, 0.0], abs=4 * 2e-3)
