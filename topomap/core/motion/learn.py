@@ -22,7 +22,7 @@ from .check import choose_places
 from .bind import bind_places
 from .crossfit import MARGIN_SE
 from .commands import turn_share
-from .places import view_clusters
+from .places import log_view_clusters
 from .robot_fit import fit_robot, is_robot_log
 from .settings import MotionSettings, is_continuous, mean_run
 
@@ -110,10 +110,9 @@ def fit_places(learner, data, settings: MotionSettings, metric, odometry=None) -
     names = dict(action_names=data.action_names, gds_names=data.gds_names,
                  split_history=learner.split_history_)
     if is_robot_log(data, odometry):  # the odometry shows turn commands: the robot route
-        k = min(int(learner.map_split_.n_states), int(np.unique(Z, axis=0).shape[0]))
-
         def views():  # the view clusters, as the log gets them without odometry
-            labels = view_clusters(Z, k, settings.places.n_init, learner.random_state)
+            labels, k = log_view_clusters(settings, Z, learner.map_split_.n_states,
+                                          learner.random_state)
             return labels, build(data.X, data.u, labels, data.lengths, pooled=True, **names), {
                 "view_clusters": k, "mean_run": round(mean_run(labels, data.lengths), 3)}
 

@@ -22,8 +22,8 @@ from .odometry import (action_vectors, cell_extent, dead_reckoning, odometric_po
                        reckoned_steps)
 from .settings import MotionSettings, mean_run
 
-__all__ = ["Places", "cut_places", "places_of", "place_features", "position_weight",
-           "view_clusters"]
+__all__ = ["Places", "cut_places", "log_view_clusters", "places_of", "place_features",
+           "position_weight", "view_clusters"]
 
 #: the least view spread (the views' unit): a floor against 0 for a log whose view clusters
 #: are single points, whose views then keep their own scale
@@ -81,6 +81,14 @@ def position_weight(settings: MotionSettings, ratios) -> float:
                  else settings.places.weight)
 
 
+def log_view_clusters(settings: MotionSettings, Z, n_states: int,
+                      random_state: int = 0) -> tuple[np.ndarray, int]:
+    """``(labels, k)``: the log's view clusters (:func:`view_clusters` of ``Z``), ``k`` of them --
+    ``n_states``, or the number of distinct rows of ``Z`` where fewer."""
+    k = min(int(n_states), int(np.unique(Z, axis=0).shape[0]))
+    return view_clusters(Z, k, settings.places.n_init, random_state), k
+
+
 def cut_places(settings: MotionSettings, Z, u, lengths, n_states: int, n_actions: int, *,
                n_init: int = 3, random_state: int = 0, method: str = "auto",
                weight: float | None = None) -> Places:
@@ -90,8 +98,7 @@ def cut_places(settings: MotionSettings, Z, u, lengths, n_states: int, n_actions
     ``places.gates`` the copies of view clusters its positions kept.  ``weight``: the
     positions' weight (None: :func:`position_weight` of this log's odometry)."""
     lengths = np.asarray(lengths, dtype=np.int64)
-    k = min(int(n_states), int(np.unique(Z, axis=0).shape[0]))
-    fsym = view_clusters(Z, k, settings.places.n_init, random_state)
+    fsym, k = log_view_clusters(settings, Z, n_states, random_state)
     V, ratios = action_vectors(Z, fsym, u, lengths, n_actions, seed=random_state,
                                max_return=settings.places.max_return)
     info = {"mean_run": round(mean_run(fsym, lengths), 3), "view_clusters": k,
