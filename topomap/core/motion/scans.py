@@ -15,7 +15,7 @@ alike once the rotation is taken out (:func:`loop_closures`: nearest neighbours 
 of the scans' Fourier coefficients, which a rotation leaves unchanged), each stating the turn
 between them.  Closures are admitted in growing windows of time, each only if it agrees within
 ``CLOSURE_GATE`` with the headings solved so far, and weighted by a Cauchy loss (iteratively
-reweighted, ``scipy.sparse.linalg.spsolve``).  Measured (``benchmarks/robot_slam.py``): wheel
+reweighted, ``scipy.sparse.linalg.spsolve`` with the fill-reducing ordering :data:`ORDERING`).  Measured (``benchmarks/robot_slam.py``): wheel
 odometry calibrated against the scans and closed this way is 0.025 rad from the true heading on
 1 m alike rooms (0.78 rad before); positions dead-reckoned along it 0.083 m (0.64 m).
 """
@@ -36,6 +36,11 @@ CLOSURE_GATE = 0.4     # rad: a closure disagreeing more with the headings so fa
 CAUCHY_SCALE = 3.0     # residuals in sds where the Cauchy loss halves an edge's weight
 WINDOWS = (600, 1200, 2400, 4800, 9600)  # steps: closures admitted up to this gap, in turn
 DESCRIPTORS = 16       # Fourier magnitudes describing a scan without its rotation
+#: SuperLU's column ordering for the heading graph's normal equations (symmetric: a chain plus
+#: closures): minimum degree on ``N + N.T`` solves the 18,000-step graph of a 30-minute walk in
+#: 0.055 s of CPU where SuperLU's default (COLAMD) takes 0.17 s (25 solves a fit); the headings
+#: agree within 5e-11 rad
+ORDERING = "MMD_AT_PLUS_A"
 MIN_GAP = 100          # steps: closures nearer in time are left to the chain; of six walks
                        # two ended 0.67 and 1.06 rad off with 300, 0.013 and 0.099 with 100
 
@@ -118,7 +123,7 @@ def _solve(T, i, j, d, sd, psi, iters: int = 5):
         N = (A.T @ sp.diags(w) @ A + 1e6 * anchor).tocsc()
         b = A.T @ (w * target)
         b[0] += 1e6 * psi[0]
-        psi = spl.spsolve(N, b)
+        psi = spl.spsolve(N, b, permc_spec=ORDERING)
     return psi
 
 
