@@ -40,6 +40,15 @@ def test_despike_removes_a_dropout_beam():
     assert np.abs(d - S.despike(x[None])[0]).max() <= np.abs(x - np.roll(x, 2)).max()
 
 
+
+def test_despike_is_the_median_of_each_beam_and_its_two_neighbours():
+    rng = np.random.default_rng(3)
+    X = rng.integers(0, 4, size=(50, 7)).astype(float)  # many ties among the three
+    X[rng.random(X.shape) < 0.2] = 9.0
+    triples = np.stack([np.roll(X, 1, 1), X, np.roll(X, -1, 1)])
+    assert np.array_equal(S.despike(X), np.median(triples, axis=0))
+    assert np.array_equal(S.despike(X), np.sort(triples, axis=0)[1])
+
 def test_loop_closures_pair_a_scan_with_its_turned_copy():
     rng = np.random.default_rng(1)
     X = np.array([_room_scan(seed=s) for s in range(600)]) + rng.normal(0, 1e-3, (600, 60))
