@@ -13,7 +13,9 @@ last, the rest learned (:func:`~topomap.core.motion.crossfit.cross_fitted` with 
 the places give way to the view clusters where the view clusters place it nearer its own pose
 graph at all -- not only by two standard errors: on ground one stay made, the places commit
 to one of alike rooms where the view clusters hedge (benchmarks/notes/continuous.md,
-"2026-12-02: ground the last quarter never visits"); one fold, as ``"bootstrap"``.
+"2026-12-02: ground the last quarter never visits"); one fold, as ``"bootstrap"``, and a
+second where the last part keeps the places within two standard errors
+(:func:`~topomap.core.motion.check.undecided`).
 """
 
 from __future__ import annotations

@@ -16,7 +16,8 @@ where their error is below the view clusters' (``check.rule="crossfit"``), or --
 ``check.rule="bootstrap"`` -- unless the view clusters' median distance is below theirs by more
 than :data:`MARGIN_SE` bootstrap standard errors (:func:`median_gap`).  The default,
 ``check.rule="coverage"``, holds out an earlier part instead where the rest of the log seldom
-visits its places (:mod:`topomap.core.motion.coverage`).
+visits its places (:mod:`topomap.core.motion.coverage`), and the part before the last beside it
+where the last keeps the places within the bar (:func:`topomap.core.motion.check.undecided`).
 """
 
 from __future__ import annotations

@@ -52,6 +52,14 @@ def fallback_reason(info: dict) -> str | None:
                 f"log, in places its other steps seldom visit, nearer their own pose graph with "
                 f"the view clusters ({check['views']:.3f} cell extents) than with the places "
                 f"({check['places']:.3f})")
+    if "second" in check:  # the last part undecided, the one before it held out
+        second = check["second"]
+        return (f"the held-out check placed the log's last {check['held_out']} steps no nearer "
+                f"their own pose graph by more than {MARGIN_SE:g} standard errors either way, "
+                f"and steps {second['span'][0]}-{second['span'][1]} nearer with the view "
+                f"clusters ({second['views']:.3f} cell extents) than with the places "
+                f"({second['places']:.3f}), by more than {MARGIN_SE:g} standard errors "
+                f"({second['se']:.3f})")
     if check.get("rule") in ("bootstrap", "coverage"):  # the views' gain beyond its noise
         return (f"the held-out check placed the log's last {check['held_out']} steps nearer "
                 f"their own pose graph with the view clusters ({check['views']:.3f} cell "

@@ -83,8 +83,10 @@ class CheckSettings:
     clusters place it nearer its own pose graph by over two bootstrap standard errors (no field
     below but ``holdout``); ``"coverage"``: the same, but where an earlier part of as many steps
     lies mostly in places the rest of the log seldom visits, that part held out instead and the
-    places kept only where no farther off (:mod:`~topomap.core.motion.coverage`; over 1 % above
-    the views on 0 of 27 walks, ``bootstrap`` on 1); ``"crossfit"``: kept where nearer at all;
+    places kept only where no farther off (:mod:`~topomap.core.motion.coverage`), and where the
+    last part keeps them within two standard errors, the part before it held out too, the places
+    given up by the same bar (over 1 % above the views on 0 of 30 walks, ``bootstrap`` on 3);
+    ``"crossfit"``: kept where nearer at all;
     ``"folds"``: the fields below."""
     holdout: float = 0.25
     """The share of the log held out at its end (share; 0, or a part under 100 steps: no check)."""
