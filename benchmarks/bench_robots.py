@@ -15,7 +15,9 @@ of another seed is placed by each route, each step at its state's mean training 
 ``ceiling``    the true places in topomap's model class (:func:`ceiling_scores`, on the split map)
 ``views``      K-means on the views, 64 clusters (:func:`kmeans_view_scores`)
 ``shipped``    ``MapLearner(n_clusters=32, n_states=64, random_state=0).fit(X, u, odometry=...)``
-``no_odometry`` the same without the odometry
+``no_odometry`` the same without the odometry (``predict`` without it too)
+``scan_odometry`` the same with ``motion={"scan_odometry": True}``: the robot route on odometry
+               read from the scans, behind the guards (:mod:`topomap.core.motion.robot_scans`)
 ``robot_mode`` the same with ``motion="robot"``, the held-out walk placed by
                ``predict(X, u, odometry=...)`` with its own odometry
 
@@ -67,10 +69,12 @@ def base_route(name, tw, hw, regions, seed):
         split = MapLearner(N_CLUSTERS, N_STATES, motion="discrete", random_state=0).fit(
             train.observations, train.actions, n_actions=train.n_actions)
         return ceiling_scores(split.map_, split.labels_, train, held, regions, random_state=seed)
-    if name in ("shipped", "no_odometry"):
+    if name in ("shipped", "no_odometry", "scan_odometry"):
         kw = {"odometry": tw.odometry} if name == "shipped" else {}
+        held_kw = {"odometry": hw.odometry} if name == "shipped" else {}
+        motion = {"scan_odometry": True} if name == "scan_odometry" else "auto"
         try:
-            learner = MapLearner(N_CLUSTERS, N_STATES, random_state=0).fit(
+            learner = MapLearner(N_CLUSTERS, N_STATES, motion=motion, random_state=0).fit(
                 train.observations, train.actions, n_actions=train.n_actions, **kw)
         except TypeError:  # a learner that takes no odometry
             learner = MapLearner(N_CLUSTERS, N_STATES, random_state=0).fit(
@@ -83,7 +87,7 @@ def base_route(name, tw, hw, regions, seed):
                "fit_only_s": round(sum(learner.timings_.values()), 2)}
         if getattr(learner, "robot_map_", None) is None:
             return {**row, **map_scores(learner.map_, learner.labels_, train, held, regions)}
-        placed = learner.predict(held.observations, held.actions, odometry=hw.odometry)
+        placed = learner.predict(held.observations, held.actions, **held_kw)
         return {**row, **score_units(learner.labels_, train.positions, placed, held.positions,
                                      learner.map_.n_states, _pair(train, held, regions))}
     if name == "robot_mode":
@@ -98,18 +102,20 @@ def base_route(name, tw, hw, regions, seed):
     return None
 
 
-ROUTES = ("ideal", "ceiling", "views", "shipped", "no_odometry", "robot_mode", *RR.ROUTES,
+ROUTES = ("ideal", "ceiling", "views", "shipped", "no_odometry", "scan_odometry", "robot_mode",
+          *RR.ROUTES,
           *RS.ROUTES)
 
 
 def route(name, tw, hw, regions, seed):
-    start = time.perf_counter()
+    start, cpu = time.perf_counter(), time.process_time()
     row = base_route(name, tw, hw, regions, seed)
     if row is None and name in RS.ROUTES:
         row = RS.route(name, tw, hw, regions, seed, N_CLUSTERS, N_STATES)
     if row is None:
         row = RR.route(name, tw, hw, regions, seed, N_CLUSTERS, N_STATES)
-    return {"fit_s": round(time.perf_counter() - start, 2), **row}
+    return {"fit_s": round(time.perf_counter() - start, 2),
+            "cpu_s": round(time.process_time() - cpu, 2), **row}
 
 
 def _done(log: Path) -> set:

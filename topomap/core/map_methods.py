@@ -95,12 +95,16 @@ class MapMethods:
         :meth:`TopologicalMap.predict <topomap.core.map.model.TopologicalMap.predict>`);
         without ``actions``, on the map with its actions summed out; ``odometry`` is checked,
         not used (see the module docstring) -- after a fit with ``motion="robot"`` it is
-        required, and each step gets the place the robot route puts it in.
+        required, and each step gets the place the robot route puts it in (a map whose odometry
+        was read from the scans, ``motion_info_["odometry_from"] == "scans"``: without it, the
+        walk's own is read from its scans).
         Raises scikit-learn's ``NotFittedError`` before :meth:`fit` (or :meth:`partial_fit`)."""
         check_is_fitted(self, "map_")
         robot = getattr(self, "robot_map_", None)
         if robot is not None:
-            return predict_robot(robot, observations, lengths, odometry)
+            return predict_robot(robot, observations, lengths, odometry,
+                                 (getattr(self, "motion_info_", None) or {}).get(
+                                     "odometry_from") == "scans")
         self._check_odometry(odometry, observations, lengths)
         return self.map_.predict(observations, actions, gds=gds, lengths=lengths)
 

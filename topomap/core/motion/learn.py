@@ -24,6 +24,7 @@ from .crossfit import MARGIN_SE
 from .commands import turn_share
 from .places import log_view_clusters
 from .robot_fit import fit_robot, is_robot_log
+from .robot_scans import fit_scan_robot, is_scan_log
 from .settings import MotionSettings, is_continuous, mean_run
 
 __all__ = ["fit_places", "pooled_variances", "fallback_reason", "ContinuousFallbackWarning"]
@@ -135,6 +136,9 @@ def fit_places(learner, data, settings: MotionSettings, metric, odometry=None) -
     if is_robot_log(data, odometry, info):  # no odometry learned from the actions: the route
         return fit_robot(learner, data, settings, odometry,
                          fallback=(lambda: (labels, m, {}), info, build), start=start)
+    if settings.scan_odometry and is_scan_log(data, odometry, info):  # odometry from the scans
+        return fit_scan_robot(learner, data, settings, (lambda: (labels, m, {}), info, build),
+                              start=start)
     reason = fallback_reason(info)
     if reason is not None:
         info["reason"] = reason

@@ -274,7 +274,8 @@ def _solve_positions(T, i, j, d, sd, P, iters: int = 5):
     return P
 
 
-def scan_poses(X, max_range: float | None = None, windows=S.WINDOWS) -> np.ndarray:
+def scan_poses(X, max_range: float | None = None, windows=S.WINDOWS,
+               odometry=None) -> np.ndarray:
     """(T, 3) poses (x [m], y [m], heading [rad]) of a walk of egocentric scans ``X`` (T, B)
     alone: :func:`scan_odometry`, its heading closed by loops (:func:`~.scans.scan_headings`),
     then its positions closed by loops: each candidate closure of
@@ -282,11 +283,12 @@ def scan_poses(X, max_range: float | None = None, windows=S.WINDOWS) -> np.ndarr
     kept where its cost is at most ``CLOSURE_COST`` times the median of the chain's; the
     positions closest to the chain's moves (sd ``CHAIN_SD_M`` a step) and the closures'
     (sd ``CLOSURE_SD_M``), those with a gap of at most each window admitted in turn where
-    within ``POSITION_GATE_M`` of the positions so far."""
+    within ``POSITION_GATE_M`` of the positions so far.  ``odometry``: :func:`scan_odometry`'s
+    poses of ``X`` with the same ``max_range`` (None: computed here)."""
     X = np.asarray(X, dtype=np.float64)
     T = len(X)
     max_range = float(X.max()) if max_range is None else float(max_range)
-    O = scan_odometry(X, max_range)
+    O = scan_odometry(X, max_range) if odometry is None else np.asarray(odometry, np.float64)
     psi = S.scan_headings(X, O[:, 2], windows)
     P = reckon(forward_moves(O), psi)
     ci, cj, _ = S.loop_closures(S.despike(X))

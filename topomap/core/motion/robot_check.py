@@ -61,7 +61,7 @@ def continued_poses(odometry, headings, start) -> np.ndarray:
 
 
 def robot_check(X, u, odometry, n_states: int, views_map, holdout: float, random_state=0,
-                symbols=None, headings=None) -> dict:
+                symbols=None, headings=None, place_odometry=None) -> dict:
     """The check's figures (module docstring): ``{"learned", "held_out", "robot", "views",
     "gap", "se"}`` -- steps before the cut and after it, each map's median distance [m] of the
     held-out steps from their placed positions, the views' less the robot route's and its
@@ -70,7 +70,10 @@ def robot_check(X, u, odometry, n_states: int, views_map, holdout: float, random
     (None: one stretch per :data:`~.crossfit.STRETCH_RUNS` steps); ``headings`` (T,): the whole
     log's headings (:func:`~.scans.scan_headings`; None: solved here), which the learned part
     takes too (its own headings solved again cost as much as the whole log's and differ only
-    in the closures into the held-out part, which say nothing of which room a step is in)."""
+    in the closures into the held-out part, which say nothing of which room a step is in);
+    ``place_odometry`` (T, 3): the odometry the held-out steps are placed by, as a new walk's
+    would be (None: ``odometry``; odometry read from the scans places a new walk by its
+    unclosed registration, :mod:`~.robot_scans`)."""
     X, u = np.asarray(X, dtype=np.float64), np.asarray(u)
     O = np.asarray(odometry, dtype=np.float64)
     _, _, cut = split_holdout(len(X), [len(X)], holdout)
@@ -79,8 +82,9 @@ def robot_check(X, u, odometry, n_states: int, views_map, holdout: float, random
     model, places, P = learn_robot(X[:cut], O[:cut], n_states, random_state,
                                    headings=headings[:cut])
     frame = continued_poses(O[cut - 1:], headings[cut - 1:], P[-1])[:, :2]
+    O_place = O if place_odometry is None else np.asarray(place_odometry, dtype=np.float64)
     robot_placed = state_positions(places, P)[model.place[place_walk(model, X[cut:],
-                                                                     O[cut:])[1]]]
+                                                                     O_place[cut:])[1]]]
     views = KMeans(n_states, n_init=1, random_state=random_state).fit(X[:cut]).labels_
     decoded = views_map(X[:cut], u[:cut], views).predict(X[cut:], u[cut:])
     views_placed = state_positions(views, P)[decoded]

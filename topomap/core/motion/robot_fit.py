@@ -22,7 +22,8 @@ own), behind two more guards: floor the scans saw but the walk never entered
 (:mod:`topomap.core.motion.unwalked`) and the held-out check
 (:mod:`topomap.core.motion.robot_check`); where one fails, the map is the view clusters -- the
 same map as without odometry where the continuous path finds no odometry in the commands --
-with the reason.
+with the reason.  ``MotionSettings(scan_odometry=True)`` gives a log without odometry the same
+route on odometry read from its scans (:mod:`topomap.core.motion.robot_scans`).
 """
 
 from __future__ import annotations
@@ -126,7 +127,7 @@ def _view_clusters(learner, data, settings, info: dict):
 
 
 def fit_robot(learner, data, settings, odometry, fallback=None,
-              start: float | None = None) -> bool:
+              start: float | None = None, place_odometry=None) -> bool:
     """Replace ``learner``'s map and labels by the robot route's places and keep its metric map as
     ``robot_map_`` -- or, where that map is its own point reflection
     (:func:`~.symmetry.point_symmetry`), by the view clusters, with a
@@ -140,7 +141,8 @@ def fit_robot(learner, data, settings, odometry, fallback=None,
     :data:`~.unwalked.MAX_UNWALKED`) and pass the held-out check
     (:func:`~.robot_check.robot_check`), else the view clusters' map stays, with the warning (a
     point reflection, too); ``info`` is kept in ``motion_info_``.  ``start``: when the seconds
-    began (``time.perf_counter``; None: now)."""
+    began (``time.perf_counter``; None: now).  ``place_odometry``: the odometry the held-out
+    check places its held-out steps by (None: ``odometry``; :mod:`~.robot_scans`)."""
     _check_log(data, odometry)
     start = time.perf_counter() if start is None else start
     model, labels, poses = learn_robot(data.X, odometry, learner.map_split_.n_states,
@@ -162,7 +164,7 @@ def fit_robot(learner, data, settings, odometry, fallback=None,
                                     lambda X, u, views: fallback[2](X, u, views, [len(X)],
                                                                     pooled=True),
                                     settings.check.holdout, learner.random_state,
-                                    learner.labels_phase1_, poses[:, 2])
+                                    learner.labels_phase1_, poses[:, 2], place_odometry)
         if not robot_wins(info["check"]):
             return _fall_back(learner, settings, fallback, info, check_reason(info["check"]),
                               start)
@@ -186,11 +188,14 @@ def _fall_back(learner, settings, fallback, info: dict, reason: str, start: floa
     return bind_places(learner, m, labels, info, settings, start)
 
 
-def predict_robot(model, observations, lengths, odometry) -> np.ndarray:
+def predict_robot(model, observations, lengths, odometry,
+                  from_scans: bool = False) -> np.ndarray:
     """(T,) the place of every step of a new walk, each episode placed on ``model`` with its own
     ``odometry`` (T, 3) (:func:`~topomap.core.motion.robot.place_walk`); a one-line
-    :class:`ParameterError` naming ``odometry`` or ``observations`` when they do not fit."""
-    if odometry is None:
+    :class:`ParameterError` naming ``odometry`` or ``observations`` when they do not fit.
+    ``from_scans``: a map learned on odometry read from the scans, where ``odometry`` None is
+    read from the walk's own scans (:func:`~.robot_scans.walk_odometry`)."""
+    if odometry is None and not from_scans:
         raise ParameterError("odometry", "is required to place a walk on a map of motion mode "
                                          "'robot': the walk's (T, 3) wheel odometry")
     X = np.asarray(observations, dtype=np.float64)
@@ -198,6 +203,10 @@ def predict_robot(model, observations, lengths, odometry) -> np.ndarray:
         raise ParameterError("observations", f"must be finite (T, {model.scans.shape[1]}) scans "
                                              f"as the map was learned from, got shape {X.shape}")
     lengths = np.array([len(X)] if lengths is None else lengths, dtype=np.int64)
+    if odometry is None:
+        from .robot_scans import walk_odometry
+
+        odometry = walk_odometry(X, lengths)
     O = check_odometry(odometry, len(X), lengths)
     ends = np.cumsum(lengths)
     return np.concatenate([place_walk(model, X[a:b], O[a:b])[0]

@@ -132,6 +132,11 @@ class MotionSettings:
     1.0-1.3, compass walkers 13-16 and a robot's own-frame scans 2.0-5.0 at 10 Hz)."""
     min_steps: int = 1000
     """The least steps of such a log (steps)."""
+    scan_odometry: bool = False
+    """Whether ``mode="auto"`` gives a robot's log of egocentric range scans and turn commands
+    WITHOUT odometry the robot route, its odometry read from the scans
+    (:mod:`topomap.core.motion.robot_scans`), behind the guards of a log with odometry; off:
+    such a log gets the view clusters (measured: ``docs/robot-logs.md``)."""
     places: PlaceSettings = PlaceSettings()
     """How the places are cut (``motion.places``)."""
     check: CheckSettings = CheckSettings()
@@ -246,6 +251,9 @@ def motion_settings(value, stacklevel: int = 2) -> MotionSettings:
         raise ParameterError("motion.mode", f"must be one of {', '.join(MODES)}, "
                                             f"got {value.mode!r}")
     check_count(value.min_steps, "motion.min_steps")
+    if not isinstance(value.scan_odometry, (bool, np.bool_)):
+        raise ParameterError("motion.scan_odometry", f"must be true or false, got "
+                                                     f"{value.scan_odometry!r}")
     _POSITIVE(value.min_run, "motion.min_run")
     for name, cls in GROUPS.items():
         _group(cls, getattr(value, name), f"motion.{name}")

@@ -1,0 +1,145 @@
+"""A robot's log WITHOUT odometry, ``motion={"scan_odometry": True}``: the robot route on odometry
+read from the scans (:mod:`topomap.core.motion.robot_scans`), behind the guards of a log with
+odometry, else the view clusters it gets today; ``predict`` reads a new walk's odometry from its
+scans."""
+
+from __future__ import annotations
+
+import warnings
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from topomap import MapLearner
+from topomap.core.checks import ParameterError
+from topomap.core.motion.learn import ContinuousFallbackWarning
+from topomap.core.motion.registration import scan_odometry
+from topomap.core.motion.robot_fit import predict_robot
+from topomap.core.motion.robot_scans import SOURCE, is_scan_log
+from topomap.core.motion.settings import motion_settings
+
+
+def _log(T=50, B=12, lengths=None, gds=-1, low=0.5):
+    return SimpleNamespace(X=np.full((T, B), low), u=np.zeros(T, dtype=int),
+                           lengths=np.array([T] if lengths is None else lengths),
+                           gds=np.full(T, gds))
+
+
+def test_a_robot_log_without_odometry_is_recognised_by_hand():
+    """Recognised: no odometry given, and the continuous path learned none from the commands
+    (turn commands), one episode, no GDS, a ring of 3 beams or more, no negative reading.  A
+    compass walker's commands give odometry (``info["odometry"]`` True): never caught."""
+    none = {"odometry": False}
+    assert is_scan_log(_log(), None, none)
+    assert not is_scan_log(_log(), np.zeros((50, 3)), none)        # odometry given
+    assert not is_scan_log(_log(), None, {"odometry": True})        # compass commands
+    assert not is_scan_log(_log(), None, {})                        # not the continuous path
+    assert not is_scan_log(_log(lengths=[25, 25]), None, none)      # two episodes
+    assert not is_scan_log(_log(gds=0), None, none)                 # GDS steps
+    assert not is_scan_log(_log(B=2), None, none)                   # no ring of beams
+    assert not is_scan_log(_log(low=-1.0), None, none)              # not ranges
+
+
+def test_the_setting_is_off_by_default_and_checked():
+    assert motion_settings("auto").scan_odometry is False
+    assert motion_settings({"scan_odometry": True}).scan_odometry is True
+    with pytest.raises(ParameterError, match=r"^motion.scan_odometry must be true or false"):
+        motion_settings({"scan_odometry": "yes"})
+
+
+def _robot_world(plan_dict, n_steps, seed=0):
+    pytest.importorskip("ratinabox")
+    from topomap.worlds.arena import ArenaWorld, RangeFinder, floorplan_from_dict
+
+    world = ArenaWorld(floorplan_from_dict(plan_dict, "plan"),
+                       sensor=RangeFinder(frame="egocentric", n_beams=60), actions="turns")
+    return world.simulate(n_steps, None, np.random.default_rng(seed))
+
+
+def _fit(walk):
+    """The default with the setting on, fitted on the walk's scans and commands alone."""
+    return MapLearner(8, 16, motion={"scan_odometry": True}, random_state=0).fit(
+        walk.observations, walk.actions, n_actions=walk.n_actions)
+
+
+def test_a_thinly_walked_log_without_odometry_keeps_the_view_clusters():
+    """3,000 steps (5 minutes) in an 8 x 4 m room, no odometry: the route is tried on the
+    odometry read from the scans, and its unwalked-floor guard sends the log back (the walk
+    enters a corner of the floor its scans see) -- the same states as with the setting off,
+    the warning and the reason."""
+    walk = _robot_world({"boundary": [[0, 0], [8, 0], [8, 4], [0, 4]],
+                         "holes": [[[1, 1], [1.5, 1], [1.5, 1.5], [1, 1.5]]]}, 3000)
+    with pytest.warns(ContinuousFallbackWarning, match="saw floor its walk never entered"):
+        learner = _fit(walk)
+    info = learner.motion_info_
+    assert info["chosen"] == "views" and info["odometry_from"] == SOURCE
+    assert info["unwalked"] > 0.01 and getattr(learner, "robot_map_", None) is None
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ContinuousFallbackWarning)
+        plain = MapLearner(8, 16, random_state=0).fit(walk.observations, walk.actions,
+                                                      n_actions=walk.n_actions)
+    assert "odometry_from" not in plain.motion_info_  # off by default: not tried
+    np.testing.assert_array_equal(learner.labels_, plain.labels_)
+    np.testing.assert_array_equal(learner.map_.means, plain.map_.means)
+
+
+def test_where_the_guards_pass_the_route_is_taken_and_predict_reads_the_scans(monkeypatch):
+    """3,000 steps in two furnished 1 m rooms, no odometry, the floor and check guards made to
+    pass: the map is the robot route's on the scans' odometry, and ``predict`` without odometry
+    gives what :func:`~topomap.core.motion.robot_fit.predict_robot` gives with the walk's
+    registration (:func:`~topomap.core.motion.registration.scan_odometry`); the walk placed
+    again lands in most of its own places (measured 0.96; by chance 1 in 16)."""
+    import topomap.core.motion.robot_fit as robot_fit
+    from test_motion_robot import _arena_robot
+
+    monkeypatch.setattr(robot_fit, "unwalked_share", lambda model: 0.0)
+    monkeypatch.setattr(robot_fit, "robot_check", lambda *a, **k: {
+        "learned": 2250, "held_out": 750, "robot": 0.1, "views": 0.5, "gap": 0.4, "se": 0.05})
+    _, walk, _ = _arena_robot(3000, 10)
+    learner = _fit(walk)
+    assert learner.motion_info_["chosen"] == "robot" and learner.robot_map_ is not None
+    assert learner.motion_info_["odometry_from"] == SOURCE
+    X = walk.observations[:1500]
+    again = learner.predict(X, walk.actions[:1500])
+    np.testing.assert_array_equal(again, predict_robot(learner.robot_map_, X, None,
+                                                       scan_odometry(X)))
+    assert np.mean(again == learner.labels_[:1500]) > 0.5
+
+
+@pytest.mark.slow
+def test_a_robot_log_without_odometry_takes_the_route_and_predicts_from_its_scans(monkeypatch):
+    """Two 1 m rooms with a table each (8,000 steps learned, no odometry): the guards pass
+    (measured: mirror ratio 5.2, 0.13 % unwalked, the check 0.168 m against the views' 0.528 m,
+    8 standard errors), so the map is the robot route's; ``predict`` without odometry reads the
+    held-out walk's from its scans -- the same places as given that odometry -- and places it
+    under half as far from the truth as K-means on the views, fewer steps in the wrong room
+    (measured: 0.140 m and 15 % against 0.529 m and 56 %).  Where the check does not prefer
+    the route, the view clusters stay, as with the setting off."""
+    import topomap.core.motion.robot_fit as robot_fit
+    from test_motion_robot import _arena_robot
+    from topomap.evaluation.metres import kmeans_view_scores, score_units
+
+    plan, walk, held = _arena_robot(8000, 2000)
+    learner = _fit(walk)
+    info = learner.motion_info_
+    assert info["chosen"] == "robot" and info["odometry_from"] == SOURCE
+    placed = learner.predict(held.observations, held.actions)
+    np.testing.assert_array_equal(placed, predict_robot(
+        learner.robot_map_, held.observations, None, scan_odometry(held.observations)))
+    pair = (plan.region_of(walk.positions), plan.region_of(held.positions))
+    ours = score_units(learner.labels_, walk.positions, placed, held.positions, 16, pair)
+    views = kmeans_view_scores(16, walk, held, plan.region_of, random_state=0)
+    assert ours["median_error"] < 0.5 * views["median_error"]
+    assert ours["wrong_region"] < views["wrong_region"]
+    monkeypatch.setattr(robot_fit, "robot_check", lambda *a, **k: {
+        "learned": 6000, "held_out": 2000, "robot": 0.570, "views": 0.557, "gap": -0.013,
+        "se": 0.22})
+    with pytest.warns(ContinuousFallbackWarning, match="held-out check placed"):
+        kept = _fit(walk)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ContinuousFallbackWarning)
+        plain = MapLearner(8, 16, random_state=0).fit(walk.observations, walk.actions,
+                                                      n_actions=walk.n_actions)
+    assert kept.motion_info_["chosen"] == "views" and getattr(kept, "robot_map_", None) is None
+    np.testing.assert_array_equal(kept.labels_, plain.labels_)
