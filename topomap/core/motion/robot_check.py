@@ -37,7 +37,7 @@ from .robot import learn_robot, place_walk
 from .scans import scan_headings
 from .settings import mean_run
 
-__all__ = ["robot_check", "robot_wins", "check_reason", "continued_poses",
+__all__ = ["robot_check", "check_views", "robot_wins", "check_reason", "continued_poses",
            "ROBOT_MARGIN_SE"]
 
 #: standard errors: the robot route is kept only where the views' held-out median distance
@@ -60,8 +60,15 @@ def continued_poses(odometry, headings, start) -> np.ndarray:
     return P[1:]
 
 
+def check_views(X, n_states: int, holdout: float, random_state=0) -> np.ndarray:
+    """The check's view clusters: K-means on the views of the steps before the cut (labels of
+    those steps); made apart from :func:`robot_check` so that it can run beside the route."""
+    _, _, cut = split_holdout(len(X), [len(X)], holdout)
+    return KMeans(n_states, n_init=1, random_state=random_state).fit(X[:cut]).labels_
+
+
 def robot_check(X, u, odometry, n_states: int, views_map, holdout: float, random_state=0,
-                symbols=None, headings=None, place_odometry=None) -> dict:
+                symbols=None, headings=None, place_odometry=None, views=None) -> dict:
     """The check's figures (module docstring): ``{"learned", "held_out", "robot", "views",
     "gap", "se"}`` -- steps before the cut and after it, each map's median distance [m] of the
     held-out steps from their placed positions, the views' less the robot route's and its
@@ -73,7 +80,8 @@ def robot_check(X, u, odometry, n_states: int, views_map, holdout: float, random
     in the closures into the held-out part, which say nothing of which room a step is in);
     ``place_odometry`` (T, 3): the odometry the held-out steps are placed by, as a new walk's
     would be (None: ``odometry``; odometry read from the scans places a new walk by its
-    unclosed registration, :mod:`~.robot_scans`)."""
+    unclosed registration, :mod:`~.robot_scans`); ``views``: a function returning
+    :func:`check_views` of the log (None: made here)."""
     X, u = np.asarray(X, dtype=np.float64), np.asarray(u)
     O = np.asarray(odometry, dtype=np.float64)
     _, _, cut = split_holdout(len(X), [len(X)], holdout)
@@ -85,7 +93,7 @@ def robot_check(X, u, odometry, n_states: int, views_map, holdout: float, random
     O_place = O if place_odometry is None else np.asarray(place_odometry, dtype=np.float64)
     robot_placed = state_positions(places, P)[model.place[place_walk(model, X[cut:],
                                                                      O_place[cut:])[1]]]
-    views = KMeans(n_states, n_init=1, random_state=random_state).fit(X[:cut]).labels_
+    views = (check_views(X, n_states, holdout, random_state) if views is None else views())
     decoded = views_map(X[:cut], u[:cut], views).predict(X[cut:], u[cut:])
     views_placed = state_positions(views, P)[decoded]
     dist = {name: np.linalg.norm(placed - frame, axis=1)

@@ -36,12 +36,13 @@ from sklearn.cluster import KMeans
 
 from ..checks import ParameterError
 from ..map.model import TopologicalMap
+from ..split.threads import beside
 from .bind import bind_places
 from .commands import MIN_TURN_SHARE, turn_share
 from .unwalked import FAR, MAX_UNWALKED, unwalked_share
 from .inputs import check_odometry
 from .robot import learn_robot, place_walk
-from .robot_check import check_reason, robot_check, robot_wins
+from .robot_check import check_reason, check_views, robot_check, robot_wins
 from .symmetry import SYMMETRY_RATIO, point_symmetry
 
 __all__ = ["fit_robot", "predict_robot", "is_robot_log", "MIN_BEAMS"]
@@ -145,6 +146,10 @@ def fit_robot(learner, data, settings, odometry, fallback=None,
     check places its held-out steps by (None: ``odometry``; :mod:`~.robot_scans`)."""
     _check_log(data, odometry)
     start = time.perf_counter() if start is None else start
+    # the check's view clusters need no headings: made on another thread while the route runs
+    views = None if fallback is None else beside(
+        check_views, data.X, learner.map_split_.n_states, settings.check.holdout,
+        learner.random_state, steps=len(data.X))
     model, labels, poses = learn_robot(data.X, odometry, learner.map_split_.n_states,
                                        learner.random_state)
     info = {**({} if fallback is None else fallback[1]), "chosen": "robot",
@@ -164,7 +169,8 @@ def fit_robot(learner, data, settings, odometry, fallback=None,
                                     lambda X, u, views: fallback[2](X, u, views, [len(X)],
                                                                     pooled=True),
                                     settings.check.holdout, learner.random_state,
-                                    learner.labels_phase1_, poses[:, 2], place_odometry)
+                                    learner.labels_phase1_, poses[:, 2], place_odometry,
+                                    views)
         if not robot_wins(info["check"]):
             return _fall_back(learner, settings, fallback, info, check_reason(info["check"]),
                               start)
