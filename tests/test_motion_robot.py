@@ -13,7 +13,7 @@ from topomap import MapLearner
 from topomap.core.checks import ParameterError
 from topomap.core.motion.reckoning import command_poses, forward_moves, keyframes, reckon
 from topomap.core.motion.robot import cells, successors
-from topomap.core.motion.robot_decode import emission, heading_kernel, viterbi
+from topomap.core.motion.robot_decode import _BLOCK, emission, heading_kernel, viterbi
 from topomap.core.motion.settings import motion_settings
 
 # an L of five cells 0.1 m apart: east along y = 0, then north along x = 0.2
@@ -69,6 +69,20 @@ def test_the_emission_peaks_at_the_scan_s_rotation():
     for h in range(12):
         assert E[0, 0, h] == pytest.approx(-np.sum((x - np.roll(M[0], -h)) ** 2) / 1.0, rel=1e-5)
 
+
+
+def test_the_emission_of_many_scans_is_each_scan_s_own():
+    """Scans beyond one block of keyframes (the blocks run on threads) get the emission each
+    would get alone: at every heading bin -|x - M turned|^2 / 2 var."""
+    rng = np.random.default_rng(1)
+    M = rng.uniform(0.5, 3.0, (3, 10))
+    X = rng.uniform(0.5, 3.0, (2 * _BLOCK + 7, 10))
+    E = emission(X, M, 0.25)
+    assert E.shape == (len(X), 3, 10)
+    for t in (0, _BLOCK - 1, _BLOCK, 2 * _BLOCK + 6):
+        for c in range(3):
+            brute = [-np.sum((X[t] - np.roll(M[c], -h)) ** 2) / 0.5 for h in range(10)]
+            np.testing.assert_allclose(E[t, c], brute, rtol=1e-5)
 
 def test_heading_kernel_is_a_normalised_gaussian():
     k = heading_kernel(0.5, 2)

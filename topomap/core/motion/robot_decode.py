@@ -19,11 +19,14 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from ..split.threads import in_threads
+
 __all__ = ["emission", "viterbi", "heading_kernel", "PRUNE"]
 
 #: nats: a (cell, heading) more than this below the best is not extended
 PRUNE = 200.0
-#: keyframes whose emissions are computed at once (memory: block x cells x bins float32)
+#: keyframes whose emissions are computed at once, a block to a thread (memory: block x cells x
+#: bins float32; the same numbers whatever the threads)
 _BLOCK = 500
 
 
@@ -44,10 +47,13 @@ def emission(X, M, var: float) -> np.ndarray:
     FX, FM = np.fft.rfft(X, axis=1), np.fft.rfft(M, axis=1)
     x2, m2 = (X ** 2).sum(1), (M ** 2).sum(1)
     out = np.empty((T, len(M), B), dtype=np.float32)
-    for a in range(0, T, _BLOCK):
+
+    def block(a):  # numpy's FFT and arithmetic release the GIL: blocks run on threads
         b = min(T, a + _BLOCK)
         corr = np.fft.irfft(np.conj(FX[a:b, None, :]) * FM[None], n=B, axis=2)
         out[a:b] = -0.5 * (x2[a:b, None, None] + m2[None, :, None] - 2 * corr) / var
+
+    in_threads(block, range(0, T, _BLOCK))
     return out
 
 
