@@ -22,7 +22,8 @@ How K-means runs (``method`` of :func:`cluster_observations`, ``MapLearner(phase
     that repeat (MiniGrid views, noise-free worlds).
 ``"sample"``
     ``KMeans`` on ``sample_size`` rows drawn without replacement (default ``64 * ns``, at least
-    20,000), then every row assigned to its nearest centre (scikit-learn's chunked ``predict``);
+    20,000), then every row assigned to its nearest centre (the labels of scikit-learn's ``predict``,
+    by :mod:`~topomap.core.phase1.assign`'s pruned search);
     when the sample would hold every row this is ``"full"``.
 ``"minibatch"``
     scikit-learn ``MiniBatchKMeans`` over all rows.
@@ -49,10 +50,12 @@ from numba import njit
 from sklearn import config_context
 from sklearn.cluster import KMeans, MiniBatchKMeans
 from sklearn.mixture import GaussianMixture
+from sklearn.utils import assert_all_finite
 from threadpoolctl import ThreadpoolController
 
 from ..checks import ParameterError, check_count
 from ..progress import report
+from .assign import nearest_centres
 from .distinct import distinct_rows
 from .repair import repair_cut_views
 from .seeding import MIN_CLUSTERS, PRUNED_CLUSTERS, PrunedPlusPlus
@@ -291,22 +294,14 @@ def sample_rows(n_clusters: int, sample_size: int | None = None) -> int:
     return sample_size or max(_MIN_SAMPLE, 64 * n_clusters)
 
 
-#: rows assigned to their nearest centre at once: a multiple of scikit-learn's own blocks of 256
-#: rows, so that every row's symbol is the one a single ``predict`` over all rows gives, without
-#: its (T,) temporaries (int32 labels, float64 weights: 120 MB at T = 10^7; 12 MB a block).
-#: Each call costs scikit-learn's thread-pool set-up (about 30 ms under load): 65,536-row
-#: blocks doubled phase 1 at T = 10^7, 2^20-row blocks add 10 calls
-PREDICT_ROWS = 256 * 4096
-
-
 def predict_rows(km, Z, finite=False) -> np.ndarray:
-    """``km.predict(Z)`` as int64, :data:`PREDICT_ROWS` rows at a time (``finite``: the rows are
-    known to be finite, not checked again)."""
-    out = np.empty(Z.shape[0], dtype=np.int64)
-    with config_context(assume_finite=finite):
-        for a in range(0, Z.shape[0], PREDICT_ROWS):
-            out[a:a + PREDICT_ROWS] = km.predict(Z[a:a + PREDICT_ROWS])
-    return out
+    """``km.predict(Z)`` as int64, found by :func:`~topomap.core.phase1.assign.nearest_centres`
+    (the same labels, most distances never computed; ``finite``: the rows are known to be
+    finite, not checked again)."""
+    if not finite:
+        assert_all_finite(Z, input_name="X")
+    with config_context(assume_finite=True):  # checked once, here or by the caller
+        return nearest_centres(km, np.ascontiguousarray(Z))
 
 
 def _fit_sample(Z, ns, n_init, random_state, sample_size=None, repair=True, finite=False, **_):
