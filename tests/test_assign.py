@@ -69,6 +69,15 @@ def test_separate_clusters_are_searched(monkeypatch):
     assert np.array_equal(nearest_centres(km, X, probe_rows=500), km.predict(X))
 
 
+def test_more_centres_than_searched_go_to_predict(monkeypatch):
+    rng = np.random.default_rng(7)
+    X = rng.uniform(0, 1, size=(2000, 3))
+    km = KMeans(n_clusters=12, n_init=1, random_state=0).fit(X)
+    monkeypatch.setattr(assign, "SEARCH_CENTRES", 11)
+    monkeypatch.setattr(assign, "_search", lambda *a: 1 / 0)
+    assert np.array_equal(nearest_centres(km, X), km.predict(X))
+
+
 def test_margin_grows_with_features_and_precision():
     assert margin(np.float32, 15) > margin(np.float64, 15) > 0
     assert margin(np.float64, 30) == pytest.approx(margin(np.float64, 15) * 31 / 16)

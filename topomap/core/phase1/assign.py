@@ -13,7 +13,8 @@ arithmetic could order them either way (within :func:`margin`) is handed to ``km
 itself, so every label is the one ``predict`` gives -- exact ties included (the first centre).
 
 Where the search would not pay, ``predict`` labels the rows: below :data:`SEARCH_ROWS` rows (the
-grid's set-up costs as much as the search saves), and where the first :data:`PROBE_ROWS` rows
+grid's set-up costs as much as the search saves), above :data:`SEARCH_CENTRES` centres (the
+neighbour tables grow with their square), and where the first :data:`PROBE_ROWS` rows
 visit more than :data:`VISIT_SHARE` of the centres each (clusters on top of one another).
 
 Measured (``benchmarks/notes/scale.md``, "The nearest centre by search"): 10^7 rows of the
@@ -31,7 +32,8 @@ from scipy.spatial.distance import cdist
 from ..split.threads import in_threads, pieces
 
 __all__ = ["nearest_centres", "predict_chunked", "margin", "ROUNDING_FACTOR", "ROWS",
-           "PREDICT_ROWS", "SEARCH_ROWS", "PROBE_ROWS", "VISIT_SHARE", "GRID_AXES", "GRID_CELLS"]
+           "PREDICT_ROWS", "SEARCH_ROWS", "SEARCH_CENTRES", "PROBE_ROWS", "VISIT_SHARE",
+           "GRID_AXES", "GRID_CELLS"]
 
 #: how many times ``(D + 1) * eps * (|x|^2 + max |c|^2)`` two squared distances must differ by
 #: for their order to be sure: a dot product of ``D`` terms is off by at most ``D * eps`` times
@@ -52,6 +54,9 @@ PREDICT_ROWS = 256 * 4096
 #: set-up (32^3 cells x the centres) took as long as the search saved (0.012-0.070 s against
 #: ``predict``'s 0.015-0.061 s for 32-300 centres)
 SEARCH_ROWS = 1 << 19
+#: the most centres searched: every centre keeps its neighbours' order and distances, k - 1 of
+#: each (k^2 x 16 bytes: 16 MB at 1,024 centres; at 5,000, 400 MB)
+SEARCH_CENTRES = 1024
 #: rows searched first, alone, to count the centres a row visits
 PROBE_ROWS = 1 << 16
 #: the share of the centres a probed row may visit on average for the search to go on: a
@@ -182,7 +187,7 @@ def nearest_centres(km, Z: np.ndarray, *, search_rows: int = SEARCH_ROWS,
     :data:`PROBE_ROWS`."""
     T, D = Z.shape
     k = km.cluster_centers_.shape[0]
-    if T < search_rows or k < 2:
+    if T < search_rows or not 2 <= k <= SEARCH_CENTRES:
         return predict_chunked(km, Z)
     centres = np.asarray(km.cluster_centers_, dtype=Z.dtype).astype(np.float64)
     # every centre's neighbours, nearest first
