@@ -204,6 +204,22 @@ def _icp(P, Pv, N, Q, Qv, x0, iters, cauchy, max_pair):
 
 
 @njit(cache=True)
+def _register_starts(C, Pv, N, Q, Qv, starts):
+    """``(motions (S, 3), paired (S,), costs (S,))``: :func:`_icp` of points ``Q`` on the
+    keyframe's lines (``C``, ``Pv``, ``N`` of :func:`_normals`) from each of ``starts`` (S, 3)."""
+    n = len(starts)
+    out = np.zeros((n, 3))
+    used = np.zeros(n, dtype=np.int64)
+    cost = np.zeros(n)
+    for k in range(n):
+        m, u, c = _icp(C, Pv, N, Q, Qv, starts[k], ICP_ITERATIONS, CAUCHY_M, MAX_PAIR_M)
+        out[k] = m
+        used[k] = u
+        cost[k] = c
+    return out, used, cost
+
+
+@njit(cache=True)
 def _register_pairs(points, valid, i, j, starts):
     """``(motions (E, 3), costs (E,))``: scan ``j[e]`` registered against scan ``i[e]`` from
     ``starts[e]`` (:func:`register` with one start, every pair in one compiled loop);
@@ -291,16 +307,21 @@ def scan_odometry(X, max_range: float | None = None, alternatives: list | None =
     rel = np.zeros(3)      # the step before's pose in the keyframe's frame
     last = np.zeros(3)     # the step before's move in its own frame
     costs = []
+    # every scan's points once, the keyframe's lines once a keyframe (as :func:`register`)
+    points, valid = scan_points(X, max_range)
+    normals, centres = _normals(points[0], valid[0], NORMAL_GAP_M, NORMAL_HALF)
     for t in range(1, T):
-        starts = [compose(rel, np.array([last[0], last[1], turns[t]])),
-                  compose(rel, last), rel]
-        results = register_each(X[key], X[t], max_range, starts)
+        starts = np.array([compose(rel, np.array([last[0], last[1], turns[t]])),
+                           compose(rel, last), rel])
+        ms, used, cs = _register_starts(centres, valid[key], normals, points[t], valid[t], starts)
+        results = [(ms[k], int(used[k]), float(cs[k])) for k in range(len(cs))]
         m, _, cost = checked_turn(results, rel)
         rival = _rival(results, m, cost)
         if len(costs) >= 10 and cost > RETRY_COST * np.median(costs[-RECENT:]):
             wide = np.column_stack([np.full(len(sweep), rel[0]), np.full(len(sweep), rel[1]),
                                     rel[2] + sweep])
-            m2, _, cost2 = register(X[key], X[t], max_range, wide)
+            ms, _, cs = _register_starts(centres, valid[key], normals, points[t], valid[t], wide)
+            m2, cost2 = ms[np.argmin(cs)], float(cs.min())
             if cost2 < RETRY_GAIN * cost and np.hypot(*(m2[:2] - rel[:2])) < KEYFRAME_TRAVEL:
                 rival = m if _turn_apart(m, m2) > TURN_CHECK else rival
                 m, cost = m2, cost2
@@ -312,6 +333,7 @@ def scan_odometry(X, max_range: float | None = None, alternatives: list | None =
         rel = m
         if np.hypot(m[0], m[1]) >= KEYFRAME_TRAVEL or abs(m[2]) >= KEYFRAME_TURN:
             key, rel = t, np.zeros(3)
+            normals, centres = _normals(points[t], valid[t], NORMAL_GAP_M, NORMAL_HALF)
     return poses
 
 
