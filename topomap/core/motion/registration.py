@@ -38,7 +38,8 @@ from numba import njit
 from . import scans as S
 from .reckoning import forward_moves, reckon
 
-__all__ = ["scan_points", "register", "register_each", "checked_turn", "resolve_turns", "scan_odometry", "scan_poses", "compose",
+__all__ = ["scan_points", "register", "register_each", "checked_turn", "resolve_turns",
+           "scan_odometry", "scan_poses", "compose",
            "KEYFRAME_TRAVEL", "KEYFRAME_TURN", "ICP_ITERATIONS", "CAUCHY_M", "MAX_PAIR_M",
            "RETRY_COST", "RETRY_GAIN", "RECENT", "SWEEP_BEAMS", "CLOSURE_COST", "CHAIN_SD_M",
            "CLOSURE_SD_M", "POSITION_GATE_M", "NORMAL_HALF", "NORMAL_GAP_M", "TURN_CHECK"]
@@ -287,7 +288,8 @@ def _relative(a, b) -> np.ndarray:
     return np.array([c * dx + s * dy, -s * dx + c * dy, b[2] - a[2]])
 
 
-def scan_odometry(X, max_range: float | None = None, alternatives: list | None = None) -> np.ndarray:
+def scan_odometry(X, max_range: float | None = None,
+                  alternatives: list | None = None) -> np.ndarray:
     """(T, 3) poses (x [m], y [m], heading [rad]) of a walk of egocentric scans ``X`` (T, B) from
     ``(0, 0, 0)``, every scan registered against its keyframe (module docstring);
     ``max_range``: the range a beam with no return reads (None: the largest in ``X``).
@@ -349,6 +351,12 @@ def _rival(results, m, cost):
     return min(far, key=lambda r: r[2])[0] if far else None
 
 
+def _agree(turn, closure_turn) -> int:
+    """How many of the ``turn`` s (rad) lie within :data:`~.scans.CLOSURE_GATE` of the closures'
+    own (wrapped)."""
+    return int(np.count_nonzero(np.abs(S._wrap(turn - closure_turn)) < S.CLOSURE_GATE))
+
+
 def resolve_turns(poses, alternatives, closures, window: int = S.WINDOWS[0]) -> np.ndarray:
     """(T, 3) ``poses`` (:func:`scan_odometry`'s) with each step of ``alternatives`` (``(t,
     pose)``, in order) set to its rival pose where more of the loop ``closures`` ``(i, j,
@@ -366,8 +374,7 @@ def resolve_turns(poses, alternatives, closures, window: int = S.WINDOWS[0]) -> 
             continue
         delta = (alt[2] - P[t, 2] + np.pi) % (2 * np.pi) - np.pi
         turn = P[cj[sel], 2] - P[ci[sel], 2]
-        agree = lambda d: int(np.count_nonzero(np.abs(S._wrap(turn + d - cr[sel])) < S.CLOSURE_GATE))  # noqa: E731
-        if agree(delta * sign[sel]) > agree(0.0):
+        if _agree(turn + delta * sign[sel], cr[sel]) > _agree(turn, cr[sel]):
             d = P[t:, :2] - P[t, :2]
             c, s = np.cos(alt[2] - P[t, 2]), np.sin(alt[2] - P[t, 2])
             P[t:, :2] = alt[:2] + np.column_stack([c * d[:, 0] - s * d[:, 1],
