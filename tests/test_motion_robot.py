@@ -243,6 +243,26 @@ def test_a_map_that_is_its_own_point_reflection_is_found():
     assert point_symmetry(_grid_map(1.0))["ratio"] > SYMMETRY_RATIO
 
 
+def test_a_bent_point_reflection_is_found_within_the_reach():
+    """The symmetric map bent: its top left quarter moved 0.3 m (1.2 cell spacings) right, its top
+    right quarter 0.3 m left (no centre turns it into itself now).  Turned by 180 degrees about
+    (1, 0.5) every cell lands 0.3 m from the cell whose scan is its own turned (a top cell's
+    counterpart is a bottom one, which stayed), so within a reach of 1.5 spacings the mismatch
+    is 0; matched with the nearest cell alone, at most half the cells find their counterpart."""
+    from dataclasses import replace
+
+    from topomap.core.motion.symmetry import SCAN_REACH, SYMMETRY_RATIO, point_symmetry
+
+    m = _grid_map(0.0)
+    top, left = m.centres[:, 1] > 0.5, m.centres[:, 0] < 1.0
+    move = np.where(top, np.where(left, 0.3, -0.3), 0.0)
+    bent = replace(m, centres=m.centres + move[:, None] * [1.0, 0.0])
+    assert point_symmetry(bent, SCAN_REACH)["ratio"] == pytest.approx(0.0, abs=1e-9)
+    assert point_symmetry(bent)["ratio"] > 0.1
+    # the reach finds no reflection where there is none (each scan off by twice its x offset)
+    assert point_symmetry(_grid_map(1.0), SCAN_REACH)["ratio"] > SYMMETRY_RATIO
+
+
 def test_the_robot_map_file_places_a_walk_as_the_learner_does(tmp_path):
     """robot_map.npz keeps every field: a walk placed on the loaded map gets the places the
     learner gives it; a file missing a field, or whose arrays do not fit, is refused by name."""

@@ -80,3 +80,76 @@ def test_scan_odometry_reads_the_largest_range_as_no_return():
     est = R.scan_odometry(X)
     # 4 keyframes of 5 cm, each within 2 mm (above)
     assert est[-1] == pytest.approx([0.2, 0.0, 0.0], abs=4 * 2e-3)
+
+
+def test_a_turn_by_half_a_turn_where_the_scans_look_alike_turned_round_is_refused():
+    # at the centre of the rectangular room a scan turned by pi is the same scan (the room is
+    # point-symmetric about its centre), so a step that turns by 0.02 rad registers from a
+    # start of 0.02 and from one of 0.02 + pi at the same cost: the registration cannot tell
+    # them apart and the walk keeps the turn nearer the step before's pose (0.02, not pi)
+    c = (W / 2, H / 2)
+    ref, scan = _scan(*c, 0.3), _scan(*c, 0.32)
+    results = R.register_each(ref, scan, MAX_RANGE - 1e-9, [(0.0, 0.0, 0.02 + np.pi),
+                                                            (0.0, 0.0, 0.02)])
+    (turned, _, cost_turned), (kept, _, cost_kept) = results
+    assert abs(abs(turned[2] - kept[2]) - np.pi) < 1e-3
+    assert cost_turned == pytest.approx(cost_kept, rel=1e-6)
+    m, _, _ = R.checked_turn(results, np.zeros(3))
+    assert m[2] == pytest.approx(0.02, abs=2e-3 / 0.6)
+
+
+def test_a_turn_by_half_a_turn_that_fits_far_better_is_kept():
+    # a turn beyond TURN_CHECK costing under RETRY_GAIN of the best smaller one is kept (a
+    # robot bounced off a wall); at RETRY_GAIN or more it gives way to the smaller
+    small = (np.array([0.01, 0.0, 0.05]), 60, 10.0)
+    before = np.array([0.0, 0.0, 0.1])
+    for cost, kept_turn in ((R.RETRY_GAIN * 10.0 - 0.01, 3.0), (R.RETRY_GAIN * 10.0, 0.05)):
+        turned = (np.array([0.0, 0.0, 3.0]), 60, cost)
+        assert R.checked_turn([turned, small], before)[0][2] == kept_turn
+    # a turn of TURN_CHECK or less from the step before is no half turn: the least cost wins
+    near = (np.array([0.0, 0.0, 0.1 + R.TURN_CHECK]), 60, 9.9)
+    assert R.checked_turn([near, small], before) is near
+
+
+def _walk_poses(T, turn_at=None, turn=np.pi):
+    """(T, 3) poses of 1 cm steps turning 0.01 rad a step; ``turn`` more at step ``turn_at``."""
+    poses = [np.zeros(3)]
+    for t in range(1, T):
+        poses.append(R.compose(poses[-1], np.array([0.01, 0.0, 0.01 + (turn if t == turn_at
+                                                                          else 0.0)])))
+    return np.array(poses)
+
+
+def test_resolve_turns_takes_the_rival_the_loops_agree_with():
+    # a walk whose registration turned wrongly by pi at step 50 (the truth turns 0.01 there):
+    # closures across step 50 state the true turn between their ends; the rival pose of step 50
+    # (the true one, as the registration's rival gives it) agrees with all of them and the
+    # poses from step 50 on move with it, rigidly -- the truth again
+    T = 120
+    truth, wrong = _walk_poses(T), _walk_poses(T, turn_at=50)
+    ci, cj = np.array([10, 30, 110]), np.array([60, 90, 20])
+    closures = (ci, cj, truth[cj, 2] - truth[ci, 2])
+    fixed = R.resolve_turns(wrong, [(50, truth[50])], closures)
+    np.testing.assert_allclose(fixed, truth, atol=1e-9)
+    # the rival is kept out where the closures agree with the poses as they are
+    kept = R.resolve_turns(truth, [(50, wrong[50])], closures)
+    np.testing.assert_allclose(kept, truth, atol=0)
+    # and where no closure crosses the step (both ends before it)
+    np.testing.assert_allclose(R.resolve_turns(wrong, [(50, truth[50])],
+                                               (np.array([0]), np.array([40]), np.array([0.4]))),
+                               wrong, atol=0)
+
+
+def test_scan_points_of_many_scans_are_each_scans_own_and_pairs_register_as_alone():
+    X = np.array([_scan(0.6, 0.5, 0.1), _scan(0.62, 0.5, 0.15), _scan(0.9, 0.7, -0.2)])
+    P, valid = R.scan_points(X, MAX_RANGE - 1e-9)
+    for k in range(3):
+        Pk, vk = R.scan_points(X[k], MAX_RANGE - 1e-9)
+        np.testing.assert_array_equal(P[k], Pk)
+        np.testing.assert_array_equal(valid[k], vk)
+    starts = np.array([[0.0, 0.0, 0.05], [0.0, 0.0, -0.3]])
+    m, cost = R._register_pairs(P, valid, np.array([0, 0]), np.array([1, 2]), starts)
+    for e, j in enumerate((1, 2)):
+        one, _, c = R.register(X[0], X[j], MAX_RANGE - 1e-9, [starts[e]])
+        np.testing.assert_array_equal(m[e], one)
+        assert cost[e] == c

@@ -80,3 +80,15 @@ def test_closures_remove_a_gyro_bias_from_a_wandering_walk():
     drift = np.abs(np.r_[0.0, np.cumsum(turns[1:])] - true).max()
     assert drift == pytest.approx(0.001 * (T - 1))
     assert np.abs(psi - true).max() < 0.1 * drift
+
+
+def test_scan_headings_given_the_closures_found_already_solve_the_same():
+    # closures found once and passed in (as ``registration.scan_poses`` does) give the headings
+    # the search inside finds: the same closures of the despiked scans, the same graph
+    rng = np.random.default_rng(3)
+    X = np.array([np.roll(_room_scan(seed=s % 40), s % 7) for s in range(400)])
+    X += rng.normal(0, 1e-3, X.shape)
+    odo = np.cumsum(rng.normal(0, 0.05, 400))
+    closures = S.loop_closures(S.despike(X))
+    np.testing.assert_array_equal(S.scan_headings(X, odo, closures=closures),
+                                  S.scan_headings(X, odo))

@@ -7,7 +7,9 @@ scan's points on the lines through the keyframe's neighbouring points (point-to-
 Gauss-Newton on the three parameters, each pair weighted by a Cauchy loss).  Three starts --
 the step before's pose in the keyframe's frame, that plus the step before's own move (a
 constant velocity), and the same with the turn read from the scans' circular cross-correlation
-(:func:`~.scans.scan_turns`) -- and the least-cost result kept; one costing over ``RETRY_COST``
+(:func:`~.scans.scan_turns`) -- and the least-cost result kept, unless it turns the scan by
+over ``TURN_CHECK`` in one step at a cost near a result's that turns less (scans that look
+alike turned round: that one kept, :func:`checked_turn`); one costing over ``RETRY_COST``
 times the recent median is tried again from every ``SWEEP_BEAMS``-th rotation (a sudden turn).
 A new keyframe is taken once the scan has moved ``KEYFRAME_TRAVEL`` or turned ``KEYFRAME_TURN``
 from the last, so the drift grows with keyframes, not steps.  Beams reading the range's maximum
@@ -36,10 +38,11 @@ from numba import njit
 from . import scans as S
 from .reckoning import forward_moves, reckon
 
-__all__ = ["scan_points", "register", "scan_odometry", "scan_poses", "compose",
+__all__ = ["scan_points", "register", "register_each", "checked_turn", "resolve_turns",
+           "scan_odometry", "scan_poses", "compose",
            "KEYFRAME_TRAVEL", "KEYFRAME_TURN", "ICP_ITERATIONS", "CAUCHY_M", "MAX_PAIR_M",
            "RETRY_COST", "RETRY_GAIN", "RECENT", "SWEEP_BEAMS", "CLOSURE_COST", "CHAIN_SD_M",
-           "CLOSURE_SD_M", "POSITION_GATE_M", "NORMAL_HALF", "NORMAL_GAP_M"]
+           "CLOSURE_SD_M", "POSITION_GATE_M", "NORMAL_HALF", "NORMAL_GAP_M", "TURN_CHECK"]
 
 #: m: a new keyframe once the scan lies this far from the last one (0.10 put robot_alike@0.3333
 #: seed 0 0.61 m off along the true headings, 0.05 0.55 m: no gain from fewer keyframes)
@@ -65,6 +68,15 @@ RETRY_COST = 2.0
 #: moved less than ``KEYFRAME_TRAVEL`` from the step before (a wrong match of a wide sweep moved
 #: 0.47 m in one step at a cost 5 % below the right one's)
 RETRY_GAIN = 0.8
+#: rad: a registration turning the scan more than this in one step (from the step before's pose)
+#: is kept only where it costs under ``RETRY_GAIN`` of the least-cost one that turns less, as a
+#: retry is: where the scans look alike turned round the two cost nearly the same, and the
+#: turned one put a walk half a turn off (robot_twin@0.3333 seed 0, step 5669: 3.13 rad at 0.89
+#: of the unturned one's cost, the true turn 0.15 rad).  The robot's true turns of over 1 rad in
+#: one step (a bounce off a wall, 1 % of steps) cost 0.16-0.44 of the unturned one's (54 on that
+#: walk's first 6,000 steps); a quarter turn is far beyond a step's ordinary turn (median 0.12
+#: rad on a turn command)
+TURN_CHECK = np.pi / 2
 #: registrations whose costs set the retry's yardstick
 RECENT = 100
 #: beams between the rotations a retry starts from
@@ -91,10 +103,12 @@ NORMAL_GAP_M = 0.25
 
 def scan_points(scan, max_range: float) -> tuple[np.ndarray, np.ndarray]:
     """``(points (B, 2), valid (B,))`` of one scan (B,) in the robot's frame [m]: beam ``k`` at
-    ``2 pi k / B`` anticlockwise from the heading; a beam at ``max_range`` or more is no point."""
+    ``2 pi k / B`` anticlockwise from the heading; a beam at ``max_range`` or more is no point.
+    Scans (T, B): ``(points (T, B, 2), valid (T, B))``, each row as alone."""
     scan = np.asarray(scan, dtype=np.float64)
-    a = 2 * np.pi * np.arange(len(scan)) / len(scan)
-    return np.column_stack([scan * np.cos(a), scan * np.sin(a)]), scan < max_range
+    B = scan.shape[-1]
+    a = 2 * np.pi * np.arange(B) / B
+    return np.stack([scan * np.cos(a), scan * np.sin(a)], axis=-1), scan < max_range
 
 
 @njit(cache=True)
@@ -190,20 +204,75 @@ def _icp(P, Pv, N, Q, Qv, x0, iters, cauchy, max_pair):
     return np.array([x, y, th]), used, cost
 
 
+@njit(cache=True)
+def _register_starts(C, Pv, N, Q, Qv, starts):
+    """``(motions (S, 3), paired (S,), costs (S,))``: :func:`_icp` of points ``Q`` on the
+    keyframe's lines (``C``, ``Pv``, ``N`` of :func:`_normals`) from each of ``starts`` (S, 3)."""
+    n = len(starts)
+    out = np.zeros((n, 3))
+    used = np.zeros(n, dtype=np.int64)
+    cost = np.zeros(n)
+    for k in range(n):
+        m, u, c = _icp(C, Pv, N, Q, Qv, starts[k], ICP_ITERATIONS, CAUCHY_M, MAX_PAIR_M)
+        out[k] = m
+        used[k] = u
+        cost[k] = c
+    return out, used, cost
+
+
+@njit(cache=True)
+def _register_pairs(points, valid, i, j, starts):
+    """``(motions (E, 3), costs (E,))``: scan ``j[e]`` registered against scan ``i[e]`` from
+    ``starts[e]`` (:func:`register` with one start, every pair in one compiled loop);
+    ``points``, ``valid``: :func:`scan_points` of all the scans."""
+    n = len(i)
+    out = np.zeros((n, 3))
+    cost = np.zeros(n)
+    for e in range(n):
+        N, C = _normals(points[i[e]], valid[i[e]], NORMAL_GAP_M, NORMAL_HALF)
+        m, _, c = _icp(C, valid[i[e]], N, points[j[e]], valid[j[e]], starts[e],
+                       ICP_ITERATIONS, CAUCHY_M, MAX_PAIR_M)
+        out[e] = m
+        cost[e] = c
+    return out, cost
+
+
+def register_each(ref, scan, max_range: float, starts=((0.0, 0.0, 0.0),),
+                  iters: int = ICP_ITERATIONS) -> list[tuple[np.ndarray, int, float]]:
+    """``[(motion, paired, cost)]`` of every one of ``starts`` (rows of x, y, turn): the pose
+    ``(x [m], y [m], turn [rad])`` of ``scan`` in the frame of ``ref`` (both (B,) ranges) by
+    point-to-line ICP from that start (:func:`_icp`), the points it paired and its cost."""
+    P, Pv = scan_points(ref, max_range)
+    Q, Qv = scan_points(scan, max_range)
+    N, C = _normals(P, Pv, NORMAL_GAP_M, NORMAL_HALF)
+    out = []
+    for start in np.atleast_2d(np.asarray(starts, dtype=np.float64)):
+        m, used, cost = _icp(C, Pv, N, Q, Qv, start, iters, CAUCHY_M, MAX_PAIR_M)
+        out.append((m, int(used), float(cost)))
+    return out
+
+
 def register(ref, scan, max_range: float, starts=((0.0, 0.0, 0.0),),
              iters: int = ICP_ITERATIONS) -> tuple[np.ndarray, int, float]:
     """``(motion, paired, cost)``: the pose ``(x [m], y [m], turn [rad])`` of ``scan`` in the
     frame of ``ref`` (both (B,) ranges) by point-to-line ICP from each of ``starts`` (rows of
     x, y, turn), the one of least cost (:func:`_icp`), the points it paired and its cost."""
-    P, Pv = scan_points(ref, max_range)
-    Q, Qv = scan_points(scan, max_range)
-    N, C = _normals(P, Pv, NORMAL_GAP_M, NORMAL_HALF)
-    best = None
-    for start in np.atleast_2d(np.asarray(starts, dtype=np.float64)):
-        m, used, cost = _icp(C, Pv, N, Q, Qv, start, iters, CAUCHY_M, MAX_PAIR_M)
-        if best is None or cost < best[2]:
-            best = (m, int(used), float(cost))
-    return best
+    return min(register_each(ref, scan, max_range, starts, iters), key=lambda r: r[2])
+
+
+def checked_turn(results, before) -> tuple[np.ndarray, int, float]:
+    """The registration of ``results`` (``(motion, paired, cost)`` of one scan from several
+    starts, :func:`register_each`) a walk keeps, given ``before``, the step before's pose in
+    the same keyframe's frame: the least-cost one, unless it turns more than
+    :data:`TURN_CHECK` from ``before`` and costs at least ``RETRY_GAIN`` of the least-cost
+    result that turns less -- then that one (a scan that looks alike turned round)."""
+    best = min(results, key=lambda r: r[2])
+    turn = lambda r: abs((r[0][2] - before[2] + np.pi) % (2 * np.pi) - np.pi)  # noqa: E731
+    near = [r for r in results if turn(r) <= TURN_CHECK]
+    if turn(best) <= TURN_CHECK or not near:
+        return best
+    other = min(near, key=lambda r: r[2])
+    return best if best[2] < RETRY_GAIN * other[2] else other
 
 
 def compose(a, b) -> np.ndarray:
@@ -219,10 +288,15 @@ def _relative(a, b) -> np.ndarray:
     return np.array([c * dx + s * dy, -s * dx + c * dy, b[2] - a[2]])
 
 
-def scan_odometry(X, max_range: float | None = None) -> np.ndarray:
+def scan_odometry(X, max_range: float | None = None,
+                  alternatives: list | None = None) -> np.ndarray:
     """(T, 3) poses (x [m], y [m], heading [rad]) of a walk of egocentric scans ``X`` (T, B) from
     ``(0, 0, 0)``, every scan registered against its keyframe (module docstring);
-    ``max_range``: the range a beam with no return reads (None: the largest in ``X``)."""
+    ``max_range``: the range a beam with no return reads (None: the largest in ``X``).
+    ``alternatives``: a list that gets ``(t, pose)`` for every step ``t`` whose registration had
+    a rival turning it more than :data:`TURN_CHECK` otherwise at a cost within ``1 /
+    RETRY_GAIN`` of the kept one's (or a retry's kept turn against the first): ``pose`` the
+    rival's pose of step ``t`` (:func:`resolve_turns` chooses between them by the loops)."""
     X = np.asarray(X, dtype=np.float64)
     T = len(X)
     max_range = float(X.max()) - 1e-9 if max_range is None else float(max_range) - 1e-9
@@ -235,23 +309,78 @@ def scan_odometry(X, max_range: float | None = None) -> np.ndarray:
     rel = np.zeros(3)      # the step before's pose in the keyframe's frame
     last = np.zeros(3)     # the step before's move in its own frame
     costs = []
+    # every scan's points once, the keyframe's lines once a keyframe (as :func:`register`)
+    points, valid = scan_points(X, max_range)
+    normals, centres = _normals(points[0], valid[0], NORMAL_GAP_M, NORMAL_HALF)
     for t in range(1, T):
-        starts = [compose(rel, np.array([last[0], last[1], turns[t]])),
-                  compose(rel, last), rel]
-        m, _, cost = register(X[key], X[t], max_range, starts)
+        starts = np.array([compose(rel, np.array([last[0], last[1], turns[t]])),
+                           compose(rel, last), rel])
+        ms, used, cs = _register_starts(centres, valid[key], normals, points[t], valid[t], starts)
+        results = [(ms[k], int(used[k]), float(cs[k])) for k in range(len(cs))]
+        m, _, cost = checked_turn(results, rel)
+        rival = _rival(results, m, cost)
         if len(costs) >= 10 and cost > RETRY_COST * np.median(costs[-RECENT:]):
             wide = np.column_stack([np.full(len(sweep), rel[0]), np.full(len(sweep), rel[1]),
                                     rel[2] + sweep])
-            m2, _, cost2 = register(X[key], X[t], max_range, wide)
+            ms, _, cs = _register_starts(centres, valid[key], normals, points[t], valid[t], wide)
+            m2, cost2 = ms[np.argmin(cs)], float(cs.min())
             if cost2 < RETRY_GAIN * cost and np.hypot(*(m2[:2] - rel[:2])) < KEYFRAME_TRAVEL:
+                rival = m if _turn_apart(m, m2) > TURN_CHECK else rival
                 m, cost = m2, cost2
         costs.append(cost)
         poses[t] = compose(poses[key], m)
+        if alternatives is not None and rival is not None:
+            alternatives.append((t, compose(poses[key], rival)))
         last = _relative(poses[t - 1], poses[t])
         rel = m
         if np.hypot(m[0], m[1]) >= KEYFRAME_TRAVEL or abs(m[2]) >= KEYFRAME_TURN:
             key, rel = t, np.zeros(3)
+            normals, centres = _normals(points[t], valid[t], NORMAL_GAP_M, NORMAL_HALF)
     return poses
+
+
+def _turn_apart(a, b) -> float:
+    """rad: how far the turns of motions ``a`` and ``b`` lie apart (wrapped, 0 to pi)."""
+    return abs((a[2] - b[2] + np.pi) % (2 * np.pi) - np.pi)
+
+
+def _rival(results, m, cost):
+    """The motion of the least-cost result of ``results`` turning more than :data:`TURN_CHECK`
+    from the kept motion ``m`` at a cost below ``cost / RETRY_GAIN``; None where there is none."""
+    far = [r for r in results if _turn_apart(r[0], m) > TURN_CHECK and r[2] * RETRY_GAIN < cost]
+    return min(far, key=lambda r: r[2])[0] if far else None
+
+
+def _agree(turn, closure_turn) -> int:
+    """How many of the ``turn`` s (rad) lie within :data:`~.scans.CLOSURE_GATE` of the closures'
+    own (wrapped)."""
+    return int(np.count_nonzero(np.abs(S._wrap(turn - closure_turn)) < S.CLOSURE_GATE))
+
+
+def resolve_turns(poses, alternatives, closures, window: int = S.WINDOWS[0]) -> np.ndarray:
+    """(T, 3) ``poses`` (:func:`scan_odometry`'s) with each step of ``alternatives`` (``(t,
+    pose)``, in order) set to its rival pose where more of the loop ``closures`` ``(i, j,
+    turn)`` of at most ``window`` steps across it agree with the rival (within
+    :data:`~.scans.CLOSURE_GATE` of the poses' turn from ``i`` to ``j``): the steps after it
+    move with it, rigidly (a turn the scans could read either way, settled by the scans seen
+    before and after it)."""
+    P = np.asarray(poses, dtype=np.float64).copy()
+    ci, cj, cr = (np.asarray(c) for c in closures)
+    lo, hi = np.minimum(ci, cj), np.maximum(ci, cj)
+    sign = np.where(cj >= ci, 1.0, -1.0)
+    for t, alt in alternatives:
+        sel = (lo < t) & (hi >= t) & (hi - lo <= window)
+        if not sel.any():
+            continue
+        delta = (alt[2] - P[t, 2] + np.pi) % (2 * np.pi) - np.pi
+        turn = P[cj[sel], 2] - P[ci[sel], 2]
+        if _agree(turn + delta * sign[sel], cr[sel]) > _agree(turn, cr[sel]):
+            d = P[t:, :2] - P[t, :2]
+            c, s = np.cos(alt[2] - P[t, 2]), np.sin(alt[2] - P[t, 2])
+            P[t:, :2] = alt[:2] + np.column_stack([c * d[:, 0] - s * d[:, 1],
+                                                   s * d[:, 0] + c * d[:, 1]])
+            P[t:, 2] += alt[2] - P[t, 2]
+    return P
 
 
 def _solve_positions(T, i, j, d, sd, P, iters: int = 5):
@@ -266,7 +395,7 @@ def _solve_positions(T, i, j, d, sd, P, iters: int = 5):
         res = np.linalg.norm(P[j] - P[i] - d, axis=1)
         w = 1.0 / (1.0 + (res / sd / S.CAUCHY_SCALE) ** 2) / sd ** 2
         N = (A.T @ sp.diags(w) @ A + 1e6 * anchor).tocsc()
-        lu = spl.splu(N)
+        lu = spl.splu(N, permc_spec=S.ORDERING)
         for c in range(2):
             b = A.T @ (w * d[:, c])
             b[0] += 1e6 * P[0, c]
@@ -275,7 +404,7 @@ def _solve_positions(T, i, j, d, sd, P, iters: int = 5):
 
 
 def scan_poses(X, max_range: float | None = None, windows=S.WINDOWS,
-               odometry=None) -> np.ndarray:
+               odometry=None, alternatives=None) -> np.ndarray:
     """(T, 3) poses (x [m], y [m], heading [rad]) of a walk of egocentric scans ``X`` (T, B)
     alone: :func:`scan_odometry`, its heading closed by loops (:func:`~.scans.scan_headings`),
     then its positions closed by loops: each candidate closure of
@@ -284,30 +413,33 @@ def scan_poses(X, max_range: float | None = None, windows=S.WINDOWS,
     positions closest to the chain's moves (sd ``CHAIN_SD_M`` a step) and the closures'
     (sd ``CLOSURE_SD_M``), those with a gap of at most each window admitted in turn where
     within ``POSITION_GATE_M`` of the positions so far.  ``odometry``: :func:`scan_odometry`'s
-    poses of ``X`` with the same ``max_range`` (None: computed here)."""
+    poses of ``X`` with the same ``max_range`` and its ``alternatives``, each turn the scans
+    read either way settled first by the loops (:func:`resolve_turns`; None: computed here)."""
     X = np.asarray(X, dtype=np.float64)
     T = len(X)
     max_range = float(X.max()) if max_range is None else float(max_range)
-    O = scan_odometry(X, max_range) if odometry is None else np.asarray(odometry, np.float64)
-    psi = S.scan_headings(X, O[:, 2], windows)
+    if odometry is None:
+        alternatives = []
+        odometry = scan_odometry(X, max_range, alternatives)
+    closures = S.loop_closures(S.despike(X))
+    O = resolve_turns(odometry, alternatives or [], closures)
+    psi = S.scan_headings(X, O[:, 2], windows, closures)
     P = reckon(forward_moves(O), psi)
-    ci, cj, _ = S.loop_closures(S.despike(X))
-    keep, d = [], []
-    chain_cost = []
-    for t in range(1, T, max(1, T // 500)):
-        chain_cost.append(register(X[t - 1], X[t], max_range - 1e-9,
-                                   [_relative(P[t - 1], P[t])])[2])
+    ci, cj, _ = closures
+    points, valid = scan_points(X, max_range - 1e-9)
+    t = np.arange(1, T, max(1, T // 500))
+    rel = np.array([_relative(P[a - 1], P[a]) for a in t]).reshape(-1, 3)
+    _, chain_cost = _register_pairs(points, valid, t - 1, t, rel)
     limit = CLOSURE_COST * float(np.median(chain_cost))
-    for i, j in zip(ci, cj):
-        m, _, cost = register(X[i], X[j], max_range - 1e-9, [(0.0, 0.0, psi[j] - psi[i])])
-        if cost <= limit and np.hypot(m[0], m[1]) < MAX_PAIR_M:
-            c, s = np.cos(psi[i]), np.sin(psi[i])
-            keep.append((i, j))
-            d.append((c * m[0] - s * m[1], s * m[0] + c * m[1]))
-    if not keep:
+    ci, cj = np.asarray(ci, dtype=np.int64), np.asarray(cj, dtype=np.int64)
+    turn = np.column_stack([np.zeros((len(ci), 2)), psi[cj] - psi[ci]])
+    m, cost = _register_pairs(points, valid, ci, cj, turn)
+    ok = (cost <= limit) & (np.hypot(m[:, 0], m[:, 1]) < MAX_PAIR_M)
+    if not ok.any():
         return P
-    ki, kj = np.array(keep).T
-    d = np.array(d)
+    ki, kj, m = ci[ok], cj[ok], m[ok]
+    c, s = np.cos(psi[ki]), np.sin(psi[ki])
+    d = np.column_stack([c * m[:, 0] - s * m[:, 1], s * m[:, 0] + c * m[:, 1]])
     gap = kj - ki
     chain = np.arange(T - 1)
     step = np.diff(P[:, :2], axis=0)

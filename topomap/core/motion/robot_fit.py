@@ -43,7 +43,7 @@ from .unwalked import FAR, MAX_UNWALKED, unwalked_share
 from .inputs import check_odometry
 from .robot import learn_robot, place_walk
 from .robot_check import check_reason, check_views, robot_check, robot_wins
-from .symmetry import SYMMETRY_RATIO, point_symmetry
+from .symmetry import SCAN_REACH, SYMMETRY_RATIO, point_symmetry
 
 __all__ = ["fit_robot", "predict_robot", "is_robot_log", "MIN_BEAMS"]
 
@@ -128,7 +128,7 @@ def _view_clusters(learner, data, settings, info: dict):
 
 
 def fit_robot(learner, data, settings, odometry, fallback=None,
-              start: float | None = None, place_odometry=None) -> bool:
+              start: float | None = None, place_odometry=None, headings=None) -> bool:
     """Replace ``learner``'s map and labels by the robot route's places and keep its metric map as
     ``robot_map_`` -- or, where that map is its own point reflection
     (:func:`~.symmetry.point_symmetry`), by the view clusters, with a
@@ -143,7 +143,10 @@ def fit_robot(learner, data, settings, odometry, fallback=None,
     (:func:`~.robot_check.robot_check`), else the view clusters' map stays, with the warning (a
     point reflection, too); ``info`` is kept in ``motion_info_``.  ``start``: when the seconds
     began (``time.perf_counter``; None: now).  ``place_odometry``: the odometry the held-out
-    check places its held-out steps by (None: ``odometry``; :mod:`~.robot_scans`)."""
+    check places its held-out steps by (None: ``odometry``; :mod:`~.robot_scans`).
+    ``headings`` (T,) [rad]: the steps' headings closed by loops already (odometry read from
+    the scans, :func:`~.registration.scan_poses`, whose map's point symmetry is then measured
+    with :data:`~.symmetry.SCAN_REACH`; None: solved from ``odometry``)."""
     _check_log(data, odometry)
     start = time.perf_counter() if start is None else start
     # the check's view clusters need no headings: made on another thread while the route runs
@@ -151,13 +154,13 @@ def fit_robot(learner, data, settings, odometry, fallback=None,
         check_views, data.X, learner.map_split_.n_states, settings.check.holdout,
         learner.random_state, steps=len(data.X))
     model, labels, poses = learn_robot(data.X, odometry, learner.map_split_.n_states,
-                                       learner.random_state)
+                                       learner.random_state, headings=headings)
     info = {**({} if fallback is None else fallback[1]), "chosen": "robot",
             "cells": model.n_cells, "places": int(labels.max()) + 1,
             "cell_spacing_m": round(model.spacing, 4),
             "beam_variance_m2": round(model.variance, 6),
             "path_m": round(float(np.hypot(*np.diff(poses[:, :2], axis=0).T).sum()), 2),
-            "symmetry": point_symmetry(model)}
+            "symmetry": point_symmetry(model, None if headings is None else SCAN_REACH)}
     mirrored = info["symmetry"]["ratio"] < SYMMETRY_RATIO
     if fallback is not None and mirrored:
         return _fall_back(learner, settings, fallback, info, _symmetry_reason(info), start)

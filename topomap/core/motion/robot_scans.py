@@ -6,17 +6,19 @@ A log of egocentric range scans and turn commands given no odometry is recognise
 robot differently with its heading -- one episode, no GDS, a ring of beams a row; a compass
 walker's commands do give odometry and are never caught).  Its odometry is then read from the
 scans (:func:`~.registration.scan_odometry`, point-to-line ICP against keyframes) and closed by
-loops (:func:`~.registration.scan_poses`), and the robot route (:func:`~.robot_fit.fit_robot`)
-learns on those poses behind the guards of a log with odometry (point symmetry, unwalked floor,
-the held-out check, whose held-out steps are placed by their unclosed registration, as a new
-walk would be).  Where a guard fails the map is the view clusters the log got before, with the
+loops (:func:`~.registration.scan_poses`; its headings, closed already, are not solved again),
+and the robot route (:func:`~.robot_fit.fit_robot`) learns on those poses behind the guards of a
+log with odometry (point symmetry -- a cell's reflection matched within
+:data:`~.symmetry.SCAN_REACH` spacings, as this odometry's maps bend by centimetres --, unwalked
+floor, the held-out check, whose held-out steps are placed by their unclosed registration, as a
+new walk would be).  Where a guard fails the map is the view clusters the log got before, with the
 warning and the reason.  ``predict`` without odometry places a new walk by its own registration
 (:func:`walk_odometry`).
 
-Measured (``benchmarks/notes/robots.md``, 2026-12-02, night; 12 walks of four 1 m plans): never
-above K-means on the views (the guards send 9 walks back), 0.10-0.23x its error on the 3 where
-the route is taken; the fit 2.8x as long as without the setting (26-29 s of CPU for 18,000
-steps), which is why it is off by default.
+Measured (``benchmarks/notes/robots.md``, 2026-12-03; 12 walks of four 1 m plans and the three
+of ``robot_office@0.3333``): never above K-means on the views (the guards send 10 walks of 15
+back), 0.10-0.23x its error on the 5 where the route is taken; the fit 4.5x as long as
+without the setting (14.7 s of CPU for 18,000 steps); it is off by default.
 """
 
 from __future__ import annotations
@@ -50,11 +52,13 @@ def fit_scan_robot(learner, data, settings, fallback, start: float | None = None
     ``fallback`` as there; ``motion_info_["odometry_from"]`` is :data:`SOURCE` (the seconds
     go to ``timings_["places"]``, as the route's)."""
     start = time.perf_counter() if start is None else start
-    raw = scan_odometry(data.X)
-    poses = scan_poses(data.X, odometry=raw)
+    alternatives: list = []
+    raw = scan_odometry(data.X, alternatives=alternatives)
+    poses = scan_poses(data.X, odometry=raw, alternatives=alternatives)
     views, info, build = fallback
     return fit_robot(learner, data, settings, poses, (views, {**info, "odometry_from": SOURCE},
-                                                      build), start=start, place_odometry=raw)
+                                                      build), start=start, place_odometry=raw,
+                     headings=poses[:, 2])
 
 
 def walk_odometry(X, lengths) -> np.ndarray:

@@ -150,11 +150,12 @@ def heading_graph(turns, closures, windows=WINDOWS, turn_sd: float = TURN_SD) ->
     return psi
 
 
-def scan_headings(X, odometry_heading=None, windows=WINDOWS) -> np.ndarray:
+def scan_headings(X, odometry_heading=None, windows=WINDOWS, closures=None) -> np.ndarray:
     """(T,) rad: every step's heading from egocentric scans ``X`` (T, B) and, where given, the
     wheel odometry's heading (T,): the odometry's turns calibrated against the scans' (a
     straight-line fit, steps where both agree within 0.1 rad), or the scans' own turns, then
-    :func:`heading_graph` with :func:`loop_closures`."""
+    :func:`heading_graph` with :func:`loop_closures` (``closures``: those of ``X`` found
+    already; None: found here)."""
     X = despike(X)
     turns = np.r_[0.0, scan_turns(X[:-1], X[1:])]
     if odometry_heading is not None:
@@ -163,4 +164,4 @@ def scan_headings(X, odometry_heading=None, windows=WINDOWS) -> np.ndarray:
         coef = np.linalg.lstsq(np.column_stack([np.ones(ok.sum()), odo[ok]]), turns[ok],
                                rcond=None)[0]
         turns = np.r_[0.0, coef[0] + coef[1] * odo[1:]]
-    return heading_graph(turns, loop_closures(X), windows)
+    return heading_graph(turns, loop_closures(X) if closures is None else closures, windows)
