@@ -205,6 +205,26 @@ def _distinct_line(T=8000, seed=0):
     return Z + np.random.default_rng(seed).normal(0, 0.01, Z.shape), u, x
 
 
+def test_every_rule_gives_the_views_unchecked_where_no_view_was_told_apart():
+    # the distinct line's filter keeps 35 copies for 32 view clusters: asked for more than 1.5
+    # copies a cluster, the default rule (and ``crossfit``) give the view clusters without a
+    # check, the labels those of the ``folds`` rule's same fallback
+    Z, u, _ = _distinct_line()
+    folds = MapLearner(n_clusters=16, n_states=32, random_state=0,
+                       motion=MotionSettings(check={"rule": "folds", "min_copies": 1.5})).fit(Z, u)
+    for rule in ("coverage", "crossfit"):
+        gated = MapLearner(n_clusters=16, n_states=32, random_state=0,
+                           motion=MotionSettings(check={"rule": rule, "min_copies": 1.5})).fit(Z, u)
+        info = gated.motion_info_
+        assert info["chosen"] == "views"
+        assert info["check"] == "the middle gate kept one copy per view cluster"
+        np.testing.assert_array_equal(gated.labels_, folds.labels_)
+    # at the default 1.0 copies a cluster, 35 copies tell sightings apart: the check runs
+    checked = MapLearner(n_clusters=16, n_states=32, random_state=0).fit(Z, u)
+    assert isinstance(checked.motion_info_["check"], dict)
+    assert checked.motion_info_["copies"][1] > checked.motion_info_["view_clusters"]
+
+
 def test_the_check_falls_back_to_the_views_where_they_place_steps_alone():
     # every view is seen at one place: positions add nothing the views do not say, so the
     # places cannot misplace fewer held-out steps than the view clusters do

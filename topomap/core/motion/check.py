@@ -241,7 +241,9 @@ def _cut(settings: MotionSettings, Z, u, lengths, n_states: int, n_actions: int,
          **kmeans) -> tuple:
     """The places cut from the whole log, their info, and the choice already made (None: a
     check decides): the view clusters where no places were cut, the places where the log is too
-    short to hold a part out (or ``holdout`` is 0)."""
+    short to hold a part out (or ``holdout`` is 0), the view clusters where the odometry told no
+    sighting of a view apart (:func:`tells_apart`: such places beat the view clusters in a check
+    only by following the frame's drift; every rule)."""
     whole = cut_places(settings, Z, u, lengths, n_states, n_actions, **kmeans)
     info = dict(whole.info)
     if whole.places is None:
@@ -250,6 +252,10 @@ def _cut(settings: MotionSettings, Z, u, lengths, n_states: int, n_actions: int,
     holdout = settings.check.holdout
     if holdout == 0 or T * min(holdout, 1 - holdout) < MIN_PART:
         return whole, info, (whole.places, dict(info, chosen="places"))
+    if not tells_apart(settings, info):
+        return whole, info, (whole.views, dict(info, chosen="views",
+                                               check="the middle gate kept one copy per view "
+                                                     "cluster"))
     return whole, info, None
 
 
@@ -294,7 +300,10 @@ def _crossfit(settings: MotionSettings, X, Z, u, lengths, n_states: int, n_actio
     the places kept only where the view clusters are no nearer there; elsewhere, where the last
     part keeps the places within the bar (:func:`undecided`), the part before it
     (:func:`part_before_last`, learned on the rest) held out too and deciding by the same bar
-    (benchmarks/notes/continuous.md, "why `robot_three@0.3333` loses")."""
+    (benchmarks/notes/continuous.md, "why `robot_three@0.3333` loses").  Every rule gives the
+    view clusters unchecked where the odometry told no sighting of a view apart
+    (:func:`tells_apart`): places cut from such odometry beat the view clusters in the check
+    only by following the frame's drift (benchmarks/notes/continuous.md, "50 Hz")."""
     whole, info, done = _cut(settings, Z, u, lengths, n_states, n_actions, **kmeans)
     if done is not None:
         return done
@@ -332,9 +341,6 @@ def _choose(settings: MotionSettings, X, Z, u, lengths, n_states: int, n_actions
                              **kmeans)
     if done is not None:
         return done
-    if not tells_apart(settings, info):
-        return whole.views, dict(info, chosen="views",
-                                  check="the middle gate kept one copy per view cluster")
     purity = view_purity(whole.places, whole.views)
     if purity < settings.check.min_purity:
         return whole.views, dict(info, chosen="views", purity=round(purity, 4),

@@ -85,7 +85,8 @@ class CheckSettings:
     lies mostly in places the rest of the log seldom visits, that part held out instead and the
     places kept only where no farther off (:mod:`~topomap.core.motion.coverage`), and where the
     last part keeps them within two standard errors, the part before it held out too, the places
-    given up by the same bar (over 1 % above the views on 0 of 30 walks, ``bootstrap`` on 3);
+    given up by the same bar (over 1 % above the views on 0 of 30 walks, ``bootstrap`` on 3;
+    4 of 126 with the sensor settings of benchmarks/notes/continuous.md, "50 Hz");
     ``"crossfit"``: kept where nearer at all;
     ``"folds"``: the fields below."""
     holdout: float = 0.25
@@ -104,7 +105,8 @@ class CheckSettings:
     no vote; a third part averaged in kept losing places on Tanni's rat path)."""
     min_copies: float = 1.0
     """The view clusters, unchecked, where the middle gate kept no more copies per view cluster
-    (copies per view cluster; the odometry told no sighting apart)."""
+    (copies per view cluster; the odometry told no sighting apart; every rule: at 50 Hz such
+    places lost to the views on 6 of 24 walks, by up to 33 %)."""
     confidence: float = 0.0
     """The pooled gain must also be this many times its noise (standard errors; 0: off -- a bar
     of 1 gave up ``arena_two_rooms``' places at half the views' error)..."""
