@@ -19,7 +19,7 @@ visit more than :data:`VISIT_SHARE` of the centres each (clusters on top of one 
 
 Measured (``benchmarks/notes/scale.md``, "The nearest centre by search"): 10^7 rows of the
 benchmark walk (15 features, 100 centres) in 0.5-0.7 s where ``predict`` took 1.6-1.7 s (two
-cores, load 2-2.5), 1.4 other centres visited a row; a continuous log's views (12 beams, 32-300
+cores, load 2-2.5; phase 1 1.19 s against 1.87 s idle), 1.4 other centres visited a row; a continuous log's views (12 beams, 32-300
 centres) 0.9-11 others a row, about ``predict``'s time; the same labels on every test.
 """
 
