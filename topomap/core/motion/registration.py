@@ -39,8 +39,7 @@ from . import scans as S
 from .reckoning import forward_moves, reckon
 
 __all__ = ["scan_points", "register", "register_each", "checked_turn", "resolve_turns",
-           "scan_odometry", "scan_poses", "compose",
-           "KEYFRAME_TRAVEL", "KEYFRAME_TURN", "ICP_ITERATIONS", "CAUCHY_M", "MAX_PAIR_M",
+           "scan_odometry", "scan_poses", "compose", "KEYFRAME_TRAVEL", "KEYFRAME_TURN", "ICP_ITERATIONS", "CAUCHY_M", "MAX_PAIR_M",
            "RETRY_COST", "RETRY_GAIN", "RECENT", "SWEEP_BEAMS", "CLOSURE_COST", "CHAIN_SD_M",
            "CLOSURE_SD_M", "POSITION_GATE_M", "NORMAL_HALF", "NORMAL_GAP_M", "TURN_CHECK"]
 
@@ -245,11 +244,9 @@ def register_each(ref, scan, max_range: float, starts=((0.0, 0.0, 0.0),),
     P, Pv = scan_points(ref, max_range)
     Q, Qv = scan_points(scan, max_range)
     N, C = _normals(P, Pv, NORMAL_GAP_M, NORMAL_HALF)
-    out = []
-    for start in np.atleast_2d(np.asarray(starts, dtype=np.float64)):
-        m, used, cost = _icp(C, Pv, N, Q, Qv, start, iters, CAUCHY_M, MAX_PAIR_M)
-        out.append((m, int(used), float(cost)))
-    return out
+    runs = (_icp(C, Pv, N, Q, Qv, start, iters, CAUCHY_M, MAX_PAIR_M)
+            for start in np.atleast_2d(np.asarray(starts, dtype=np.float64)))
+    return [(m, int(used), float(cost)) for m, used, cost in runs]
 
 
 def register(ref, scan, max_range: float, starts=((0.0, 0.0, 0.0),),
@@ -283,8 +280,7 @@ def compose(a, b) -> np.ndarray:
 
 def _relative(a, b) -> np.ndarray:
     """Pose ``b`` in the frame of pose ``a``."""
-    c, s = np.cos(a[2]), np.sin(a[2])
-    dx, dy = b[0] - a[0], b[1] - a[1]
+    c, s, dx, dy = np.cos(a[2]), np.sin(a[2]), b[0] - a[0], b[1] - a[1]
     return np.array([c * dx + s * dy, -s * dx + c * dy, b[2] - a[2]])
 
 

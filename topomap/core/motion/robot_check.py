@@ -67,7 +67,7 @@ def check_views(X, n_states: int, holdout: float, random_state=0) -> np.ndarray:
     return KMeans(n_states, n_init=1, random_state=random_state).fit(X[:cut]).labels_
 
 
-def robot_check(X, u, odometry, n_states: int, views_map, holdout: float, random_state=0,
+def robot_check(X, u, odometry, n_states: int, views_map, holdout: float, random_state=0, *,
                 symbols=None, headings=None, place_odometry=None, views=None) -> dict:
     """The check's figures (module docstring): ``{"learned", "held_out", "robot", "views",
     "gap", "se"}`` -- steps before the cut and after it, each map's median distance [m] of the

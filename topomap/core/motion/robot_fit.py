@@ -172,8 +172,8 @@ def fit_robot(learner, data, settings, odometry, fallback=None,
                                     lambda X, u, views: fallback[2](X, u, views, [len(X)],
                                                                     pooled=True),
                                     settings.check.holdout, learner.random_state,
-                                    learner.labels_phase1_, poses[:, 2], place_odometry,
-                                    views)
+                                    symbols=learner.labels_phase1_, headings=poses[:, 2],
+                                    place_odometry=place_odometry, views=views)
         if not robot_wins(info["check"]):
             return _fall_back(learner, settings, fallback, info, check_reason(info["check"]),
                               start)

@@ -91,13 +91,19 @@ def margin(dtype, n_features: int) -> float:
 
 
 @njit(cache=True, nogil=True)
-def _search(Z, lo, hi, C, near, gap, W, low, scale, cells, G, rel, cmax2, labels, unsure):
+def _search(Z, lo, hi, C, neighbours, grid, rel, labels, unsure):
     """Label rows ``lo:hi`` of ``Z`` by the centres ``C`` (k, D): a row starts from its grid
-    cell's centre (its projection on ``W`` (q, D), less ``low``, times ``scale``, indexes
-    ``cells``), then visits that centre's neighbours ``near`` in order of their distances
-    ``gap`` until the triangle inequality rules out the rest.  ``labels`` gets the nearest
-    centre, ``unsure`` 1 where the two nearest are within the margin.  Returns how many
-    centres beyond the first the rows visited."""
+    cell's centre (``grid`` = ``(W, low, scale, cells, G)``: its projection on ``W`` (q, D), less
+    ``low``, times ``scale``, indexes ``cells``, ``G`` a side), then visits that centre's
+    neighbours (``neighbours`` = ``(near, gap)``: their indices and distances, nearest first)
+    until the triangle inequality rules out the rest.  ``labels`` gets the nearest centre,
+    ``unsure`` 1 where the two nearest are within the margin ``rel`` (:func:`margin`).  Returns
+    how many centres beyond the first the rows visited."""
+    near, gap = neighbours
+    W, low, scale, cells, G = grid
+    cmax2 = 0.0
+    for j in range(C.shape[0]):
+        cmax2 = max(cmax2, np.sum(C[j] * C[j]))
     k, D = C.shape
     q = W.shape[0]
     w0, w1, w2 = W[0], W[min(1, q - 1)], W[min(2, q - 1)]
@@ -204,14 +210,13 @@ def nearest_centres(km, Z: np.ndarray, *, search_rows: int = SEARCH_ROWS,
     low, span = P.min(axis=0), np.ptp(P, axis=0)
     scale = np.where(span > 0, GRID_CELLS / np.where(span > 0, span, 1.0), 0.0)
     cells = _cell_starts(P, low, span / GRID_CELLS, GRID_CELLS)
-    cmax2 = float((centres * centres).sum(axis=1).max())
     rel = margin(Z.dtype, D)
     labels = np.empty(T, dtype=np.int64)
     unsure = np.zeros(T, dtype=np.uint8)
 
     def search(lo, hi):
-        return _search(Z, lo, hi, centres, near, gap, W, low, scale, cells, GRID_CELLS, rel,
-                       cmax2, labels, unsure)
+        return _search(Z, lo, hi, centres, (near, gap), (W, low, scale, cells, GRID_CELLS), rel,
+                       labels, unsure)
 
     probe = min(probe_rows, T)
     if search(0, probe) > VISIT_SHARE * k * probe:
