@@ -6,8 +6,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from topomap.core.split.criteria import EntropyCriterion
 from topomap.core.split.engine import Proposal
-from topomap.core.stats import xlogx
+from topomap.core.stats import episode_masks, xlogx
 
 _TIE_DECIMALS = 9
 
@@ -149,3 +150,17 @@ def split_state(x: np.ndarray, u: np.ndarray, p: Proposal, new: int, n_states: i
     return out
 
 
+def splits(labels, u, S, A, lengths, n_splits):
+    """The numpy phase 2: rebuild every instance, propose every state, split the best."""
+    has_prev, has_next = episode_masks(len(u), lengths)
+    x, history, crit = labels.copy(), [], EntropyCriterion()
+    for _ in range(n_splits):
+        inst = build_instances(x, u, S, A, has_prev, has_next)
+        props = [p for q in range(S) if (p := propose_split(inst, q, crit)) is not None]
+        if not props:
+            break
+        best = max(props, key=lambda p: (p.score, -p.state))
+        x = split_state(x, u, best, S, S, A, has_prev, has_next)
+        history.append((best.state, best.score, x.copy()))
+        S += 1
+    return history

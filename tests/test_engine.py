@@ -91,26 +91,10 @@ def random_walk(seed, T, n_places=12, n_symbols=5, n_actions=3, episodes=1):
     return np.array(labels), np.array(actions), lengths, n_symbols, n_actions
 
 
-def reference_splits(labels, u, S, A, lengths, n_splits):
-    """The numpy phase 2: rebuild every instance, propose every state, split the best."""
-    has_prev, has_next = episode_masks(len(u), lengths)
-    x, history, crit = labels.copy(), [], EntropyCriterion()
-    for _ in range(n_splits):
-        inst = ref.build_instances(x, u, S, A, has_prev, has_next)
-        props = [p for q in range(S) if (p := ref.propose_split(inst, q, crit)) is not None]
-        if not props:
-            break
-        best = max(props, key=lambda p: (p.score, -p.state))
-        x = ref.split_state(x, u, best, S, S, A, has_prev, has_next)
-        history.append((best.state, best.score, x.copy()))
-        S += 1
-    return history
-
-
 @pytest.mark.parametrize("seed, episodes", [(0, 1), (1, 1), (2, 4), (3, 7), (4, 2)])
 def test_the_engine_splits_exactly_as_the_numpy_code(seed, episodes):
     labels, u, lengths, S, A = random_walk(seed, 1500, episodes=episodes)
-    expected = reference_splits(labels, u, S, A, lengths, 12)
+    expected = ref.splits(labels, u, S, A, lengths, 12)
     has_prev, has_next = episode_masks(len(u), lengths)
     splitter = Splitter(labels, u, A, has_prev, has_next, symbol=list(range(S)), gds=[-1] * S,
                         obs_entropy=np.zeros(S), criterion=EntropyCriterion())

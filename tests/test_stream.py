@@ -15,6 +15,7 @@ from topomap.core.split.criteria import EntropyCriterion
 from topomap.core.stats import episode_masks
 from topomap.core.stream.moments import chunk_moments, combine
 
+import reference_splitting as ref
 from worlds import ring
 
 
@@ -59,6 +60,9 @@ def test_ring_logs_split_by_hand(tmp_path):
     assert learner.map_.transition_counts.sum() == 400 - 4
     assert learner.stream_info_["logs"] == 4 and learner.stream_info_["steps"] == 400
     assert learner.labels_.dtype == np.int16
+    # in memory the split keeps 2 bytes a step too, and gives the user int64 labels: the same
+    fitted = MapLearner(n_clusters=3, n_states=4).fit(X, u, lengths=[100, 120, 80, 100])
+    assert fitted.labels_.dtype == np.int64 and np.array_equal(fitted.labels_, learner.labels_)
 
 
 def _same_fit(a, b):
@@ -122,19 +126,21 @@ def test_moments_of_chunks_combine_to_those_of_all_rows():
             assert np.allclose(parts.m2[k], m2, rtol=1e-12)
 
 
-def test_compact_labels_split_as_int64():
-    # the split engine on int16 labels and int8 actions makes the int64 engine's splits
+def test_compact_labels_split_as_the_numpy_code():
+    # int64 labels and actions, or int16 and int8: the engine keeps 2 and 1 bytes a step and
+    # makes the plain numpy phase 2's splits
     X, u, _ = ring(n_steps=600, n_places=8, aliased=[(1, 4), (2, 6)], seed=2)
     labels = MapLearner(n_clusters=6, n_states=6).fit(X, u).labels_phase1_
-    runs = []
+    expected = ref.splits(labels, u, 6, 2, [600], 4)
     for lab, act in ((labels, u), (labels.astype(np.int16), u.astype(np.int8))):
         s = Splitter(lab, act, 2, *episode_masks(600, [600]), symbol=list(range(6)),
                      gds=[-1] * 6, obs_entropy=np.zeros(6), criterion=EntropyCriterion())
-        while (best := s.best()) is not None and s.n_states < 10:
-            s.apply(best)
-        runs.append(s.labels.copy())
-    assert runs[1].dtype == np.int16
-    assert np.array_equal(runs[0], runs[1])
+        assert s.labels.dtype == np.int16 and s.engine.u.dtype == np.int8
+        for state, _, x in expected:
+            assert s.best().state == state
+            s.apply(s.best())
+            assert np.array_equal(s.labels, x)
+    assert len(expected) == 4
 
 
 def test_action_names_made_consistent(tmp_path):
@@ -223,16 +229,15 @@ def test_a_generator_of_trajectories_and_mixed_logs(tmp_path):
 
 def test_compact_labels_widen_past_int16():
     # 32,767 states (all but 6 empty): the second split makes state 32,768, past int16; the
-    # labels become int32 and the splits stay those of the int64 engine
+    # labels become int32 and the splits stay those of the plain numpy phase 2
     X, u, _ = ring(n_steps=600, n_places=8, aliased=[(1, 4), (2, 6)], seed=2)
     labels = MapLearner(n_clusters=6, n_states=6).fit(X, u).labels_phase1_
     S = 2**15 - 1
-    runs = []
-    for lab in (labels, labels.astype(np.int16)):
-        s = Splitter(lab, u, 2, *episode_masks(600, [600]), symbol=list(range(S)),
-                     gds=[-1] * S, obs_entropy=np.zeros(S), criterion=EntropyCriterion())
-        while (best := s.best()) is not None and s.n_states < S + 3:
-            s.apply(best)
-        runs.append(s.labels.copy())
-    assert runs[1].dtype == np.int32 and runs[1].max() == S + 2
-    assert np.array_equal(runs[0], runs[1])
+    expected = ref.splits(labels, u, S, 2, [600], 3)
+    s = Splitter(labels, u, 2, *episode_masks(600, [600]), symbol=list(range(S)),
+                 gds=[-1] * S, obs_entropy=np.zeros(S), criterion=EntropyCriterion())
+    assert s.labels.dtype == np.int16
+    for _, _, x in expected:
+        s.apply(s.best())
+        assert np.array_equal(s.labels, x)
+    assert s.labels.dtype == np.int32 and s.labels.max() == S + 2

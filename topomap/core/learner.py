@@ -227,7 +227,7 @@ class MapLearner(StreamFit, MapMethods, BaseEstimator):
                 self.stop_reason_ = "stopping rule"
                 break
             self._record_split(splitter, best)
-        splitter.finish()
+        splitter.finish(widen=True)
         t2 = time.perf_counter()
         self.labels_ = self.labels_split_ = splitter.labels
         info = {
@@ -387,7 +387,7 @@ class MapLearner(StreamFit, MapMethods, BaseEstimator):
                                        covariance_type=self.covariance_type,
                                        reg_covar=self.reg_covar,
                                        symbol=None if self._headed is None else symbol)
-        m = self._make_map(data, splitter, models=models)
+        m = self._make_map(data, splitter, models=models, labels=labels)
         self.entropies_.append(dict(m.entropies(), n_states=m.n_states, iteration=0))
         m = self.map_phase1_ = replace(m, entropy_history=self.entropies_)
         splitter.obs_entropy = m.state_entropies()
@@ -433,14 +433,14 @@ class MapLearner(StreamFit, MapMethods, BaseEstimator):
         for cb in self.callbacks:
             cb(event, dict(info, learner=self))
 
-    def _make_map(self, data: FitData, splitter: Splitter, info=None, models=None):
-        return TopologicalMap.from_labels(
-            data.X, data.u, splitter.labels, lengths=data.lengths, state_symbol=splitter.symbol,
-            state_gds=splitter.gds, state_parent=splitter.parent, n_actions=data.n_actions,
-            covariance_type=self.covariance_type, reg_covar=self.reg_covar,
-            action_names=data.action_names, gds_names=data.gds_names,
+    def _make_map(self, data: FitData, splitter: Splitter, info=None, models=None, labels=None):
+        return TopologicalMap.from_labels(  # int64 ``labels`` spare a copy of the splitter's
+            data.X, data.u, splitter.labels if labels is None else labels, lengths=data.lengths,
+            state_symbol=splitter.symbol, state_gds=splitter.gds, state_parent=splitter.parent,
+            n_actions=data.n_actions, covariance_type=self.covariance_type, models=models,
+            reg_covar=self.reg_covar, action_names=data.action_names, gds_names=data.gds_names,
             split_history=self.split_history_, entropy_history=self.entropies_, info=info,
-            models=models, counts=splitter.count_tables())
+            counts=splitter.count_tables())
 
     def _forget_fit(self) -> None:
         """Drop every attribute an earlier fit learned (names ending in ``_``), so a refit never

@@ -115,7 +115,7 @@ def split_to(labels, state_symbol, u, n_actions: int, masks, n_target: int, stat
     while splitter.n_states < n_target and (best := splitter.best()) is not None:
         splitter.apply(best)
         n_split += 1
-    return splitter.labels.copy(), np.asarray(splitter.symbol, dtype=np.int64), n_split
+    return splitter.labels.astype(np.int64), np.asarray(splitter.symbol, dtype=np.int64), n_split
 
 
 def resize(labels, state_symbol, u, n_actions: int, masks, n_target: int, state_gds, criterion):

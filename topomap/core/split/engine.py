@@ -160,11 +160,15 @@ def members_of(labels, n_states, like):
     return out
 
 
-def _kept_dtype(values, compact) -> type:
-    """The type a (T,) array of ids is kept as: its own when it is one of ``compact``, else
-    int64."""
-    dtype = getattr(values, "dtype", None)
-    return dtype if dtype is not None and any(dtype == c for c in compact) else np.int64
+def _compact_dtype(top: int, dtypes) -> type:
+    """The first of ``dtypes`` (narrow to wide) that holds ``0 .. top``; int64 past them.  The
+    split reads the labels and actions of scattered steps: at 2 and 1 bytes a step instead of 8
+    (10^7 steps, 100 -> 200 states: 30 MB instead of 160 MB, under the 32 MB last-level cache
+    measured) its 100 splits took 2.01 s CPU instead of 2.43 s (medians of 4, the same labels)."""
+    for dtype in dtypes:
+        if top <= np.iinfo(dtype).max:
+            return dtype
+    return np.int64
 
 
 def _merge_delta(table, old, new, size):
@@ -179,17 +183,18 @@ class SplitEngine:
 
     Parameters: ``labels`` (T,) int (copied), ``actions`` (T,) int, ``n_states``, ``n_actions``,
     ``has_prev`` / ``has_next`` from :func:`topomap.core.stats.episode_masks`.
-    Attributes: ``labels`` (T,) int64 -- or, given as int16 or int32, a copy of that type,
-    widened when the states outgrow it (a streamed fit keeps 2 bytes a step, not 8) --,
-    ``u`` the actions as given when they are int8, int16, int32 or int64, ``members[s]`` sorted
+    Attributes: ``labels`` (T,) a copy as int16 while the states fit it (int32, int64 past
+    that; widened when the states outgrow it), ``u`` a copy as int8 while the actions fit it
+    (int16, int32, int64 past that), ``members[s]`` sorted
     steps of state ``s`` (int32 below 2**31 steps),
     ``state_counts`` (S,), ``action_counts`` (S, A), ``near`` (S,) the states next to the last
     split's moved steps.
     """
 
     def __init__(self, labels, actions, n_states, n_actions, has_prev, has_next):
-        self.labels = np.array(labels, dtype=_kept_dtype(labels, (np.int16, np.int32)))
-        self.u = np.asarray(actions, dtype=_kept_dtype(actions, (np.int8, np.int16, np.int32)))
+        self.labels = np.array(labels, dtype=_compact_dtype(n_states, (np.int16, np.int32)))
+        self.u = np.asarray(actions, dtype=_compact_dtype(n_actions - 1,
+                                                           (np.int8, np.int16, np.int32)))
         self.S, self.A = int(n_states), int(n_actions)
         self.has_prev, self.has_next = has_prev, has_next
         self.centre = has_prev & has_next
@@ -332,9 +337,9 @@ class SplitEngine:
         self.S += 1
 
     def release(self) -> None:
-        """Drop the steps and instance tables of every state (no split follows); the labels and
-        counts stay."""
-        self.members = self.tables = None
+        """Drop the steps, actions and instance tables of every state (no split follows); the
+        labels and counts stay."""
+        self.members = self.tables = self.u = None
         self.centre = self.has_prev = self.has_next = None
 
     # ------------------------------------------------------------------ entropies
@@ -418,9 +423,12 @@ class Splitter:
                 root[s] = root[p]
         return root
 
-    def finish(self) -> None:
-        """The splits are over: free what only further splits need (every state's steps)."""
+    def finish(self, widen: bool = False) -> None:
+        """The splits are over: free what only further splits need (every state's steps);
+        ``widen``: keep the labels as int64 from now on (in place of the compact copy)."""
         self.engine.release()
+        if widen:
+            self.engine.labels = self.engine.labels.astype(np.int64)
         self._cache, self._dirty = {}, set()
         self.has_prev = self.has_next = None
 
