@@ -147,3 +147,42 @@ def test_centre_pairs_by_hand():
     bounds = centre_pairs(x, u, centre, 2, 2, 3, pairs)
     # state 0: t = 2 (key 2, column 3) and t = 4 (key 2, column 3); state 1: t = 1 (key 1, 0)
     assert bounds.tolist() == [0, 2, 3] and pairs.tolist() == [2 << 3 | 3, 2 << 3 | 3, 1 << 3]
+
+
+def test_concurrent_proposals_split_as_proposals_in_turn(n_threads):
+    # a criterion marked ``concurrent`` proposes the dirty states' splits on threads: the
+    # proposals, scores and labels are those of proposals made one after the other
+    import threading
+
+    from topomap.core.split.criteria import EntropyCriterion
+    from topomap.core.split.engine import Splitter
+
+    class InTurn(EntropyCriterion):
+        concurrent = False
+
+    class Seen(EntropyCriterion):
+        threads: set = set()
+
+        def propose(self, counts):
+            self.threads.add(threading.get_ident())
+            return super().propose(counts)
+
+    rng = np.random.default_rng(5)
+    S, A, T = 6, 3, 3000
+    succ = rng.integers(0, 2 * S, (2 * S, A))
+    u, p, x = rng.integers(0, A, T), 0, np.empty(T, dtype=np.int64)
+    for t in range(T):
+        x[t], p = p % S, succ[p, u[t]]  # 12 places seen as 6: aliased states to split
+    masks = episode_masks(T, [T])
+    runs = []
+    for criterion in (InTurn(), Seen()):
+        s = Splitter(x, u, A, *masks, symbol=list(range(S)), gds=[-1] * S,
+                     obs_entropy=np.zeros(S), criterion=criterion)
+        history = []
+        while (best := s.best()) is not None and s.n_states < 12:
+            history.append((best.state, best.score))
+            s.apply(best)
+        runs.append((history, s.labels.copy()))
+    assert len(runs[0][0]) == 6 and runs[0][0] == runs[1][0]
+    assert np.array_equal(runs[0][1], runs[1][1])
+    assert (threading.get_ident() in Seen.threads) == (n_threads == 1)

@@ -25,6 +25,8 @@ class EntropyCriterion:
     """
 
     name = "entropy"
+    #: ``propose`` may run on several threads at once (its merge releases the GIL)
+    concurrent = True
 
     def propose(self, counts: np.ndarray):
         """Return ``(side, gain)`` -- ``side[g]`` is True for the groups of the second half -- or

@@ -34,7 +34,7 @@ from numba import njit
 
 from .kernels import (action_table, centre_pairs, follow_keys, merge_tallies, split_table,
                       tally_codes, tally_pairs, touched_codes, transition_table)
-from .threads import beside
+from .threads import beside, in_threads
 from .merge_kernels import (count_matrix_kernel, count_range, gain_kernel, merge_gain_kernel,
                             merge_groups_kernel)
 from ..stats import conditional_entropy, sparse_conditional_entropy, xlogx
@@ -59,9 +59,13 @@ class _XlogxTable:
         self.values = xlogx(np.arange(1024))
 
     def upto(self, top: int) -> np.ndarray:
-        if top >= self.values.size:
-            self.values = xlogx(np.arange(max(top + 1, 2 * self.values.size)))
-        return self.values
+        """A table reaching ``top`` (threads may ask at once: each gets one long enough)."""
+        values = self.values
+        if top >= values.size:
+            values = xlogx(np.arange(max(top + 1, 2 * values.size)))
+            if values.size > self.values.size:
+                self.values = values
+        return values
 
 
 _TABLE = _XlogxTable()
@@ -383,8 +387,14 @@ class Splitter:
         return self.engine.labels
 
     def best(self) -> Proposal | None:
-        for q in self._dirty:
-            self._cache[q] = self.engine.propose(q, self.criterion) if self.gds[q] < 0 else None
+        asked = sorted(q for q in self._dirty if self.gds[q] < 0)
+        self._cache.update({q: None for q in self._dirty})
+        # a criterion whose ``propose`` may run on several threads at once (``concurrent``)
+        # proposes on threads where the states hold enough instances
+        steps = sum(int(self.engine.tables[q][1].sum()) for q in asked) \
+            if getattr(self.criterion, "concurrent", False) else 0
+        self._cache.update(zip(asked, in_threads(
+            lambda q: self.engine.propose(q, self.criterion), asked, steps=steps)))
         self._dirty = set()
         candidates = [p for p in self._cache.values() if p is not None]
         if not candidates:

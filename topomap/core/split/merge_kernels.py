@@ -196,7 +196,7 @@ def gain_kernel(counts, side, table):
     return (whole - (0.0 + pairwise_sum(parts, 0, 2))) / (halves[0].sum() + halves[1].sum())
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def merge_gain_kernel(counts, table, decimals):
     """:func:`merge_groups_kernel`, then :func:`gain_kernel` of its halves, in one call (``table``
     as for the first)."""
@@ -204,7 +204,7 @@ def merge_gain_kernel(counts, table, decimals):
     return side, gain_kernel(counts, side, table)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def count_range(counts):
     """The smallest entry and the sum of an int64 matrix (0, 0 when it is empty), in one pass."""
     low, total = 0, 0
@@ -231,7 +231,7 @@ def _ranks(values, size):
     return distinct, rank[values]
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def count_matrix_kernel(codes, counts, size):
     """``(matrix, keys, cols)`` of a sorted instance table (codes ``key << 32 | column``, keys
     and columns below ``size``): its sorted distinct keys and columns and the (keys x columns)
