@@ -311,9 +311,26 @@ def _around(moved, has_prev, has_next):
             sorted_union(_shifted(moved, has_next, 0), before))
 
 
+@njit(cache=True, nogil=True)
+def _piece_codes(moved, lo, hi, has_prev, has_next, centre, x, u, A, shift, q, new, rows, trans,
+                 near):
+    """The rows of :func:`touched_codes` for the steps of ``[moved[lo], moved[hi])`` (from the
+    first step for the first piece, to the last for the last) next to a moved step -- the moved
+    steps ``lo - 1 .. hi`` are the only ones next to them --, written into ``rows`` and ``trans``
+    from column 0 on, ``near`` marked.  Returns how many of each: outside, inside, transitions."""
+    c, starts = _around(moved[max(lo - 1, 0):min(hi + 1, moved.size)], has_prev, has_next)
+    low = moved[lo] if lo > 0 else -1
+    top = moved[hi] if hi < moved.size else x.size + 1
+    i0, i1 = np.searchsorted(c, low), np.searchsorted(c, top)
+    j0, j1 = np.searchsorted(starts, low), np.searchsorted(starts, top)
+    n_out, n_in = _centre_codes(c[i0:i1], centre, x, u, A, shift, q, new, rows, near)
+    return n_out, n_in, _start_codes(starts[j0:j1], has_next, x, u, A, shift, q, new, trans)
+
+
 def touched_codes(moved, has_prev, has_next, centre, x, u, A, shift, q, new, *, chunk=CHUNK):
     """What a split of ``q`` changed around the sorted steps ``moved`` (labels ``x`` already
-    moved to ``new``), in passes over their neighbours (pieces of ``chunk`` steps on threads).
+    moved to ``new``), in passes over their neighbours (pieces of ``chunk // 2`` moved steps,
+    about ``chunk`` neighbours, on threads).
 
     Returns ``(outside, inside, starts, near)``: ``outside`` rows the instance centres next to a
     moved step that lie outside ``q`` and ``new``, their states, codes before and after;
@@ -322,27 +339,26 @@ def touched_codes(moved, has_prev, has_next, centre, x, u, A, shift, q, new, *, 
     a moved step (all in step order); ``near`` a mask over the states holding a step next to a
     moved one (``q`` and ``new`` may be missing).
     """
-    c, starts = _around(moved, has_prev, has_next)
-    cut, cut_starts = pieces(c.size, chunk), pieces(starts.size, chunk)
+    cut = pieces(moved.size, max(chunk // 2, 1))
     # every piece writes into its own columns of arrays made here (no large arrays made on the
-    # threads, whose memory the allocator would keep apart)
-    rows, trans = np.empty((7, c.size), dtype=np.int64), np.empty((2, starts.size), dtype=np.int64)
+    # threads, whose memory the allocator would keep apart): at most two neighbours and two
+    # transitions a moved step, its piece's and the one on each side
+    caps = np.array([2 * (min(p.stop + 1, moved.size) - max(p.start - 1, 0)) for p in cut],
+                    dtype=np.int64)
+    first = np.cumsum(caps) - caps
+    rows = np.empty((7, int(caps.sum())), dtype=np.int64)
+    trans = np.empty((2, int(caps.sum())), dtype=np.int64)
     near = np.zeros((len(cut), new + 1), dtype=bool)
 
-    def run(job):
-        k, p = job
-        if k < 0:
-            return _start_codes(starts[p], has_next, x, u, A, shift, q, new, trans[:, p])
-        return _centre_codes(c[p], centre, x, u, A, shift, q, new, rows[:, p], near[k])
+    def run(k):
+        p, cols = cut[k], slice(first[k], first[k] + caps[k])
+        return _piece_codes(moved, p.start, p.stop, has_prev, has_next, centre, x, u, A, shift,
+                            q, new, rows[:, cols], trans[:, cols], near[k])
 
-    done = in_threads(run, list(enumerate(cut)) + [(-1, p) for p in cut_starts],
-                      steps=c.size + starts.size)
-    first = np.array([p.start for p in cut], dtype=np.int64)
-    kept = np.array(done[:len(cut)], dtype=np.int64).reshape(-1, 2)
+    kept = np.array(in_threads(run, range(len(cut)), steps=4 * moved.size),
+                    dtype=np.int64).reshape(-1, 3)
     return (_close_up(rows[:4], first, kept[:, 0]), _close_up(rows[4:], first, kept[:, 1]),
-            _close_up(trans, np.array([p.start for p in cut_starts], dtype=np.int64),
-                      np.array(done[len(cut):], dtype=np.int64)),
-            near.any(axis=0))
+            _close_up(trans, first, kept[:, 2]), near.any(axis=0))
 
 
 @njit(cache=True)
