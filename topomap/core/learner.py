@@ -115,8 +115,8 @@ class MapLearner(StreamFit, MapMethods, BaseEstimator):
         ``"refine"`` (after a refinement), ``"done"`` and ``info`` a dict (``learner``,
         ``labels``, ``entropies`` and, for splits, the history record), by every fit, the wider
         passes of :meth:`partial_fit` included (on the window's steps).  Used to log progress or
-        record extra metrics.  ``labels`` of a split is the learner's working array, changed in
-        place by later splits: copy it to keep it.
+        record extra metrics.  ``labels`` of a split is the learner's working array (int16 while
+        the states fit it), changed in place by later splits: copy it to keep it.
 
     Attributes
     ----------
