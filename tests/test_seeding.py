@@ -43,6 +43,23 @@ def test_the_same_centres_as_scikit_learns_kmeans_plusplus(seed):
     assert np.array_equal(ours, theirs)
 
 
+@pytest.mark.parametrize("all_rows", [0.0, 0.5, 1.01])
+def test_the_same_centres_whichever_rows_are_computed(all_rows, monkeypatch):
+    # every candidate's distances to all rows (0), to those within reach (1.01: never all), or
+    # either by the share within reach (0.5): scikit-learn's centres each time
+    import topomap.core.phase1.seeding as seeding
+
+    shares = []
+    within = seeding._rows_within_reach
+    monkeypatch.setattr(seeding, "ALL_ROWS", all_rows)
+    monkeypatch.setattr(seeding, "_rows_within_reach",
+                        lambda *a: shares.append((r := within(*a)).size / a[1].size) or r)
+    X = blobs(60, 30, 8, 6)
+    theirs, _ = kmeans_plusplus(X, 80, random_state=np.random.RandomState(6))
+    assert np.array_equal(PrunedPlusPlus()(X, 80, np.random.RandomState(6)), theirs)
+    assert max(shares) > 0.5 > min(shares)  # both kinds of pick on this data
+
+
 def test_the_same_centres_with_weights():
     X = blobs(40, 10, 5, 3)
     w = np.random.default_rng(4).integers(1, 20, X.shape[0]).astype(float)

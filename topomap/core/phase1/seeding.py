@@ -9,9 +9,9 @@ most of K-means' time with hundreds of clusters (MiniGrid FourRooms: 450).
 
 :class:`PrunedPlusPlus` draws the same random numbers and makes the same choices, but computes a
 candidate's distance to a row only when the triangle inequality allows it to be below the row's
-closest distance: with ``m`` the row's closest centre, ``d(c, x) >= d(c, m) - d(x, m)``, so where
-``d(c, m) > 2 d(x, m)`` the row keeps its closest distance (a margin covers the rounding of the
-distances).  The distances it does compute are scikit-learn's formula on a product over at least
+closest distance (to every row where more than :data:`ALL_ROWS` of them may be): with ``m`` the
+row's closest centre, ``d(c, x) >= d(c, m) - d(x, m)``, so where ``d(c, m) > 2 d(x, m)`` the row
+keeps its closest distance (a margin covers the rounding of the distances).  The distances it does compute are scikit-learn's formula on a product over at least
 :data:`PRODUCT_ROWS` rows, whose entries OpenBLAS rounds as in the product over all rows: the
 centres are scikit-learn's, bit for bit (checked on FourRooms' views, seeds 0-7, and in the
 tests).  A BLAS that rounds a product's entries by the number of its rows could break an exact
@@ -21,10 +21,9 @@ tie between two candidates the other way (a pair of rows far from every centre i
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 from sklearn.utils.extmath import row_norms
 
-__all__ = ["PrunedPlusPlus", "MIN_CLUSTERS", "PRUNED_CLUSTERS", "PRODUCT_ROWS"]
+__all__ = ["PrunedPlusPlus", "MIN_CLUSTERS", "PRUNED_CLUSTERS", "PRODUCT_ROWS", "ALL_ROWS"]
 
 #: from this many clusters on, phase 1 iterates K-means by Elkan's algorithm and looks for views
 #: it cut in two (:mod:`topomap.core.phase1.clustering`)
@@ -39,6 +38,13 @@ PRUNED_CLUSTERS = 50
 #: of a few rows with its small-matrix kernels, whose entries round otherwise than the product of
 #: all rows scikit-learn computes (seen below about 200 rows at 8 candidates x 147 features)
 PRODUCT_ROWS = 512
+#: the share of the rows above which a candidates' distances are computed to every row (no
+#: gather of the rows within reach, no scatter of their distances).  CPU s of the seeding
+#: (medians of 3-5, one BLAS thread) at 0.25 / 0.5 / 0.75 / never: FourRooms' views (200
+#: clusters) 0.180 / 0.137 / 0.125 / 0.145, the aliased walk's 20,000 rows of 15 features
+#: (100 clusters) 0.044 / 0.043 / 0.047 / 0.061, 450 clusters of uniform 15-D centres 0.341 /
+#: 0.354 / 0.536 / 0.628
+ALL_ROWS = 0.5
 #: the margin of the pruning test, relative to the largest row norm (the squared distances'
 #: rounding is about 1e-16 of the squared norms, i.e. 1e-8 of the norms)
 _MARGIN = 1e-6
@@ -54,21 +60,11 @@ def _squared_distances(A, B, B_sq):
     return np.maximum(d, 0, out=d)
 
 
-@njit(cache=True)
 def _rows_within_reach(centre_dist, owner, closest, margin):
     """Rows ``x`` for which some candidate ``k`` has ``centre_dist[k, owner[x]] <= 2 sqrt(closest[x])
-    + margin``: the rows whose closest distance a candidate may lower."""
-    out = np.empty(owner.size, np.int64)
-    n = 0
-    for x in range(owner.size):
-        reach = 2.0 * np.sqrt(closest[x]) + margin
-        o = owner[x]
-        for k in range(centre_dist.shape[0]):
-            if centre_dist[k, o] <= reach:
-                out[n] = x
-                n += 1
-                break
-    return out[:n]
+    + margin``: the rows whose closest distance a candidate may lower (in increasing order)."""
+    nearest = centre_dist.min(axis=0)  # each centre's nearest candidate
+    return np.flatnonzero(nearest[owner] <= 2.0 * np.sqrt(closest) + margin)
 
 
 class PrunedPlusPlus:
@@ -102,11 +98,14 @@ class PrunedPlusPlus:
             cand = X[ids]
             centre_dist = np.sqrt(_squared_distances(cand, centres[:c], centre_sq[:c]))
             rows = _rows_within_reach(centre_dist, owner, closest, margin)
-            if rows.size < PRODUCT_ROWS:  # a product over few rows may round otherwise
-                rows = np.union1d(rows, np.arange(min(T, PRODUCT_ROWS)))
-            dist[:] = closest
-            if rows.size:
-                dist[:, rows] = _squared_distances(cand, X[rows], x_sq[rows])
+            if rows.size > ALL_ROWS * T:  # most rows: all of them, as scikit-learn does
+                dist = _squared_distances(cand, X, x_sq)
+            else:
+                if rows.size < PRODUCT_ROWS:  # a product over few rows may round otherwise
+                    rows = np.union1d(rows, np.arange(min(T, PRODUCT_ROWS)))
+                dist[:] = closest
+                if rows.size:
+                    dist[:, rows] = _squared_distances(cand, X[rows], x_sq[rows])
             np.minimum(closest, dist, out=dist)
             pots = dist @ weight.reshape(-1, 1)
             best = int(np.argmin(pots))
