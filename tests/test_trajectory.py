@@ -134,3 +134,21 @@ def test_observations_too_large_to_square_name_the_file_the_field_and_the_overfl
         MapLearner(n_clusters=3, n_states=5).fit(X, u)
     X[5, 1] = -1e100
     assert MapLearner(n_clusters=3, n_states=5).fit(X, u).map_.n_states == 5
+
+
+def test_nan_rows_across_blocks_are_counted_before_any_value_too_large(monkeypatch):
+    # blocks of 4 rows: a value too large at step 1, NaN at steps 6 and 9 and inf at step 13
+    # (three blocks): the rows that are not finite are named, all three, from step 6
+    from topomap.core.data import trajectory
+
+    monkeypatch.setattr(trajectory, "_BLOCK_ROWS", 4)
+    X, u = np.zeros((16, 2)), np.zeros(16, dtype=int)
+    X[1, 0], X[6, 1], X[9, 0], X[13, 1] = 1e300, np.nan, np.nan, np.inf
+    with pytest.raises(ValueError, match=r"^observations contain NaN or inf in 3 row\(s\), "
+                       r"first at step 6$"):
+        trajectory.check_sequences(X, u)
+    X[[6, 9, 13]] = 0.0  # then the value too large, in the block where it lies
+    X[14, 0] = -2e300
+    with pytest.raises(ValueError, match=r"^observations hold 1e\+300 \(step 1, column 0\)"):
+        trajectory.check_sequences(X, u)
+

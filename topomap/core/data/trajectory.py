@@ -94,29 +94,34 @@ def as_float_observations(observations, keep_float32: bool = False) -> np.ndarra
 _BLOCK_ROWS = 1 << 16
 
 
-def _nonfinite_rows(X: np.ndarray) -> np.ndarray:
-    """Indices of the rows holding NaN or inf, found block by block (no (T, D) temporary)."""
-    bad = []
-    for start in range(0, X.shape[0], _BLOCK_ROWS):
-        block = X[start:start + _BLOCK_ROWS]
-        if not np.isfinite(block.sum()):  # a cheap screen; an overflowing sum is re-checked
-            bad.append(np.flatnonzero(~np.all(np.isfinite(block), axis=1)) + start)
-    return np.concatenate(bad) if bad else np.empty(0, dtype=np.int64)
-
-
-def _check_magnitude(X: np.ndarray) -> None:
-    """A ValueError when the observations are so large that the squares the learner sums over
-    them (variances, K-means distances, summed over T x D values) overflow their float type:
-    every ``|x|`` must stay below ``sqrt(max float / (T D)) / 2`` (about 7e148 at T D = 1e8 in
-    float64, 9e14 in float32, where K-means computes its distances in float32)."""
+def _check_values(X: np.ndarray) -> None:
+    """A ValueError naming the rows that hold NaN or inf (how many, the first), or else the
+    first value so large that the squares the learner sums over the observations (variances,
+    K-means distances, summed over T x D values) overflow their float type: every ``|x|`` must
+    stay below ``sqrt(max float / (T D)) / 2`` (about 7e148 at T D = 1e8 in float64, 9e14 in
+    float32, where K-means computes its distances in float32).  One pass, block by block: each
+    block's sum screens it for NaN and inf (an overflowing sum is re-checked row by row), its
+    largest ``|x|`` is read while it is in the cache (no (T, D) temporary)."""
     limit = 0.5 * np.sqrt(np.finfo(X.dtype).max / max(X.size, 1))
+    bad, big = [], None
     for start in range(0, X.shape[0], _BLOCK_ROWS):
         block = X[start:start + _BLOCK_ROWS]
-        if max(block.max(), -block.min()) < limit:
-            continue
+        if not np.isfinite(block.sum()):
+            rows = np.flatnonzero(~np.all(np.isfinite(block), axis=1))
+            if rows.size:
+                bad.append(rows + start)
+                continue
+        if not bad and big is None and max(block.max(), -block.min()) >= limit:
+            big = start
+    if bad:
+        rows = np.concatenate(bad)
+        raise ValueError(
+            f"observations contain NaN or inf in {rows.size} row(s), first at step {int(rows[0])}")
+    if big is not None:
+        block = X[big:big + _BLOCK_ROWS]
         step, column = np.unravel_index(np.argmax(np.abs(block)), block.shape)
         raise ValueError(
-            f"observations hold {block[step, column]:.3g} (step {start + int(step)}, column "
+            f"observations hold {block[step, column]:.3g} (step {big + int(step)}, column "
             f"{int(column)}), too large: the variances and distances the learner sums over these "
             f"{X.shape[0]} x {X.shape[1]} values would overflow {X.dtype} (|x| must stay below "
             f"{limit:.2g}); rescale the observations (e.g. to SI units)")
@@ -145,12 +150,7 @@ def check_sequences(observations, actions, gds=None, lengths=None, *, min_length
         raise ValueError(f"observations has {T} steps; at least {min_length} are needed")
     if X.shape[1] == 0:
         raise ValueError("observations has 0 columns; at least one feature is needed")
-    rows = _nonfinite_rows(X)
-    if rows.size:
-        raise ValueError(
-            f"observations contain NaN or inf in {rows.size} row(s), first at step {int(rows[0])}"
-        )
-    _check_magnitude(X)
+    _check_values(X)
     u = _as_int_array(actions, "actions", T)
     if u.min() < 0:
         raise ValueError(f"actions must be >= 0, found {int(u.min())} at step {int(np.argmin(u))}")
