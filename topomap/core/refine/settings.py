@@ -124,7 +124,7 @@ class Growth:
     stage_rtol: float = INF
     """... unless its last iteration gained more than this share of the log-likelihood; then
     it goes on until one gains less (share; ``inf``: it stops)."""
-    cycle_start: str = "random"
+    cycle_start: str = "auto"
     """A hard round on corrected symbols starts from random counts (``"random"``) or, where
     the soft round read the per-step evidence, from its labelling (``"soft"``); ``"auto"``:
     from its labelling only where that round's states hold many steps each and it corrected
