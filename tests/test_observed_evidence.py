@@ -189,3 +189,17 @@ def test_auto_keeps_the_confusion_matrix_where_the_first_round_pairs_two_symbols
     records = _auto_records(sym, u, lengths, RING, 3)
     assert records[0]["paired"] == rounds.PAIRED_READ
     assert [r.get("evidence") for r in records[1:]] == [None] * (len(records) - 2) + ["observed"]
+
+
+def test_read_moved_sums_the_clones_of_each_symbol_by_hand():
+    # clones 0 and 2 read symbol 0, clone 1 symbol 1; symbol 2 (a GDS id) has no clone
+    occupancy = np.array([[0.3, 0.1, 0.0, 0.25],
+                          [0.4, 0.8, 0.5, 0.5],
+                          [0.3, 0.1, 0.5, 0.25]])
+    read, moved = observed._read_moved(occupancy, np.array([0, 1, 0]), 3, None)
+    # symbol 0 holds 0.6 / 0.2 / 0.5 / 0.5 against symbol 1's 0.4 / 0.8 / 0.5 / 0.5: ties go to
+    # the lower symbol
+    np.testing.assert_array_equal(read, [0, 1, 0, 0])
+    assert moved == 1.0  # nothing to compare with
+    _, moved = observed._read_moved(occupancy, np.array([0, 1, 0]), 3, np.array([0, 1, 1, 1]))
+    assert moved == 0.5

@@ -9,6 +9,7 @@ import pytest
 
 from topomap.core.refine import rounds
 from topomap.core.refine.methods import EMRefinement
+from topomap.core.refine.soft import SoftFit
 from topomap.core.refine.sequence import SymbolSequence
 from topomap.core.refine.soft_states import successor_pairing
 from topomap.core.refine.structure import same_partition
@@ -99,3 +100,53 @@ def test_warm_cycle_rounds_merge_leftovers_and_no_other_round_does(monkeypatch):
     calls.clear()
     _fit(reading=EARLY, growth={"cycle_start": "random"})
     assert not calls
+
+
+def _soft_fit(n_states: int, corrected: float) -> SoftFit:
+    labels = np.zeros(4, dtype=np.int64)
+    return SoftFit(labels, np.zeros(n_states, dtype=np.int64), np.eye(2), labels,
+                   {"corrected": corrected})
+
+
+def test_warm_cycle_by_hand():
+    """At least WARM_VISITS steps per state of the soft round, at most WARM_CORRECTED of the
+    steps corrected."""
+    visits, most = rounds.WARM_VISITS, rounds.WARM_CORRECTED
+    steps = int(10 * visits)  # 10 states: exactly WARM_VISITS steps each
+    assert rounds.warm_cycle(_soft_fit(10, most), steps)
+    assert rounds.warm_cycle(_soft_fit(10, 0.0), steps)
+    assert not rounds.warm_cycle(_soft_fit(10, 0.0), steps - 1)  # a step short of the bar
+    assert not rounds.warm_cycle(_soft_fit(11, 0.0), steps)  # one state more
+    assert not rounds.warm_cycle(_soft_fit(10, most + 0.01), steps)  # too many corrected
+
+
+def _starts(monkeypatch):
+    """The hard rounds' starts (True: warm) recorded as they run."""
+    starts = []
+    hard_round = EMRefinement._hard_round
+
+    def recorded(self, seq, split_state_symbol, random_state, init=None, split_labels=None,
+                 **kw):
+        starts.append(init is not None)
+        return hard_round(self, seq, split_state_symbol, random_state, init, split_labels, **kw)
+    monkeypatch.setattr(EMRefinement, "_hard_round", recorded)
+    return starts
+
+
+def test_cycle_start_auto_is_warm_where_the_places_are_visited_often(monkeypatch):
+    """The ring: 6,000 steps on 10 places (600 a state) with 4 % misreads: "auto" starts the
+    hard rounds on corrected symbols warm, as "soft" does, and maps the ring."""
+    starts = _starts(monkeypatch)
+    fit, place = _fit(reading=EARLY, growth={"cycle_start": "auto"})
+    assert starts and all(starts) and same_partition(fit.labels_, place)
+
+
+@pytest.mark.parametrize("bar", ["WARM_VISITS", "WARM_CORRECTED"])
+def test_cycle_start_auto_is_cold_past_either_bar(monkeypatch, bar):
+    """The same walk with a bar it misses (more steps per state than it has, or no corrected
+    step allowed): every hard round on corrected symbols starts from random counts."""
+    monkeypatch.setattr(rounds, bar, {"WARM_VISITS": 1e6, "WARM_CORRECTED": -1.0}[bar])
+    starts = _starts(monkeypatch)
+    fit, place = _fit(reading=EARLY, growth={"cycle_start": "auto"})
+    assert any("hard_states" in r for r in fit.info_["soft_rounds"])  # a cycle ran
+    assert not any(starts) and same_partition(fit.labels_, place)

@@ -154,3 +154,20 @@ def test_one_blas_thread_limits_every_blas_and_restores_it():
     after = [lib["num_threads"] for lib in threadpool_info() if lib["user_api"] == "blas"]
     assert inside and all(n == 1 for n in inside)
     assert after == before
+
+
+def test_phase_1_fits_on_one_blas_and_one_openmp_thread(monkeypatch):
+    from threadpoolctl import threadpool_info
+
+    from topomap.core.phase1 import clustering
+
+    seen = []
+
+    def fitter(Z, ns, **kw):
+        seen.append({lib["user_api"]: lib["num_threads"] for lib in threadpool_info()})
+        return np.zeros(Z.shape[0], dtype=np.int64), None
+    monkeypatch.setitem(clustering._FITTERS, "full", fitter)
+    before = {lib["user_api"]: lib["num_threads"] for lib in threadpool_info()}
+    clustering._run("full", np.zeros((4, 2)), 1)
+    assert "openmp" in seen[0] and set(seen[0].values()) == {1}  # scikit-learn's OpenMP too
+    assert {lib["user_api"]: lib["num_threads"] for lib in threadpool_info()} == before

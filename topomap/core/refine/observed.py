@@ -163,6 +163,7 @@ def _read_moved(occupancy, clone_symbol, n_ids: int, previous):
     """Every step's most probable symbol under the clone ``occupancy`` (S, T) of an E-step, and
     the share of steps where it is not ``previous``'s (None: 1.0)."""
     by_symbol = np.zeros((n_ids, occupancy.shape[1]))
-    np.add.at(by_symbol, clone_symbol, occupancy)
+    for c, k in enumerate(clone_symbol.tolist()):  # np.add.at's sums, a row at a time: the
+        by_symbol[k] += occupancy[c]  # same bits in 0.3 ms, not 7 ms (74 clones x 10,000 steps)
     read = by_symbol.argmax(axis=0)
     return read, 1.0 if previous is None else float(np.mean(read != previous))

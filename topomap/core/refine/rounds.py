@@ -251,7 +251,8 @@ class CloneRefinement(BaseEstimator):
         """The hard round on the symbols the soft round ``soft`` corrected -- started from its
         labelling (short rounds on all steps, which also merge the duplicates its states leave:
         :meth:`EMRefinement._stages`) with ``growth.cycle_start="soft"`` where it
-        read the per-step evidence; else from random counts,
+        read the per-step evidence (``"auto"``: and :func:`warm_cycle` holds); else from
+        random counts,
         cut short like the first where misreads still show, the next soft round correcting what
         is left, unless the soft round corrected fewer than ``CUT_CORRECTED`` x ``detect`` of
         the steps -- and
@@ -261,8 +262,9 @@ class CloneRefinement(BaseEstimator):
         split_symbol = np.where(soft.state_symbol < seq.n_symbols, soft.state_symbol, -1)
         read = replace(seq, sym=soft.sym)
         growth = self.settings_.growth  # None for refine=cscg, which starts no round warm
-        if (growth is not None and growth.cycle_start == "soft"
-                and soft.info.get("evidence") == "observed"):
+        if (growth is not None and soft.info.get("evidence") == "observed"
+                and (growth.cycle_start == "soft"
+                     or growth.cycle_start == "auto" and warm_cycle(soft, seq.T))):
             hard = self._hard_round(read, split_symbol, random_state,
                                     init=(soft.labels, soft.state_symbol), cycle=True)
         elif soft.info["corrected"] < CUT_CORRECTED * detect:  # hardly any misreads to cut for
@@ -278,6 +280,30 @@ class CloneRefinement(BaseEstimator):
 #: by ``soft.rtol``.  Gridroom 8x6's prefixes show 0.6-1.1 % without misreads, 3.5-3.8 % at 2.5 %
 #: misreads (where the cap cost ARI), 8-10 % at 9.7 %
 CAP_SURPRISE = 25.0
+
+
+#: ``growth.cycle_start="auto"`` starts a hard round on corrected symbols from the soft round's
+#: labelling where its states hold at least this many steps each on average (steps per state).
+#: After the first soft round: gridroom 8x6 132-167 at 9.7-23.4 % misreads (seeds 0-5) and
+#: random_graph 60 141-167 at 0.7-8.2 % (seeds 0-2), where warm rounds kept every ARI up to
+#: 18.2 %; the 12x12 room 56-71 at 4.9-16.6 % (seeds 0-2), where they moved rarely visited
+#: places (10.6 % seed 1: 0.9973 -> 0.9965; 16.6 %: median 1.0000 -> 0.9985)
+WARM_VISITS = 100.0
+
+
+#: ... and where that soft round corrected at most this share of the steps (share).  Gridroom
+#: 8x6, seeds 0-5: at 18.2 % misreads 17.5-20.5 % corrected (warm: every ARI kept), at 23.4 %
+#: 22.1-28.0 % (warm, seed 2 at 22.7 % kept two places split in two: ARI 1.0000 -> 0.9806)
+WARM_CORRECTED = 0.21
+
+
+def warm_cycle(soft, n_steps: int) -> bool:
+    """Whether ``growth.cycle_start="auto"`` starts the hard round after the soft round
+    ``soft`` (a :class:`~topomap.core.refine.soft.SoftFit` of ``n_steps`` steps) from its
+    labelling: its states hold at least :data:`WARM_VISITS` steps each on average, and it
+    corrected at most :data:`WARM_CORRECTED` of the steps."""
+    return (n_steps >= WARM_VISITS * soft.state_symbol.size
+            and soft.info["corrected"] <= WARM_CORRECTED)
 
 
 #: the successor surprise (in ``reading.detect``) that cuts :meth:`EMRefinement._first_hard_round`

@@ -42,7 +42,7 @@ INF = float("inf")
 STARTS = ("random", "split", "split_budget", "auto")
 
 #: what a hard round on corrected symbols starts from (``growth.cycle_start``)
-CYCLE_STARTS = ("random", "soft")
+CYCLE_STARTS = ("random", "soft", "auto")
 
 #: the soft rounds that take each step's evidence from its observation (``reading.observed_in``)
 OBSERVED_IN = ("last", "auto", "early", "all")
@@ -124,9 +124,11 @@ class Growth:
     stage_rtol: float = INF
     """... unless its last iteration gained more than this share of the log-likelihood; then
     it goes on until one gains less (share; ``inf``: it stops)."""
-    cycle_start: str = "random"
+    cycle_start: str = "auto"
     """A hard round on corrected symbols starts from random counts (``"random"``) or, where
-    the soft round read the per-step evidence, from its labelling (``"soft"``)."""
+    the soft round read the per-step evidence, from its labelling (``"soft"``); ``"auto"``:
+    from its labelling only where that round's states hold many steps each and it corrected
+    not too many (:func:`~topomap.core.refine.rounds.warm_cycle`)."""
 
 
 @dataclass(frozen=True)
