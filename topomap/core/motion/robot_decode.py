@@ -92,7 +92,8 @@ def _step(delta, cent, nb_ptr, nb_idx, move, sd, log_turn, jump, new, arg, cos_h
             py = cent[c, 1] + sin_h[h] * f + cos_h[h] * lft
             tot = -1e300  # log of the normaliser over the successors
             for q in range(lo, hi):
-                lp[q - lo] = -((cent[nb_idx[q], 0] - px) ** 2 + (cent[nb_idx[q], 1] - py) ** 2) * inv2
+                c2 = nb_idx[q]
+                lp[q - lo] = -((cent[c2, 0] - px) ** 2 + (cent[c2, 1] - py) ** 2) * inv2
                 tot = max(tot, lp[q - lo]) + np.log1p(np.exp(-abs(tot - lp[q - lo])))
             first = (h + s0 - W) % B  # the heading bin of the kernel's first turn
             for q in range(lo, hi):
