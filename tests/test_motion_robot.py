@@ -57,6 +57,54 @@ def test_the_decoder_follows_the_odometry_round_the_corner():
     assert (np.diff(bins_right) % 8).tolist() == [0, 0, 6, 0, 0]
 
 
+def _viterbi_by_hand(E, moves, cent, ptr, idx, sd, log_turn, log_init, jump):
+    """The module docstring's recursion written out state by state (no pruning: every state of
+    the small maps below lies within the prune of the best)."""
+    K, N, B = E.shape
+    W = (len(log_turn) - 1) // 2
+    delta = log_init[:, None] + E[0].astype(np.float64)
+    back = np.zeros((K, N, B), dtype=np.int64)
+    for k in range(1, K):
+        f, lft, s0 = moves[k, 0], moves[k, 1], int(np.floor(moves[k, 2] * B / (2 * np.pi) + 0.5))
+        new = np.full((N, B), delta.max() + jump)
+        arg = np.full((N, B), int(np.argmax(delta)))
+        for c in range(N):
+            for h in range(B):
+                a = 2 * np.pi * h / B
+                p = cent[c] + np.array([np.cos(a) * f - np.sin(a) * lft,
+                                        np.sin(a) * f + np.cos(a) * lft])
+                succ = idx[ptr[c]:ptr[c + 1]]
+                lw = -((cent[succ] - p) ** 2).sum(1) / (2 * sd * sd)
+                lw -= np.logaddexp.reduce(lw)
+                for c2, w in zip(succ, lw):
+                    for j in range(-W, W + 1):
+                        v = delta[c, h] + w + log_turn[j + W]
+                        if v > new[c2, (h + s0 + j) % B] + 1e-9:
+                            new[c2, (h + s0 + j) % B] = v
+                            arg[c2, (h + s0 + j) % B] = c * B + h
+        delta, back[k] = new + E[k], arg
+    cells, bins = np.zeros(K, dtype=np.int64), np.zeros(K, dtype=np.int64)
+    cells[-1], bins[-1] = divmod(int(np.argmax(delta)), B)
+    for k in range(K - 1, 0, -1):
+        cells[k - 1], bins[k - 1] = divmod(int(back[k, cells[k], bins[k]]), B)
+    return cells, bins
+
+
+def test_the_decoder_is_its_recursion_written_out():
+    """On a random map of 7 cells, 6 heading bins (turns that wrap round past bin 0 both ways)
+    and random emissions, the compiled decoder's path is the recursion's, state by state."""
+    rng = np.random.default_rng(3)
+    cent = rng.uniform(0, 0.3, (7, 2))
+    ptr, idx = successors(rng.integers(0, 7, 40), 7, cent, 0.15)
+    moves = np.c_[rng.uniform(0, 0.1, 9), rng.uniform(-0.03, 0.03, 9),
+                  rng.choice([-2.1, -1.0, 0.0, 1.0, 2.1], 9)]
+    E = rng.uniform(-3, 0, (9, 7, 6)).astype(np.float32)
+    args = (E, moves, cent, ptr, idx, 0.05, heading_kernel(0.5), np.full(7, -np.log(7)),
+            np.log(1e-300))
+    got, want = viterbi(*args), _viterbi_by_hand(*args)
+    assert got[0].tolist() == want[0].tolist() and got[1].tolist() == want[1].tolist()
+
+
 def test_the_emission_peaks_at_the_scan_s_rotation():
     """A scan that is the mean scan turned by 3 beams fits it exactly at heading bin 3; at every
     bin the emission is -|x - M turned|^2 / 2 var."""

@@ -69,9 +69,12 @@ def _best(delta):
 
 
 @njit(cache=True)
-def _step(delta, cent, nb_ptr, nb_idx, move, sd, log_turn, jump, new, arg):
+def _step(delta, cent, nb_ptr, nb_idx, move, sd, log_turn, jump, new, arg, cos_h, sin_h, lp):
     """One keyframe of the recursion: ``new`` (N, B) the best score into each state, ``arg`` the
-    state it came from; ``move`` (forward [m], left [m], turn [bins])."""
+    state it came from; ``move`` (forward [m], left [m], turn [bins]); ``cos_h``, ``sin_h`` (B,)
+    the cosine and sine of each heading bin's angle, ``lp`` a buffer of a cell's most
+    successors (each successor's log weight, computed once for the normaliser and the moves:
+    the same numbers as computed twice)."""
     f, lft, s0 = move[0], move[1], int(move[2])
     N, B = delta.shape
     W = (log_turn.size - 1) // 2
@@ -80,25 +83,28 @@ def _step(delta, cent, nb_ptr, nb_idx, move, sd, log_turn, jump, new, arg):
     arg[:, :] = arg_all
     inv2 = 1.0 / (2 * sd * sd)
     for c in range(N):
+        lo, hi = nb_ptr[c], nb_ptr[c + 1]
         for h in range(B):
             v0 = delta[c, h]
             if v0 < best_all - PRUNE:
                 continue
-            a = 2 * np.pi * h / B
-            px = cent[c, 0] + np.cos(a) * f - np.sin(a) * lft
-            py = cent[c, 1] + np.sin(a) * f + np.cos(a) * lft
+            px = cent[c, 0] + cos_h[h] * f - sin_h[h] * lft
+            py = cent[c, 1] + sin_h[h] * f + cos_h[h] * lft
             tot = -1e300  # log of the normaliser over the successors
-            for q in range(nb_ptr[c], nb_ptr[c + 1]):
-                lp = -((cent[nb_idx[q], 0] - px) ** 2 + (cent[nb_idx[q], 1] - py) ** 2) * inv2
-                tot = max(tot, lp) + np.log1p(np.exp(-abs(tot - lp)))
-            for q in range(nb_ptr[c], nb_ptr[c + 1]):
+            for q in range(lo, hi):
                 c2 = nb_idx[q]
-                v1 = v0 - ((cent[c2, 0] - px) ** 2 + (cent[c2, 1] - py) ** 2) * inv2 - tot
-                for j in range(-W, W + 1):
-                    h2 = (h + s0 + j) % B
-                    v = v1 + log_turn[j + W]
+                lp[q - lo] = -((cent[c2, 0] - px) ** 2 + (cent[c2, 1] - py) ** 2) * inv2
+                tot = max(tot, lp[q - lo]) + np.log1p(np.exp(-abs(tot - lp[q - lo])))
+            first = (h + s0 - W) % B  # the heading bin of the kernel's first turn
+            for q in range(lo, hi):
+                c2 = nb_idx[q]
+                v1 = v0 + lp[q - lo] - tot
+                h2 = first
+                for j in range(2 * W + 1):
+                    v = v1 + log_turn[j]
                     if v > new[c2, h2]:
                         new[c2, h2], arg[c2, h2] = v, c * B + h
+                    h2 = h2 + 1 if h2 + 1 < B else 0
 
 
 @njit(cache=True)
@@ -115,9 +121,13 @@ def viterbi(E, moves, cent, nb_ptr, nb_idx, sd, log_turn, log_init, jump):
     back = np.empty((K, N, B), dtype=np.int32)
     new = np.empty((N, B))
     arg = np.empty((N, B), dtype=np.int32)
+    cos_h, sin_h = np.empty(B), np.empty(B)
+    for h in range(B):
+        cos_h[h], sin_h[h] = np.cos(2 * np.pi * h / B), np.sin(2 * np.pi * h / B)
+    lp = np.empty(max(1, int(np.max(nb_ptr[1:] - nb_ptr[:-1]))))
     for k in range(1, K):
         move = np.array([moves[k, 0], moves[k, 1], np.floor(moves[k, 2] * B / (2 * np.pi) + 0.5)])
-        _step(delta, cent, nb_ptr, nb_idx, move, sd, log_turn, jump, new, arg)
+        _step(delta, cent, nb_ptr, nb_idx, move, sd, log_turn, jump, new, arg, cos_h, sin_h, lp)
         delta[:, :] = new + E[k]
         back[k] = arg
         delta -= delta.max()
