@@ -336,3 +336,27 @@ def test_the_robot_map_file_places_a_walk_as_the_learner_does(tmp_path):
     (tmp_path / "text.npz").write_text("not a map")
     with pytest.raises(ValueError, match="not a robot map file"):
         load_robot_map(tmp_path / "text.npz")
+
+
+def test_headings_solved_early_are_those_solved_in_turn():
+    # the heading graph started before phase 1 (early_headings) gives the numbers the route
+    # solves itself, and starts only where the robot route may follow
+    from topomap.core.data.trajectory import check_fit_data
+    from topomap.core.motion.robot_fit import early_headings
+    from topomap.core.motion.scans import scan_headings
+
+    X, u, odo = _fake_log()
+    odo[:, 2] = np.cumsum(np.where(u == 1, 0.1, np.where(u == 2, -0.1, 0.0)))  # turns commanded
+    data = check_fit_data(X, u, None, None, None, None, None)
+    robot, auto = motion_settings("robot"), motion_settings("auto")
+    solving = early_headings(robot, data, odo)
+    assert np.array_equal(solving(), scan_headings(X, odo[:, 2]))
+    assert np.array_equal(early_headings(auto, data, odo)(), solving())
+    assert early_headings(None, data, odo) is None  # no continuous path (a wider pass)
+    assert early_headings(motion_settings("continuous"), data, odo) is None
+    assert early_headings(auto, data, None) is None
+    still = odo.copy()
+    still[:, 2] = 0.0  # odometry that never turns: no turn commands, no robot route under auto
+    assert early_headings(auto, data, still) is None and early_headings(robot, data, still)
+    two = check_fit_data(X, u, None, [150, 150], None, None, None)
+    assert early_headings(robot, two, odo) is None  # one episode only: the route refuses it

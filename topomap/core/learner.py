@@ -27,7 +27,7 @@ from .map.model import TopologicalMap
 from .map_methods import MapMethods
 from .motion.inputs import check_odometry
 from .stream.learner import StreamFit
-from .motion.learn import fit_places
+from .motion.learn import early_headings, fit_places
 from .motion.settings import MotionSettings, motion_settings
 from .refine.sequence import SymbolSequence
 from .split.engine import Splitter
@@ -192,8 +192,7 @@ class MapLearner(StreamFit, MapMethods, BaseEstimator):
         computes in float32), other types as float64; ``actions`` (T,) ints in ``[0,
         n_actions)``, ``gds`` (T,) ints with -1 for "no GDS", ``lengths`` the episode lengths
         when several episodes are concatenated, ``odometry`` (T, 3) the robot's dead reckoning
-        (:mod:`topomap.core.motion.inputs`).  A fit forgets any earlier :meth:`partial_fit`.
-        """
+        (:mod:`topomap.core.motion.inputs`).  A fit forgets any earlier :meth:`partial_fit`."""
         data = check_fit_data(observations, actions, gds, lengths, n_actions, action_names,
                               gds_names)
         odometry = check_odometry(odometry, data.u.size, data.lengths)
@@ -211,6 +210,7 @@ class MapLearner(StreamFit, MapMethods, BaseEstimator):
         refinement = make_refinement(self.refine)
         places = motion_settings(self.motion) if motion else None
         self._forget_fit()
+        self._solving = early_headings(places, data, odometry)  # beside phase 1 and the split
         self.n_features_in_ = data.X.shape[1]
         t0 = time.perf_counter()
         told = stopping.n_states if isinstance(stopping, TargetStates) else None

@@ -24,7 +24,7 @@ from .bind import bind_places
 from .crossfit import MARGIN_SE
 from .commands import turn_share
 from .places import log_view_clusters
-from .robot_fit import fit_robot, is_robot_log
+from .robot_fit import early_headings, fit_robot, is_robot_log
 from .robot_scans import fit_scan_robot, is_scan_log
 from .settings import MotionSettings, is_continuous, mean_run
 
@@ -111,8 +111,9 @@ def fit_places(learner, data, settings: MotionSettings, metric, odometry=None) -
 
 def _fit_places(learner, data, settings: MotionSettings, metric, odometry=None) -> bool:
     """:func:`fit_places` with BLAS as it is set."""
+    solving, learner._solving = getattr(learner, "_solving", None), None  # early_headings'
     if settings.mode == "robot":  # the robot route (:mod:`topomap.core.motion.robot_fit`)
-        return fit_robot(learner, data, settings, odometry)
+        return fit_robot(learner, data, settings, odometry, solving=solving)
     if not is_continuous(settings, learner.labels_phase1_, data.lengths, data.gds,
                          odometry is not None):
         return False
@@ -141,7 +142,7 @@ def _fit_places(learner, data, settings: MotionSettings, metric, odometry=None) 
 
         info = {"turn_share": round(turn_share(odometry, data.u), 4)}
         return fit_robot(learner, data, settings, odometry, fallback=(views, info, build),
-                         start=start)
+                         start=start, solving=solving)
     labels, info = choose_places(settings, data.X, Z, data.u, data.lengths,
                                  learner.map_split_.n_states, data.n_actions, build,
                                  n_init=learner.n_init, random_state=learner.random_state,

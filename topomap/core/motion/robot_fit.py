@@ -42,10 +42,11 @@ from .commands import MIN_TURN_SHARE, turn_share
 from .unwalked import FAR, MAX_UNWALKED, unwalked_share
 from .inputs import check_odometry
 from .robot import learn_robot, place_walk
+from .scans import scan_headings
 from .robot_check import check_reason, check_views, robot_check, robot_wins
 from .symmetry import SCAN_REACH, SYMMETRY_RATIO, point_symmetry
 
-__all__ = ["fit_robot", "predict_robot", "is_robot_log", "MIN_BEAMS"]
+__all__ = ["fit_robot", "predict_robot", "is_robot_log", "early_headings", "MIN_BEAMS"]
 
 #: beams a row must hold to be read as a ring of range beams (a beam and its two neighbours)
 MIN_BEAMS = 3
@@ -64,6 +65,23 @@ def is_robot_log(data, odometry, info: dict | None = None) -> bool:
     if info is not None:
         return info.get("odometry") is False
     return turn_share(odometry, data.u) >= MIN_TURN_SHARE
+
+
+def early_headings(settings, data, odometry):
+    """Where the robot route may learn from the log (``settings.mode`` ``"robot"``, or
+    ``"auto"`` and :func:`is_robot_log`), start solving its headings from the odometry
+    (:func:`~.scans.scan_headings`: the heading graph's sparse solves, which release the GIL) on
+    another thread, so that they run beside phase 1 and the split; a function without arguments
+    gives them (the same numbers as solved in turn).  None where the route cannot follow
+    (``settings`` None: no continuous path)."""
+    if settings is None or odometry is None or settings.mode not in ("auto", "robot"):
+        return None
+    plain = len(data.lengths) == 1 and not np.any(data.gds >= 0) and \
+        data.X.shape[1] >= MIN_BEAMS
+    if not plain or (settings.mode == "auto" and not is_robot_log(data, odometry)):
+        return None
+    return beside(scan_headings, data.X, np.asarray(odometry, dtype=np.float64)[:, 2],
+                  steps=len(data.X))
 
 
 def _check_log(data, odometry) -> None:
@@ -128,7 +146,8 @@ def _view_clusters(learner, data, settings, info: dict):
 
 
 def fit_robot(learner, data, settings, odometry, fallback=None,
-              start: float | None = None, place_odometry=None, headings=None) -> bool:
+              start: float | None = None, place_odometry=None, headings=None,
+              solving=None) -> bool:
     """Replace ``learner``'s map and labels by the robot route's places and keep its metric map as
     ``robot_map_`` -- or, where that map is its own point reflection
     (:func:`~.symmetry.point_symmetry`), by the view clusters, with a
@@ -146,15 +165,17 @@ def fit_robot(learner, data, settings, odometry, fallback=None,
     check places its held-out steps by (None: ``odometry``; :mod:`~.robot_scans`).
     ``headings`` (T,) [rad]: the steps' headings closed by loops already (odometry read from
     the scans, :func:`~.registration.scan_poses`, whose map's point symmetry is then measured
-    with :data:`~.symmetry.SCAN_REACH`; None: solved from ``odometry``)."""
+    with :data:`~.symmetry.SCAN_REACH`; None: solved from ``odometry``, by ``solving`` where
+    given: :func:`early_headings`)."""
     _check_log(data, odometry)
     start = time.perf_counter() if start is None else start
     # the check's view clusters need no headings: made on another thread while the route runs
     views = None if fallback is None else beside(
         check_views, data.X, learner.map_split_.n_states, settings.check.holdout,
         learner.random_state, steps=len(data.X))
+    solved = headings if headings is not None or solving is None else solving()
     model, labels, poses = learn_robot(data.X, odometry, learner.map_split_.n_states,
-                                       learner.random_state, headings=headings)
+                                       learner.random_state, headings=solved)
     info = {**({} if fallback is None else fallback[1]), "chosen": "robot",
             "cells": model.n_cells, "places": int(labels.max()) + 1,
             "cell_spacing_m": round(model.spacing, 4),
