@@ -1,7 +1,7 @@
 """Robots as they log, simulated: egocentric LiDAR, turn / forward / stop commands, wheel odometry.
 
-A reusable harness (``benchmarks/bench_robots.py`` runs it; ``/work/helpers/robot-harness.md``
-has the usage): a differential-drive robot moves at random in a floor plan (ratinabox's
+A reusable harness (``benchmarks/bench_robots.py`` and ``benchmarks/bench_robot_cost.py`` run
+it): a differential-drive robot moves at random in a floor plan (ratinabox's
 ``Agent`` with a robot's speeds), senses a ring of range beams fixed to its body (beam 0 straight
 ahead), is commanded ``forward`` / ``turn_left`` / ``turn_right`` / ``stop`` (the arena's
 ``actions=turns``, the ROS ``Twist`` rule) and keeps its own dead reckoning (wheel odometry
