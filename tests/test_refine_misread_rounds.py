@@ -71,14 +71,7 @@ def test_read_settle_stops_the_first_soft_round_sooner_with_the_same_map():
 
 
 def test_cycle_start_soft_warm_starts_the_hard_round_after_an_observed_soft_round(monkeypatch):
-    starts = []
-    hard_round = EMRefinement._hard_round
-
-    def recorded(self, seq, split_state_symbol, random_state, init=None, split_labels=None,
-                 **kw):
-        starts.append(init is not None)
-        return hard_round(self, seq, split_state_symbol, random_state, init, split_labels, **kw)
-    monkeypatch.setattr(EMRefinement, "_hard_round", recorded)
+    starts = _starts(monkeypatch)
     fit, place = _fit(reading=EARLY, growth={"cycle_start": "soft"})
     assert starts and all(starts) and same_partition(fit.labels_, place)
     starts.clear()
