@@ -352,6 +352,10 @@ def test_headings_solved_early_are_those_solved_in_turn():
     solving = early_headings(robot, data, odo)
     assert np.array_equal(solving(), scan_headings(X, odo[:, 2]))
     assert np.array_equal(early_headings(auto, data, odo)(), solving())
+    import copy
+    import pickle
+
+    assert pickle.loads(pickle.dumps(solving)) is None and copy.deepcopy(solving) is None
     assert early_headings(None, data, odo) is None  # no continuous path (a wider pass)
     assert early_headings(motion_settings("continuous"), data, odo) is None
     assert early_headings(auto, data, None) is None

@@ -67,6 +67,20 @@ def is_robot_log(data, odometry, info: dict | None = None) -> bool:
     return turn_share(odometry, data.u) >= MIN_TURN_SHARE
 
 
+class _OnItsWay:
+    """A result a thread is computing (called: waits for it); a pickled or copied learner that
+    holds one gets None instead (a thread's lock cannot be pickled)."""
+
+    def __init__(self, result):
+        self.result = result
+
+    def __call__(self):
+        return self.result()
+
+    def __reduce__(self):
+        return type(None), ()
+
+
 def early_headings(settings, data, odometry):
     """Where the robot route may learn from the log (``settings.mode`` ``"robot"``, or
     ``"auto"`` and :func:`is_robot_log`), start solving its headings from the odometry
@@ -80,8 +94,8 @@ def early_headings(settings, data, odometry):
         data.X.shape[1] >= MIN_BEAMS
     if not plain or (settings.mode == "auto" and not is_robot_log(data, odometry)):
         return None
-    return beside(scan_headings, data.X, np.asarray(odometry, dtype=np.float64)[:, 2],
-                  steps=len(data.X))
+    return _OnItsWay(beside(scan_headings, data.X, np.asarray(odometry, dtype=np.float64)[:, 2],
+                            steps=len(data.X)))
 
 
 def _check_log(data, odometry) -> None:
