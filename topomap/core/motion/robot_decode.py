@@ -69,12 +69,17 @@ def _best(delta):
 
 
 @njit(cache=True)
-def _step(delta, cent, nb_ptr, nb_idx, move, sd, log_turn, jump, new, arg, cos_h, sin_h, lp):
-    """One keyframe of the recursion: ``new`` (N, B) the best score into each state, ``arg`` the
-    state it came from; ``move`` (forward [m], left [m], turn [bins]); ``cos_h``, ``sin_h`` (B,)
-    the cosine and sine of each heading bin's angle, ``lp`` a buffer of a cell's most
-    successors (each successor's log weight, computed once for the normaliser and the moves:
-    the same numbers as computed twice)."""
+def _step(delta, move, graph, kernel, out, work):
+    """One keyframe of the recursion: ``out`` = ``(new, arg)``, (N, B) the best score into each
+    state and the state it came from; ``move`` (forward [m], left [m], turn [bins]); ``graph``
+    = ``(cent, nb_ptr, nb_idx)`` and ``kernel`` = ``(sd, log_turn, jump)`` as :func:`viterbi`'s;
+    ``work`` = ``(cos_h, sin_h, lp)``: (B,) the cosine and sine of each heading bin's angle, a
+    buffer of a cell's most successors (each successor's log weight, computed once for the
+    normaliser and the moves: the same numbers as computed twice)."""
+    cent, nb_ptr, nb_idx = graph
+    sd, log_turn, jump = kernel
+    new, arg = out
+    cos_h, sin_h, lp = work
     f, lft, s0 = move[0], move[1], int(move[2])
     N, B = delta.shape
     W = (log_turn.size - 1) // 2
@@ -127,7 +132,8 @@ def viterbi(E, moves, cent, nb_ptr, nb_idx, sd, log_turn, log_init, jump):
     lp = np.empty(max(1, int(np.max(nb_ptr[1:] - nb_ptr[:-1]))))
     for k in range(1, K):
         move = np.array([moves[k, 0], moves[k, 1], np.floor(moves[k, 2] * B / (2 * np.pi) + 0.5)])
-        _step(delta, cent, nb_ptr, nb_idx, move, sd, log_turn, jump, new, arg, cos_h, sin_h, lp)
+        _step(delta, move, (cent, nb_ptr, nb_idx), (sd, log_turn, jump), (new, arg),
+              (cos_h, sin_h, lp))
         delta[:, :] = new + E[k]
         back[k] = arg
         delta -= delta.max()

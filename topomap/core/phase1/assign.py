@@ -91,6 +91,27 @@ def margin(dtype, n_features: int) -> float:
 
 
 @njit(cache=True, nogil=True)
+def _grid_start(Z, t, grid, w0, w1, w2):
+    """``(|x|^2, first centre)`` of row ``t``: its square norm and its (up to) three projections
+    on ``w0``, ``w1``, ``w2`` in one pass over the features, the projections' grid cell's
+    centre (``grid`` as :func:`_search`'s)."""
+    _, low, scale, cells, G = grid
+    xx = p0 = p1 = p2 = 0.0
+    for d in range(Z.shape[1]):
+        v = np.float64(Z[t, d])
+        xx += v * v
+        p0 += v * w0[d]
+        p1 += v * w1[d]
+        p2 += v * w2[d]
+    cell = 0
+    for e in range(grid[0].shape[0]):
+        s = p0 if e == 0 else (p1 if e == 1 else p2)
+        i = np.int64(np.floor((s - low[e]) * scale[e]))
+        cell = cell * G + min(max(i, 0), G - 1)
+    return xx, cells[cell]
+
+
+@njit(cache=True, nogil=True)
 def _search(Z, lo, hi, C, neighbours, grid, rel, labels, unsure):
     """Label rows ``lo:hi`` of ``Z`` by the centres ``C`` (k, D): a row starts from its grid
     cell's centre (``grid`` = ``(W, low, scale, cells, G)``: its projection on ``W`` (q, D), less
@@ -100,7 +121,7 @@ def _search(Z, lo, hi, C, neighbours, grid, rel, labels, unsure):
     ``unsure`` 1 where the two nearest are within the margin ``rel`` (:func:`margin`).  Returns
     how many centres beyond the first the rows visited."""
     near, gap = neighbours
-    W, low, scale, cells, G = grid
+    W = grid[0]
     cmax2 = 0.0
     for j in range(C.shape[0]):
         cmax2 = max(cmax2, np.sum(C[j] * C[j]))
@@ -109,20 +130,7 @@ def _search(Z, lo, hi, C, neighbours, grid, rel, labels, unsure):
     w0, w1, w2 = W[0], W[min(1, q - 1)], W[min(2, q - 1)]
     visits = 0
     for t in range(lo, hi):
-        # one pass over the features: the row's square norm and its (up to) three projections
-        xx = p0 = p1 = p2 = 0.0
-        for d in range(D):
-            v = np.float64(Z[t, d])
-            xx += v * v
-            p0 += v * w0[d]
-            p1 += v * w1[d]
-            p2 += v * w2[d]
-        cell = 0
-        for e in range(q):
-            s = p0 if e == 0 else (p1 if e == 1 else p2)
-            i = np.int64(np.floor((s - low[e]) * scale[e]))
-            cell = cell * G + min(max(i, 0), G - 1)
-        arg = cells[cell]
+        xx, arg = _grid_start(Z, t, grid, w0, w1, w2)
         best = 0.0
         for d in range(D):
             diff = np.float64(Z[t, d]) - C[arg, d]

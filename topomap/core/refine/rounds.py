@@ -250,15 +250,13 @@ class CloneRefinement(BaseEstimator):
     def _cycle_hard_round(self, seq: SymbolSequence, soft, random_state: int, detect: float):
         """The hard round on the symbols the soft round ``soft`` corrected -- started from its
         labelling (short rounds on all steps, which also merge the duplicates its states leave:
-        :meth:`EMRefinement._stages`) with ``growth.cycle_start="soft"`` where it
-        read the per-step evidence (``"auto"``: and :func:`warm_cycle` holds); else from
-        random counts,
+        :meth:`EMRefinement._stages`) with ``growth.cycle_start="soft"`` where it read the
+        per-step evidence (``"auto"``: and :func:`warm_cycle` holds); else from random counts,
         cut short like the first where misreads still show, the next soft round correcting what
         is left, unless the soft round corrected fewer than ``CUT_CORRECTED`` x ``detect`` of
-        the steps -- and
-        whether it explains them: not cut, and its labelling predicts the next symbol of all
-        but a ``detect`` share of its transitions (the next soft round is then tried without
-        spare clones first: if it re-reads the symbols as they are, it is the map)."""
+        the steps -- and whether it explains them: not cut, and its labelling predicts the next
+        symbol of all but a ``detect`` share of its transitions (the next soft round is then
+        tried without spare clones first: if it re-reads the symbols as they are, it is the map)."""
         split_symbol = np.where(soft.state_symbol < seq.n_symbols, soft.state_symbol, -1)
         read = replace(seq, sym=soft.sym)
         growth = self.settings_.growth  # None for refine=cscg, which starts no round warm
@@ -289,8 +287,6 @@ CAP_SURPRISE = 25.0
 #: 18.2 %; the 12x12 room 56-71 at 4.9-16.6 % (seeds 0-2), where they moved rarely visited
 #: places (10.6 % seed 1: 0.9973 -> 0.9965; 16.6 %: median 1.0000 -> 0.9985)
 WARM_VISITS = 100.0
-
-
 #: ... and where that soft round corrected at most this share of the steps (share).  Gridroom
 #: 8x6, seeds 0-5: at 18.2 % misreads 17.5-20.5 % corrected (warm: every ARI kept), at 23.4 %
 #: 22.1-28.0 % (warm, seed 2 at 22.7 % kept two places split in two: ARI 1.0000 -> 0.9806)
@@ -298,10 +294,9 @@ WARM_CORRECTED = 0.21
 
 
 def warm_cycle(soft, n_steps: int) -> bool:
-    """Whether ``growth.cycle_start="auto"`` starts the hard round after the soft round
-    ``soft`` (a :class:`~topomap.core.refine.soft.SoftFit` of ``n_steps`` steps) from its
-    labelling: its states hold at least :data:`WARM_VISITS` steps each on average, and it
-    corrected at most :data:`WARM_CORRECTED` of the steps."""
+    """Whether ``growth.cycle_start="auto"`` starts the hard round after the soft round ``soft``
+    (a :class:`~.soft.SoftFit` of ``n_steps`` steps) from its labelling: its states hold at
+    least :data:`WARM_VISITS` steps each on average, it corrected at most :data:`WARM_CORRECTED`."""
     return (n_steps >= WARM_VISITS * soft.state_symbol.size
             and soft.info["corrected"] <= WARM_CORRECTED)
 

@@ -312,12 +312,17 @@ def _around(moved, has_prev, has_next):
 
 
 @njit(cache=True, nogil=True)
-def _piece_codes(moved, lo, hi, has_prev, has_next, centre, x, u, A, shift, q, new, rows, trans,
-                 near):
+def _piece_codes(moved, lo, hi, masks, walk, split, out):
     """The rows of :func:`touched_codes` for the steps of ``[moved[lo], moved[hi])`` (from the
     first step for the first piece, to the last for the last) next to a moved step -- the moved
     steps ``lo - 1 .. hi`` are the only ones next to them --, written into ``rows`` and ``trans``
-    from column 0 on, ``near`` marked.  Returns how many of each: outside, inside, transitions."""
+    from column 0 on, ``near`` marked.  ``masks`` = ``(has_prev, has_next, centre)``, ``walk`` =
+    ``(x, u, A, shift)``, ``split`` = ``(q, new)``, ``out`` = ``(rows, trans, near)``.  Returns
+    how many of each: outside, inside, transitions."""
+    has_prev, has_next, centre = masks
+    x, u, A, shift = walk
+    q, new = split
+    rows, trans, near = out
     c, starts = _around(moved[max(lo - 1, 0):min(hi + 1, moved.size)], has_prev, has_next)
     low = moved[lo] if lo > 0 else -1
     top = moved[hi] if hi < moved.size else x.size + 1
@@ -352,8 +357,8 @@ def touched_codes(moved, has_prev, has_next, centre, x, u, A, shift, q, new, *, 
 
     def run(k):
         p, cols = cut[k], slice(first[k], first[k] + caps[k])
-        return _piece_codes(moved, p.start, p.stop, has_prev, has_next, centre, x, u, A, shift,
-                            q, new, rows[:, cols], trans[:, cols], near[k])
+        return _piece_codes(moved, p.start, p.stop, (has_prev, has_next, centre),
+                            (x, u, A, shift), (q, new), (rows[:, cols], trans[:, cols], near[k]))
 
     kept = np.array(in_threads(run, range(len(cut)), steps=4 * moved.size),
                     dtype=np.int64).reshape(-1, 3)
