@@ -52,6 +52,12 @@ __all__ = ["fit_robot", "predict_robot", "is_robot_log", "early_headings", "MIN_
 MIN_BEAMS = 3
 
 
+def _route_log(data) -> bool:
+    """A log the route learns from: one episode, no GDS, a ring of :data:`MIN_BEAMS` beams or
+    more a row."""
+    return len(data.lengths) == 1 and not np.any(data.gds >= 0) and data.X.shape[1] >= MIN_BEAMS
+
+
 def is_robot_log(data, odometry, info: dict | None = None) -> bool:
     """Whether ``mode="auto"`` tries the robot route on a continuous log: odometry given, a log
     the route learns from (one episode, no GDS, a ring of :data:`MIN_BEAMS` beams or more a
@@ -59,8 +65,7 @@ def is_robot_log(data, odometry, info: dict | None = None) -> bool:
     :func:`~.commands.turn_share` at least :data:`~.commands.MIN_TURN_SHARE`) or, with ``info``
     of the continuous path, no odometry learned from the actions (``info["odometry"]`` False:
     commands that move a robot differently with its heading)."""
-    if not (odometry is not None and len(data.lengths) == 1 and not np.any(data.gds >= 0)
-            and data.X.shape[1] >= MIN_BEAMS):
+    if odometry is None or not _route_log(data):
         return False
     if info is not None:
         return info.get("odometry") is False
@@ -90,9 +95,7 @@ def early_headings(settings, data, odometry):
     (``settings`` None: no continuous path)."""
     if settings is None or odometry is None or settings.mode not in ("auto", "robot"):
         return None
-    plain = len(data.lengths) == 1 and not np.any(data.gds >= 0) and \
-        data.X.shape[1] >= MIN_BEAMS
-    if not plain or (settings.mode == "auto" and not is_robot_log(data, odometry)):
+    if not (is_robot_log(data, odometry) if settings.mode == "auto" else _route_log(data)):
         return None
     return _OnItsWay(beside(scan_headings, data.X, np.asarray(odometry, dtype=np.float64)[:, 2],
                             steps=len(data.X)))
