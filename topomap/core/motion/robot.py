@@ -71,8 +71,10 @@ class RobotMap:
     ``scans`` (N, B) their mean scans turned into the map frame [m], ``variance`` [m^2] of a
     beam about them, each cell's successors in CSR (``successor_ptr`` (N + 1,),
     ``successor_idx``), ``spacing`` [m] the median distance of a cell to its nearest,
-    ``log_prior`` (N,) the share of training steps in each cell (log) and ``place`` (N,) the
-    place of each cell."""
+    ``log_prior`` (N,) the share of training steps in each cell (log), ``place`` (N,) the
+    place of each cell and ``beam_order`` (B,) the column order that numbers a walk's beams as
+    the map reads them (beam 0 ahead, anticlockwise; None: as they come,
+    :mod:`~topomap.core.motion.beams`)."""
 
     centres: np.ndarray
     scans: np.ndarray
@@ -82,6 +84,7 @@ class RobotMap:
     spacing: float
     log_prior: np.ndarray
     place: np.ndarray
+    beam_order: np.ndarray | None = None
 
     @property
     def n_cells(self) -> int:

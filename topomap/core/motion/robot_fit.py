@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import time
 import warnings
+from dataclasses import replace
 
 import numpy as np
 from sklearn.cluster import KMeans
@@ -37,6 +38,7 @@ from sklearn.cluster import KMeans
 from ..checks import ParameterError
 from ..map.model import TopologicalMap
 from ..split.threads import beside
+from .beams import beam_order, described, in_route_frame
 from .bind import bind_places
 from .commands import MIN_TURN_SHARE, turn_share
 from .unwalked import FAR, MAX_UNWALKED, unwalked_share
@@ -86,18 +88,26 @@ class _OnItsWay:
         return type(None), ()
 
 
+def _ordered_headings(X, odometry):
+    """``(order, headings)``: the beams' order the route reads ``X`` in
+    (:func:`~.beams.beam_order`) and the steps' headings solved on the scans so ordered."""
+    order = beam_order(X, odometry)
+    return order, scan_headings(in_route_frame(X, order), odometry[:, 2])
+
+
 def early_headings(settings, data, odometry):
     """Where the robot route may learn from the log (``settings.mode`` ``"robot"``, or
     ``"auto"`` and :func:`is_robot_log`), start solving its headings from the odometry
     (:func:`~.scans.scan_headings`: the heading graph's sparse solves, which release the GIL) on
     another thread, so that they run beside phase 1 and the split; a function without arguments
-    gives them (the same numbers as solved in turn).  None where the route cannot follow
-    (``settings`` None: no continuous path)."""
+    gives ``(order, headings)``: the beams' order the route reads the scans in
+    (:func:`~.beams.beam_order`) and the headings (the same numbers as solved in turn).  None
+    where the route cannot follow (``settings`` None: no continuous path)."""
     if settings is None or odometry is None or settings.mode not in ("auto", "robot"):
         return None
     if not (is_robot_log(data, odometry) if settings.mode == "auto" else _route_log(data)):
         return None
-    return _OnItsWay(beside(scan_headings, data.X, np.asarray(odometry, dtype=np.float64)[:, 2],
+    return _OnItsWay(beside(_ordered_headings, data.X, np.asarray(odometry, dtype=np.float64),
                             steps=len(data.X)))
 
 
@@ -183,22 +193,30 @@ def fit_robot(learner, data, settings, odometry, fallback=None,
     ``headings`` (T,) [rad]: the steps' headings closed by loops already (odometry read from
     the scans, :func:`~.registration.scan_poses`, whose map's point symmetry is then measured
     with :data:`~.symmetry.SCAN_REACH`; None: solved from ``odometry``, by ``solving`` where
-    given: :func:`early_headings`)."""
+    given: :func:`early_headings`).  The route reads the scans with their beams in the order
+    :func:`~.beams.beam_order` finds (beam 0 ahead, anticlockwise; kept in ``robot_map_``), but
+    for odometry read from the scans, whose frame is the scans' own."""
     _check_log(data, odometry)
     start = time.perf_counter() if start is None else start
     # the check's view clusters need no headings: made on another thread while the route runs
     views = None if fallback is None else beside(
         check_views, data.X, learner.map_split_.n_states, settings.check.holdout,
         learner.random_state, steps=len(data.X))
-    solved = headings if headings is not None or solving is None else solving()
-    model, labels, poses = learn_robot(data.X, odometry, learner.map_split_.n_states,
+    if headings is not None:  # odometry read from the scans: the scans' own frame
+        order, solved = None, headings
+    else:
+        order, solved = (beam_order(data.X, odometry), None) if solving is None else solving()
+    X = in_route_frame(data.X, order)
+    model, labels, poses = learn_robot(X, odometry, learner.map_split_.n_states,
                                        learner.random_state, headings=solved)
+    model = model if order is None else replace(model, beam_order=order)
     info = {**({} if fallback is None else fallback[1]), "chosen": "robot",
             "cells": model.n_cells, "places": int(labels.max()) + 1,
             "cell_spacing_m": round(model.spacing, 4),
             "beam_variance_m2": round(model.variance, 6),
             "path_m": round(float(np.hypot(*np.diff(poses[:, :2], axis=0).T).sum()), 2),
-            "symmetry": point_symmetry(model, None if headings is None else SCAN_REACH)}
+            "symmetry": point_symmetry(model, None if headings is None else SCAN_REACH),
+            **({} if order is None else {"beams": described(order)})}
     mirrored = info["symmetry"]["ratio"] < SYMMETRY_RATIO
     if fallback is not None and mirrored:
         return _fall_back(learner, settings, fallback, info, _symmetry_reason(info), start)
@@ -206,7 +224,7 @@ def fit_robot(learner, data, settings, odometry, fallback=None,
         info["unwalked"] = round(unwalked_share(model), 4)
         if info["unwalked"] > MAX_UNWALKED:
             return _fall_back(learner, settings, fallback, info, _coverage_reason(info), start)
-        info["check"] = robot_check(data.X, data.u, odometry, learner.map_split_.n_states,
+        info["check"] = robot_check(X, data.u, odometry, learner.map_split_.n_states,
                                     lambda X, u, views: fallback[2](X, u, views, [len(X)],
                                                                     pooled=True),
                                     settings.check.holdout, learner.random_state,
@@ -249,6 +267,7 @@ def predict_robot(model, observations, lengths, odometry,
     if X.ndim != 2 or X.shape[1] != model.scans.shape[1] or not np.all(np.isfinite(X)):
         raise ParameterError("observations", f"must be finite (T, {model.scans.shape[1]}) scans "
                                              f"as the map was learned from, got shape {X.shape}")
+    X = in_route_frame(X, model.beam_order)
     lengths = np.array([len(X)] if lengths is None else lengths, dtype=np.int64)
     if odometry is None:
         from .robot_scans import walk_odometry

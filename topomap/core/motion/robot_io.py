@@ -4,7 +4,7 @@ placed on it later by its own odometry (:func:`~topomap.core.motion.robot.place_
 
 from __future__ import annotations
 
-from dataclasses import fields
+from dataclasses import MISSING, fields
 from pathlib import Path
 
 import numpy as np
@@ -19,8 +19,10 @@ FORMAT = 1
 
 
 def save_robot_map(model: RobotMap, path) -> Path:
-    """Write ``model`` to ``path`` (npz: one array per field, ``format``), atomically."""
-    arrays = {f.name: np.asarray(getattr(model, f.name)) for f in fields(RobotMap)}
+    """Write ``model`` to ``path`` (npz: one array per field but those that are None,
+    ``format``), atomically."""
+    arrays = {f.name: np.asarray(getattr(model, f.name)) for f in fields(RobotMap)
+              if getattr(model, f.name) is not None}
 
     def write(tmp):
         with open(tmp, "wb") as fh:
@@ -40,11 +42,11 @@ def load_robot_map(path) -> RobotMap:
         raise ValueError(f"{path}: not a robot map file ({err})") from None
     if int(data.get("format", -1)) != FORMAT:
         raise ValueError(f"{path}: format {data.get('format')} is not {FORMAT}")
-    missing = [f.name for f in fields(RobotMap) if f.name not in data]
+    missing = [f.name for f in fields(RobotMap) if f.name not in data and f.default is MISSING]
     if missing:
         raise ValueError(f"{path}: {missing[0]} is missing")
     model = RobotMap(**{f.name: (float(data[f.name]) if data[f.name].ndim == 0
-                                 else data[f.name]) for f in fields(RobotMap)})
+                                 else data[f.name]) for f in fields(RobotMap) if f.name in data})
     _check(model, path)
     return model
 
@@ -60,6 +62,10 @@ def _check(model: RobotMap, path) -> None:
         if not ok:
             raise ValueError(f"{path}: {name} has shape {getattr(model, name).shape} for "
                              f"{n} cells")
+    B = model.scans.shape[1]
+    if model.beam_order is not None and not np.array_equal(np.sort(model.beam_order),
+                                                           np.arange(B)):
+        raise ValueError(f"{path}: beam_order is not an order of the scans' {B} beams")
     if model.successor_idx.size and (model.successor_idx.min() < 0
                                      or model.successor_idx.max() >= n):
         raise ValueError(f"{path}: successor_idx names a cell outside 0..{n - 1}")
