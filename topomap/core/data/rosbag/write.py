@@ -48,10 +48,10 @@ def _observation_message(store, row: np.ndarray, stamp_ns: int, seq: int, spec: 
         types = store.types
         layout = types["std_msgs/msg/MultiArrayLayout"](dim=[], data_offset=0)
         return types[FLOAT64_ARRAY](layout=layout, data=row.astype(np.float64))
-    increment = 2 * math.pi / row.size
+    increment = 2 * math.pi / row.size  # beam 0 ahead, anticlockwise: the arena's own frame
     return store.types[LASER_SCAN](
-        header=header(store, stamp_ns, seq, "base_scan"), angle_min=-math.pi,
-        angle_max=-math.pi + (row.size - 1) * increment, angle_increment=increment,
+        header=header(store, stamp_ns, seq, "base_scan"), angle_min=0.0,
+        angle_max=(row.size - 1) * increment, angle_increment=increment,
         time_increment=0.0, scan_time=spec.period_ns / 1e9, range_min=0.0,
         range_max=spec.range_max, ranges=row.astype(np.float32),
         intensities=np.zeros(0, dtype=np.float32))
