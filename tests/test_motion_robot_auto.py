@@ -16,7 +16,7 @@ from topomap.core.motion.unwalked import FAR, MARGIN, unwalked_share
 from topomap.core.motion.learn import ContinuousFallbackWarning
 from topomap.core.motion.robot import RobotMap
 from topomap.core.motion.robot_check import (ROBOT_MARGIN_SE, check_reason, continued_poses,
-                                              robot_wins)
+                                              held_out_span, preceding_poses, robot_wins)
 
 
 def _two_cells(north_range):
@@ -46,6 +46,56 @@ def test_continued_poses_go_on_from_the_start_pose():
     O = np.array([[0, 0, 0], [1, 0, 0], [2, 0, 0]], dtype=float)
     P = continued_poses(O, np.full(3, 0.3), (1.0, 2.0, math.pi / 2))
     np.testing.assert_allclose(P, [[1, 3, math.pi / 2], [1, 4, math.pi / 2]], atol=1e-12)
+
+
+def test_preceding_poses_end_at_the_end_pose():
+    """The same walk held out before the learned part: it ends at the pose (1, 2) facing north,
+    so its steps before lie 2 m and 1 m south of it (the last step is the end pose itself)."""
+    O = np.array([[0, 0, 0], [1, 0, 0], [2, 0, 0]], dtype=float)
+    P = preceding_poses(O, np.full(3, 0.3), (1.0, 2.0, math.pi / 2))
+    np.testing.assert_allclose(P, [[1, 0, math.pi / 2], [1, 1, math.pi / 2]], atol=1e-12)
+
+
+def test_the_check_holds_out_the_first_part_where_the_last_went_where_the_rest_never_did():
+    # 100 steps, a quarter held out: the last quarter in a place of its own (novelty 1), the
+    # first quarter in a place the rest shares (novelty 0): the first is held out
+    new_last = np.r_[np.zeros(75, int), np.ones(25, int)]
+    assert held_out_span(100, 0.25, new_last) == (0, 25)
+    assert held_out_span(100, 0.25, None) == (75, 100)  # no places: the last, as always
+    assert held_out_span(100, 0.25, np.zeros(100, int)) == (75, 100)  # all ground shared
+    # both ends on ground of their own: the last stays held out (the first is no better)
+    both = np.r_[np.full(25, 2), np.zeros(50, int), np.ones(25, int)]
+    assert held_out_span(100, 0.25, both) == (75, 100)
+    line = check_reason({"held_out": 25, "held_out_first": True, "robot": 1.5, "views": 0.8,
+                         "gap": -0.7, "se": 0.05})
+    assert "first 25 steps" in line
+
+
+def test_a_first_part_held_out_is_placed_where_its_walk_ended():
+    """The check on an arena robot's 4,000 steps with the first quarter held out (the places
+    given make the last quarter new ground): the held-out steps' frame ends at the learned
+    part's first pose, so the route's map places them near it (measured 0.254 m against the
+    views' 0.501 m; a frame started at that pose instead of ended there lies a walk's length
+    off) and the figures count the parts."""
+    from test_motion_robot import _arena_robot
+    from topomap.core.motion.learn import pooled_variances
+    from topomap.core.motion.robot_check import robot_check
+    from topomap import TopologicalMap
+
+    _, walk, _ = _arena_robot(4000, 10)
+    X, u, O = walk.observations, walk.actions, walk.odometry
+
+    def views_map(Xl, ul, labels):
+        S = int(labels.max()) + 1
+        m = TopologicalMap.from_labels(Xl, ul, labels, lengths=[len(Xl)],
+                                       state_symbol=np.arange(S), state_gds=np.full(S, -1),
+                                       state_parent=np.full(S, -1), n_actions=walk.n_actions)
+        return pooled_variances(m, Xl, labels, 1e-6, 1.0)
+
+    places = np.r_[np.zeros(3000, int), np.ones(1000, int)]
+    check = robot_check(X, u, O, 16, views_map, 0.25, 0, places=places)
+    assert check["held_out_first"] and (check["learned"], check["held_out"]) == (3000, 1000)
+    assert check["robot"] < 0.4 and check["robot"] < check["views"]
 
 
 def test_the_robot_route_wins_only_by_more_than_its_noise():

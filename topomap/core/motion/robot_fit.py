@@ -229,7 +229,8 @@ def fit_robot(learner, data, settings, odometry, fallback=None,
                                                                     pooled=True),
                                     settings.check.holdout, learner.random_state,
                                     symbols=learner.labels_phase1_, headings=poses[:, 2],
-                                    place_odometry=place_odometry, views=views)
+                                    place_odometry=place_odometry, views=views,
+                                    places=labels)
         if not robot_wins(info["check"]):
             return _fall_back(learner, settings, fallback, info, check_reason(info["check"]),
                               start)
