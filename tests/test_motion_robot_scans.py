@@ -16,7 +16,7 @@ from topomap.core.checks import ParameterError
 from topomap.core.motion.learn import ContinuousFallbackWarning
 from topomap.core.motion.registration import scan_odometry
 from topomap.core.motion.robot_fit import predict_robot
-from topomap.core.motion.robot_scans import SOURCE, is_scan_log
+from topomap.core.motion.robot_scans import SOURCE, closed_odometry, is_scan_log, walk_odometry
 from topomap.core.motion.settings import motion_settings
 
 
@@ -88,8 +88,8 @@ def test_where_the_guards_pass_the_route_is_taken_and_predict_reads_the_scans(mo
     """3,000 steps in two furnished 1 m rooms, no odometry, the floor and check guards made to
     pass: the map is the robot route's on the scans' odometry, and ``predict`` without odometry
     gives what :func:`~topomap.core.motion.robot_fit.predict_robot` gives with the walk's
-    registration (:func:`~topomap.core.motion.registration.scan_odometry`); the walk placed
-    again lands in most of its own places (measured 0.96; by chance 1 in 16)."""
+    registration closed by its loops (:func:`~topomap.core.motion.robot_scans.closed_odometry`);
+    the walk placed again lands in most of its own places (measured 0.96; by chance 1 in 16)."""
     import topomap.core.motion.robot_fit as robot_fit
     from test_motion_robot import _arena_robot
 
@@ -103,7 +103,7 @@ def test_where_the_guards_pass_the_route_is_taken_and_predict_reads_the_scans(mo
     X = walk.observations[:1500]
     again = learner.predict(X, walk.actions[:1500])
     np.testing.assert_array_equal(again, predict_robot(learner.robot_map_, X, None,
-                                                       scan_odometry(X)))
+                                                       closed_odometry(X)))
     assert np.mean(again == learner.labels_[:1500]) > 0.5
 
 
@@ -129,7 +129,7 @@ def test_a_robot_log_without_odometry_takes_the_route_and_predicts_from_its_scan
     assert info["chosen"] == "robot" and info["odometry_from"] == SOURCE
     placed = learner.predict(held.observations, held.actions)
     np.testing.assert_array_equal(placed, predict_robot(
-        learner.robot_map_, held.observations, None, scan_odometry(held.observations)))
+        learner.robot_map_, held.observations, None, closed_odometry(held.observations)))
     pair = (plan.region_of(walk.positions), plan.region_of(held.positions))
     ours = score_units(learner.labels_, walk.positions, placed, held.positions, 16, pair)
     views = kmeans_view_scores(16, walk, held, plan.region_of, random_state=0)
@@ -146,3 +146,17 @@ def test_a_robot_log_without_odometry_takes_the_route_and_predicts_from_its_scan
                                                       n_actions=walk.n_actions)
     assert kept.motion_info_["chosen"] == "views" and getattr(kept, "robot_map_", None) is None
     np.testing.assert_array_equal(kept.labels_, plain.labels_)
+
+
+def test_a_new_walk_s_odometry_is_each_episode_closed_by_its_own_loops():
+    """``predict``'s odometry of a walk without one: each episode read from its own scans and
+    closed by its own loops -- two episodes give what each gives alone; a one-step episode
+    stands at the origin (nothing to register)."""
+    B = 36
+    a = 2 * np.pi * np.arange(B) / B
+    rng = np.random.default_rng(0)
+    X = 1.0 + 0.3 * np.cos(a) + 0.2 * np.sin(2 * a) + rng.normal(0, 0.01, (120, B))
+    both = walk_odometry(X, [80, 40])
+    np.testing.assert_array_equal(both[:80], closed_odometry(X[:80]))
+    np.testing.assert_array_equal(both[80:], closed_odometry(X[80:]))
+    np.testing.assert_array_equal(walk_odometry(X[:1], [1]), np.zeros((1, 3)))

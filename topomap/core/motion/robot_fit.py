@@ -241,7 +241,8 @@ def predict_robot(model, observations, lengths, odometry,
     ``odometry`` (T, 3) (:func:`~topomap.core.motion.robot.place_walk`); a one-line
     :class:`ParameterError` naming ``odometry`` or ``observations`` when they do not fit.
     ``from_scans``: a map learned on odometry read from the scans, where ``odometry`` None is
-    read from the walk's own scans (:func:`~.robot_scans.walk_odometry`)."""
+    read from the walk's own scans and closed by its own loops
+    (:func:`~.robot_scans.walk_odometry`)."""
     if odometry is None and not from_scans:
         raise ParameterError("odometry", "is required to place a walk on a map of motion mode "
                                          "'robot': the walk's (T, 3) wheel odometry")
