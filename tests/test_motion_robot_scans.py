@@ -41,9 +41,9 @@ def test_a_robot_log_without_odometry_is_recognised_by_hand():
     assert not is_scan_log(_log(low=-1.0), None, none)              # not ranges
 
 
-def test_the_setting_is_off_by_default_and_checked():
-    assert motion_settings("auto").scan_odometry is False
-    assert motion_settings({"scan_odometry": True}).scan_odometry is True
+def test_the_setting_is_on_by_default_and_checked():
+    assert motion_settings("auto").scan_odometry is True
+    assert motion_settings({"scan_odometry": False}).scan_odometry is False
     with pytest.raises(ParameterError, match=r"^motion.scan_odometry must be true or false"):
         motion_settings({"scan_odometry": "yes"})
 
@@ -57,9 +57,9 @@ def _robot_world(plan_dict, n_steps, seed=0):
     return world.simulate(n_steps, None, np.random.default_rng(seed))
 
 
-def _fit(walk):
-    """The default with the setting on, fitted on the walk's scans and commands alone."""
-    return MapLearner(8, 16, motion={"scan_odometry": True}, random_state=0).fit(
+def _fit(walk, **motion):
+    """The default (the setting on), fitted on the walk's scans and commands alone."""
+    return MapLearner(8, 16, motion={"scan_odometry": True, **motion}, random_state=0).fit(
         walk.observations, walk.actions, n_actions=walk.n_actions)
 
 
@@ -67,19 +67,22 @@ def test_a_thinly_walked_log_without_odometry_keeps_the_view_clusters():
     """3,000 steps (5 minutes) in an 8 x 4 m room, no odometry: the route is tried on the
     odometry read from the scans, and its unwalked-floor guard sends the log back (the walk
     enters a corner of the floor its scans see) -- the same states as with the setting off,
-    the warning and the reason."""
+    the warning and the reason.  The default (no ``motion`` given) is the setting on."""
     walk = _robot_world({"boundary": [[0, 0], [8, 0], [8, 4], [0, 4]],
                          "holes": [[[1, 1], [1.5, 1], [1.5, 1.5], [1, 1.5]]]}, 3000)
     with pytest.warns(ContinuousFallbackWarning, match="saw floor its walk never entered"):
-        learner = _fit(walk)
+        learner = MapLearner(8, 16, random_state=0).fit(walk.observations, walk.actions,
+                                                        n_actions=walk.n_actions)
     info = learner.motion_info_
     assert info["chosen"] == "views" and info["odometry_from"] == SOURCE
     assert info["unwalked"] > 0.01 and getattr(learner, "robot_map_", None) is None
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ContinuousFallbackWarning)
-        plain = MapLearner(8, 16, random_state=0).fit(walk.observations, walk.actions,
-                                                      n_actions=walk.n_actions)
-    assert "odometry_from" not in plain.motion_info_  # off by default: not tried
+        plain = _fit(walk, scan_odometry=False)
+    assert "odometry_from" not in plain.motion_info_  # off: not tried
+    # the map records the setting only where it is off, its default on
+    assert "scan_odometry" not in learner.map_.info["motion"]
+    assert plain.map_.info["motion"]["scan_odometry"] is False
     np.testing.assert_array_equal(learner.labels_, plain.labels_)
     np.testing.assert_array_equal(learner.map_.means, plain.map_.means)
 
@@ -142,8 +145,7 @@ def test_a_robot_log_without_odometry_takes_the_route_and_predicts_from_its_scan
         kept = _fit(walk)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ContinuousFallbackWarning)
-        plain = MapLearner(8, 16, random_state=0).fit(walk.observations, walk.actions,
-                                                      n_actions=walk.n_actions)
+        plain = _fit(walk, scan_odometry=False)
     assert kept.motion_info_["chosen"] == "views" and getattr(kept, "robot_map_", None) is None
     np.testing.assert_array_equal(kept.labels_, plain.labels_)
 

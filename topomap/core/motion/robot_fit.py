@@ -22,8 +22,8 @@ own), behind two more guards: floor the scans saw but the walk never entered
 (:mod:`topomap.core.motion.unwalked`) and the held-out check
 (:mod:`topomap.core.motion.robot_check`); where one fails, the map is the view clusters -- the
 same map as without odometry where the continuous path finds no odometry in the commands --
-with the reason.  ``MotionSettings(scan_odometry=True)`` gives a log without odometry the same
-route on odometry read from its scans (:mod:`topomap.core.motion.robot_scans`).
+with the reason.  ``MotionSettings(scan_odometry=True)``, the default, gives a log without
+odometry the same route on odometry read from its scans (:mod:`topomap.core.motion.robot_scans`).
 """
 
 from __future__ import annotations

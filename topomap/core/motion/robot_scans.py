@@ -1,5 +1,5 @@
 """The robot route on a robot's log WITHOUT odometry: its odometry read from its scans
-(``MotionSettings(scan_odometry=True)``; off by default, docs/robot-logs.md).
+(``MotionSettings(scan_odometry=True)``, the default; docs/robot-logs.md).
 
 A log of egocentric range scans and turn commands given no odometry is recognised as today
 (:func:`is_scan_log`: the continuous path learned no odometry from its commands -- they move a
@@ -18,8 +18,8 @@ five walks that reach it, benchmarks/notes/robots.md).
 
 Measured (``benchmarks/notes/robots.md``, 2026-12-03; 12 walks of four 1 m plans and the three
 of ``robot_office@0.3333``): never above K-means on the views (the guards send 10 walks of 15
-back), 0.10-0.23x its error on the 5 where the route is taken; the fit 4.5x as long as
-without the setting (14.7 s of CPU for 18,000 steps); it is off by default.
+back), 0.10-0.23x its error on the 5 where the route is taken; the fit 4.4x as long as
+with the setting off (15.0 s of CPU for 18,000 steps).
 """
 
 from __future__ import annotations
