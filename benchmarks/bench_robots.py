@@ -15,9 +15,11 @@ of another seed is placed by each route, each step at its state's mean training 
 ``ceiling``    the true places in topomap's model class (:func:`ceiling_scores`, on the split map)
 ``views``      K-means on the views, 64 clusters (:func:`kmeans_view_scores`)
 ``shipped``    ``MapLearner(n_clusters=32, n_states=64, random_state=0).fit(X, u, odometry=...)``
-``no_odometry`` the same without the odometry (``predict`` without it too)
-``scan_odometry`` the same with ``motion={"scan_odometry": True}``: the robot route on odometry
-               read from the scans, behind the guards (:mod:`topomap.core.motion.robot_scans`)
+``no_odometry`` the same without the odometry (``predict`` without it too): the default reads
+               it from the scans (``scan_odometry`` below)
+``scan_odometry`` the same with ``motion={"scan_odometry": True}`` (the default): the robot route
+               on odometry read from the scans, behind the guards
+               (:mod:`topomap.core.motion.robot_scans`)
 ``robot_mode`` the same with ``motion="robot"``, the held-out walk placed by
                ``predict(X, u, odometry=...)`` with its own odometry
 

@@ -119,8 +119,8 @@ def _robot_world(plan_dict, n_steps, seed=0):
 def test_a_thinly_walked_plan_keeps_the_view_clusters_and_says_why():
     """3,000 steps (5 minutes) in an 8 x 4 m room: the scans see most of the floor, the walk
     enters a corner of it (measured: 64 % of the points along the beams unwalked), so the
-    default keeps today's map -- the view clusters, the same as without odometry -- and says
-    why."""
+    default keeps today's map -- the view clusters, the same as without odometry (and the
+    scans' odometry off) -- and says why."""
     walk = _robot_world({"boundary": [[0, 0], [8, 0], [8, 4], [0, 4]],
                          "holes": [[[1, 1], [1.5, 1], [1.5, 1.5], [1, 1.5]]]}, 3000)
     with pytest.warns(ContinuousFallbackWarning, match="saw floor its walk never entered"):
@@ -130,8 +130,8 @@ def test_a_thinly_walked_plan_keeps_the_view_clusters_and_says_why():
     assert getattr(learner, "robot_map_", None) is None
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ContinuousFallbackWarning)
-        plain = MapLearner(8, 16, random_state=0).fit(walk.observations, walk.actions,
-                                                      n_actions=walk.n_actions)
+        plain = MapLearner(8, 16, motion={"scan_odometry": False}, random_state=0).fit(
+            walk.observations, walk.actions, n_actions=walk.n_actions)
     np.testing.assert_array_equal(learner.labels_, plain.labels_)
     np.testing.assert_array_equal(learner.map_.means, plain.map_.means)
     assert "no odometry could be learned" in plain.motion_info_["reason"]

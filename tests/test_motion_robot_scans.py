@@ -16,7 +16,7 @@ from topomap.core.checks import ParameterError
 from topomap.core.motion.learn import ContinuousFallbackWarning
 from topomap.core.motion.registration import scan_odometry
 from topomap.core.motion.robot_fit import predict_robot
-from topomap.core.motion.robot_scans import SOURCE, is_scan_log
+from topomap.core.motion.robot_scans import SOURCE, closed_odometry, is_scan_log, walk_odometry
 from topomap.core.motion.settings import motion_settings
 
 
@@ -41,9 +41,9 @@ def test_a_robot_log_without_odometry_is_recognised_by_hand():
     assert not is_scan_log(_log(low=-1.0), None, none)              # not ranges
 
 
-def test_the_setting_is_off_by_default_and_checked():
-    assert motion_settings("auto").scan_odometry is False
-    assert motion_settings({"scan_odometry": True}).scan_odometry is True
+def test_the_setting_is_on_by_default_and_checked():
+    assert motion_settings("auto").scan_odometry is True
+    assert motion_settings({"scan_odometry": False}).scan_odometry is False
     with pytest.raises(ParameterError, match=r"^motion.scan_odometry must be true or false"):
         motion_settings({"scan_odometry": "yes"})
 
@@ -57,9 +57,9 @@ def _robot_world(plan_dict, n_steps, seed=0):
     return world.simulate(n_steps, None, np.random.default_rng(seed))
 
 
-def _fit(walk):
-    """The default with the setting on, fitted on the walk's scans and commands alone."""
-    return MapLearner(8, 16, motion={"scan_odometry": True}, random_state=0).fit(
+def _fit(walk, **motion):
+    """The default (the setting on), fitted on the walk's scans and commands alone."""
+    return MapLearner(8, 16, motion={"scan_odometry": True, **motion}, random_state=0).fit(
         walk.observations, walk.actions, n_actions=walk.n_actions)
 
 
@@ -67,19 +67,22 @@ def test_a_thinly_walked_log_without_odometry_keeps_the_view_clusters():
     """3,000 steps (5 minutes) in an 8 x 4 m room, no odometry: the route is tried on the
     odometry read from the scans, and its unwalked-floor guard sends the log back (the walk
     enters a corner of the floor its scans see) -- the same states as with the setting off,
-    the warning and the reason."""
+    the warning and the reason.  The default (no ``motion`` given) is the setting on."""
     walk = _robot_world({"boundary": [[0, 0], [8, 0], [8, 4], [0, 4]],
                          "holes": [[[1, 1], [1.5, 1], [1.5, 1.5], [1, 1.5]]]}, 3000)
     with pytest.warns(ContinuousFallbackWarning, match="saw floor its walk never entered"):
-        learner = _fit(walk)
+        learner = MapLearner(8, 16, random_state=0).fit(walk.observations, walk.actions,
+                                                        n_actions=walk.n_actions)
     info = learner.motion_info_
     assert info["chosen"] == "views" and info["odometry_from"] == SOURCE
     assert info["unwalked"] > 0.01 and getattr(learner, "robot_map_", None) is None
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ContinuousFallbackWarning)
-        plain = MapLearner(8, 16, random_state=0).fit(walk.observations, walk.actions,
-                                                      n_actions=walk.n_actions)
-    assert "odometry_from" not in plain.motion_info_  # off by default: not tried
+        plain = _fit(walk, scan_odometry=False)
+    assert "odometry_from" not in plain.motion_info_  # off: not tried
+    # the map records the setting only where it is off, its default on
+    assert "scan_odometry" not in learner.map_.info["motion"]
+    assert plain.map_.info["motion"]["scan_odometry"] is False
     np.testing.assert_array_equal(learner.labels_, plain.labels_)
     np.testing.assert_array_equal(learner.map_.means, plain.map_.means)
 
@@ -88,8 +91,8 @@ def test_where_the_guards_pass_the_route_is_taken_and_predict_reads_the_scans(mo
     """3,000 steps in two furnished 1 m rooms, no odometry, the floor and check guards made to
     pass: the map is the robot route's on the scans' odometry, and ``predict`` without odometry
     gives what :func:`~topomap.core.motion.robot_fit.predict_robot` gives with the walk's
-    registration (:func:`~topomap.core.motion.registration.scan_odometry`); the walk placed
-    again lands in most of its own places (measured 0.96; by chance 1 in 16)."""
+    registration closed by its loops (:func:`~topomap.core.motion.robot_scans.closed_odometry`);
+    the walk placed again lands in most of its own places (measured 0.96; by chance 1 in 16)."""
     import topomap.core.motion.robot_fit as robot_fit
     from test_motion_robot import _arena_robot
 
@@ -103,7 +106,7 @@ def test_where_the_guards_pass_the_route_is_taken_and_predict_reads_the_scans(mo
     X = walk.observations[:1500]
     again = learner.predict(X, walk.actions[:1500])
     np.testing.assert_array_equal(again, predict_robot(learner.robot_map_, X, None,
-                                                       scan_odometry(X)))
+                                                       closed_odometry(X)))
     assert np.mean(again == learner.labels_[:1500]) > 0.5
 
 
@@ -129,7 +132,7 @@ def test_a_robot_log_without_odometry_takes_the_route_and_predicts_from_its_scan
     assert info["chosen"] == "robot" and info["odometry_from"] == SOURCE
     placed = learner.predict(held.observations, held.actions)
     np.testing.assert_array_equal(placed, predict_robot(
-        learner.robot_map_, held.observations, None, scan_odometry(held.observations)))
+        learner.robot_map_, held.observations, None, closed_odometry(held.observations)))
     pair = (plan.region_of(walk.positions), plan.region_of(held.positions))
     ours = score_units(learner.labels_, walk.positions, placed, held.positions, 16, pair)
     views = kmeans_view_scores(16, walk, held, plan.region_of, random_state=0)
@@ -142,7 +145,20 @@ def test_a_robot_log_without_odometry_takes_the_route_and_predicts_from_its_scan
         kept = _fit(walk)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ContinuousFallbackWarning)
-        plain = MapLearner(8, 16, random_state=0).fit(walk.observations, walk.actions,
-                                                      n_actions=walk.n_actions)
+        plain = _fit(walk, scan_odometry=False)
     assert kept.motion_info_["chosen"] == "views" and getattr(kept, "robot_map_", None) is None
     np.testing.assert_array_equal(kept.labels_, plain.labels_)
+
+
+def test_a_new_walk_s_odometry_is_each_episode_closed_by_its_own_loops():
+    """``predict``'s odometry of a walk without one: each episode read from its own scans and
+    closed by its own loops -- two episodes give what each gives alone; a one-step episode
+    stands at the origin (nothing to register)."""
+    B = 36
+    a = 2 * np.pi * np.arange(B) / B
+    rng = np.random.default_rng(0)
+    X = 1.0 + 0.3 * np.cos(a) + 0.2 * np.sin(2 * a) + rng.normal(0, 0.01, (120, B))
+    both = walk_odometry(X, [80, 40])
+    np.testing.assert_array_equal(both[:80], closed_odometry(X[:80]))
+    np.testing.assert_array_equal(both[80:], closed_odometry(X[80:]))
+    np.testing.assert_array_equal(walk_odometry(X[:1], [1]), np.zeros((1, 3)))

@@ -157,7 +157,7 @@ def test_a_fit_under_old_names_is_the_fit_under_new_ones():
                              "places": {"weight": 0.7}}, **kw).fit(X, u)
     assert hasattr(old, "motion_info_")  # the continuous path ran
     recorded = dataclasses.asdict(motion_settings(new.motion))
-    del recorded["scan_odometry"]  # recorded only where on (the maps of before keep their bytes)
+    del recorded["scan_odometry"]  # recorded only where off (the maps of before keep their bytes)
     assert old.map_.info["motion"] == recorded
     assert old.map_.info["motion"]["check"]["holdout"] == 0.3
     assert old.map_.to_dict() == new.map_.to_dict()

@@ -13,8 +13,8 @@ __all__ = ["bind_places"]
 def bind_places(learner, m, labels, info: dict, settings, start: float) -> bool:
     """Make ``m`` (places or view clusters; ``labels`` the state of every step) ``learner``'s
     map: ``motion_info_`` is ``info``, ``entropies_`` gains the stage ``"places"``, ``map_`` keeps
-    the split map's info with the motion settings (``scan_odometry`` only where on: a map
-    learned without it keeps the bytes it had before the setting) and ``info``,
+    the split map's info with the motion settings (``scan_odometry`` only where off, its
+    default on: a map keeps the bytes it had before the setting) and ``info``,
     ``timings_["places"]`` the seconds since ``start`` (``time.perf_counter``); the ``refine``
     callback is called; True."""
     learner.motion_info_ = info
@@ -22,7 +22,7 @@ def bind_places(learner, m, labels, info: dict, settings, start: float) -> bool:
                                    iteration=len(learner.split_history_) + 1))
     learner.labels_ = labels
     motion = asdict(settings)
-    if not motion["scan_odometry"]:
+    if motion["scan_odometry"]:
         del motion["scan_odometry"]
     learner.map_ = replace(m, entropy_history=learner.entropies_, info=dict(
         learner.map_split_.info, motion=motion, motion_info=info))

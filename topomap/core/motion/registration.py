@@ -422,6 +422,8 @@ def scan_poses(X, max_range: float | None = None, windows=S.WINDOWS,
     psi = S.scan_headings(X, O[:, 2], windows, closures)
     P = reckon(forward_moves(O), psi)
     ci, cj, _ = closures
+    if T < 2 or not len(ci):  # no step to register, or no loop to close
+        return P
     points, valid = scan_points(X, max_range - 1e-9)
     t = np.arange(1, T, max(1, T // 500))
     rel = np.array([_relative(P[a - 1], P[a]) for a in t]).reshape(-1, 3)

@@ -22,8 +22,8 @@ own), behind two more guards: floor the scans saw but the walk never entered
 (:mod:`topomap.core.motion.unwalked`) and the held-out check
 (:mod:`topomap.core.motion.robot_check`); where one fails, the map is the view clusters -- the
 same map as without odometry where the continuous path finds no odometry in the commands --
-with the reason.  ``MotionSettings(scan_odometry=True)`` gives a log without odometry the same
-route on odometry read from its scans (:mod:`topomap.core.motion.robot_scans`).
+with the reason.  ``MotionSettings(scan_odometry=True)``, the default, gives a log without
+odometry the same route on odometry read from its scans (:mod:`topomap.core.motion.robot_scans`).
 """
 
 from __future__ import annotations
@@ -260,7 +260,8 @@ def predict_robot(model, observations, lengths, odometry,
     ``odometry`` (T, 3) (:func:`~topomap.core.motion.robot.place_walk`); a one-line
     :class:`ParameterError` naming ``odometry`` or ``observations`` when they do not fit.
     ``from_scans``: a map learned on odometry read from the scans, where ``odometry`` None is
-    read from the walk's own scans (:func:`~.robot_scans.walk_odometry`)."""
+    read from the walk's own scans and closed by its own loops
+    (:func:`~.robot_scans.walk_odometry`)."""
     if odometry is None and not from_scans:
         raise ParameterError("odometry", "is required to place a walk on a map of motion mode "
                                          "'robot': the walk's (T, 3) wheel odometry")

@@ -1,5 +1,5 @@
 """The robot route on a robot's log WITHOUT odometry: its odometry read from its scans
-(``MotionSettings(scan_odometry=True)``; off by default, docs/robot-logs.md).
+(``MotionSettings(scan_odometry=True)``, the default; docs/robot-logs.md).
 
 A log of egocentric range scans and turn commands given no odometry is recognised as today
 (:func:`is_scan_log`: the continuous path learned no odometry from its commands -- they move a
@@ -10,15 +10,16 @@ loops (:func:`~.registration.scan_poses`; its headings, closed already, are not 
 and the robot route (:func:`~.robot_fit.fit_robot`) learns on those poses behind the guards of a
 log with odometry (point symmetry -- a cell's reflection matched within
 :data:`~.symmetry.SCAN_REACH` spacings, as this odometry's maps bend by centimetres --, unwalked
-floor, the held-out check, whose held-out steps are placed by their unclosed registration, as a
-new walk would be).  Where a guard fails the map is the view clusters the log got before, with the
-warning and the reason.  ``predict`` without odometry places a new walk by its own registration
-(:func:`walk_odometry`).
+floor, the held-out check, whose held-out steps are placed by their unclosed registration).
+Where a guard fails the map is the view clusters the log got before, with the warning and the
+reason.  ``predict`` without odometry places a new walk by its own registration closed by its
+own loops (:func:`walk_odometry`; the check's verdicts are the same placed either way on
+five walks that reach it, benchmarks/notes/robots.md).
 
 Measured (``benchmarks/notes/robots.md``, 2026-12-03; 12 walks of four 1 m plans and the three
 of ``robot_office@0.3333``): never above K-means on the views (the guards send 10 walks of 15
-back), 0.10-0.23x its error on the 5 where the route is taken; the fit 4.5x as long as
-without the setting (14.7 s of CPU for 18,000 steps); it is off by default.
+back), 0.10-0.23x its error on the 5 where the route is taken; the fit 4.4x as long as
+with the setting off (15.0 s of CPU for 18,000 steps).
 """
 
 from __future__ import annotations
@@ -30,7 +31,7 @@ import numpy as np
 from .registration import scan_odometry, scan_poses
 from .robot_fit import MIN_BEAMS, fit_robot
 
-__all__ = ["is_scan_log", "fit_scan_robot", "walk_odometry", "SOURCE"]
+__all__ = ["is_scan_log", "fit_scan_robot", "walk_odometry", "closed_odometry", "SOURCE"]
 
 #: ``motion_info_["odometry_from"]`` of a map whose odometry was read from its scans
 SOURCE = "scans"
@@ -61,8 +62,21 @@ def fit_scan_robot(learner, data, settings, fallback, start: float | None = None
                      headings=poses[:, 2])
 
 
+def closed_odometry(X) -> np.ndarray:
+    """(T, 3) poses of one walk's scans ``X`` (T, B): its registration
+    (:func:`~.registration.scan_odometry`) closed by the walk's own loops
+    (:func:`~.registration.scan_poses`), as the map's walk was.  A stretch of poor
+    registrations bends the unclosed odometry by centimetres over a few seconds, and the
+    decoder, which follows the odometry's moves, then carries the walk into the alike room beside
+    (``robot_three@0.3333`` seed 1: 31 % of the held-out walk in the wrong room by the unclosed
+    registration, 9 % closed, as by the true poses)."""
+    alternatives: list = []
+    raw = scan_odometry(X, alternatives=alternatives)
+    return scan_poses(X, odometry=raw, alternatives=alternatives)
+
+
 def walk_odometry(X, lengths) -> np.ndarray:
     """(T, 3) odometry of a new walk's scans ``X`` (T, B), each episode of ``lengths`` read from
-    its own scans (:func:`~.registration.scan_odometry`)."""
+    its own scans and closed by its own loops (:func:`closed_odometry`)."""
     ends = np.cumsum(lengths)
-    return np.concatenate([scan_odometry(X[a:b]) for a, b in zip(ends - lengths, ends)])
+    return np.concatenate([closed_odometry(X[a:b]) for a, b in zip(ends - lengths, ends)])

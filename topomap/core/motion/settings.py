@@ -134,11 +134,12 @@ class MotionSettings:
     1.0-1.3, compass walkers 13-16 and a robot's own-frame scans 2.0-5.0 at 10 Hz)."""
     min_steps: int = 1000
     """The least steps of such a log (steps)."""
-    scan_odometry: bool = False
+    scan_odometry: bool = True
     """Whether ``mode="auto"`` gives a robot's log of egocentric range scans and turn commands
     WITHOUT odometry the robot route, its odometry read from the scans
-    (:mod:`topomap.core.motion.robot_scans`), behind the guards of a log with odometry; off:
-    such a log gets the view clusters (measured: ``docs/robot-logs.md``)."""
+    (:mod:`topomap.core.motion.robot_scans`), behind the guards of a log with odometry (where
+    one fails: the view clusters, the same map as with it off); off: such a log gets the view
+    clusters without trying (measured: ``docs/robot-logs.md``)."""
     places: PlaceSettings = PlaceSettings()
     """How the places are cut (``motion.places``)."""
     check: CheckSettings = CheckSettings()
