@@ -3,13 +3,14 @@ than the states' own counts allow, is refused with one line naming the field; ev
 learner makes (fit, refined, sized, partial_fit) satisfies the same checks and loads."""
 
 import json
+import math
 
 import numpy as np
 import pytest
 from worlds import ring
 
 from topomap import MapLearner, TopologicalMap
-from topomap.core.map.files import check_counts
+from topomap.core.map.files import check_counts, finite_json
 from topomap.worlds import GridRoom, RandomExplorer
 
 
@@ -152,3 +153,22 @@ def test_every_map_partial_fit_makes_passes_and_loads(tmp_path):
         check_counts(learner.map_)
     assert learner.online_["n_passes"] >= 3
     assert loads_as_saved(learner.map_, tmp_path)
+
+
+def test_a_map_file_is_strict_json_where_its_info_holds_a_number_that_is_not_finite(tmp_path):
+    # a measured ratio that is infinite (no point reflection found) is written as null, so
+    # strict JSON readers read the file; finite numbers keep their value
+    from topomap.app.run.outputs import write_json
+
+    assert finite_json({"a": [1.5, math.inf, {"b": -math.inf, "c": math.nan}], "d": "x"}) == \
+        {"a": [1.5, None, {"b": None, "c": None}], "d": "x"}
+    rng = np.random.default_rng(0)
+    X, u = rng.normal(size=(60, 2)), rng.integers(0, 2, 60)
+    m = TopologicalMap.from_labels(X, u, np.arange(60) % 3, state_symbol=np.arange(3),
+                                   state_gds=np.full(3, -1), state_parent=np.full(3, -1),
+                                   n_actions=2, info={"symmetry": {"ratio": math.inf}, "k": 2.5})
+    text = m.save(tmp_path / "map.json").read_text()
+    strict = json.loads(text, parse_constant=lambda c: (_ for _ in ()).throw(ValueError(c)))
+    assert strict["info"]["symmetry"] == {"ratio": None} and strict["info"]["k"] == 2.5
+    write_json(tmp_path / "metrics.json", {"ratio": np.float64(np.inf), "n": np.int64(3)})
+    assert json.loads((tmp_path / "metrics.json").read_text()) == {"ratio": None, "n": 3}

@@ -16,6 +16,7 @@ import numpy as np
 
 from ...core.data.atomic import atomic_write
 from ...core.data.trajectory import save_trajectory
+from ...core.map.files import finite_json
 from ..results import (FIGURE_FILES, LOCALIZE_FILES, MAPPING_FIGURES, METRICS_FILE, OUTPUT_FILES,
                        PATH_FIGURES, ROBOT_FILES, STATUS_FILE)
 from .interrupts import held_signals, stop_if_interrupted
@@ -167,7 +168,8 @@ def _json_default(obj):
 
 def write_json(path, obj) -> None:
     """Write ``obj`` as indented JSON with sorted keys, atomically."""
-    text = json.dumps(obj, indent=1, sort_keys=True, default=_json_default)
+    text = json.dumps(finite_json(json.loads(json.dumps(obj, default=_json_default))), indent=1,
+                      sort_keys=True, allow_nan=False)
     atomic_write(path, lambda tmp: Path(tmp).write_text(text + "\n"))
 
 

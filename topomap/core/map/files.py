@@ -14,6 +14,7 @@
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 import numpy as np
@@ -324,6 +325,17 @@ def to_dict(m) -> dict:
     }
 
 
+def finite_json(obj):
+    """``obj`` (dicts, lists, numbers) with non-finite floats as None (strict JSON's null)."""
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    if isinstance(obj, dict):
+        return {k: finite_json(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [finite_json(v) for v in obj]
+    return obj
+
+
 def save(m, path) -> Path:
     """Write the map ``m`` as JSON (atomically: the file appears only when complete)."""
     path = Path(path)
@@ -331,7 +343,8 @@ def save(m, path) -> Path:
         check_counts(m)
     except ValueError as exc:
         raise ValueError(f"map file {path} not written: {exc}") from None
-    text = json.dumps(to_dict(m), indent=1, sort_keys=True)
+    d = {**to_dict(m), "info": finite_json(m.info)}  # strict JSON: no Infinity / NaN literals
+    text = json.dumps(d, indent=1, sort_keys=True, allow_nan=False)
 
     def write(tmp):
         Path(tmp).write_text(text + "\n")
