@@ -9,8 +9,9 @@ slip_size=0.03``) on scans in the route's order (beam 0 ahead, anticlockwise), r
 
 Each case fits ``MapLearner(n_clusters=32, n_states=64, random_state=0).fit(X, u,
 odometry=...)`` on the 18,000-step walk of :mod:`robot_harness` with the columns of its scans
-(and its held-out walk's) reordered, places the held-out walk with ``predict`` and prints the
-map chosen, the order :mod:`topomap.core.motion.beams` found, the median distance of the held-out
+(and its held-out walk's) reordered, places the held-out walk with ``predict``
+(``--no-odometry``: neither the fit nor ``predict`` is given the odometry) and prints the map
+chosen, the order :mod:`topomap.core.motion.beams` found, the median distance of the held-out
 steps from the truth [m] and the share in the wrong room.
 """
 
@@ -35,16 +36,18 @@ ORDERS = {
 }
 
 
-def run(plan: str, seed: int, orders, cache: Path) -> None:
+def run(plan: str, seed: int, orders, cache: Path, odometry: bool = True) -> None:
     walk, held = H.pair(plan, seed, H.Robot.small(), cache)
     t, h = walk.traj, held.traj
     regions = H.region_of(plan)
     for name in orders:
         cols = ORDERS[name](t.observations.shape[1])
+        given = {"odometry": walk.odometry} if odometry else {}
         learner = MapLearner(n_clusters=32, n_states=64, random_state=0).fit(
-            t.observations[:, cols], t.actions, n_actions=t.n_actions, odometry=walk.odometry)
+            t.observations[:, cols], t.actions, n_actions=t.n_actions, **given)
         info = learner.motion_info_
-        extra = {"odometry": held.odometry} if getattr(learner, "robot_map_", None) is not None else {}
+        placed_on_cells = getattr(learner, "robot_map_", None) is not None
+        extra = {"odometry": held.odometry} if placed_on_cells and odometry else {}
         placed = learner.predict(h.observations[:, cols], h.actions, **extra)
         s = score_units(learner.labels_, t.positions, placed, h.positions,
                         learner.map_.n_states, (regions(t.positions), regions(h.positions)))
@@ -57,6 +60,8 @@ def main() -> None:
     ap.add_argument("--plans", nargs="+", default=["robot_alike@0.3333"])
     ap.add_argument("--seeds", nargs="+", type=int, default=[0])
     ap.add_argument("--orders", nargs="+", default=list(ORDERS), choices=list(ORDERS))
+    ap.add_argument("--no-odometry", action="store_true",
+                    help="fit and place without the wheel odometry (odometry read from the scans)")
     ap.add_argument("--cache", default=os.path.expanduser("~/.cache/topomap-bench/robots"))
     args = ap.parse_args()
     warnings.simplefilter("ignore")
@@ -64,7 +69,7 @@ def main() -> None:
     print("|---|---|---|---|---|---|---|")
     for plan in args.plans:
         for seed in args.seeds:
-            run(plan, seed, args.orders, Path(args.cache))
+            run(plan, seed, args.orders, Path(args.cache), not args.no_odometry)
 
 
 if __name__ == "__main__":
