@@ -28,7 +28,7 @@ import numpy as np
 from sklearn.metrics import pairwise_distances_argmin
 
 from ..size import split_holdout
-from .places import cut_places
+from .places import cut_places, graph_places
 from .posegraph import graph_positions
 from .settings import MotionSettings
 
@@ -95,7 +95,7 @@ def split_span(lengths, a: int, b: int) -> tuple[np.ndarray, np.ndarray]:
 
 def cross_fitted(settings: MotionSettings, X, Z, u, lengths, n_states: int, n_actions: int,
                  build, starts: int | None = None, span: tuple[int, int] | None = None,
-                 **kmeans) -> dict | None:
+                 candidate: str | None = None, **kmeans) -> dict | None:
     """The check's figures: ``{"learned", "held_out", "places", "views", "gap", "se"}`` -- the
     steps learned from, those held out, each map's error (:func:`translated_error`, cell
     extents), and the views' median distance less the places' with its bootstrap standard error
@@ -105,7 +105,14 @@ def cross_fitted(settings: MotionSettings, X, Z, u, lengths, n_states: int, n_ac
     ``check.holdout`` share).  ``starts``: the k-means++ starts of the learned part's view
     clusters (None: ``places.n_init``).  ``build`` and ``kmeans`` (``n_init``,
     ``random_state``, ``method``, ``weight``) as
-    :func:`~topomap.core.motion.check.choose_places`'s."""
+    :func:`~topomap.core.motion.check.choose_places`'s.
+
+    With ``places.graph_gate`` above 0 the places of the pose graph
+    (:func:`~topomap.core.motion.places.graph_places`) decode the held-out part too: where the
+    filter's places' median distance exceeds theirs by more than :data:`MARGIN_SE` bootstrap
+    standard errors (``graph_gain``, ``graph_se``), they are the ``candidate`` (``"graph"``,
+    else ``"filter"``) whose figures ``places``, ``gap`` and ``se`` are; ``candidate`` given
+    (``"graph"`` or ``"filter"``), that one is, and the other is not cut."""
     T = len(u)
     if span is None:
         head, tail, cut = split_holdout(T, lengths, settings.check.holdout)
@@ -127,16 +134,31 @@ def cross_fitted(settings: MotionSettings, X, Z, u, lengths, n_states: int, n_ac
                            part.extent, gate, settings.places.pull)
     out, dist = {"learned": int(keep.size), "held_out": b - a}, {}
     block = (np.arange(a, b) * BLOCKS) // T
-    for name, labels in (("places", part.places), ("views", part.views)):
+    maps = {"places": part.places, "views": part.views}
+    if settings.places.graph_gate > 0 and candidate != "filter":
+        maps["graph"] = graph_places(settings, Zl, part, ul, head, n_states,
+                                     **{k: kmeans[k] for k in ("n_init", "random_state", "method")
+                                        if k in kmeans})
+    for name, labels in maps.items():
         decoded = build(Xl, ul, labels, head, pooled=name == "views").predict(
             X[a:b], u[a:b], lengths=tail)
         placed = state_positions(labels, learned)[decoded]
         out[name] = round(translated_error(placed, held), 4)
         dist[name] = aligned_distances(placed, held, block)
     seed = kmeans.get("random_state", 0)
-    gap, se = median_gap(dist["places"], dist["views"],
-                         int(round(STRETCH_RUNS * part.info["mean_run"])),
-                         seed=seed if isinstance(seed, int) else 0)
+    seed = seed if isinstance(seed, int) else 0
+    stretch = int(round(STRETCH_RUNS * part.info["mean_run"]))
+    if "graph" in dist:  # the pose graph's places against the filter's
+        gain, gain_se = median_gap(dist["graph"], dist["places"], stretch, seed=seed)
+        if candidate is None:
+            candidate = "graph" if gain > MARGIN_SE * gain_se else "filter"
+        out.update(filter=out["places"], graph_gain=round(gain, 4), graph_se=round(gain_se, 4),
+                   candidate=candidate)
+        if candidate == "graph":
+            out["places"], dist["places"] = out["graph"], dist["graph"]
+    elif candidate is not None:
+        out["candidate"] = candidate
+    gap, se = median_gap(dist["places"], dist["views"], stretch, seed=seed)
     return dict(out, gap=round(gap, 4), se=round(se, 4))
 
 
