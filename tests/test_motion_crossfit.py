@@ -247,3 +247,14 @@ def test_without_closures_the_graph_places_cut_the_views_beside_dead_reckoning()
     views = Z / _view_spread(Z, part.views, int(part.views.max()) + 1)
     expected = _kmeans(place_features(views, [P], part.info["weight"]), 8, 1, 0, "auto")
     np.testing.assert_array_equal(labels, expected)
+
+
+def test_the_pose_graphs_places_stand_in_by_two_standard_errors_or_on_new_ground_at_all():
+    from topomap.core.motion.crossfit import stands_in
+
+    # nearer by 0.05 cell extents with a standard error of 0.02: 2.5 errors
+    assert stands_in(0.05, 0.02, new_ground=False) and stands_in(0.05, 0.02, new_ground=True)
+    # nearer by 0.03 (1.5 errors): only on new ground, where nearer at all is asked
+    assert not stands_in(0.03, 0.02, new_ground=False) and stands_in(0.03, 0.02, new_ground=True)
+    # farther off, or a tie: never
+    assert not stands_in(-0.01, 0.001, new_ground=True) and not stands_in(0.0, 0.0, True)

@@ -313,7 +313,7 @@ def _crossfit(settings: MotionSettings, X, Z, u, lengths, n_states: int, n_actio
     span = novel_span(whole.places, settings.check.holdout) if rule == "coverage" else None
     check = cross_fitted(settings, X, Z, u, lengths, n_states, n_actions, build,
                          starts=FOLD_STARTS if bootstrap else None, span=span,
-                         weight=info["weight"], **kmeans)
+                         new_ground=span is not None, weight=info["weight"], **kmeans)
     if check is None:
         return whole.views, dict(info, chosen="views",
                                   check="the held-out check's first part gave no odometry")

@@ -34,7 +34,7 @@ from .settings import MotionSettings
 
 __all__ = ["translated_error", "state_positions", "cross_fitted", "BLOCKS", "MARGIN_SE",
            "STRETCH_RUNS", "DRAWS", "FOLD_STARTS", "aligned_distances", "median_gap",
-           "split_span"]
+           "split_span", "stands_in"]
 
 
 #: the held-out part's own pose graph drifts away from the learned part's: its steps are moved
@@ -95,7 +95,8 @@ def split_span(lengths, a: int, b: int) -> tuple[np.ndarray, np.ndarray]:
 
 def cross_fitted(settings: MotionSettings, X, Z, u, lengths, n_states: int, n_actions: int,
                  build, starts: int | None = None, span: tuple[int, int] | None = None,
-                 candidate: str | None = None, **kmeans) -> dict | None:
+                 candidate: str | None = None, new_ground: bool = False,
+                 **kmeans) -> dict | None:
     """The check's figures: ``{"learned", "held_out", "places", "views", "gap", "se"}`` -- the
     steps learned from, those held out, each map's error (:func:`translated_error`, cell
     extents), and the views' median distance less the places' with its bootstrap standard error
@@ -108,11 +109,12 @@ def cross_fitted(settings: MotionSettings, X, Z, u, lengths, n_states: int, n_ac
     :func:`~topomap.core.motion.check.choose_places`'s.
 
     With ``places.graph_gate`` above 0 the places of the pose graph
-    (:func:`~topomap.core.motion.places.graph_places`) decode the held-out part too: where the
-    filter's places' median distance exceeds theirs by more than :data:`MARGIN_SE` bootstrap
-    standard errors (``graph_gain``, ``graph_se``), they are the ``candidate`` (``"graph"``,
-    else ``"filter"``) whose figures ``places``, ``gap`` and ``se`` are; ``candidate`` given
-    (``"graph"`` or ``"filter"``), that one is, and the other is not cut."""
+    (:func:`~topomap.core.motion.places.graph_places`) decode the held-out part too: where they
+    stand in for the filter's places (:func:`stands_in` of ``graph_gain``, ``graph_se`` and
+    ``new_ground``: the span held out is ground the rest of the log seldom visits), they are
+    the ``candidate`` (``"graph"``, else ``"filter"``) whose figures ``places``, ``gap`` and
+    ``se`` are; ``candidate`` given (``"graph"`` or ``"filter"``), that one is, and the other
+    is not cut."""
     T = len(u)
     if span is None:
         head, tail, cut = split_holdout(T, lengths, settings.check.holdout)
@@ -151,7 +153,7 @@ def cross_fitted(settings: MotionSettings, X, Z, u, lengths, n_states: int, n_ac
     if "graph" in dist:  # the pose graph's places against the filter's
         gain, gain_se = median_gap(dist["graph"], dist["places"], stretch, seed=seed)
         if candidate is None:
-            candidate = "graph" if gain > MARGIN_SE * gain_se else "filter"
+            candidate = "graph" if stands_in(gain, gain_se, new_ground) else "filter"
         out.update(filter=out["places"], graph_gain=round(gain, 4), graph_se=round(gain_se, 4),
                    candidate=candidate)
         if candidate == "graph":
@@ -160,6 +162,17 @@ def cross_fitted(settings: MotionSettings, X, Z, u, lengths, n_states: int, n_ac
         out["candidate"] = candidate
     gap, se = median_gap(dist["places"], dist["views"], stretch, seed=seed)
     return dict(out, gap=round(gap, 4), se=round(se, 4))
+
+
+def stands_in(gain: float, se: float, new_ground: bool) -> bool:
+    """Whether the pose graph's places stand in for the filter's, their median distance
+    ``gain`` below it (``se``: its bootstrap standard error): by more than :data:`MARGIN_SE`
+    standard errors, or at all on ``new_ground`` -- as the places against the view clusters
+    there (:func:`~topomap.core.motion.check.gives_way`): on ground one stay covered, a held-out
+    part says which map is nearer, not by how much (on Tanni's rat path with two pillars,
+    seed 1, the pose graph's places 0.044 cell extents nearer with a standard error of 0.049;
+    on a new walk 0.094 m off, the filter's 0.126 m)."""
+    return gain > 0 if new_ground else gain > MARGIN_SE * se
 
 
 def aligned_distances(placed, frame, groups) -> np.ndarray:
