@@ -303,7 +303,11 @@ def _crossfit(settings: MotionSettings, X, Z, u, lengths, n_states: int, n_actio
     (benchmarks/notes/continuous.md, "why `robot_three@0.3333` loses").  Every rule gives the
     view clusters unchecked where the odometry told no sighting of a view apart
     (:func:`tells_apart`): places cut from such odometry beat the view clusters in the check
-    only by following the frame's drift (benchmarks/notes/continuous.md, "50 Hz")."""
+    only by following the frame's drift (benchmarks/notes/continuous.md, "50 Hz").  Where the
+    first part held out finds the pose graph's places standing in for the filter's
+    (:func:`~topomap.core.motion.crossfit.stands_in`), they are weighed on the second part
+    too, and kept, they are the whole log's (:func:`~topomap.core.motion.places.graph_places`;
+    ``info["positions"]`` ``"graph"``)."""
     whole, info, done = _cut(settings, Z, u, lengths, n_states, n_actions, **kmeans)
     if done is not None:
         return done

@@ -18,6 +18,10 @@ than :data:`MARGIN_SE` bootstrap standard errors (:func:`median_gap`).  The defa
 ``check.rule="coverage"``, holds out an earlier part instead where the rest of the log seldom
 visits its places (:mod:`topomap.core.motion.coverage`), and the part before the last beside it
 where the last keeps the places within the bar (:func:`topomap.core.motion.check.undecided`).
+With ``places.graph_gate`` the held-out part also weighs places cut from a pose graph of the
+learned part (:func:`~topomap.core.motion.places.graph_places`) against the filter's
+(:func:`stands_in`): where the moves are noisy against a cell, as a rat's, the filter's tight
+gates close few loops and its places straddle the room.
 """
 
 from __future__ import annotations
