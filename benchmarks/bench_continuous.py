@@ -46,7 +46,8 @@ with the fallback's pooled variance not scaled down and no least gain of the che
 ``fallback_variance=1, min_gain=0``: the version before both), ``no_vote`` (the default
 without the vote of three held-out quarters, ``votes=0``: the version before it),
 ``confidence2`` (the default with the pooled share's gain asked to beat twice its own noise,
-``confidence=2``),
+``confidence=2``), ``no_graph`` (the default without the pose graph's places the check weighs
+beside the filter's, ``places.graph_gate=0``: the version before them),
 ``self_decoded`` (the places unchecked, each training row then labelled with the state the map
 itself decodes it into, so that a state stands where the map puts its steps, not where they were
 cut; a state the decoding never takes keeps the rows it was cut from). ``views`` is seeded
@@ -87,7 +88,7 @@ UNSEEN = ("l_rooms", "pillars", "three_rooms", "grid6", "ring", "sizes")
 ROUTES = ("split", "em", "views", "ceiling", "positions", "shipped", "unchecked", "crossfit",
           "folds", "crossfit10", "crossfit15", "bootstrap", "coverage", "one_gate",
           "no_odometry", "merged_runs", "fallback", "folds3", "unscaled", "no_vote",
-          "confidence2", "self_decoded", "weight1", "weight05")
+          "confidence2", "self_decoded", "weight1", "weight05", "no_graph")
 #: the main sensor: 12 compass beams, max range 3 m, noise 0.02; random motion 0.16 m/s, 10 Hz
 BASE = {"beams": 12, "max_range": 3.0, "sigma": 0.02, "speed": 0.16, "dt": 0.1,
         "actions": "compass", "frame": "compass", "sensor": "range", "wrong": 0.0}
@@ -209,7 +210,7 @@ def route(name, train, held, ns, S, regions, seed):
                                   **kw), train, held, regions)
     if name in ("shipped", "unchecked", "one_gate", "folds3", "unscaled", "no_vote",
                 "confidence2", "weight1", "weight05", "crossfit", "folds", "crossfit10",
-                "crossfit15", "bootstrap", "coverage"):
+                "crossfit15", "bootstrap", "coverage", "no_graph"):
         motion = {"shipped": MotionSettings(),
                   "bootstrap": MotionSettings(check={"rule": "bootstrap"}),
                   "coverage": MotionSettings(check={"rule": "coverage"}),
@@ -225,7 +226,8 @@ def route(name, train, held, ns, S, regions, seed):
                   "no_vote": MotionSettings(check={"votes": 0}),
                   "confidence2": MotionSettings(check={"confidence": 2.0}),
                   "weight1": MotionSettings(places={"weight": 1.0, "loose_weight": 1.0}),
-                  "weight05": MotionSettings(places={"weight": 0.5, "loose_weight": 0.5})}[name]
+                  "weight05": MotionSettings(places={"weight": 0.5, "loose_weight": 0.5}),
+                  "no_graph": MotionSettings(places={"graph_gate": 0.0})}[name]
         return _learner_row(*_fit(train, refine="em", motion=motion, **kw), train, held, regions)
     if name == "self_decoded":
         learner, seconds = _fit(train, refine="em", motion=MotionSettings(check={"holdout": 0}),

@@ -170,7 +170,8 @@ def test_the_median_gap_and_its_noise_over_stretches():
 def test_the_default_check_keeps_the_view_clusters_where_places_are_built_to_lose():
     Z, u, x = _line()
     kw = dict(n_clusters=16, n_states=32, random_state=0)
-    heavy = {"weight": 10.0, "loose_weight": 10.0}  # positions outweigh the views
+    # positions outweigh the views; the filter's places alone (no pose graph's beside them)
+    heavy = {"weight": 10.0, "loose_weight": 10.0, "graph_gate": 0.0}
     places = MapLearner(**kw, motion={"places": heavy, "check": {"holdout": 0}}).fit(Z, u)
     with pytest.warns(UserWarning, match="standard errors"):
         checked = MapLearner(**kw, motion={"places": heavy}).fit(Z, u)
@@ -210,3 +211,50 @@ def test_each_rule_gives_the_places_up_on_its_own_bar():
     assert gives_way(noisy, "crossfit", span=False)
     assert not gives_way({"places": 0.8, "views": 0.9, "gap": 0.1, "se": 1.0}, "crossfit",
                          span=False)
+
+
+def test_the_pose_graphs_places_stand_in_where_the_filters_drift():
+    # the same heavy positions: the filter's drift (30 % of a move a step) makes its places
+    # lose to the views; the pose graph closes the walk's loops and its places win
+    Z, u, x = _line()
+    kw = dict(n_clusters=16, n_states=32, random_state=0)
+    heavy = {"weight": 10.0, "loose_weight": 10.0}
+    filt = MapLearner(**kw, motion={"places": dict(heavy, graph_gate=0.0),
+                                    "check": {"holdout": 0}}).fit(Z, u)
+    with pytest.warns(UserWarning, match="standard errors"):
+        views = MapLearner(**kw, motion={"places": dict(heavy, graph_gate=0.0)}).fit(Z, u)
+    graph = MapLearner(**kw, motion={"places": heavy}).fit(Z, u)
+    check = graph.motion_info_["check"]
+    assert check["candidate"] == "graph" and check["graph_gain"] > 2 * check["graph_se"]
+    assert check["places"] == check["graph"] < check["filter"]
+    assert graph.motion_info_["chosen"] == "places" and graph.motion_info_["positions"] == "graph"
+    assert views.motion_info_["chosen"] == "views"
+    # the truth agrees: the graph's places nearer than the view clusters, those than the filter's
+    assert _new_walk_error(graph, x) < _new_walk_error(views, x) < _new_walk_error(filt, x)
+
+
+def test_without_closures_the_graph_places_cut_the_views_beside_dead_reckoning():
+    from topomap.core.motion.odometry import dead_reckoning
+    from topomap.core.motion.places import _kmeans, _view_spread, cut_places, graph_places
+    from topomap.core.motion.places import place_features
+
+    Z, u, _ = _line(T=3000)
+    s = MotionSettings(places={"graph_gate": 1e-9})  # no step is within a gate of a copy
+    part = cut_places(s, Z, u, [3000], 8, 2, n_init=1, random_state=0)
+    labels = graph_places(s, Z, part, u, [3000], 8, n_init=1, random_state=0, method="auto")
+    # every closure then holds at its own step's position: the pose graph is dead reckoning
+    P = dead_reckoning(u, np.array([3000]), part.V) / part.extent
+    views = Z / _view_spread(Z, part.views, int(part.views.max()) + 1)
+    expected = _kmeans(place_features(views, [P], part.info["weight"]), 8, 1, 0, "auto")
+    np.testing.assert_array_equal(labels, expected)
+
+
+def test_the_pose_graphs_places_stand_in_by_two_standard_errors_or_on_new_ground_at_all():
+    from topomap.core.motion.crossfit import stands_in
+
+    # nearer by 0.05 cell extents with a standard error of 0.02: 2.5 errors
+    assert stands_in(0.05, 0.02, new_ground=False) and stands_in(0.05, 0.02, new_ground=True)
+    # nearer by 0.03 (1.5 errors): only on new ground, where nearer at all is asked
+    assert not stands_in(0.03, 0.02, new_ground=False) and stands_in(0.03, 0.02, new_ground=True)
+    # farther off, or a tie: never
+    assert not stands_in(-0.01, 0.001, new_ground=True) and not stands_in(0.0, 0.0, True)

@@ -23,6 +23,9 @@ FLAT = ("mode", "min_run", "min_steps", "gates", "weight", "pull", "max_return",
         "min_copies", "confidence", "block_runs", "min_purity", "loose_return", "loose_weight",
         "check")
 
+#: the fields of the groups that have no flat name of before 0.3
+SINCE_0_3 = ("graph_gate",)
+
 #: a valid value other than the default for every old name
 OTHER = {"gates": (2.0, 4.0), "weight": 0.7, "pull": 0.3, "max_return": 0.4,
          "loose_return": 0.3, "loose_weight": 0.6, "n_init": 2, "fallback_variance": 0.1,
@@ -47,15 +50,15 @@ def test_the_settings_are_a_handful_at_the_top_and_two_groups_by_stage():
     assert _names(MotionSettings) == ["mode", "min_run", "min_steps", "scan_odometry", "places",
                                       "check"]
     assert _names(PlaceSettings) == ["gates", "weight", "pull", "max_return", "loose_return",
-                                     "loose_weight", "n_init", "fallback_variance"]
+                                     "loose_weight", "n_init", "fallback_variance", "graph_gate"]
     assert _names(CheckSettings) == ["rule", "holdout", "margin", "far", "folds", "min_gain",
                                      "votes", "min_copies", "confidence", "block_runs",
                                      "min_purity"]
-    # every flat field of before has one place now, and no field is new
+    # every flat field of before has one place now; the groups' other fields came after 0.3
     top = {"mode", "min_run", "min_steps"}
     assert set(FLAT) == top | set(MOTION_RENAMED)
     assert sorted(MOTION_RENAMED.values()) == sorted(
-        [f"places.{n}" for n in _names(PlaceSettings)]
+        [f"places.{n}" for n in _names(PlaceSettings) if n not in SINCE_0_3]
         + [f"check.{n}" for n in _names(CheckSettings)])
     assert MotionSettings().places == PlaceSettings() and MotionSettings().check == CheckSettings()
 
@@ -97,6 +100,7 @@ def test_defaults_the_code_repeats_are_the_settings_own():
     ({"places": {"gates": []}}, r"motion.places.gates must be a non-empty list of positive "
                                 r"numbers, got \(\)"),
     ({"places": {"pull": 2.0}}, "motion.places.pull must be at most 1, got 2.0"),
+    ({"places": {"graph_gate": -1.0}}, "motion.places.graph_gate must be a number >= 0, got -1.0"),
     ({"check": {"holdot": 0.3}}, "motion.check.holdot is not a motion.check setting; the "
                                  "settings are rule, holdout"),
     ({"check": 0.3}, "motion.check must be CheckSettings or a mapping of its fields, got 0.3"),

@@ -42,7 +42,7 @@ from ..stats import majority_share
 from .coverage import novel_span
 from .crossfit import FOLD_STARTS, MARGIN_SE, cross_fitted
 from .odometry import odometric_positions, reckoned_steps
-from .places import Places, cut_places
+from .places import Places, cut_places, graph_places
 from .settings import MotionSettings
 
 #: steps: the least a held-out part holds (a shorter log, or a fold that would leave fewer
@@ -303,7 +303,11 @@ def _crossfit(settings: MotionSettings, X, Z, u, lengths, n_states: int, n_actio
     (benchmarks/notes/continuous.md, "why `robot_three@0.3333` loses").  Every rule gives the
     view clusters unchecked where the odometry told no sighting of a view apart
     (:func:`tells_apart`): places cut from such odometry beat the view clusters in the check
-    only by following the frame's drift (benchmarks/notes/continuous.md, "50 Hz")."""
+    only by following the frame's drift (benchmarks/notes/continuous.md, "50 Hz").  Where the
+    first part held out finds the pose graph's places standing in for the filter's
+    (:func:`~topomap.core.motion.crossfit.stands_in`), they are weighed on the second part
+    too, and kept, they are the whole log's (:func:`~topomap.core.motion.places.graph_places`;
+    ``info["positions"]`` ``"graph"``)."""
     whole, info, done = _cut(settings, Z, u, lengths, n_states, n_actions, **kmeans)
     if done is not None:
         return done
@@ -313,7 +317,7 @@ def _crossfit(settings: MotionSettings, X, Z, u, lengths, n_states: int, n_actio
     span = novel_span(whole.places, settings.check.holdout) if rule == "coverage" else None
     check = cross_fitted(settings, X, Z, u, lengths, n_states, n_actions, build,
                          starts=FOLD_STARTS if bootstrap else None, span=span,
-                         weight=info["weight"], **kmeans)
+                         new_ground=span is not None, weight=info["weight"], **kmeans)
     if check is None:
         return whole.views, dict(info, chosen="views",
                                   check="the held-out check's first part gave no odometry")
@@ -325,13 +329,20 @@ def _crossfit(settings: MotionSettings, X, Z, u, lengths, n_states: int, n_actio
     if rule == "coverage" and span is None and undecided(check):  # a second part asked
         before = part_before_last(len(u), settings.check.holdout)
         second = cross_fitted(settings, X, Z, u, lengths, n_states, n_actions, build,
-                              starts=FOLD_STARTS, span=before, weight=info["weight"], **kmeans)
+                              starts=FOLD_STARTS, span=before, candidate=check.get("candidate"),
+                              weight=info["weight"], **kmeans)
         if second is not None:
             lose = gives_way(second, rule, False)
             check = dict(check, second=dict(second, span=list(before)))
     chosen = "views" if lose else "places"
-    return (whole.places if chosen == "places" else whole.views), dict(info, chosen=chosen,
-                                                                      check=check)
+    if chosen == "views":
+        return whole.views, dict(info, chosen=chosen, check=check)
+    if check.get("candidate") == "graph":  # the pose graph's places stand in for the filter's
+        return graph_places(settings, Z, whole, u, lengths, n_states,
+                            **{k: kmeans[k] for k in ("n_init", "random_state", "method")
+                               if k in kmeans}), dict(info, chosen=chosen, positions="graph",
+                                                      check=check)
+    return whole.places, dict(info, chosen=chosen, check=check)
 
 
 def _choose(settings: MotionSettings, X, Z, u, lengths, n_states: int, n_actions: int,

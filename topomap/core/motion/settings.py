@@ -71,6 +71,12 @@ class PlaceSettings:
     fallback_variance: float = 0.01
     """A map of view clusters gives every state one variance, pooled, times this (share, (0, 1];
     at 1 its decoding placed walks up to 2 % farther off than the nearest centre)."""
+    graph_gate: float = 6.0
+    """The held-out check also weighs places whose positions are one pose graph over the log,
+    its loop closures the copies at this gate (cell extents; 0: no such places): where they
+    place its held-out part nearer than the filter's places by over two standard errors, they
+    stand in for them (:func:`~topomap.core.motion.places.graph_places`; on Tanni's rat path in
+    its room with two pillars 0.088-0.100 m against the filter's 0.111-0.154 m)."""
 
 
 @dataclass(frozen=True)
@@ -213,7 +219,8 @@ _UNIT = _real(lambda v: 0 < v <= 1, "a number in (0, 1]")
 CHECKS = {
     PlaceSettings: {"gates": _gates, "weight": _POSITIVE, "pull": _pull,
                     "max_return": _POSITIVE, "loose_return": _SHARE, "loose_weight": _POSITIVE,
-                    "n_init": _count(), "fallback_variance": _UNIT},
+                    "n_init": _count(), "fallback_variance": _UNIT,
+                    "graph_gate": _real(lambda v: v >= 0, "a number >= 0")},
     CheckSettings: {"rule": _choice(RULES), "holdout": _SHARE, "margin": _UNIT,
                     "far": _POSITIVE, "folds": _count(), "min_gain": _SHARE,
                     "votes": _count(0), "min_copies": _POSITIVE,
