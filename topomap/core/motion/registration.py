@@ -412,11 +412,9 @@ def scan_poses(X, max_range: float | None = None, windows=S.WINDOWS,
     poses of ``X`` with the same ``max_range`` and its ``alternatives``, each turn the scans
     read either way settled first by the loops (:func:`resolve_turns`; None: computed here)."""
     X = np.asarray(X, dtype=np.float64)
-    T = len(X)
-    max_range = float(X.max()) if max_range is None else float(max_range)
+    T, max_range = len(X), float(X.max()) if max_range is None else float(max_range)
     if odometry is None:
-        alternatives = []
-        odometry = scan_odometry(X, max_range, alternatives)
+        odometry = scan_odometry(X, max_range, alternatives := [])
     closures = S.loop_closures(S.despike(X))
     O = resolve_turns(odometry, alternatives or [], closures)
     psi = S.scan_headings(X, O[:, 2], windows, closures)
