@@ -4,7 +4,7 @@ placed on it later by its own odometry (:func:`~topomap.core.motion.robot.place_
 
 from __future__ import annotations
 
-from dataclasses import fields
+from dataclasses import MISSING, fields
 from pathlib import Path
 
 import numpy as np
@@ -40,11 +40,13 @@ def load_robot_map(path) -> RobotMap:
         raise ValueError(f"{path}: not a robot map file ({err})") from None
     if int(data.get("format", -1)) != FORMAT:
         raise ValueError(f"{path}: format {data.get('format')} is not {FORMAT}")
-    missing = [f.name for f in fields(RobotMap) if f.name not in data]
+    missing = [f.name for f in fields(RobotMap)
+               if f.name not in data and f.default is MISSING]
     if missing:
         raise ValueError(f"{path}: {missing[0]} is missing")
+    # a field with a default (``evidence``) may be absent: the map then weighs every beam fully
     model = RobotMap(**{f.name: (float(data[f.name]) if data[f.name].ndim == 0
-                                 else data[f.name]) for f in fields(RobotMap)})
+                                 else data[f.name]) for f in fields(RobotMap) if f.name in data})
     _check(model, path)
     return model
 
@@ -60,6 +62,8 @@ def _check(model: RobotMap, path) -> None:
         if not ok:
             raise ValueError(f"{path}: {name} has shape {getattr(model, name).shape} for "
                              f"{n} cells")
+    if not 0 < model.evidence <= 1:
+        raise ValueError(f"{path}: evidence {model.evidence} is not in (0, 1]")
     if model.successor_idx.size and (model.successor_idx.min() < 0
                                      or model.successor_idx.max() >= n):
         raise ValueError(f"{path}: successor_idx names a cell outside 0..{n - 1}")
