@@ -17,7 +17,7 @@ warning and the reason.  ``predict`` without odometry places a new walk by its o
 
 Measured (``benchmarks/notes/robots.md``, 2026-12-03; 12 walks of four 1 m plans and the three
 of ``robot_office@0.3333``): never above K-means on the views (the guards send 10 walks of 15
-back), 0.10-0.23x its error on the 5 where the route is taken; the fit 4.5x as long as
+back), 0.10-0.21x its error on the 5 where the route is taken; the fit 4.5x as long as
 without the setting (14.7 s of CPU for 18,000 steps); it is off by default.
 """
 
