@@ -336,6 +336,33 @@ def test_the_robot_map_file_places_a_walk_as_the_learner_does(tmp_path):
     (tmp_path / "text.npz").write_text("not a map")
     with pytest.raises(ValueError, match="not a robot map file"):
         load_robot_map(tmp_path / "text.npz")
+    assert loaded.evidence == learner.robot_map_.evidence < 1
+    # a file without the evidence weight weighs every beam fully; one outside (0, 1] is refused
+    np.savez(tmp_path / "no_evidence.npz", **{k: v for k, v in fields.items() if k != "evidence"})
+    assert load_robot_map(tmp_path / "no_evidence.npz").evidence == 1.0
+    np.savez(tmp_path / "zero.npz", **dict(fields, evidence=np.float64(0.0)))
+    with pytest.raises(ValueError, match="evidence 0.0 is not in"):
+        load_robot_map(tmp_path / "zero.npz")
+
+
+def test_the_evidence_weight_counts_independent_beams_and_keyframes():
+    """Independent beams of one variance at independent keyframes weigh 1; one error shared by
+    all ``B`` beams (covariance ``s^2 1 1^T``: participation ratio exactly 1) weighs ``1 / B``;
+    every keyframe seen twice in a row (correlation 1/2 one keyframe apart, 0 beyond) weighs
+    ``1 / (1 + 2 * 1/2) = 1/2``; half the beams without error (ratio ``B / 2``) weigh 1/2."""
+    from topomap.core.motion.robot import evidence_weight
+
+    rng = np.random.default_rng(0)
+    K, B = 40_000, 8
+    assert evidence_weight(rng.normal(0, 0.1, (K, B))) == pytest.approx(1.0, abs=0.03)
+    shared = rng.normal(0, 0.1, (K, 1)) * np.ones(B)
+    # (the lags' correlations, each 0 +- 1 / sqrt(K) and kept where above 0, lower it by up to 5 %)
+    assert evidence_weight(shared) == pytest.approx(1 / B, rel=0.05)
+    twice = np.repeat(rng.normal(0, 0.1, (K // 2, B)), 2, axis=0)
+    assert evidence_weight(twice) == pytest.approx(0.5, abs=0.02)
+    half = rng.normal(0, 0.1, (K, B)) * (np.arange(B) < B // 2)
+    assert evidence_weight(half) == pytest.approx(0.5, abs=0.02)
+    assert evidence_weight(np.zeros((1, B))) == 1.0
 
 
 def test_headings_solved_early_are_those_solved_in_turn():

@@ -48,8 +48,9 @@ __all__ = ["robot_check", "check_views", "robot_wins", "check_reason", "continue
 #: standard errors: the robot route is kept only where the views' held-out median distance
 #: exceeds its own by more than this many bootstrap standard errors of the difference (the
 #: continuous path's ``MARGIN_SE``, the other way round: the route must win; measured gaps
-#: 2.5-24 standard errors on the nine furnished 1 m walks it wins, -13.9 on a point-symmetric
-#: plan where it loses; benchmarks/notes/robots.md)
+#: 6.4-22.4 standard errors on eight furnished 1 m walks and two of ``robot_office`` (7.4, 7.7)
+#: where the route wins on a new walk, 0.8 on the office walk where it loses, -13.9 on a
+#: point-symmetric plan; benchmarks/notes/robots.md, 2026-12-03)
 ROBOT_MARGIN_SE = 2.0
 
 

@@ -18,9 +18,11 @@ the views instead, with a :class:`~topomap.core.motion.learn.ContinuousFallbackW
 The default, ``mode="auto"``, takes this route on a log given odometry whose commands turn the
 robot (:func:`is_robot_log`: the given odometry's turns explained by the commands,
 :mod:`topomap.core.motion.commands`; or a continuous log whose actions gave no odometry of their
-own), behind two more guards: floor the scans saw but the walk never entered
-(:mod:`topomap.core.motion.unwalked`) and the held-out check
-(:mod:`topomap.core.motion.robot_check`); where one fails, the map is the view clusters -- the
+own), behind one more guard, the held-out check (:mod:`topomap.core.motion.robot_check`), the
+judge of which map places the log's own last part nearer its dead reckoning (floor the scans
+saw but the walk never entered, :mod:`topomap.core.motion.unwalked`, is measured and recorded;
+it sends a log back only where its odometry was read from the scans); where one fails, the map
+is the view clusters -- the
 same map as without odometry where the continuous path finds no odometry in the commands --
 with the reason.  ``MotionSettings(scan_odometry=True)``, the default, gives a log without
 odometry the same route on odometry read from its scans (:mod:`topomap.core.motion.robot_scans`).
@@ -183,11 +185,12 @@ def fit_robot(learner, data, settings, odometry, fallback=None,
     chose the route -- ``views()`` gives ``(labels, map, info)`` of the view clusters of the log
     (made only where a guard fails: the map the log gets without odometry; ``info`` what their
     making measured), ``info`` what was measured before, ``build`` the map builder (:func:`~.learn.fit_places`; the
-    held-out check builds its view clusters by it): the route must then also have walked the
-    floor its scans saw (:func:`~.unwalked.unwalked_share` at most
-    :data:`~.unwalked.MAX_UNWALKED`) and pass the held-out check
-    (:func:`~.robot_check.robot_check`), else the view clusters' map stays, with the warning (a
-    point reflection, too); ``info`` is kept in ``motion_info_``.  ``start``: when the seconds
+    held-out check builds its view clusters by it): the route must then also pass the held-out
+    check (:func:`~.robot_check.robot_check`), else the view clusters' map stays, with the
+    warning (a point reflection, too); the share of unwalked floor
+    (:func:`~.unwalked.unwalked_share`) is recorded, and where ``headings`` are given (odometry
+    read from the scans) it must be at most :data:`~.unwalked.MAX_UNWALKED`; ``info`` is kept
+    in ``motion_info_``.  ``start``: when the seconds
     began (``time.perf_counter``; None: now).  ``place_odometry``: the odometry the held-out
     check places its held-out steps by (None: ``odometry``; :mod:`~.robot_scans`).
     ``headings`` (T,) [rad]: the steps' headings closed by loops already (odometry read from
@@ -222,7 +225,7 @@ def fit_robot(learner, data, settings, odometry, fallback=None,
         return _fall_back(learner, settings, fallback, info, _symmetry_reason(info), start)
     if fallback is not None:
         info["unwalked"] = round(unwalked_share(model), 4)
-        if info["unwalked"] > MAX_UNWALKED:
+        if headings is not None and info["unwalked"] > MAX_UNWALKED:
             return _fall_back(learner, settings, fallback, info, _coverage_reason(info), start)
         info["check"] = robot_check(X, data.u, odometry, learner.map_split_.n_states,
                                     lambda X, u, views: fallback[2](X, u, views, [len(X)],

@@ -42,9 +42,11 @@ def load_robot_map(path) -> RobotMap:
         raise ValueError(f"{path}: not a robot map file ({err})") from None
     if int(data.get("format", -1)) != FORMAT:
         raise ValueError(f"{path}: format {data.get('format')} is not {FORMAT}")
-    missing = [f.name for f in fields(RobotMap) if f.name not in data and f.default is MISSING]
+    missing = [f.name for f in fields(RobotMap)
+               if f.name not in data and f.default is MISSING]
     if missing:
         raise ValueError(f"{path}: {missing[0]} is missing")
+    # a field with a default (``evidence``) may be absent: the map then weighs every beam fully
     model = RobotMap(**{f.name: (float(data[f.name]) if data[f.name].ndim == 0
                                  else data[f.name]) for f in fields(RobotMap) if f.name in data})
     _check(model, path)
@@ -62,6 +64,8 @@ def _check(model: RobotMap, path) -> None:
         if not ok:
             raise ValueError(f"{path}: {name} has shape {getattr(model, name).shape} for "
                              f"{n} cells")
+    if not 0 < model.evidence <= 1:
+        raise ValueError(f"{path}: evidence {model.evidence} is not in (0, 1]")
     B = model.scans.shape[1]
     if model.beam_order is not None and not np.array_equal(np.sort(model.beam_order),
                                                            np.arange(B)):
