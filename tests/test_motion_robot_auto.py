@@ -116,14 +116,26 @@ def _robot_world(plan_dict, n_steps, seed=0):
     return world.simulate(n_steps, None, np.random.default_rng(seed))
 
 
-def test_a_thinly_walked_plan_records_its_unwalked_floor_and_the_check_judges():
+@pytest.mark.parametrize("first", [False, True])
+def test_a_thinly_walked_plan_records_its_unwalked_floor_and_the_right_judge_decides(
+        monkeypatch, first):
     """3,000 steps (5 minutes) in an 8 x 4 m room: the scans see most of the floor, the walk
     enters a corner of it (measured: 64 % of the points along the beams unwalked).  With wheel
-    odometry the share is recorded and the held-out check alone decides: the map is the robot
-    route's exactly where the check prefers it, else the view clusters -- the same as without
-    odometry -- with the check named."""
+    odometry the share is recorded; where the check holds out the log's last part the check
+    alone decides (the robot route's map exactly where the check prefers it, else the view
+    clusters -- the same as without odometry -- with the check named); where it holds out the
+    first part (the last went where the rest never did: made so here), it cannot see unwalked
+    floor and the share sends the log back, named."""
+    import topomap.core.motion.robot_check as robot_check
+    import topomap.core.motion.robot_fit as robot_fit
     from topomap.core.motion.robot_check import robot_wins
 
+    def span(T, holdout, places=None):
+        n = int(round(T * holdout))
+        return (0, n) if first else (T - n, T)
+
+    monkeypatch.setattr(robot_fit, "held_out_span", span)
+    monkeypatch.setattr(robot_check, "held_out_span", span)
     walk = _robot_world({"boundary": [[0, 0], [8, 0], [8, 4], [0, 4]],
                          "holes": [[[1, 1], [1.5, 1], [1.5, 1.5], [1, 1.5]]]}, 3000)
     with warnings.catch_warnings(record=True) as caught:
@@ -131,12 +143,16 @@ def test_a_thinly_walked_plan_records_its_unwalked_floor_and_the_check_judges():
         learner = MapLearner(8, 16, random_state=0).fit_trajectory(walk)
     info = learner.motion_info_
     assert info["unwalked"] > 0.5
-    if robot_wins(info["check"]):
+    if first:
+        assert "check" not in info and info["chosen"] == "views"
+        assert "saw floor its walk never entered" in info["reason"]
+    elif robot_wins(info["check"]):
         assert info["chosen"] == "robot" and learner.robot_map_ is not None
         assert not [w for w in caught if issubclass(w.category, ContinuousFallbackWarning)]
         return
-    assert info["chosen"] == "views" and getattr(learner, "robot_map_", None) is None
-    assert "held-out check placed" in info["reason"]
+    else:
+        assert info["chosen"] == "views" and "held-out check placed" in info["reason"]
+    assert getattr(learner, "robot_map_", None) is None
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ContinuousFallbackWarning)
         plain = MapLearner(8, 16, motion={"scan_odometry": False}, random_state=0).fit(

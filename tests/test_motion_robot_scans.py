@@ -14,7 +14,6 @@ import pytest
 from topomap import MapLearner
 from topomap.core.checks import ParameterError
 from topomap.core.motion.learn import ContinuousFallbackWarning
-from topomap.core.motion.registration import scan_odometry
 from topomap.core.motion.robot_fit import predict_robot
 from topomap.core.motion.robot_scans import SOURCE, closed_odometry, is_scan_log, walk_odometry
 from topomap.core.motion.settings import motion_settings

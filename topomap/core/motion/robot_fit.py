@@ -47,7 +47,7 @@ from .unwalked import FAR, MAX_UNWALKED, unwalked_share
 from .inputs import check_odometry
 from .robot import learn_robot, place_walk
 from .scans import scan_headings
-from .robot_check import check_reason, check_views, robot_check, robot_wins
+from .robot_check import check_reason, check_views, held_out_span, robot_check, robot_wins
 from .symmetry import SCAN_REACH, SYMMETRY_RATIO, point_symmetry
 
 __all__ = ["fit_robot", "predict_robot", "is_robot_log", "early_headings", "MIN_BEAMS"]
@@ -225,7 +225,10 @@ def fit_robot(learner, data, settings, odometry, fallback=None,
         return _fall_back(learner, settings, fallback, info, _symmetry_reason(info), start)
     if fallback is not None:
         info["unwalked"] = round(unwalked_share(model), 4)
-        if headings is not None and info["unwalked"] > MAX_UNWALKED:
+        # a guard where the check cannot see unwalked floor: odometry read from the scans, and a
+        # log whose last part went where the rest never did (the check holds out covered ground)
+        first = held_out_span(len(X), settings.check.holdout, labels)[0] == 0
+        if (headings is not None or first) and info["unwalked"] > MAX_UNWALKED:
             return _fall_back(learner, settings, fallback, info, _coverage_reason(info), start)
         info["check"] = robot_check(X, data.u, odometry, learner.map_split_.n_states,
                                     lambda X, u, views: fallback[2](X, u, views, [len(X)],
