@@ -187,3 +187,25 @@ def test_auto_with_odometry_takes_the_robot_route_where_the_check_prefers_it(mon
     with pytest.warns(ContinuousFallbackWarning, match="held-out check placed"):
         kept = MapLearner(8, 16, random_state=0).fit_trajectory(walk)
     assert kept.motion_info_["chosen"] == "views" and getattr(kept, "robot_map_", None) is None
+
+
+def test_a_map_whose_cells_lie_beyond_its_scans_reach_gives_way(monkeypatch):
+    """The arena robot's cells lie 0.15 of its scans' median range apart (measured 0.055 m
+    against 0.38 m): the bar lets its map on to the other guards; with the bar set below that
+    share, the cells 'lie farther apart than the scans reach' and the log gets the view
+    clusters, the reason named, before any other guard (odometry read from 12 beams that
+    register nothing put a 2 x 1 m arena's cells 8.85 m apart)."""
+    import topomap.core.motion.robot_fit as robot_fit
+    from test_motion_robot import _arena_robot
+
+    _, walk, _ = _arena_robot(3000, 10)
+    learner = MapLearner(8, 16, random_state=0).fit_trajectory(walk)
+    spacing = learner.motion_info_["cell_spacing_m"]
+    reach = float(np.median(walk.observations))
+    assert spacing < 0.5 * reach and "more than the scans" not in learner.motion_info_.get(
+        "reason", "")
+    monkeypatch.setattr(robot_fit, "MAX_SPACING_RANGE", 0.5 * spacing / reach)
+    with pytest.warns(ContinuousFallbackWarning, match="lie .* apart, more than the scans"):
+        learner = MapLearner(8, 16, random_state=0).fit_trajectory(walk)
+    info = learner.motion_info_
+    assert info["chosen"] == "views" and "check" not in info and "unwalked" not in info

@@ -54,6 +54,12 @@ __all__ = ["fit_robot", "predict_robot", "is_robot_log", "early_headings", "MIN_
 
 #: beams a row must hold to be read as a ring of range beams (a beam and its two neighbours)
 MIN_BEAMS = 3
+#: the most a map's cell spacing may be, as a share of the scans' median range (share): a
+#: robot's odometry that agrees with its scans puts neighbouring cells well within what its
+#: beams see -- 0.2-0.3 on the benchmark's robots (spacing 0.065-0.09 m, median range 0.31-0.48
+#: m) -- where odometry read from 12 beams that register nothing put them 8.85 m apart in a
+#: 2 x 1 m arena (18 times the median range) and its check, measured in that frame, passed it
+MAX_SPACING_RANGE = 1.0
 
 
 def _route_log(data) -> bool:
@@ -146,6 +152,13 @@ def _places_map(learner, data, labels, pooled: float | None = None) -> Topologic
     return m if pooled is None else pooled_variances(m, data.X, labels, learner.reg_covar, pooled)
 
 
+def _scale_reason(info: dict, reach: float) -> str:
+    """Why a map whose cells lie farther apart than its scans reach gives way (one line)."""
+    return (f"the robot route's cells lie {info['cell_spacing_m']:.3g} m apart, more than the "
+            f"scans' median range ({reach:.3g} m) times {MAX_SPACING_RANGE:g}: its odometry does "
+            f"not agree with its scans")
+
+
 def _symmetry_reason(info: dict) -> str:
     """Why a map that is its own point reflection gives way to the view clusters (one line)."""
     return (f"the robot route's map looks the same turned by 180 degrees about "
@@ -221,6 +234,9 @@ def fit_robot(learner, data, settings, odometry, fallback=None,
             "symmetry": point_symmetry(model, None if headings is None else SCAN_REACH),
             **({} if order is None else {"beams": described(order)})}
     mirrored = info["symmetry"]["ratio"] < SYMMETRY_RATIO
+    reach = float(np.median(X))
+    if fallback is not None and model.spacing > MAX_SPACING_RANGE * reach:
+        return _fall_back(learner, settings, fallback, info, _scale_reason(info, reach), start)
     if fallback is not None and mirrored:
         return _fall_back(learner, settings, fallback, info, _symmetry_reason(info), start)
     if fallback is not None:
@@ -277,11 +293,12 @@ def predict_robot(model, observations, lengths, odometry,
                                              f"as the map was learned from, got shape {X.shape}")
     X = in_route_frame(X, model.beam_order)
     lengths = np.array([len(X)] if lengths is None else lengths, dtype=np.int64)
-    if odometry is None:
+    if odometry is None:  # read from the scans: the walk's own, not a user's input to check
         from .robot_scans import walk_odometry
 
-        odometry = walk_odometry(X, lengths)
-    O = check_odometry(odometry, len(X), lengths)
+        O = walk_odometry(X, lengths)
+    else:
+        O = check_odometry(odometry, len(X), lengths)
     ends = np.cumsum(lengths)
     return np.concatenate([place_walk(model, X[a:b], O[a:b])[0]
                            for a, b in zip(ends - lengths, ends)]).astype(np.int64)
