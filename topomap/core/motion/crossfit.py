@@ -98,7 +98,7 @@ def split_span(lengths, a: int, b: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 def cross_fitted(settings: MotionSettings, X, Z, u, lengths, n_states: int, n_actions: int,
-                 build, starts: int | None = None, span: tuple[int, int] | None = None,
+                 build, starts: int | None = None, span: tuple[int, int] | None = None, *,
                  candidate: str | None = None, new_ground: bool = False,
                  **kmeans) -> dict | None:
     """The check's figures: ``{"learned", "held_out", "places", "views", "gap", "se"}`` -- the
