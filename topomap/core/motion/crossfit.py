@@ -97,6 +97,23 @@ def split_span(lengths, a: int, b: int) -> tuple[np.ndarray, np.ndarray]:
     return np.array(before + after, dtype=np.int64), np.array(inside, dtype=np.int64)
 
 
+def _weigh_graph(out: dict, dist: dict, candidate, new_ground: bool, bootstrap) -> None:
+    """Where the pose graph's places were decoded (``dist["graph"]``), record their gain over
+    the filter's in ``out`` and, where they stand in (:func:`stands_in`) or ``candidate`` says
+    so, make their figures the places' (``out`` and ``dist``); else record a given
+    ``candidate``.  ``bootstrap``: ``(stretch, seed)`` of :func:`median_gap`."""
+    if "graph" in dist:
+        gain, gain_se = median_gap(dist["graph"], dist["places"], bootstrap[0], seed=bootstrap[1])
+        if candidate is None:
+            candidate = "graph" if stands_in(gain, gain_se, new_ground) else "filter"
+        out.update(filter=out["places"], graph_gain=round(gain, 4), graph_se=round(gain_se, 4),
+                   candidate=candidate)
+        if candidate == "graph":
+            out["places"], dist["places"] = out["graph"], dist["graph"]
+    elif candidate is not None:
+        out["candidate"] = candidate
+
+
 def cross_fitted(settings: MotionSettings, X, Z, u, lengths, n_states: int, n_actions: int,
                  build, starts: int | None = None, span: tuple[int, int] | None = None, *,
                  candidate: str | None = None, new_ground: bool = False,
@@ -154,16 +171,7 @@ def cross_fitted(settings: MotionSettings, X, Z, u, lengths, n_states: int, n_ac
     seed = kmeans.get("random_state", 0)
     seed = seed if isinstance(seed, int) else 0
     stretch = int(round(STRETCH_RUNS * part.info["mean_run"]))
-    if "graph" in dist:  # the pose graph's places against the filter's
-        gain, gain_se = median_gap(dist["graph"], dist["places"], stretch, seed=seed)
-        if candidate is None:
-            candidate = "graph" if stands_in(gain, gain_se, new_ground) else "filter"
-        out.update(filter=out["places"], graph_gain=round(gain, 4), graph_se=round(gain_se, 4),
-                   candidate=candidate)
-        if candidate == "graph":
-            out["places"], dist["places"] = out["graph"], dist["graph"]
-    elif candidate is not None:
-        out["candidate"] = candidate
+    _weigh_graph(out, dist, candidate, new_ground, (stretch, seed))
     gap, se = median_gap(dist["places"], dist["views"], stretch, seed=seed)
     return dict(out, gap=round(gap, 4), se=round(se, 4))
 

@@ -197,19 +197,16 @@ def fit_robot(learner, data, settings, odometry, fallback=None,
     ``timings_["places"]``; True.  ``fallback``: ``(views, info, build)`` where ``mode="auto"``
     chose the route -- ``views()`` gives ``(labels, map, info)`` of the view clusters of the log
     (made only where a guard fails: the map the log gets without odometry; ``info`` what their
-    making measured), ``info`` what was measured before, ``build`` the map builder (:func:`~.learn.fit_places`; the
-    held-out check builds its view clusters by it): the route must then also pass the held-out
-    check (:func:`~.robot_check.robot_check`), else the view clusters' map stays, with the
-    warning (a point reflection, too); the share of unwalked floor
-    (:func:`~.unwalked.unwalked_share`) is recorded, and where ``headings`` are given (odometry
-    read from the scans) it must be at most :data:`~.unwalked.MAX_UNWALKED`; ``info`` is kept
-    in ``motion_info_``.  ``start``: when the seconds
-    began (``time.perf_counter``; None: now).  ``place_odometry``: the odometry the held-out
-    check places its held-out steps by (None: ``odometry``; :mod:`~.robot_scans`).
-    ``headings`` (T,) [rad]: the steps' headings closed by loops already (odometry read from
-    the scans, :func:`~.registration.scan_poses`, whose map's point symmetry is then measured
-    with :data:`~.symmetry.SCAN_REACH`; None: solved from ``odometry``, by ``solving`` where
-    given: :func:`early_headings`).  The route reads the scans with their beams in the order
+    making measured), ``info`` what was measured before, ``build`` the map builder
+    (:func:`~.learn.fit_places`; the held-out check builds its view clusters by it): the route
+    must then also pass the guards of :func:`_failed_guard`, else the view clusters' map stays,
+    with the warning; ``info`` is kept in ``motion_info_``.  ``start``: when the seconds began
+    (``time.perf_counter``; None: now).  ``place_odometry``: the odometry the held-out check
+    places its held-out steps by (None: ``odometry``; :mod:`~.robot_scans`).  ``headings`` (T,)
+    [rad]: the steps' headings closed by loops already (odometry read from the scans,
+    :func:`~.registration.scan_poses`, whose map's point symmetry is then measured with
+    :data:`~.symmetry.SCAN_REACH`; None: solved from ``odometry``, by ``solving`` where given:
+    :func:`early_headings`).  The route reads the scans with their beams in the order
     :func:`~.beams.beam_order` finds (beam 0 ahead, anticlockwise; kept in ``robot_map_``), but
     for odometry read from the scans, whose frame is the scans' own."""
     _check_log(data, odometry)
@@ -233,35 +230,46 @@ def fit_robot(learner, data, settings, odometry, fallback=None,
             "path_m": round(float(np.hypot(*np.diff(poses[:, :2], axis=0).T).sum()), 2),
             "symmetry": point_symmetry(model, None if headings is None else SCAN_REACH),
             **({} if order is None else {"beams": described(order)})}
-    mirrored = info["symmetry"]["ratio"] < SYMMETRY_RATIO
-    reach = float(np.median(X))
-    if fallback is not None and model.spacing > MAX_SPACING_RANGE * reach:
-        return _fall_back(learner, settings, fallback, info, _scale_reason(info, reach), start)
-    if fallback is not None and mirrored:
-        return _fall_back(learner, settings, fallback, info, _symmetry_reason(info), start)
     if fallback is not None:
-        info["unwalked"] = round(unwalked_share(model), 4)
-        # a guard where the check cannot see unwalked floor: odometry read from the scans, and a
-        # log whose last part went where the rest never did (the check holds out covered ground)
-        first = held_out_span(len(X), settings.check.holdout, labels)[0] == 0
-        if (headings is not None or first) and info["unwalked"] > MAX_UNWALKED:
-            return _fall_back(learner, settings, fallback, info, _coverage_reason(info), start)
-        info["check"] = robot_check(X, data.u, odometry, learner.map_split_.n_states,
-                                    lambda X, u, views: fallback[2](X, u, views, [len(X)],
-                                                                    pooled=True),
-                                    settings.check.holdout, learner.random_state,
-                                    symbols=learner.labels_phase1_, headings=poses[:, 2],
-                                    place_odometry=place_odometry, views=views,
-                                    places=labels)
-        if not robot_wins(info["check"]):
-            return _fall_back(learner, settings, fallback, info, check_reason(info["check"]),
-                              start)
-    if mirrored:
+        reason = _failed_guard(learner, data, settings, (X, model, labels, poses, info),
+                               (fallback, views, odometry, place_odometry, headings is not None))
+        if reason is not None:
+            return _fall_back(learner, settings, fallback, info, reason, start)
+    if info["symmetry"]["ratio"] < SYMMETRY_RATIO:
         labels, m = _view_clusters(learner, data, settings, info)
     else:
         m = _places_map(learner, data, labels)
         learner.robot_map_ = model
     return bind_places(learner, m, labels, info, settings, start)
+
+
+def _failed_guard(learner, data, settings, route, given) -> str | None:
+    """Why the route's map gives way to the view clusters (one line), None where every guard
+    passes, in turn: its cells within the scans' reach (:data:`MAX_SPACING_RANGE`), not its
+    own point reflection, the floor its scans saw walked (:func:`~.unwalked.unwalked_share`,
+    recorded; a guard on odometry read from the scans and where the check holds out the first
+    part, which cannot show unwalked floor) and the held-out check
+    (:func:`~.robot_check.robot_check`).  ``route``: ``(X, model, places, poses, info)`` of
+    :func:`fit_robot`, ``info`` taking the guards' figures; ``given``: ``(fallback, views,
+    odometry, place_odometry, from_scans)``."""
+    X, model, labels, poses, info = route
+    fallback, views, odometry, place_odometry, from_scans = given
+    reach = float(np.median(X))
+    if model.spacing > MAX_SPACING_RANGE * reach:
+        return _scale_reason(info, reach)
+    if info["symmetry"]["ratio"] < SYMMETRY_RATIO:
+        return _symmetry_reason(info)
+    info["unwalked"] = round(unwalked_share(model), 4)
+    first = held_out_span(len(X), settings.check.holdout, labels)[0] == 0
+    if (from_scans or first) and info["unwalked"] > MAX_UNWALKED:
+        return _coverage_reason(info)
+    info["check"] = robot_check(X, data.u, odometry, learner.map_split_.n_states,
+                                lambda X, u, views: fallback[2](X, u, views, [len(X)],
+                                                                pooled=True),
+                                settings.check.holdout, learner.random_state,
+                                symbols=learner.labels_phase1_, headings=poses[:, 2],
+                                place_odometry=place_odometry, views=views, places=labels)
+    return None if robot_wins(info["check"]) else check_reason(info["check"])
 
 
 def _fall_back(learner, settings, fallback, info: dict, reason: str, start: float) -> bool:
