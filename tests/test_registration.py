@@ -153,3 +153,16 @@ def test_scan_points_of_many_scans_are_each_scans_own_and_pairs_register_as_alon
         one, _, c = R.register(X[0], X[j], MAX_RANGE - 1e-9, [starts[e]])
         np.testing.assert_array_equal(m[e], one)
         assert cost[e] == c
+
+
+def test_the_retry_weighs_a_cost_against_the_lesser_of_the_recent_median_and_the_step_before():
+    # a stretch of poor registrations (cost 40) then a good one (17.3): a wrong turn costing
+    # 53.3 lies below twice the median (80) but above twice the step before (34.6)
+    costs = [40.0] * 99 + [17.3]
+    assert R.retry_yardstick(costs) == 17.3
+    assert 53.3 > R.RETRY_COST * R.retry_yardstick(costs)
+    # a step before dearer than the recent median: the median (10)
+    assert R.retry_yardstick([10.0] * 50 + [30.0]) == 10.0
+    # only the last RECENT costs make the median: 40 of 100 at 7, 60 at 5 -> 5
+    assert R.retry_yardstick([100.0] * 200 + [7.0] * 40 + [5.0] * 59 + [50.0]) == 5.0
+
