@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from topomap.core.motion import registration as R
+from topomap.core.motion.reckoning import compose, relative_pose
 
 W, H = 2.0, 1.2     # m: a rectangular room, wider than deep (no turn by 90 degrees maps it onto
 B = 60              # itself, nor by 180 degrees about a point off its centre); beams
@@ -33,7 +34,7 @@ def test_points_of_a_scan_drop_beams_with_no_return():
 
 def test_compose_and_relative_undo_each_other():
     a, b = np.array([0.3, -0.2, 0.7]), np.array([0.05, 0.02, -0.3])
-    np.testing.assert_allclose(R._relative(a, R.compose(a, b)), b, atol=1e-12)
+    np.testing.assert_allclose(relative_pose(a, compose(a, b)), b, atol=1e-12)
 
 
 @pytest.mark.parametrize("move", [(0.03, 0.0, 0.0), (0.02, 0.01, 0.15), (-0.01, 0.02, -0.25)])
@@ -46,7 +47,7 @@ def test_registration_recovers_a_known_rigid_motion(move):
     # points, up to 8 x 1.5 / 60 = 2 mm of translation, and 2 mm over the mean range (0.6 m)
     # of turn.  A wrong match is off by centimetres and tenths of a radian.
     start = np.array([0.7, 0.45, 0.3])
-    end = R.compose(start, np.array(move))
+    end = compose(start, np.array(move))
     m, paired, _ = R.register(_scan(*start), _scan(*end), MAX_RANGE - 1e-9)
     assert paired == B
     np.testing.assert_allclose(m[:2], move[:2], atol=2e-3)
@@ -63,10 +64,10 @@ def test_scan_odometry_follows_a_walk_and_a_sudden_half_turn():
     poses = [np.array([0.5, 0.4, 0.2])]
     for t in range(90):
         turn = 2.0 if t == 60 else 0.02
-        poses.append(R.compose(poses[-1], np.array([0.01, 0.0, turn])))
+        poses.append(compose(poses[-1], np.array([0.01, 0.0, turn])))
     X = np.array([_scan(*p) for p in poses])
     est = R.scan_odometry(X, MAX_RANGE)
-    truth = np.array([R._relative(poses[0], p) for p in poses])
+    truth = np.array([relative_pose(poses[0], p) for p in poses])
     np.testing.assert_allclose(est[:, :2], truth[:, :2], atol=18 * 2e-3)
     np.testing.assert_allclose(est[:, 2], truth[:, 2], atol=18 * 2e-3 / 0.6)
 
@@ -74,7 +75,7 @@ def test_scan_odometry_follows_a_walk_and_a_sudden_half_turn():
 def test_scan_odometry_reads_the_largest_range_as_no_return():
     poses = [np.array([0.5, 0.4, 0.0])]
     for _ in range(20):
-        poses.append(R.compose(poses[-1], np.array([0.01, 0.0, 0.0])))
+        poses.append(compose(poses[-1], np.array([0.01, 0.0, 0.0])))
     X = np.array([_scan(*p) for p in poses])
     X[:, 7] = 9.0  # one beam never returns: the largest reading, left out
     est = R.scan_odometry(X)
@@ -115,7 +116,7 @@ def _walk_poses(T, turn_at=None, turn=np.pi):
     """(T, 3) poses of 1 cm steps turning 0.01 rad a step; ``turn`` more at step ``turn_at``."""
     poses = [np.zeros(3)]
     for t in range(1, T):
-        poses.append(R.compose(poses[-1], np.array([0.01, 0.0, 0.01 + (turn if t == turn_at
+        poses.append(compose(poses[-1], np.array([0.01, 0.0, 0.01 + (turn if t == turn_at
                                                                           else 0.0)])))
     return np.array(poses)
 

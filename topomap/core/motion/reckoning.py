@@ -17,8 +17,8 @@ import numpy as np
 from . import scans as S
 from .inputs import odometry_moves
 
-__all__ = ["forward_moves", "reckon", "command_poses", "keyframes", "KEYFRAME_MAX_STEPS",
-           "STOP"]
+__all__ = ["forward_moves", "reckon", "command_poses", "keyframes", "compose", "relative_pose",
+           "KEYFRAME_MAX_STEPS", "STOP"]
 
 #: steps: a keyframe at least this often, so a robot standing still or turning on the spot is
 #: still placed every 5 s at 10 Hz (the research route's value; not tuned)
@@ -68,3 +68,15 @@ def keyframes(poses, delta: float, max_steps: int = KEYFRAME_MAX_STEPS) -> np.nd
             ks.append(t)
             acc = 0.0
     return np.array(ks, dtype=np.int64)
+
+
+def compose(a, b) -> np.ndarray:
+    """The pose ``b`` (x, y, heading), given in the frame of pose ``a``, in ``a``'s frame's."""
+    c, s = np.cos(a[2]), np.sin(a[2])
+    return np.array([a[0] + c * b[0] - s * b[1], a[1] + s * b[0] + c * b[1], a[2] + b[2]])
+
+
+def relative_pose(a, b) -> np.ndarray:
+    """Pose ``b`` in the frame of pose ``a``."""
+    c, s, dx, dy = np.cos(a[2]), np.sin(a[2]), b[0] - a[0], b[1] - a[1]
+    return np.array([c * dx + s * dy, -s * dx + c * dy, b[2] - a[2]])

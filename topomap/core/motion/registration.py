@@ -10,9 +10,10 @@ constant velocity), and the same with the turn read from the scans' circular cro
 (:func:`~.scans.scan_turns`) -- and the least-cost result kept, unless it turns the scan by
 over ``TURN_CHECK`` in one step at a cost near a result's that turns less (scans that look
 alike turned round: that one kept, :func:`checked_turn`); one costing over ``RETRY_COST``
-times the recent median is tried again from every ``SWEEP_BEAMS``-th rotation (a sudden turn).
-A new keyframe is taken once the scan has moved ``KEYFRAME_TRAVEL`` or turned ``KEYFRAME_TURN``
-from the last, so the drift grows with keyframes, not steps.  Beams reading the range's maximum
+times the lesser of the recent median and the step before's is tried again from every
+``SWEEP_BEAMS``-th rotation (a sudden turn).  A new keyframe is taken once the scan has moved
+``KEYFRAME_TRAVEL`` or turned ``KEYFRAME_TURN`` from the last, so the drift grows with
+keyframes, not steps.  Beams reading the range's maximum
 (no return, or a dropout) carry no point.  The result is a pose per step (x [m], y [m], heading
 [rad]) from ``(0, 0, 0)``, the shape of a wheel odometry.
 
@@ -36,10 +37,10 @@ import scipy.sparse.linalg as spl
 from numba import njit
 
 from . import scans as S
-from .reckoning import forward_moves, reckon
+from .reckoning import compose, forward_moves, reckon, relative_pose
 
 __all__ = ["scan_points", "register", "register_each", "checked_turn", "resolve_turns",
-           "scan_odometry", "scan_poses", "compose", "retry_yardstick", "KEYFRAME_TRAVEL",
+           "scan_odometry", "scan_poses", "retry_yardstick", "KEYFRAME_TRAVEL",
            "KEYFRAME_TURN", "ICP_ITERATIONS", "CAUCHY_M", "MAX_PAIR_M", "RETRY_COST",
            "RETRY_GAIN", "RECENT", "SWEEP_BEAMS", "CLOSURE_COST", "CHAIN_SD_M", "CLOSURE_SD_M",
            "POSITION_GATE_M", "NORMAL_HALF", "NORMAL_GAP_M", "TURN_CHECK"]
@@ -60,14 +61,10 @@ CAUCHY_M = 0.02
 #: m: a point farther than this from its nearest keyframe point has no pair (the spacing of 6-
 #: degree beams at 1.4 m; not tuned)
 MAX_PAIR_M = 0.15
-#: times the lesser of the median cost of the last ``RECENT`` registrations and the step
-#: before's: above it a registration is tried again from every ``SWEEP_BEAMS``-th rotation (a
-#: turn of 2 rad in one step, as a robot bounced off a wall makes, lies beyond the starts and
-#: the scans' turn may read it wrongly).  The step before's cost counts because a cost follows
-#: the scene: robot_twin@0.3333 seed 1, step 6787, a true turn of 1.47 rad read as 0.11 at a
-#: cost of 53.3 -- the step before's 17.3, the recent median 39.9 (a stretch of 15-73) -- put
-#: the rest of the walk 0.5 rad off; the sweep finds 1.50 rad at 18.6.  Retries 51 -> 71 of
-#: 18,000 steps on that walk, 5 kept
+#: times the lesser of the recent median cost (``RECENT`` registrations) and the step before's:
+#: above it a registration is tried again from every ``SWEEP_BEAMS``-th rotation (a robot bounced
+#: off a wall turns up to 2 rad in a step; with the median alone robot_twin@0.3333 seed 1 read a
+#: turn of 1.47 rad as 0.11 and its closed headings lay 0.5 rad off, with the step before's 0.02)
 RETRY_COST = 2.0
 #: a retry's motion is kept where its cost is below this share of the first one's and it has
 #: moved less than ``KEYFRAME_TRAVEL`` from the step before (a wrong match of a wide sweep moved
@@ -278,18 +275,6 @@ def checked_turn(results, before) -> tuple[np.ndarray, int, float]:
     return best if best[2] < RETRY_GAIN * other[2] else other
 
 
-def compose(a, b) -> np.ndarray:
-    """The pose ``b`` (x, y, heading), given in the frame of pose ``a``, in ``a``'s frame's."""
-    c, s = np.cos(a[2]), np.sin(a[2])
-    return np.array([a[0] + c * b[0] - s * b[1], a[1] + s * b[0] + c * b[1], a[2] + b[2]])
-
-
-def _relative(a, b) -> np.ndarray:
-    """Pose ``b`` in the frame of pose ``a``."""
-    c, s, dx, dy = np.cos(a[2]), np.sin(a[2]), b[0] - a[0], b[1] - a[1]
-    return np.array([c * dx + s * dy, -s * dx + c * dy, b[2] - a[2]])
-
-
 def scan_odometry(X, max_range: float | None = None,
                   alternatives: list | None = None) -> np.ndarray:
     """(T, 3) poses (x [m], y [m], heading [rad]) of a walk of egocentric scans ``X`` (T, B) from
@@ -333,7 +318,7 @@ def scan_odometry(X, max_range: float | None = None,
         poses[t] = compose(poses[key], m)
         if alternatives is not None and rival is not None:
             alternatives.append((t, compose(poses[key], rival)))
-        last = _relative(poses[t - 1], poses[t])
+        last = relative_pose(poses[t - 1], poses[t])
         rel = m
         if np.hypot(m[0], m[1]) >= KEYFRAME_TRAVEL or abs(m[2]) >= KEYFRAME_TURN:
             key, rel = t, np.zeros(3)
@@ -437,7 +422,7 @@ def scan_poses(X, max_range: float | None = None, windows=S.WINDOWS,
         return P
     points, valid = scan_points(X, max_range - 1e-9)
     t = np.arange(1, T, max(1, T // 500))
-    rel = np.array([_relative(P[a - 1], P[a]) for a in t]).reshape(-1, 3)
+    rel = np.array([relative_pose(P[a - 1], P[a]) for a in t]).reshape(-1, 3)
     _, chain_cost = _register_pairs(points, valid, t - 1, t, rel)
     limit = CLOSURE_COST * float(np.median(chain_cost))
     ci, cj = np.asarray(ci, dtype=np.int64), np.asarray(cj, dtype=np.int64)
