@@ -115,13 +115,30 @@ def clone_forward_into(tables, vals, prune, alpha, log_c):
         o = boff[blk[t - 1]]
         acc = buf[:n]
         acc[:] = 0.0
-        for i in range(a0 - p0):
-            ai = alpha[p0 + i]
-            if ai == 0.0:
+        # the rows of the non-zero messages, two a pass: (acc + a1 r1) + a2 r2 is the sum of
+        # the rows one by one, bit for bit, and reads and writes acc once for both (0.84x the
+        # pass's CPU on the 74 E-steps of the 12x12 room, seed 0: rows of about 20 clones;
+        # four a pass took 1.8x, the compiler no longer vectorising the loop)
+        m = a0 - p0
+        i = 0
+        while i < m:
+            a1 = alpha[p0 + i]
+            if a1 == 0.0:
+                i += 1
                 continue
-            row = vals[o + i * n:o + (i + 1) * n]
+            k = i + 1
+            while k < m and alpha[p0 + k] == 0.0:
+                k += 1
+            r1 = vals[o + i * n:o + (i + 1) * n]
+            if k == m:
+                for j in range(n):
+                    acc[j] += a1 * r1[j]
+                break
+            a2 = alpha[p0 + k]
+            r2 = vals[o + k * n:o + (k + 1) * n]
             for j in range(n):
-                acc[j] += ai * row[j]
+                acc[j] = (acc[j] + a1 * r1[j]) + a2 * r2[j]
+            i = k + 1
         alpha[a0:a0 + n] = acc
         log_c[t] = np.log(normalise_block(alpha, a0, n, prune))
     return alpha, log_c
