@@ -89,6 +89,16 @@ def test_viterbi_matches_enumeration(seed):
     np.testing.assert_array_equal(path, best)
 
 
+def test_viterbi_ties_go_to_the_lowest_clones():
+    """A model under which every path is as probable as every other: the path takes the first
+    clone of every step's symbol, and its log-probability is each episode's uniform start."""
+    lay, vals = tiny_case(0, lengths=(5, 4), clones=(2, 3, 4))
+    path, log_p = viterbi(lay.tables, np.zeros(vals.size))
+    np.testing.assert_array_equal(path, lay.start[lay.sym])
+    clones = np.diff(lay.start)
+    assert log_p == pytest.approx(-np.log(clones[lay.sym[0]]) - np.log(clones[lay.sym[5]]))
+
+
 @pytest.mark.parametrize("seed", range(4))
 def test_zero_transitions_are_skipped_exactly(seed):
     """Exact zeros in the model give zero forward messages; skipping them changes nothing."""
