@@ -139,6 +139,17 @@ def test_soft_forward_sums_the_rows_in_order(prune):
     assert prune == 0.0 or (np.any(rows % 2 == 1) and np.any(rows % 2 == 0))
 
 
+def test_soft_viterbi_ties_go_to_the_earliest_candidates():
+    """A log model under which every path is as probable as every other (all zeros): the path
+    takes the first candidate of every step, and its log-probability is 0."""
+    data, model = _tiny()
+    zeros = SoftModel(np.zeros_like(model.trans), np.zeros_like(model.emit), np.zeros(3),
+                      model.cptr, model.cidx)
+    path, lp = soft_viterbi(data, zeros, soft_offsets(data, model))
+    np.testing.assert_array_equal(path, model.cidx[model.cptr[data.read]])
+    assert lp == 0.0
+
+
 def test_candidates_skip_zero_evidence():
     data, model = _tiny()
     # read symbol 0 allows clones 0 and 1 only; read symbol 1 all three
