@@ -149,7 +149,7 @@ def successor_pairing(seq, labels) -> float:
 @njit(cache=True)
 def twin_pairs(kptr, dest, share, symbol, n_keys):
     """The largest predecessor overlap of every state with a state of another symbol, from the
-    states every predecessor key leads to (see :func:`topomap.core.refine.soft_states.twin_overlap`).
+    states every predecessor key leads to (see :func:`twin_overlap`).
 
     ``dest[kptr[k]:kptr[k + 1]]`` are the states key ``k`` leads to, in increasing order, and
     ``share`` the part of each state's arrivals that key brings; ``symbol`` (S,) the symbol of
