@@ -89,6 +89,16 @@ def test_viterbi_matches_enumeration(seed):
     np.testing.assert_array_equal(path, best)
 
 
+def test_viterbi_ties_go_to_the_lowest_clones():
+    """A model under which every path is as probable as every other: the path takes the first
+    clone of every step's symbol, and its log-probability is each episode's uniform start."""
+    lay, vals = tiny_case(0, lengths=(5, 4), clones=(2, 3, 4))
+    path, log_p = viterbi(lay.tables, np.zeros(vals.size))
+    np.testing.assert_array_equal(path, lay.start[lay.sym])
+    clones = np.diff(lay.start)
+    assert log_p == pytest.approx(-np.log(clones[lay.sym[0]]) - np.log(clones[lay.sym[5]]))
+
+
 @pytest.mark.parametrize("seed", range(4))
 def test_zero_transitions_are_skipped_exactly(seed):
     """Exact zeros in the model give zero forward messages; skipping them changes nothing."""
@@ -247,6 +257,49 @@ def test_column_pass_gives_the_row_pass_bits(prune):
     np.testing.assert_array_equal(cols[0], rows[0])
     np.testing.assert_array_equal(cols[1], rows[1])
     assert not np.array_equal(rows[0], start_counts)
+
+
+def forward_row_by_row(lay, vals, prune):
+    """The forward pass written out: each step's message sums the rows of the non-zero messages
+    before it one by one, in order, then is scaled to sum 1 (summed in order) and pruned."""
+    sym, blk, start, boff, pos = lay.tables
+    alpha, log_c = np.empty(pos[-1]), np.empty(sym.size)
+    for t in range(sym.size):
+        a0, n = pos[t], pos[t + 1] - pos[t]
+        if t == 0 or blk[t - 1] < 0:
+            alpha[a0:a0 + n], log_c[t] = 1.0 / n, 0.0
+            continue
+        p0, o = pos[t - 1], boff[blk[t - 1]]
+        acc = np.zeros(n)
+        for i in range(a0 - p0):
+            if alpha[p0 + i] != 0.0:
+                acc = acc + alpha[p0 + i] * vals[o + i * n:o + (i + 1) * n]
+        c = 0.0
+        for x in acc:
+            c += x
+        scaled = acc / c
+        alpha[a0:a0 + n] = np.where(scaled >= prune, scaled, 0.0)
+        log_c[t] = np.log(c)
+    return alpha, log_c
+
+
+@pytest.mark.parametrize("prune", [0.0, 0.02])
+def test_forward_pass_sums_the_rows_in_order(prune):
+    """The forward pass (rows of non-zero messages added two at a time) gives the messages of
+    the pass written out row by row, bit for bit, with pruned clones leaving odd and even
+    numbers of rows a step, and the same log scaling factors."""
+    rng = np.random.default_rng(5)
+    T, clones = 3000, np.array([7, 4, 6])
+    sym, u = rng.integers(0, 3, T), rng.integers(0, 2, T)
+    lay = make_layout(sym, u, np.array([1000, 2000]), clones, 2)
+    vals = m_step(lay, rng.random(int(lay.boff[-1])) ** 6, 1e-3, joint=False)
+    alpha, log_c = forward(lay.tables, vals, prune)
+    want, want_log_c = forward_row_by_row(lay, vals, prune)
+    np.testing.assert_array_equal(alpha, want)
+    np.testing.assert_allclose(log_c, want_log_c, rtol=1e-15, atol=0)
+    rows = np.add.reduceat(alpha != 0, lay.pos[:-1])  # non-zero messages a step
+    assert prune == 0.0 or (np.any(rows % 2 == 1) and np.any(rows % 2 == 0) and (rows < clones[
+        lay.sym]).any())
 
 
 @pytest.mark.parametrize("T, column", [(4000, True), (40, False)])

@@ -101,6 +101,30 @@ def test_gds_ids_keep_one_state():
     assert adjusted_rand_score(places, fit.labels_) == 1.0
 
 
+@pytest.mark.parametrize("a, b, same", [
+    ([0, 0, 1, 1, 2], [7, 7, 3, 3, 9], True),     # renamed
+    ([0, 1, 0, 1], [1, 0, 1, 0], True),           # names swapped
+    ([-2, -2, 5, 5], [0, 0, 1, 1], True),         # any integers
+    ([0, 0, 1, 1], [5, 6, 5, 6], False),          # as many groups, crossed: 4 pairs
+    ([0, 0, 1, 1], [0, 0, 0, 0], False),          # two groups joined
+    ([0, 0, 0, 0], [0, 0, 1, 1], False),          # one group cut
+    ([0, 1, 1, 2], [0, 1, 2, 2], False),          # one step moved: 4 pairs, 3 groups each
+])
+def test_same_partition_hand_cases(a, b, same):
+    assert same_partition(np.array(a), np.array(b)) is same
+
+
+def test_same_partition_is_equality_of_the_groups():
+    """Against the definition: the same set of groups of steps, on small random labellings."""
+    rng = np.random.default_rng(0)
+    for _ in range(300):
+        a = rng.integers(0, 4, 7)
+        b = rng.permutation(9)[a] if rng.random() < 0.5 else rng.integers(0, 4, 7)
+        groups = [{frozenset(np.flatnonzero(x == v).tolist()) for v in np.unique(x)}
+                  for x in (a, b)]
+        assert same_partition(a, b) == (groups[0] == groups[1])
+
+
 def test_merge_joins_duplicates_of_one_place():
     """Duplicate every place: each visit goes to one of two copies at random."""
     sym, u, places = ring_walk(4000, RING, 3)

@@ -89,6 +89,67 @@ def test_kernels_match_enumeration(seed):
     assert lp == pytest.approx(best_lp, rel=1e-10)
 
 
+def _soft_forward_row_by_row(data, model, pos, prune):
+    """The soft forward pass written out: each step's message sums the transition rows of the
+    non-zero messages before it one by one, in order, weighs them by the evidence, then is
+    scaled to sum 1 (summed in order) and pruned."""
+    alpha, log_c = np.zeros(pos[-1]), np.zeros(data.read.size)
+    for t, r in enumerate(data.read):
+        cand = model.cidx[model.cptr[r]:model.cptr[r + 1]]
+        if t == 0 or not data.has_next[t - 1]:
+            acc = model.init[cand] * model.emit[cand, r]
+        else:
+            before = model.cidx[model.cptr[data.read[t - 1]]:model.cptr[data.read[t - 1] + 1]]
+            acc = np.zeros(cand.size)
+            for i, ci in enumerate(before):
+                if alpha[pos[t - 1] + i] != 0.0:
+                    acc = acc + alpha[pos[t - 1] + i] * model.trans[data.u[t - 1], ci, cand]
+            acc = acc * model.emit[cand, r]
+        c = 0.0
+        for x in acc:
+            c += x
+        scaled = acc / c
+        alpha[pos[t]:pos[t + 1]] = np.where(scaled >= prune, scaled, 0.0)
+        log_c[t] = np.log(c)
+    return alpha, log_c
+
+
+@pytest.mark.parametrize("prune", [0.0, 0.05])
+def test_soft_forward_sums_the_rows_in_order(prune):
+    """The soft forward pass (rows of non-zero messages added two at a time where a step's
+    candidates are a run of clones) gives the messages of the pass written out row by row, bit
+    for bit, with pruned candidates leaving odd and even numbers of rows a step."""
+    rng = np.random.default_rng(7)
+    A, S, K, T = 2, 9, 3, 2000
+    trans = rng.random((A, S, S)) ** 4 + 1e-3
+    trans /= trans.sum(axis=2, keepdims=True)
+    emit = rng.random((S, K)) + 0.05
+    emit /= emit.sum(axis=1, keepdims=True)
+    cptr, cidx = soft_candidates(emit)
+    has_next = np.ones(T, dtype=bool)
+    has_next[[700, T - 1]] = False
+    data = SoftData(rng.integers(0, K, T), rng.integers(0, A, T), has_next)
+    model = SoftModel(trans, emit, np.full(S, 1.0 / S), cptr, cidx)
+    pos = soft_offsets(data, model)
+    alpha, log_c = soft_forward(data, model, pos, prune)
+    want, want_log_c = _soft_forward_row_by_row(data, model, pos, prune)
+    np.testing.assert_array_equal(alpha, want)
+    np.testing.assert_allclose(log_c, want_log_c, rtol=1e-15, atol=0)
+    rows = np.add.reduceat(alpha != 0, pos[:-1])
+    assert prune == 0.0 or (np.any(rows % 2 == 1) and np.any(rows % 2 == 0))
+
+
+def test_soft_viterbi_ties_go_to_the_earliest_candidates():
+    """A log model under which every path is as probable as every other (all zeros): the path
+    takes the first candidate of every step, and its log-probability is 0."""
+    data, model = _tiny()
+    zeros = SoftModel(np.zeros_like(model.trans), np.zeros_like(model.emit), np.zeros(3),
+                      model.cptr, model.cidx)
+    path, lp = soft_viterbi(data, zeros, soft_offsets(data, model))
+    np.testing.assert_array_equal(path, model.cidx[model.cptr[data.read]])
+    assert lp == 0.0
+
+
 def test_candidates_skip_zero_evidence():
     data, model = _tiny()
     # read symbol 0 allows clones 0 and 1 only; read symbol 1 all three

@@ -115,13 +115,30 @@ def clone_forward_into(tables, vals, prune, alpha, log_c):
         o = boff[blk[t - 1]]
         acc = buf[:n]
         acc[:] = 0.0
-        for i in range(a0 - p0):
-            ai = alpha[p0 + i]
-            if ai == 0.0:
+        # the rows of the non-zero messages, two a pass: (acc + a1 r1) + a2 r2 is the sum of
+        # the rows one by one, bit for bit, and reads and writes acc once for both (0.84x the
+        # pass's CPU on the 74 E-steps of the 12x12 room, seed 0: rows of about 20 clones;
+        # four a pass took 1.8x, the compiler no longer vectorising the loop)
+        m = a0 - p0
+        i = 0
+        while i < m:
+            a1 = alpha[p0 + i]
+            if a1 == 0.0:
+                i += 1
                 continue
-            row = vals[o + i * n:o + (i + 1) * n]
+            k = i + 1
+            while k < m and alpha[p0 + k] == 0.0:
+                k += 1
+            r1 = vals[o + i * n:o + (i + 1) * n]
+            if k == m:
+                for j in range(n):
+                    acc[j] += a1 * r1[j]
+                break
+            a2 = alpha[p0 + k]
+            r2 = vals[o + k * n:o + (k + 1) * n]
             for j in range(n):
-                acc[j] += ai * row[j]
+                acc[j] = (acc[j] + a1 * r1[j]) + a2 * r2[j]
+            i = k + 1
         alpha[a0:a0 + n] = acc
         log_c[t] = np.log(normalise_block(alpha, a0, n, prune))
     return alpha, log_c
@@ -202,19 +219,22 @@ def clone_viterbi(tables, log_vals):
         else:
             m = pos[t] - pos[t - 1]
             o = boff[blk[t - 1]]
-            for j in range(n):
-                delta_next[j] = -np.inf
-                psi[pos[t] + j] = 0
+            # rows, the step's best scores and their arguments as slices: the compiler
+            # vectorises the loop over j (0.55x the pass's CPU on the 12x12 room's 13 Viterbi
+            # passes, seed 0; the same comparisons, so the same paths)
+            best_next, arg = delta_next[:n], psi[pos[t]:pos[t] + n]
+            best_next[:] = -np.inf
+            arg[:] = 0
             for i in range(m):
                 di = delta[i]
                 if di == -np.inf:
                     continue
-                row = o + i * n
+                row = log_vals[o + i * n:o + (i + 1) * n]
                 for j in range(n):
-                    v = di + log_vals[row + j]
-                    if v > delta_next[j]:
-                        delta_next[j] = v
-                        psi[pos[t] + j] = i
+                    v = di + row[j]
+                    if v > best_next[j]:
+                        best_next[j] = v
+                        arg[j] = i
             delta, delta_next = delta_next, delta
         if blk[t] < 0:
             best = 0
@@ -270,9 +290,10 @@ def clone_normalize_into(tables, counts, bsrc, bdst, bkey, n_keys, pseudocount, 
         n = start[bsrc[b] + 1] - c0
         nn = start[bdst[b] + 1] - start[bdst[b]]
         for i in range(n):
+            src = counts[boff[b] + i * nn:boff[b] + (i + 1) * nn]
             acc = 0.0
             for j in range(nn):
-                acc += counts[boff[b] + i * nn + j]
+                acc += src[j]
             Z[bkey[b], c0 + i] += acc
     for key in range(n_keys):
         for x in range(S):
@@ -284,9 +305,13 @@ def clone_normalize_into(tables, counts, bsrc, bdst, bkey, n_keys, pseudocount, 
         for i in range(n):
             z = Z[bkey[b], c0 + i]
             row = boff[b] + i * nn
+            out = vals[row:row + nn]
             if z <= 0.0:
-                vals[row:row + nn] = 0.0
+                out[:] = 0.0
                 continue
+            # rows as slices: the compiler vectorises the division (the same quotients; 0.43x
+            # the M-step's CPU on 13 E-steps of the 12x12 room, seed 0)
+            src = counts[row:row + nn]
             for j in range(nn):
-                vals[row + j] = (counts[row + j] + pseudocount) / z
+                out[j] = (src[j] + pseudocount) / z
     return vals, Z

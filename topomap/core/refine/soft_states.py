@@ -8,9 +8,10 @@ the next view (:func:`successor_surprise`) and whether its moves show two symbol
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
+from ..sums import sparse_pairwise_sum
 from .clones import compact_labels
-from .soft_kernels import twin_pairs
 
 __all__ = ["twin_overlap", "merge_twins", "min_steps_of", "keep_states", "successor_surprise",
            "successor_pairing"]
@@ -24,7 +25,7 @@ def twin_overlap(labels, state_symbol, u, has_next, n_actions: int, n_symbols: i
     predecessor key (overlap near 0).  GDS states get 0.  Returns ``(overlap, twin)``, ``twin``
     the state ``Y`` (the lowest of equals; the first state of another symbol when none shares
     a key, -1 for GDS states and where no state of another symbol exists).  Only states that
-    share a key are compared (:func:`topomap.core.refine.soft_kernels.twin_pairs`)."""
+    share a key are compared (:func:`twin_pairs`)."""
     S, A = state_symbol.size, n_actions
     t = np.flatnonzero(has_next)
     code, count = np.unique(labels[t + 1] * (S * A) + labels[t] * A + u[t], return_counts=True)
@@ -143,3 +144,51 @@ def successor_pairing(seq, labels) -> float:
     rows /= np.maximum(rows.sum(axis=1, keepdims=True), 1.0)
     np.fill_diagonal(rows, 0.0)
     return float(rows.max())
+
+
+@njit(cache=True)
+def twin_pairs(kptr, dest, share, symbol, n_keys):
+    """The largest predecessor overlap of every state with a state of another symbol, from the
+    states every predecessor key leads to (see :func:`twin_overlap`).
+
+    ``dest[kptr[k]:kptr[k + 1]]`` are the states key ``k`` leads to, in increasing order, and
+    ``share`` the part of each state's arrivals that key brings; ``symbol`` (S,) the symbol of
+    every state, -1 for those left out (GDS).  Returns ``(overlap, twin)``: for every state ``x``
+    the largest ``sum_k min(share_x(k), share_y(k))`` over the states ``y`` of another symbol it
+    shares a key with (the lowest ``y`` of equals) -- each sum taken as numpy sums the dense row
+    of ``n_keys`` entries (:func:`topomap.core.sums.sparse_pairwise_sum`), so the values are those
+    of the dense computation bit for bit -- and 0.0 with ``twin`` -1 where it shares none.
+    """
+    S = symbol.size
+    n_pairs = 0
+    for k in range(kptr.size - 1):
+        m = kptr[k + 1] - kptr[k]
+        n_pairs += m * (m - 1)
+    px = np.empty(n_pairs, dtype=np.int64)
+    py = np.empty(n_pairs, dtype=np.int64)
+    pk = np.empty(n_pairs, dtype=np.int64)
+    pv = np.empty(n_pairs)
+    n = 0
+    for k in range(kptr.size - 1):
+        for a in range(kptr[k], kptr[k + 1]):
+            x = dest[a]
+            for b in range(kptr[k], kptr[k + 1]):
+                y = dest[b]
+                if a != b and symbol[x] >= 0 and symbol[y] >= 0 and symbol[x] != symbol[y]:
+                    px[n], py[n], pk[n] = x, y, k
+                    pv[n] = min(share[a], share[b])
+                    n += 1
+    order = np.argsort((px[:n] * S + py[:n]) * n_keys + pk[:n])
+    overlap = np.zeros(S)
+    twin = np.full(S, -1, dtype=np.int64)
+    i = 0
+    while i < n:
+        j = i
+        x, y = px[order[i]], py[order[i]]
+        while j < n and px[order[j]] == x and py[order[j]] == y:
+            j += 1
+        ov = sparse_pairwise_sum(pk[order[i:j]], pv[order[i:j]], n_keys)
+        if ov > overlap[x]:
+            overlap[x], twin[x] = ov, y
+        i = j
+    return overlap, twin
