@@ -148,7 +148,7 @@ def _step(delta, move, graph, kernel, out, work):
     cent, nb_ptr, nb_idx = graph[0], graph[1], graph[2]
     sd, log_turn, jump = kernel
     new, arg = out
-    cos_h, sin_h, _, top, top_c, below, lps, px, py, tots, v0s, hs, row, best, j_best = work
+    cos_h, sin_h, _, top, top_c, below, lps, px, py, tots, v0s, hs, row, best = work
     N, B = delta.shape
     f, lft, s0 = move[0], move[1], int(move[2]) % B
     W = (log_turn.size - 1) // 2
@@ -199,30 +199,26 @@ def _step(delta, move, graph, kernel, out, work):
         for x in range(B + 2 * W):  # row[h2 + 2 W - j] = top[c2, h2 + W - j]
             row[x] = top[c2, _wrap(x - W, B)]
         for h2 in range(B):
-            best[h2], j_best[h2] = floor, -1
+            best[h2] = floor
         for j in range(2 * W + 1):
+            lt = log_turn[j]
             for h2 in range(B):
-                v = row[h2 + 2 * W - j] + log_turn[j]
-                up = v > best[h2]
-                best[h2] = v if up else best[h2]
-                j_best[h2] = j if up else j_best[h2]
-        for h2 in range(B):
-            j = j_best[h2]
-            new[c2, h2] = best[h2]
-            if j < 0:
-                arg[c2, h2] = arg_all
-                continue
-            hh = _wrap(h2 + W - j, B)
-            src = top_c[c2, hh] * B + _wrap(hh - s0, B)
-            tied = below[c2, hh] + log_turn[j] == best[h2]
-            for j2 in range(j + 1, 2 * W + 1):  # the kernel's later turns to the same score
-                if row[h2 + 2 * W - j2] + log_turn[j2] == best[h2]:
-                    hh = _wrap(h2 + W - j2, B)
-                    src = min(src, top_c[c2, hh] * B + _wrap(hh - s0, B))
-                    tied = tied or below[c2, hh] + log_turn[j2] == best[h2]
+                v = row[h2 + 2 * W - j] + lt
+                best[h2] = v if v > best[h2] else best[h2]
+        for h2 in range(B):  # the first source among the turns that reach the best
+            b = best[h2]
+            new[c2, h2] = b
+            src, tied = -1, False
+            if b > floor:
+                for j in range(2 * W + 1):
+                    if row[h2 + 2 * W - j] + log_turn[j] == b:
+                        hh = _wrap(h2 + W - j, B)
+                        s = top_c[c2, hh] * B + _wrap(hh - s0, B)
+                        src = s if src < 0 else min(src, s)
+                        tied = tied or below[c2, hh] + log_turn[j] == b
             if tied:
                 new[c2, h2], src = _into(delta, move, c2, h2, best_all, graph, kernel, work)
-            arg[c2, h2] = src
+            arg[c2, h2] = src if src >= 0 else arg_all
 
 
 @njit(cache=True)
@@ -260,15 +256,14 @@ def _buffers(N, B, most, turns):
     successors and a heading kernel of ``turns`` bins: each bin's cosine and sine, a cell's
     successors' log weights (``lp``), ``top``, ``top_c`` and ``below`` (N, B), a cell's
     headings' log weights (``lps``, most x B), move ends (x, y), normalisers, scores and bins,
-    a row of ``top`` padded by the kernel's reach, each target bin's best score and turn."""
+    a row of ``top`` padded by the kernel's reach, each target bin's best score."""
     cos_h, sin_h = np.empty(B), np.empty(B)
     for h in range(B):
         cos_h[h], sin_h[h] = np.cos(2 * np.pi * h / B), np.sin(2 * np.pi * h / B)
     most = max(1, most)
     return (cos_h, sin_h, np.empty(most), np.empty((N, B)), np.empty((N, B), dtype=np.int64),
             np.empty((N, B)), np.empty((most, B)), np.empty(B), np.empty(B), np.empty(B),
-            np.empty(B), np.empty(B, dtype=np.int64), np.empty(B + turns), np.empty(B),
-            np.empty(B, dtype=np.int64))
+            np.empty(B), np.empty(B, dtype=np.int64), np.empty(B + turns), np.empty(B))
 
 
 def viterbi(E, moves, cent, nb_ptr, nb_idx, sd, log_turn, log_init, jump):
