@@ -145,17 +145,25 @@ def _step(delta, move, graph, kernel, out, work):
     source.  A cell's normalisers (a log-sum-exp over its successors, summed in order) are
     summed for all its headings side by side: the same sums, independent of one another, so
     the processor overlaps them."""
-    cent, nb_ptr, nb_idx = graph[0], graph[1], graph[2]
-    sd, log_turn, jump = kernel
-    new, arg = out
-    cos_h, sin_h, _, top, top_c, below, lps, px, py, tots, v0s, hs, row, best = work
-    N, B = delta.shape
-    f, lft, s0 = move[0], move[1], int(move[2]) % B
-    W = (log_turn.size - 1) // 2
+    top, top_c, below = work[3], work[4], work[5]
     best_all, arg_all = _best(delta)
     top[:, :] = -np.inf
     top_c[:, :] = -1
     below[:, :] = -np.inf
+    _from_sources(delta, move, best_all, graph, kernel[0], work)
+    _into_targets(delta, move, (best_all, arg_all), graph, kernel, out, work)
+
+
+@njit(cache=True)
+def _from_sources(delta, move, best_all, graph, sd, work):
+    """:func:`_step`'s first pass, cell by cell: each unpruned source heading's move end, its
+    successors' log weights and normalisers (a cell's headings side by side), and the best
+    score into each ``(c2, hh)`` it reaches before the kernel (``top``, ``top_c``, ``below``)."""
+    cent, nb_ptr, nb_idx = graph[0], graph[1], graph[2]
+    cos_h, sin_h, top, top_c, below, lps = work[0], work[1], work[3], work[4], work[5], work[6]
+    px, py, tots, v0s, hs = work[7], work[8], work[9], work[10], work[11]
+    N, B = delta.shape
+    f, lft, s0 = move[0], move[1], int(move[2]) % B
     inv2 = 1.0 / (2 * sd * sd)
     for c in range(N):
         lo, hi = nb_ptr[c], nb_ptr[c + 1]
@@ -194,19 +202,33 @@ def _step(delta, move, graph, kernel, out, work):
                 below[c2, hh] = t if up else (max(b, v1) if v1 < t else b)
                 top[c2, hh] = v1 if up else t
                 top_c[c2, hh] = c if up else top_c[c2, hh]
+
+
+@njit(cache=True)
+def _into_targets(delta, move, best, graph, kernel, out, work):
+    """:func:`_step`'s second pass, cell by cell: ``new[c2]`` the best of ``top`` turned by the
+    kernel or the jump from ``best`` = ``(best_all, arg_all)``, ``arg[c2]`` its first source;
+    a state whose runner-up rounds to the same sum settled by :func:`_into`."""
+    _, log_turn, jump = kernel
+    new, arg = out
+    top, top_c, below, row, best_h = work[3], work[4], work[5], work[12], work[13]
+    best_all, arg_all = best
+    N, B = delta.shape
+    s0 = int(move[2]) % B
+    W = (log_turn.size - 1) // 2
     floor = best_all + jump
     for c2 in range(N):
         for x in range(B + 2 * W):  # row[h2 + 2 W - j] = top[c2, h2 + W - j]
             row[x] = top[c2, _wrap(x - W, B)]
         for h2 in range(B):
-            best[h2] = floor
+            best_h[h2] = floor
         for j in range(2 * W + 1):
             lt = log_turn[j]
             for h2 in range(B):
                 v = row[h2 + 2 * W - j] + lt
-                best[h2] = v if v > best[h2] else best[h2]
+                best_h[h2] = v if v > best_h[h2] else best_h[h2]
         for h2 in range(B):  # the first source among the turns that reach the best
-            b = best[h2]
+            b = best_h[h2]
             new[c2, h2] = b
             src, tied = -1, False
             if b > floor:

@@ -349,6 +349,41 @@ def _soft_occupancy(alpha, a0, beta, cidx, c0, n, r, start, stats):
 
 
 @njit(cache=True)
+def _soft_viterbi_step(delta, out, arg, trans_a, emit_r, cidx, q0, m, c0, n):
+    """One step of :func:`soft_viterbi`: ``out[k]`` the best over the ``m`` candidates before
+    (scores ``delta``, clones ``cidx[q0:q0 + m]``) of ``delta[i] + trans_a[i's clone, k's
+    clone]``, plus ``emit_r[k's clone]``, ``arg[k]`` the first ``i`` reaching it, for the ``n``
+    candidates of the step (clones ``cidx[c0:c0 + n]``)."""
+    lo = cidx[c0]
+    if n > 0 and cidx[c0 + n - 1] - lo == n - 1:
+        # a run of clones: the rows as slices, every candidate's best over the candidates
+        # before taken row by row (the same comparisons in the same order)
+        best_next = out[:n]
+        best_next[:] = -np.inf
+        arg[:] = 0
+        for i in range(m):
+            di = delta[i]
+            row = trans_a[cidx[q0 + i], lo:lo + n]
+            for k in range(n):
+                v = di + row[k]
+                if v > best_next[k]:
+                    best_next[k] = v
+                    arg[k] = i
+        for k in range(n):
+            best_next[k] += emit_r[cidx[c0 + k]]
+        return
+    for k in range(n):
+        cj = cidx[c0 + k]
+        best, arg_k = -np.inf, 0
+        for i in range(m):
+            v = delta[i] + trans_a[cidx[q0 + i], cj]
+            if v > best:
+                best, arg_k = v, i
+        out[k] = best + emit_r[cj]
+        arg[k] = arg_k
+
+
+@njit(cache=True)
 def soft_viterbi(data, log_model, pos):
     """Most probable clone sequence under ``log_model`` (a :data:`SoftModel` holding
     ``log(trans)``, ``log(emit)``, ``log(init)``; the candidate lists as usual).  Returns
@@ -369,37 +404,8 @@ def soft_viterbi(data, log_model, pos):
                 c = cidx[c0 + k]
                 delta[k] = log_model.init[c] + emit[c, r]
         else:
-            rp = read[t - 1]
-            q0 = cptr[rp]
-            m = pos[t] - pos[t - 1]
-            a = u[t - 1]
-            lo = cidx[c0]
-            if n > 0 and cidx[c0 + n - 1] - lo == n - 1:
-                # a run of clones: the rows as slices, every candidate's best over the
-                # candidates before taken row by row (the same comparisons in the same order)
-                best_next, arg = delta_next[:n], psi[pos[t]:pos[t] + n]
-                best_next[:] = -np.inf
-                arg[:] = 0
-                for i in range(m):
-                    di = delta[i]
-                    row = trans[a, cidx[q0 + i], lo:lo + n]
-                    for k in range(n):
-                        v = di + row[k]
-                        if v > best_next[k]:
-                            best_next[k] = v
-                            arg[k] = i
-                for k in range(n):
-                    best_next[k] += emit[cidx[c0 + k], r]
-            else:
-                for k in range(n):
-                    cj = cidx[c0 + k]
-                    best, arg_k = -np.inf, 0
-                    for i in range(m):
-                        v = delta[i] + trans[a, cidx[q0 + i], cj]
-                        if v > best:
-                            best, arg_k = v, i
-                    delta_next[k] = best + emit[cj, r]
-                    psi[pos[t] + k] = arg_k
+            _soft_viterbi_step(delta, delta_next, psi[pos[t]:pos[t] + n], trans[u[t - 1]],
+                               emit[:, r], cidx, cptr[read[t - 1]], pos[t] - pos[t - 1], c0, n)
             delta, delta_next = delta_next, delta
         if not has_next[t]:
             best = 0
