@@ -38,12 +38,13 @@ from numba import njit
 
 from . import scans as S
 from .reckoning import compose, forward_moves, reckon, relative_pose
+from .turn_rivals import TURN_CHECK, clearance_ahead, resolve_turns
 
 __all__ = ["scan_points", "register", "register_each", "checked_turn", "resolve_turns",
-           "scan_odometry", "scan_poses", "retry_yardstick", "KEYFRAME_TRAVEL",
-           "KEYFRAME_TURN", "ICP_ITERATIONS", "CAUCHY_M", "MAX_PAIR_M", "RETRY_COST",
-           "RETRY_GAIN", "RECENT", "SWEEP_BEAMS", "CLOSURE_COST", "CHAIN_SD_M", "CLOSURE_SD_M",
-           "POSITION_GATE_M", "NORMAL_HALF", "NORMAL_GAP_M", "TURN_CHECK"]
+           "scan_odometry", "scan_poses", "retry_yardstick",
+           "KEYFRAME_TRAVEL", "KEYFRAME_TURN", "ICP_ITERATIONS", "CAUCHY_M", "MAX_PAIR_M",
+           "RETRY_COST", "RETRY_GAIN", "RECENT", "SWEEP_BEAMS", "CLOSURE_COST", "CHAIN_SD_M",
+           "CLOSURE_SD_M", "POSITION_GATE_M", "NORMAL_HALF", "NORMAL_GAP_M", "TURN_CHECK"]
 
 #: m: a new keyframe once the scan lies this far from the last one (0.10 put robot_alike@0.3333
 #: seed 0 0.61 m off along the true headings, 0.05 0.55 m: no gain from fewer keyframes)
@@ -70,15 +71,6 @@ RETRY_COST = 2.0
 #: moved less than ``KEYFRAME_TRAVEL`` from the step before (a wrong match of a wide sweep moved
 #: 0.47 m in one step at a cost 5 % below the right one's)
 RETRY_GAIN = 0.8
-#: rad: a registration turning the scan more than this in one step (from the step before's pose)
-#: is kept only where it costs under ``RETRY_GAIN`` of the least-cost one that turns less, as a
-#: retry is: where the scans look alike turned round the two cost nearly the same, and the
-#: turned one put a walk half a turn off (robot_twin@0.3333 seed 0, step 5669: 3.13 rad at 0.89
-#: of the unturned one's cost, the true turn 0.15 rad).  The robot's true turns of over 1 rad in
-#: one step (a bounce off a wall, 1 % of steps) cost 0.16-0.44 of the unturned one's (54 on that
-#: walk's first 6,000 steps); a quarter turn is far beyond a step's ordinary turn (median 0.12
-#: rad on a turn command)
-TURN_CHECK = np.pi / 2
 #: registrations whose costs set the retry's yardstick
 RECENT = 100
 #: beams between the rotations a retry starts from
@@ -345,38 +337,6 @@ def _rival(results, m, cost):
     return min(far, key=lambda r: r[2])[0] if far else None
 
 
-def _agree(turn, closure_turn) -> int:
-    """How many of the ``turn`` s (rad) lie within :data:`~.scans.CLOSURE_GATE` of the closures'
-    own (wrapped)."""
-    return int(np.count_nonzero(np.abs(S._wrap(turn - closure_turn)) < S.CLOSURE_GATE))
-
-
-def resolve_turns(poses, alternatives, closures, window: int = S.WINDOWS[0]) -> np.ndarray:
-    """(T, 3) ``poses`` (:func:`scan_odometry`'s) with each step of ``alternatives`` (``(t,
-    pose)``, in order) set to its rival pose where more of the loop ``closures`` ``(i, j,
-    turn)`` of at most ``window`` steps across it agree with the rival (within
-    :data:`~.scans.CLOSURE_GATE` of the poses' turn from ``i`` to ``j``): the steps after it
-    move with it, rigidly (a turn the scans could read either way, settled by the scans seen
-    before and after it)."""
-    P = np.asarray(poses, dtype=np.float64).copy()
-    ci, cj, cr = (np.asarray(c) for c in closures)
-    lo, hi = np.minimum(ci, cj), np.maximum(ci, cj)
-    sign = np.where(cj >= ci, 1.0, -1.0)
-    for t, alt in alternatives:
-        sel = (lo < t) & (hi >= t) & (hi - lo <= window)
-        if not sel.any():
-            continue
-        delta = (alt[2] - P[t, 2] + np.pi) % (2 * np.pi) - np.pi
-        turn = P[cj[sel], 2] - P[ci[sel], 2]
-        if _agree(turn + delta * sign[sel], cr[sel]) > _agree(turn, cr[sel]):
-            d = P[t:, :2] - P[t, :2]
-            c, s = np.cos(alt[2] - P[t, 2]), np.sin(alt[2] - P[t, 2])
-            P[t:, :2] = alt[:2] + np.column_stack([c * d[:, 0] - s * d[:, 1],
-                                                   s * d[:, 0] + c * d[:, 1]])
-            P[t:, 2] += alt[2] - P[t, 2]
-    return P
-
-
 def _solve_positions(T, i, j, d, sd, P, iters: int = 5):
     """(T, 2) positions minimising the Cauchy loss of ``(P[j] - P[i] - d) / sd`` over the edges
     (``d`` (E, 2) [m]), ``P[0]`` held; x and y apart (headings fixed, the problem is linear)."""
@@ -406,15 +366,16 @@ def scan_poses(X, max_range: float | None = None, windows=S.WINDOWS,
     kept where its cost is at most ``CLOSURE_COST`` times the median of the chain's; the
     positions closest to the chain's moves (sd ``CHAIN_SD_M`` a step) and the closures'
     (sd ``CLOSURE_SD_M``), those with a gap of at most each window admitted in turn where
-    within ``POSITION_GATE_M`` of the positions so far.  ``odometry``: :func:`scan_odometry`'s
-    poses of ``X`` with the same ``max_range`` and its ``alternatives``, each turn the scans
-    read either way settled first by the loops (:func:`resolve_turns`; None: computed here)."""
+    within ``POSITION_GATE_M`` of the positions so far.
+    ``odometry``: :func:`scan_odometry`'s poses of ``X`` with the same ``max_range`` and its
+    ``alternatives``, each turn the scans read either way settled first by the loops and the
+    room ahead (:func:`resolve_turns`; None: computed here)."""
     X = np.asarray(X, dtype=np.float64)
     T, max_range = len(X), float(X.max()) if max_range is None else float(max_range)
     if odometry is None:
         odometry = scan_odometry(X, max_range, alternatives := [])
     closures = S.loop_closures(S.despike(X))
-    O = resolve_turns(odometry, alternatives or [], closures)
+    O = resolve_turns(odometry, alternatives or [], closures, ahead=clearance_ahead(X))
     psi = S.scan_headings(X, O[:, 2], windows, closures)
     P = reckon(forward_moves(O), psi)
     ci, cj, _ = closures

@@ -1,0 +1,101 @@
+"""A turn the scans read either way: the registration's rivals settled by the loops and by the
+room the robot had to turn in.
+
+Where a place's scans look alike turned round (a narrow passage, a point-symmetric plan), a
+registration can read a step's turn two ways half a turn apart; :func:`~.registration.scan_odometry`
+keeps one and records the other as a *rival*.  :func:`resolve_turns` takes the rival where the
+loop closures across the step agree with it more -- unless the rival turns the robot by over
+:data:`TURN_CHECK` in that one step while its scan saw no wall within
+:data:`REVERSAL_CLEARANCE_M` ahead (:func:`clearance_ahead`): a robot turns about in one step
+only by bouncing off what lies in front of it, and where nothing does the closures that side
+with the half turn are a place matching its own reflection.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from . import scans as S
+
+__all__ = ["resolve_turns", "clearance_ahead", "TURN_CHECK", "REVERSAL_CLEARANCE_M",
+           "AHEAD_HALF_ANGLE"]
+
+#: rad: a registration turning the scan more than this in one step (from the step before's pose)
+#: is kept only where it costs under ``RETRY_GAIN`` of the least-cost one that turns less, as a
+#: retry is: where the scans look alike turned round the two cost nearly the same, and the
+#: turned one put a walk half a turn off (robot_twin@0.3333 seed 0, step 5669: 3.13 rad at 0.89
+#: of the unturned one's cost, the true turn 0.15 rad).  The robot's true turns of over 1 rad in
+#: one step (a bounce off a wall, 1 % of steps) cost 0.16-0.44 of the unturned one's (54 on that
+#: walk's first 6,000 steps); a quarter turn is far beyond a step's ordinary turn (median 0.12
+#: rad on a turn command)
+TURN_CHECK = np.pi / 2
+#: rad: the beams within this of the heading are the robot's view ahead (10 beams either side of
+#: 60: the nearest return there lay within 0.096 m before every one of the 1,772 true one-step
+#: turns of over 2 rad on the 15 benchmark walks and their held-out walks; 5 beams either side
+#: left 2 of them beyond 0.1 m, the heading's beam alone 51)
+AHEAD_HALF_ANGLE = np.pi / 3
+#: m: a rival turning the robot by over :data:`TURN_CHECK` in one step is refused where the scan
+#: before it saw nothing within this ahead.  The true one-step turns of over 2 rad came at most
+#: 0.096 m from a wall ahead (above; the harness's robots bounce where they meet one); of the 7
+#: rivals the loops took on those 30 walks the 4 that turned the walk wrongly half round over
+#: the next 300 steps lay 0.136-0.237 m from one, the 2 that mended a half turn the registration
+#: missed 10 steps later 0.040 m (the seventh, a rival turning 0.32 rad against a kept 1.33,
+#: is no reversal).  A faster robot reverses farther off now and then: at 0.2 m/s with a 0.3 m
+#: wall margin 1 of 67 true reversals came 0.26 m from a wall ahead, the rest within 0.08 m
+REVERSAL_CLEARANCE_M = 0.12
+
+
+def clearance_ahead(X) -> np.ndarray:
+    """(T,) m: the nearest range of each scan of ``X`` (T, B) among its beams within
+    :data:`AHEAD_HALF_ANGLE` of the heading (beam ``k`` at ``2 pi k / B``)."""
+    X = np.asarray(X, dtype=np.float64)
+    B = X.shape[1]
+    k = np.arange(B)
+    ahead = np.minimum(k, B - k) * 2 * np.pi / B <= AHEAD_HALF_ANGLE + 1e-9
+    return X[:, ahead].min(axis=1)
+
+
+def _agree(turn, closure_turn) -> int:
+    """How many of the ``turn`` s (rad) lie within :data:`~.scans.CLOSURE_GATE` of the closures'
+    own (wrapped)."""
+    return int(np.count_nonzero(np.abs(S._wrap(turn - closure_turn)) < S.CLOSURE_GATE))
+
+
+def _reversal_without_room(poses, t, alt, ahead) -> bool:
+    """Whether rival pose ``alt`` of step ``t`` turns from ``poses[t - 1]`` by over
+    :data:`TURN_CHECK` where ``ahead[t - 1]`` (m, :func:`clearance_ahead`) exceeds
+    :data:`REVERSAL_CLEARANCE_M`."""
+    if ahead is None or t < 1:
+        return False
+    turn = abs(S._wrap(alt[2] - poses[t - 1, 2]))
+    return bool(turn > TURN_CHECK and ahead[t - 1] > REVERSAL_CLEARANCE_M)
+
+
+def resolve_turns(poses, alternatives, closures, window: int = S.WINDOWS[0],
+                  ahead=None) -> np.ndarray:
+    """(T, 3) ``poses`` (:func:`~.registration.scan_odometry`'s) with each step of
+    ``alternatives`` (``(t, pose)``, in order) set to its rival pose where more of the loop
+    ``closures`` ``(i, j, turn)`` of at most ``window`` steps across it agree with the rival
+    (within :data:`~.scans.CLOSURE_GATE` of the poses' turn from ``i`` to ``j``): the steps
+    after it move with it, rigidly (a turn the scans could read either way, settled by the scans
+    seen before and after it).  ``ahead``: (T,) m, :func:`clearance_ahead` of the walk's scans;
+    a rival turning over :data:`TURN_CHECK` from the step before where the scan before saw
+    nothing within :data:`REVERSAL_CLEARANCE_M` is refused (None: none refused)."""
+    raw = np.asarray(poses, dtype=np.float64)
+    P = raw.copy()
+    ci, cj, cr = (np.asarray(c) for c in closures)
+    lo, hi = np.minimum(ci, cj), np.maximum(ci, cj)
+    sign = np.where(cj >= ci, 1.0, -1.0)
+    for t, alt in alternatives:
+        sel = (lo < t) & (hi >= t) & (hi - lo <= window)
+        if not sel.any() or _reversal_without_room(raw, t, alt, ahead):
+            continue
+        delta = (alt[2] - P[t, 2] + np.pi) % (2 * np.pi) - np.pi
+        turn = P[cj[sel], 2] - P[ci[sel], 2]
+        if _agree(turn + delta * sign[sel], cr[sel]) > _agree(turn, cr[sel]):
+            d = P[t:, :2] - P[t, :2]
+            c, s = np.cos(alt[2] - P[t, 2]), np.sin(alt[2] - P[t, 2])
+            P[t:, :2] = alt[:2] + np.column_stack([c * d[:, 0] - s * d[:, 1],
+                                                   s * d[:, 0] + c * d[:, 1]])
+            P[t:, 2] += alt[2] - P[t, 2]
+    return P
