@@ -13,9 +13,11 @@ import pytest
 
 from topomap import MapLearner
 from topomap.core.checks import ParameterError
+from topomap.core.motion.commands import MIN_TURN_SHARE
 from topomap.core.motion.learn import ContinuousFallbackWarning
 from topomap.core.motion.robot_fit import predict_robot
-from topomap.core.motion.robot_scans import SOURCE, closed_odometry, is_scan_log, walk_odometry
+from topomap.core.motion.robot_scans import (SOURCE, closed_odometry, is_scan_log, scan_turn_share,
+                                             walk_odometry)
 from topomap.core.motion.settings import motion_settings
 
 
@@ -38,6 +40,36 @@ def test_a_robot_log_without_odometry_is_recognised_by_hand():
     assert not is_scan_log(_log(gds=0), None, none)                 # GDS steps
     assert not is_scan_log(_log(B=2), None, none)                   # no ring of beams
     assert not is_scan_log(_log(low=-1.0), None, none)              # not ranges
+
+
+
+def _turning_log(T=400, B=24, turns=True, seed=0):
+    """A ring of ``B`` beams seeing one lopsided room from a fixed spot: command 1 turns the robot
+    one beam anticlockwise (its scan shifts by one beam), command 2 one beam clockwise, command 0
+    not at all -- or, ``turns=False``, the same commands with the scan never turning (a compass
+    walker's)."""
+    rng = np.random.default_rng(seed)
+    room = 1.0 + 0.5 * np.cos(2 * np.pi * np.arange(B) / B) + 0.2 * np.sin(6 * np.pi * np.arange(B) / B)
+    u = rng.integers(0, 3, T)
+    shift = np.cumsum(np.r_[0, np.where(u[:-1] == 1, 1, np.where(u[:-1] == 2, -1, 0))])
+    X = np.array([np.roll(room, -k if turns else 0) for k in shift])
+    return SimpleNamespace(X=X, u=u, lengths=np.array([T]), gds=np.full(T, -1))
+
+
+def test_scans_that_turn_as_the_commands_say_are_a_robot_s_by_hand():
+    """The scans' turns are explained whole by the commands that made them (every command turns
+    by its own whole beam: share 1); of scans that never turn, the rounding of their zero turns
+    is explained by three commands no more than chance would (about 2 / 400).  A log whose continuous path
+    read odometry off its commands but kept the view clusters is a robot's where its scans turn
+    with the commands, never where they do not or where its places were kept."""
+    robot, compass = _turning_log(), _turning_log(turns=False)
+    assert scan_turn_share(robot.X, robot.u) == pytest.approx(1.0, abs=1e-6)
+    assert scan_turn_share(compass.X, compass.u) < 0.1 * MIN_TURN_SHARE
+    views = {"odometry": True, "chosen": "views"}
+    assert is_scan_log(robot, None, views)
+    assert not is_scan_log(compass, None, views)
+    assert not is_scan_log(robot, None, {"odometry": True, "chosen": "places"})
+    assert not is_scan_log(robot, np.zeros((400, 3)), views)        # odometry given
 
 
 def test_the_setting_is_on_by_default_and_checked():

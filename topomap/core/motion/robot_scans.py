@@ -1,10 +1,11 @@
 """The robot route on a robot's log WITHOUT odometry: its odometry read from its scans
 (``MotionSettings(scan_odometry=True)``, the default; docs/robot-logs.md).
 
-A log of egocentric range scans and turn commands given no odometry is recognised as today
-(:func:`is_scan_log`: the continuous path learned no odometry from its commands -- they move a
-robot differently with its heading -- one episode, no GDS, a ring of beams a row; a compass
-walker's commands do give odometry and are never caught).  Its odometry is then read from the
+A log of egocentric range scans and turn commands given no odometry is recognised
+(:func:`is_scan_log`: one episode, no GDS, a ring of beams a row, and either the continuous path
+learned no odometry from its commands -- they move a robot differently with its heading -- or
+it kept the view clusters where the scans turn as the commands say, :func:`scan_turn_share`:
+0.25-0.33 on turn commands, 0.0002-0.002 on compass walkers, whose scans never turn).  Its odometry is then read from the
 scans (:func:`~.registration.scan_odometry`, point-to-line ICP against keyframes) and closed by
 loops (:func:`~.registration.scan_poses`; its headings, closed already, are not solved again),
 and the robot route (:func:`~.robot_fit.fit_robot`) learns on those poses behind the guards of a
@@ -28,23 +29,41 @@ import time
 
 import numpy as np
 
+from .commands import MIN_TURN_SHARE, turn_share
 from .registration import scan_odometry, scan_poses
 from .robot_fit import MIN_BEAMS, fit_robot
+from .scans import despike, scan_turns
 
-__all__ = ["is_scan_log", "fit_scan_robot", "walk_odometry", "closed_odometry", "SOURCE"]
+__all__ = ["is_scan_log", "scan_turn_share", "fit_scan_robot", "walk_odometry", "closed_odometry", "SOURCE"]
 
 #: ``motion_info_["odometry_from"]`` of a map whose odometry was read from its scans
 SOURCE = "scans"
 
 
+def scan_turn_share(X, u) -> float:
+    """The share (0-1) of the variance of a walk's per-step turns read off its scans ``X`` (T,
+    beams; :func:`~.scans.scan_turns` of consecutive despiked scans) that its commands ``u``
+    explain (:func:`~.commands.turn_share`, as for a given odometry's turns): 0.25 on
+    ``robot_office@0.3333`` seed 0's turn commands, 0 where the scans never turn."""
+    Xd = despike(np.asarray(X, dtype=np.float64))
+    heading = np.cumsum(np.r_[0.0, scan_turns(Xd[:-1], Xd[1:])])
+    return turn_share(np.column_stack([np.zeros((len(heading), 2)), heading]), u)
+
+
 def is_scan_log(data, odometry, info: dict) -> bool:
     """Whether a continuous log is a robot's log of range scans and turn commands without
     odometry: none given, one episode, no GDS, :data:`~.robot_fit.MIN_BEAMS` beams or more a
-    row, non-negative readings, and no odometry learned from its actions by the continuous path
-    (``info["odometry"]`` False)."""
-    return (odometry is None and info.get("odometry") is False and len(data.lengths) == 1
-            and not np.any(data.gds >= 0) and data.X.shape[1] >= MIN_BEAMS
-            and bool(np.all(data.X >= 0)))
+    row, non-negative readings, and either no odometry learned from its actions by the
+    continuous path (``info["odometry"]`` False) or the view clusters chosen there
+    (``info["chosen"]``) where its scans turn as its commands say (:func:`scan_turn_share` at
+    least :data:`~.commands.MIN_TURN_SHARE`: a robot whose commands' displacements the
+    continuous path read off one part of the log but not another)."""
+    if not (odometry is None and len(data.lengths) == 1 and not np.any(data.gds >= 0)
+            and data.X.shape[1] >= MIN_BEAMS and bool(np.all(data.X >= 0))):
+        return False
+    if info.get("odometry") is False:
+        return True
+    return info.get("chosen") == "views" and scan_turn_share(data.X, data.u) >= MIN_TURN_SHARE
 
 
 def fit_scan_robot(learner, data, settings, fallback, start: float | None = None) -> bool:
