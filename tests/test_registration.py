@@ -167,3 +167,45 @@ def test_the_retry_weighs_a_cost_against_the_lesser_of_the_recent_median_and_the
     # only the last RECENT costs make the median: 40 of 100 at 7, 60 at 5 -> 5
     assert R.retry_yardstick([100.0] * 200 + [7.0] * 40 + [5.0] * 59 + [50.0]) == 5.0
 
+
+
+def _keyframe(pose):
+    """An older keyframe's entry for :func:`R.averaged_pose`: its scan's valid beams, normals and
+    centres, of the exact scan at ``pose`` in the rectangular room."""
+    P, valid = R.scan_points(_scan(*pose), MAX_RANGE - 1e-9)
+    normals, centres = R._normals(P, valid, R.NORMAL_GAP_M, R.NORMAL_HALF)
+    return valid, normals, centres
+
+
+def test_a_pose_off_by_a_centimetre_is_averaged_with_older_keyframes_that_see_it_right():
+    # the scan at ``truth``; its keyframe's registration put it 1 cm east and 0.03 rad off.
+    # Registered (exact scans) against two older keyframes at their true poses, each gives
+    # the truth within 2 mm / 0.003 rad (the corners' lines, test above), so the mean of the
+    # three lies a third of the error off: 3.3 mm and 0.01 rad, within 1.5 mm / 0.002 rad.
+    truth = np.array([0.9, 0.55, 0.2])
+    off = truth + [0.01, 0.0, 0.03]
+    keys = [np.array([0.8, 0.5, 0.1]), np.array([0.85, 0.52, 0.15])]
+    poses = np.zeros((10, 3))
+    poses[[2, 5]] = keys
+    older = [(j, *_keyframe(k)) for j, k in zip((2, 5), keys)]
+    Q, Qv = R.scan_points(_scan(*truth), MAX_RANGE - 1e-9)
+    got = R.averaged_pose(off, 100.0, older, poses, Q, Qv)
+    np.testing.assert_allclose(got[:2], truth[:2] + [0.01 / 3, 0.0], atol=1.5e-3)
+    assert got[2] == pytest.approx(truth[2] + 0.01, abs=2e-3)
+    # no older keyframe: the pose as it was
+    np.testing.assert_array_equal(R.averaged_pose(off, 100.0, [], poses, Q, Qv), off)
+
+
+def test_an_older_keyframe_costing_more_than_the_gate_allows_is_left_out():
+    truth, key = np.array([0.9, 0.55, 0.2]), np.array([0.8, 0.5, 0.1])
+    off = truth + [0.01, 0.0, 0.0]
+    poses = np.zeros((4, 3))
+    poses[1] = key
+    older = [(1, *_keyframe(key))]
+    Q, Qv = R.scan_points(_scan(*truth), MAX_RANGE - 1e-9)
+    _, _, cost = R.register_each(_scan(*key), _scan(*truth), MAX_RANGE - 1e-9,
+                                 [relative_pose(key, off)])[0]
+    limit = cost / R.AVERAGE_COST
+    np.testing.assert_array_equal(R.averaged_pose(off, 0.99 * limit, older, poses, Q, Qv), off)
+    got = R.averaged_pose(off, 1.01 * limit, older, poses, Q, Qv)
+    assert got[0] == pytest.approx(truth[0] + 0.005, abs=1.5e-3)
