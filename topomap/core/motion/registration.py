@@ -96,8 +96,8 @@ NORMAL_GAP_M = 0.25
 #: keyframes before the current one a scan is registered against too (:func:`averaged_pose`).
 #: 200-step displacement error, median / 90th percentile [m], robot_twin@0.3333 s1 / robot_three
 #: s2, steps 0-6,000: none 0.066 / 0.141, 0.077 / 0.164; 2 0.034 / 0.067, 0.043 / 0.090; 5 0.020
-#: / 0.047, 0.027 / 0.062; 7 0.019 / 0.041, 0.023 / 0.062; 11 0.016 / 0.034, 0.020 / 0.053 (the
-#: registration's CPU 1, 1.5, 2.5, 3, 4x)
+#: / 0.047, 0.027 / 0.062; 7 0.019 / 0.041, 0.023 / 0.062; 11 0.016 / 0.034, 0.020 / 0.053 (its
+#: CPU 1, 1.3-2, 2.7-3, 3-4, 3.7-5.5x, load 6-9; the route's fit and predict 1.7-2.6x with 7)
 OLDER_KEYFRAMES = 7
 #: an older keyframe's registration counts where it costs at most this times the current one's
 #: (1.5 / 4: 0.036 / 0.073, 0.034 / 0.064 against 0.034 / 0.067 m, 2 keyframes, twin s1 above)
