@@ -49,7 +49,8 @@ def _turning_log(T=400, B=24, turns=True, seed=0):
     not at all -- or, ``turns=False``, the same commands with the scan never turning (a compass
     walker's)."""
     rng = np.random.default_rng(seed)
-    room = 1.0 + 0.5 * np.cos(2 * np.pi * np.arange(B) / B) + 0.2 * np.sin(6 * np.pi * np.arange(B) / B)
+    k = np.arange(B)
+    room = 1.0 + 0.5 * np.cos(2 * np.pi * k / B) + 0.2 * np.sin(6 * np.pi * k / B)
     u = rng.integers(0, 3, T)
     shift = np.cumsum(np.r_[0, np.where(u[:-1] == 1, 1, np.where(u[:-1] == 2, -1, 0))])
     X = np.array([np.roll(room, -k if turns else 0) for k in shift])
@@ -59,9 +60,9 @@ def _turning_log(T=400, B=24, turns=True, seed=0):
 def test_scans_that_turn_as_the_commands_say_are_a_robot_s_by_hand():
     """The scans' turns are explained whole by the commands that made them (every command turns
     by its own whole beam: share 1); of scans that never turn, the rounding of their zero turns
-    is explained by three commands no more than chance would (about 2 / 400).  A log whose continuous path
-    read odometry off its commands but kept the view clusters is a robot's where its scans turn
-    with the commands, never where they do not or where its places were kept."""
+    is explained by three commands no more than chance would (about 2 / 400).  A log whose
+    continuous path read odometry off its commands but kept the view clusters is a robot's where
+    its scans turn with the commands, never where they do not or where its places were kept."""
     robot, compass = _turning_log(), _turning_log(turns=False)
     assert scan_turn_share(robot.X, robot.u) == pytest.approx(1.0, abs=1e-6)
     assert scan_turn_share(compass.X, compass.u) < 0.1 * MIN_TURN_SHARE

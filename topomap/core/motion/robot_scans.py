@@ -5,9 +5,10 @@ A log of egocentric range scans and turn commands given no odometry is recognise
 (:func:`is_scan_log`: one episode, no GDS, a ring of beams a row, and either the continuous path
 learned no odometry from its commands -- they move a robot differently with its heading -- or
 it kept the view clusters where the scans turn as the commands say, :func:`scan_turn_share`:
-0.25-0.33 on turn commands, 0.0002-0.002 on compass walkers, whose scans never turn).  Its odometry is then read from the
-scans (:func:`~.registration.scan_odometry`, point-to-line ICP against keyframes) and closed by
-loops (:func:`~.registration.scan_poses`; its headings, closed already, are not solved again),
+0.25-0.33 on turn commands, 0.0002-0.002 on compass walkers, whose scans never turn).  Its
+odometry is then read from the scans (:func:`~.registration.scan_odometry`, point-to-line ICP
+against keyframes) and closed by loops (:func:`~.registration.scan_poses`; its headings, closed
+already, are not solved again),
 and the robot route (:func:`~.robot_fit.fit_robot`) learns on those poses behind the guards of a
 log with odometry (point symmetry -- a cell's reflection matched within
 :data:`~.symmetry.SCAN_REACH` spacings, as this odometry's maps bend by centimetres --, unwalked
@@ -34,7 +35,8 @@ from .registration import scan_odometry, scan_poses
 from .robot_fit import MIN_BEAMS, fit_robot
 from .scans import despike, scan_turns
 
-__all__ = ["is_scan_log", "scan_turn_share", "fit_scan_robot", "walk_odometry", "closed_odometry", "SOURCE"]
+__all__ = ["is_scan_log", "scan_turn_share", "fit_scan_robot", "walk_odometry",
+           "closed_odometry", "SOURCE"]
 
 #: ``motion_info_["odometry_from"]`` of a map whose odometry was read from its scans
 SOURCE = "scans"
