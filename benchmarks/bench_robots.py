@@ -84,7 +84,7 @@ def base_route(name, tw, hw, regions, seed):
         info = getattr(learner, "motion_info_", None) or {}
         row = {"states": learner.map_.n_states, "chosen": info.get("chosen"),
                "reason": info.get("reason"), "check": info.get("check"),
-               "unwalked": info.get("unwalked"),
+               "unwalked": info.get("unwalked"), "unwalked_depth": info.get("unwalked_depth"),
                "symmetry": (info.get("symmetry") or {}).get("ratio"),
                "fit_only_s": round(sum(learner.timings_.values()), 2)}
         if getattr(learner, "robot_map_", None) is None:

@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 
 from topomap import MapLearner
-from topomap.core.motion.unwalked import FAR, MARGIN, unwalked_share
+from topomap.core.motion.unwalked import (FAR, MARGIN, MAX_UNWALKED_DEPTH, unwalked_floor,
+                                          unwalked_share)
 from topomap.core.motion.learn import ContinuousFallbackWarning
 from topomap.core.motion.robot import RobotMap
 from topomap.core.motion.robot_check import (ROBOT_MARGIN_SE, check_reason, continued_poses,
@@ -30,13 +31,17 @@ def _two_cells(north_range):
                     np.zeros(2, dtype=np.int64))
 
 
-def test_unwalked_share_by_hand():
+def test_unwalked_share_and_depth_by_hand():
     """Points every spacing along a beam while still a spacing (``MARGIN``) short of its range:
     the east beams give (1, 0) and (2, 0), 0 and 1 from a cell; the 1.5 beams none.  A north
     beam of 10 from cell 0 adds (0, 1) ... (0, 8), s from cell 0, of which s = 3 ... 8 lie over
-    ``FAR`` = 2 from every cell: 6 of 10."""
+    ``FAR`` = 2 from every cell: 6 of 10, lying 1 + 2 + ... + 6 = 21 spacings beyond ``FAR``
+    in all, 2.1 a point.  A north beam of 6 adds (0, 1) ... (0, 4): s = 3, 4 over ``FAR``, 2
+    of 6, 1 + 2 = 3 spacings beyond, 0.5 a point."""
     assert (FAR, MARGIN) == (2.0, 1.0)
-    assert unwalked_share(_two_cells(1.5)) == 0.0
+    assert unwalked_floor(_two_cells(1.5)) == (0.0, 0.0)
+    assert unwalked_floor(_two_cells(10.0)) == pytest.approx((6 / 10, 21 / 10))
+    assert unwalked_floor(_two_cells(6.0)) == pytest.approx((2 / 6, 3 / 6))
     assert unwalked_share(_two_cells(10.0)) == pytest.approx(6 / 10)
 
 
@@ -142,10 +147,11 @@ def test_a_thinly_walked_plan_records_its_unwalked_floor_and_the_right_judge_dec
         warnings.simplefilter("always", ContinuousFallbackWarning)
         learner = MapLearner(8, 16, random_state=0).fit_trajectory(walk)
     info = learner.motion_info_
-    assert info["unwalked"] > 0.5
+    assert info["unwalked"] > 0.5 and info["unwalked_depth"] > MAX_UNWALKED_DEPTH
     if first:
         assert "check" not in info and info["chosen"] == "views"
         assert "saw floor its walk never entered" in info["reason"]
+        assert f"on average {info['unwalked_depth']:.3f} spacings beyond" in info["reason"]
     elif robot_wins(info["check"]):
         assert info["chosen"] == "robot" and learner.robot_map_ is not None
         assert not [w for w in caught if issubclass(w.category, ContinuousFallbackWarning)]
@@ -176,7 +182,7 @@ def test_auto_with_odometry_takes_the_robot_route_where_the_check_prefers_it(mon
     robot = MapLearner(8, 16, motion="robot", random_state=0).fit_trajectory(walk)
     info = auto.motion_info_
     assert info["chosen"] == "robot" and auto.robot_map_ is not None
-    assert info["unwalked"] <= 0.01 and robot_wins(info["check"])
+    assert info["unwalked_depth"] <= MAX_UNWALKED_DEPTH and robot_wins(info["check"])
     np.testing.assert_array_equal(auto.labels_, robot.labels_)
     np.testing.assert_array_equal(
         auto.predict(held.observations, held.actions, odometry=held.odometry),

@@ -19,6 +19,7 @@ from topomap.core.motion.robot_fit import predict_robot
 from topomap.core.motion.robot_scans import (SOURCE, closed_odometry, is_scan_log, scan_turn_share,
                                              walk_odometry)
 from topomap.core.motion.settings import motion_settings
+from topomap.core.motion.unwalked import MAX_UNWALKED_DEPTH
 
 
 def _log(T=50, B=12, lengths=None, gds=-1, low=0.5):
@@ -108,7 +109,8 @@ def test_a_thinly_walked_log_without_odometry_keeps_the_view_clusters():
                                                         n_actions=walk.n_actions)
     info = learner.motion_info_
     assert info["chosen"] == "views" and info["odometry_from"] == SOURCE
-    assert info["unwalked"] > 0.01 and getattr(learner, "robot_map_", None) is None
+    assert info["unwalked_depth"] > MAX_UNWALKED_DEPTH
+    assert getattr(learner, "robot_map_", None) is None
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ContinuousFallbackWarning)
         plain = _fit(walk, scan_odometry=False)
@@ -122,19 +124,21 @@ def test_a_thinly_walked_log_without_odometry_keeps_the_view_clusters():
 
 def test_where_the_guards_pass_the_route_is_taken_and_predict_reads_the_scans(monkeypatch):
     """3,000 steps in two furnished 1 m rooms, no odometry, the floor and check guards made to
-    pass: the map is the robot route's on the scans' odometry, and ``predict`` without odometry
+    pass (the floor's depth at its bar, its share -- recorded, not a judge -- half the points):
+    the map is the robot route's on the scans' odometry, and ``predict`` without odometry
     gives what :func:`~topomap.core.motion.robot_fit.predict_robot` gives with the walk's
     registration closed by its loops (:func:`~topomap.core.motion.robot_scans.closed_odometry`);
     the walk placed again lands in most of its own places (measured 0.96; by chance 1 in 16)."""
     import topomap.core.motion.robot_fit as robot_fit
     from test_motion_robot import _arena_robot
 
-    monkeypatch.setattr(robot_fit, "unwalked_share", lambda model: 0.0)
+    monkeypatch.setattr(robot_fit, "unwalked_floor", lambda model: (0.5, MAX_UNWALKED_DEPTH))
     monkeypatch.setattr(robot_fit, "robot_check", lambda *a, **k: {
         "learned": 2250, "held_out": 750, "robot": 0.1, "views": 0.5, "gap": 0.4, "se": 0.05})
     _, walk, _ = _arena_robot(3000, 10)
     learner = _fit(walk)
     assert learner.motion_info_["chosen"] == "robot" and learner.robot_map_ is not None
+    assert learner.motion_info_["unwalked"] == 0.5
     assert learner.motion_info_["odometry_from"] == SOURCE
     X = walk.observations[:1500]
     again = learner.predict(X, walk.actions[:1500])
@@ -151,7 +155,7 @@ def test_a_robot_log_without_odometry_takes_the_route_and_predicts_from_its_scan
     the processor's vector unit), so the guard is asked above it: the log keeps the view
     clusters, saying why.  Matched with the nearest cell alone (as on wheel odometry) the
     reflection matches worse (a higher ratio; measured 4.2) and the guards pass, the
-    unwalked-floor share held at 0 (this walk reads 1.0-1.1 % at its bar of 1 %): the map is
+    unwalked floor held at 0 (this walk reads a share of 1.0-1.1 %): the map is
     the robot route's; ``predict`` without odometry reads the held-out walk's from its scans
     -- the same places as given that odometry -- and places it under half as far from the
     truth as K-means on the views, fewer steps in the wrong room.  Where the check does not
@@ -165,7 +169,7 @@ def test_a_robot_log_without_odometry_takes_the_route_and_predicts_from_its_scan
         m.setattr(robot_fit, "SYMMETRY_RATIO", 1e9)
         sent_back = _fit(walk).motion_info_
     assert sent_back["chosen"] == "views" and "point reflection" in sent_back["reason"]
-    monkeypatch.setattr(robot_fit, "unwalked_share", lambda model: 0.0)
+    monkeypatch.setattr(robot_fit, "unwalked_floor", lambda model: (0.0, 0.0))
     monkeypatch.setattr(robot_fit, "SCAN_REACH", None)
     learner = _fit(walk)
     info = learner.motion_info_

@@ -43,7 +43,7 @@ from ..split.threads import beside
 from .beams import beam_order, described, in_route_frame
 from .bind import bind_places
 from .commands import MIN_TURN_SHARE, turn_share
-from .unwalked import FAR, MAX_UNWALKED, unwalked_share
+from .unwalked import FAR, MAX_UNWALKED_DEPTH, unwalked_floor
 from .inputs import check_odometry
 from .robot import learn_robot, place_walk
 from .scans import scan_headings
@@ -170,8 +170,9 @@ def _symmetry_reason(info: dict) -> str:
 def _coverage_reason(info: dict) -> str:
     """Why a map whose scans saw floor its walk never entered gives way (one line)."""
     return (f"the robot's scans saw floor its walk never entered ({info['unwalked']:.1%} of the "
-            f"points along the cells' beams lie over {FAR:g} cell spacings from every cell, "
-            f"above {MAX_UNWALKED:.0%}): the robot route cannot place a new walk there")
+            f"points along the cells' beams lie over {FAR:g} cell spacings from every cell, on "
+            f"average {info['unwalked_depth']:.3f} spacings beyond, above "
+            f"{MAX_UNWALKED_DEPTH:g}): the robot route cannot place a new walk there")
 
 
 def _view_clusters(learner, data, settings, info: dict):
@@ -246,7 +247,7 @@ def fit_robot(learner, data, settings, odometry, fallback=None,
 def _failed_guard(learner, data, settings, route, given) -> str | None:
     """Why the route's map gives way to the view clusters (one line), None where every guard
     passes, in turn: its cells within the scans' reach (:data:`MAX_SPACING_RANGE`), not its
-    own point reflection, the floor its scans saw walked (:func:`~.unwalked.unwalked_share`,
+    own point reflection, the floor its scans saw walked (:func:`~.unwalked.unwalked_floor`,
     recorded; a guard on odometry read from the scans and where the check holds out the first
     part, which cannot show unwalked floor) and the held-out check
     (:func:`~.robot_check.robot_check`).  ``route``: ``(X, model, places, poses, info)`` of
@@ -259,9 +260,10 @@ def _failed_guard(learner, data, settings, route, given) -> str | None:
         return _scale_reason(info, reach)
     if info["symmetry"]["ratio"] < SYMMETRY_RATIO:
         return _symmetry_reason(info)
-    info["unwalked"] = round(unwalked_share(model), 4)
+    share, depth = unwalked_floor(model)
+    info["unwalked"], info["unwalked_depth"] = round(share, 4), round(depth, 4)
     first = held_out_span(len(X), settings.check.holdout, labels)[0] == 0
-    if (from_scans or first) and info["unwalked"] > MAX_UNWALKED:
+    if (from_scans or first) and depth > MAX_UNWALKED_DEPTH:
         return _coverage_reason(info)
     info["check"] = robot_check(X, data.u, odometry, learner.map_split_.n_states,
                                 lambda X, u, views: fallback[2](X, u, views, [len(X)],
