@@ -14,13 +14,14 @@ floor seen, never walked -- and the depth, the mean number of spacings a point l
 On odometry read from the scans (and with wheel odometry where the held-out check holds out the
 first part, which cannot show unwalked floor) a depth above :data:`MAX_UNWALKED_DEPTH` sends the
 log to the view clusters; elsewhere both figures are recorded and the check judges.  Measured
-(``benchmarks/notes/robots.md``, 2026-12-03, the guard lifted): the depth is 0-0.031 on the
-walks of the furnished plans at a third of their size and ``l_rooms@1`` (the route, where the
-check takes it, 0.08-0.22 m, never above K-means on the views), 0.066-0.28 on the 9 x 4.2 m
-plans and larger (where the check took the route on ``robot_office`` at full size and it lost
-to the views by 25 %).  The share parts them less well: up to 3.8 % on the small plans (an
-office walk whose map bends in a corner walked once), from 2.8 % on the large ones -- bends near
-the walk add points just beyond :data:`FAR`, thinly walked plans points far beyond it.
+(``benchmarks/notes/robots.md``, 2026-12-03, the guard lifted): the depth is 0-0.031 on 22 of
+the 23 walks of 1 m rooms measured (the route, where the check takes it, 0.08-0.32 m, never above
+K-means on the views; 0.246 on one whose walk never entered its plan's alcoves), 0.066-0.28 on
+the plans of 9 x 4.2 m and more (where the check took the route on ``robot_office`` at full
+size and it lost to the views by 25 %).  The share parts them less well: up to 3.8 % on the
+small plans (an office walk: three quarters of those points within three spacings), from 2.75 %
+on the large ones -- a map's bends and corners walked once add points just beyond :data:`FAR`,
+a thinly walked plan points far beyond it.
 """
 
 from __future__ import annotations
