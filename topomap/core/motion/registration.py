@@ -36,6 +36,7 @@ import scipy.sparse.linalg as spl
 from numba import njit
 
 from . import scans as S
+from .icp import icp, pairing
 from .reckoning import compose, forward_moves, reckon, relative_pose
 from .turn_rivals import TURN_CHECK, clearance_ahead, resolve_turns
 
@@ -153,60 +154,9 @@ def _normals(P, valid, max_gap, half):
 
 @njit(cache=True)
 def _icp(P, Pv, N, Q, Qv, x0, iters, cauchy, max_pair):
-    """The motion ``(x, y, turn)`` putting points ``Q`` on the lines through ``P`` (normals
-    ``N``), from ``x0``; the number of points paired at the end and the cost there: the sum of
-    the Cauchy loss ``log(1 + (r / cauchy)^2)`` over the scan's points, an unpaired point
-    costing as one ``max_pair`` from its line."""
-    x, y, th = x0[0], x0[1], x0[2]
-    B = Q.shape[0]
-    used = 0
-    cost = 0.0
-    unpaired = np.log(1.0 + (max_pair / cauchy) ** 2)
-    for it in range(iters + 1):
-        c, s = np.cos(th), np.sin(th)
-        H = np.zeros((3, 3))
-        g = np.zeros(3)
-        used = 0
-        cost = 0.0
-        for i in range(B):
-            if not Qv[i]:
-                continue
-            qx = c * Q[i, 0] - s * Q[i, 1] + x
-            qy = s * Q[i, 0] + c * Q[i, 1] + y
-            best, j = max_pair * max_pair, -1
-            for k in range(P.shape[0]):
-                if Pv[k] and (N[k, 0] != 0.0 or N[k, 1] != 0.0):
-                    d = (P[k, 0] - qx) ** 2 + (P[k, 1] - qy) ** 2
-                    if d < best:
-                        best, j = d, k
-            if j < 0:
-                cost += unpaired
-                continue
-            nx, ny = N[j, 0], N[j, 1]
-            r = nx * (qx - P[j, 0]) + ny * (qy - P[j, 1])
-            w = 1.0 / (1.0 + (r / cauchy) ** 2)
-            cost += np.log(1.0 + (r / cauchy) ** 2)
-            # d(qx, qy)/d th = (-s qx0 - c qy0, c qx0 - s qy0)
-            dth = nx * (-s * Q[i, 0] - c * Q[i, 1]) + ny * (c * Q[i, 0] - s * Q[i, 1])
-            J0, J1, J2 = nx, ny, dth
-            H[0, 0] += w * J0 * J0
-            H[0, 1] += w * J0 * J1
-            H[0, 2] += w * J0 * J2
-            H[1, 1] += w * J1 * J1
-            H[1, 2] += w * J1 * J2
-            H[2, 2] += w * J2 * J2
-            g[0] += w * J0 * r
-            g[1] += w * J1 * r
-            g[2] += w * J2 * r
-            used += 1
-        if used < 3 or it == iters:
-            break
-        H[1, 0], H[2, 0], H[2, 1] = H[0, 1], H[0, 2], H[1, 2]
-        for d in range(3):
-            H[d, d] += 1e-9
-        step = np.linalg.solve(H, -g)
-        x, y, th = x + step[0], y + step[1], th + step[2]
-    return np.array([x, y, th]), used, cost
+    """:func:`~.icp.icp` of points ``Q`` on the lines through ``P`` (valid ``Pv``, normals
+    ``N``) from ``x0``, with a cache of its own: ``(motion, paired, cost)``."""
+    return icp(pairing(P, Pv, N, Q.shape[0]), P, N, Q, Qv, x0, iters, cauchy, max_pair)
 
 
 @njit(cache=True)
@@ -217,8 +167,9 @@ def _register_starts(C, Pv, N, Q, Qv, starts):
     out = np.zeros((n, 3))
     used = np.zeros(n, dtype=np.int64)
     cost = np.zeros(n)
+    cache = pairing(C, Pv, N, Q.shape[0])
     for k in range(n):
-        m, u, c = _icp(C, Pv, N, Q, Qv, starts[k], ICP_ITERATIONS, CAUCHY_M, MAX_PAIR_M)
+        m, u, c = icp(cache, C, N, Q, Qv, starts[k], ICP_ITERATIONS, CAUCHY_M, MAX_PAIR_M)
         out[k] = m
         used[k] = u
         cost[k] = c
