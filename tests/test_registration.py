@@ -170,11 +170,10 @@ def test_the_retry_weighs_a_cost_against_the_lesser_of_the_recent_median_and_the
 
 
 def _keyframe(pose):
-    """An older keyframe's entry for :func:`R.averaged_pose`: its scan's valid beams, normals and
-    centres, of the exact scan at ``pose`` in the rectangular room."""
+    """An older keyframe's entry for :func:`R.averaged_pose`: its lines (normals, centres and
+    nearest-point cache), of the exact scan at ``pose`` in the rectangular room."""
     P, valid = R.scan_points(_scan(*pose), MAX_RANGE - 1e-9)
-    normals, centres = R._normals(P, valid, R.NORMAL_GAP_M, R.NORMAL_HALF)
-    return valid, normals, centres
+    return R.keyframe_lines(P, valid)
 
 
 def test_a_pose_off_by_a_centimetre_is_averaged_with_older_keyframes_that_see_it_right():

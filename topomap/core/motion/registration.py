@@ -40,7 +40,7 @@ from .icp import icp, pairing
 from .reckoning import compose, forward_moves, reckon, relative_pose
 from .turn_rivals import TURN_CHECK, clearance_ahead, resolve_turns
 
-__all__ = ["scan_points", "register", "register_each", "checked_turn", "resolve_turns",
+__all__ = ["scan_points", "keyframe_lines", "register", "register_each", "checked_turn", "resolve_turns",
            "scan_odometry", "scan_poses", "retry_yardstick",
            "KEYFRAME_TRAVEL", "KEYFRAME_TURN", "ICP_ITERATIONS", "CAUCHY_M", "MAX_PAIR_M",
            "RETRY_COST", "RETRY_GAIN", "RECENT", "SWEEP_BEAMS", "CLOSURE_COST", "CHAIN_SD_M",
@@ -160,14 +160,14 @@ def _icp(P, Pv, N, Q, Qv, x0, iters, cauchy, max_pair):
 
 
 @njit(cache=True)
-def _register_starts(C, Pv, N, Q, Qv, starts):
-    """``(motions (S, 3), paired (S,), costs (S,))``: :func:`_icp` of points ``Q`` on the
-    keyframe's lines (``C``, ``Pv``, ``N`` of :func:`_normals`) from each of ``starts`` (S, 3)."""
+def _register_starts(N, C, cache, Q, Qv, starts):
+    """``(motions (S, 3), paired (S,), costs (S,))``: :func:`~.icp.icp` of points ``Q`` on the
+    keyframe's lines (``N``, ``C``, ``cache`` of :func:`keyframe_lines`) from each of ``starts``
+    (S, 3)."""
     n = len(starts)
     out = np.zeros((n, 3))
     used = np.zeros(n, dtype=np.int64)
     cost = np.zeros(n)
-    cache = pairing(C, Pv, N, Q.shape[0])
     for k in range(n):
         m, u, c = icp(cache, C, N, Q, Qv, starts[k], ICP_ITERATIONS, CAUCHY_M, MAX_PAIR_M)
         out[k] = m
@@ -191,6 +191,14 @@ def _register_pairs(points, valid, i, j, starts):
         out[e] = m
         cost[e] = c
     return out, cost
+
+
+def keyframe_lines(P, valid) -> tuple:
+    """``(normals, centres, cache)`` of a keyframe's points ``P`` (B, 2) [m], ``valid`` (B,):
+    :func:`_normals` and the nearest-point cache (:func:`~.icp.pairing`) every scan registered
+    on it shares (each scan point's search kept where it stood; the same pairs as without)."""
+    N, C = _normals(P, valid, NORMAL_GAP_M, NORMAL_HALF)
+    return N, C, pairing(C, valid, N, len(P))
 
 
 def register_each(ref, scan, max_range: float, starts=((0.0, 0.0, 0.0),),
@@ -252,19 +260,19 @@ def scan_odometry(X, max_range: float | None = None,
     costs = []
     # every scan's points once, the keyframe's lines once a keyframe (as :func:`register`)
     points, valid = scan_points(X, max_range)
-    normals, centres = _normals(points[0], valid[0], NORMAL_GAP_M, NORMAL_HALF)
+    lines = keyframe_lines(points[0], valid[0])
     older = []             # the keyframes before ``key`` (:func:`averaged_pose`), oldest first
     for t in range(1, T):
         starts = np.array([compose(rel, np.array([last[0], last[1], turns[t]])),
                            compose(rel, last), rel])
-        ms, used, cs = _register_starts(centres, valid[key], normals, points[t], valid[t], starts)
+        ms, used, cs = _register_starts(*lines, points[t], valid[t], starts)
         results = [(ms[k], int(used[k]), float(cs[k])) for k in range(len(cs))]
         m, _, cost = checked_turn(results, rel)
         rival = _rival(results, m, cost)
         if len(costs) >= 10 and cost > RETRY_COST * retry_yardstick(costs):
             wide = np.column_stack([np.full(len(sweep), rel[0]), np.full(len(sweep), rel[1]),
                                     rel[2] + sweep])
-            ms, _, cs = _register_starts(centres, valid[key], normals, points[t], valid[t], wide)
+            ms, _, cs = _register_starts(*lines, points[t], valid[t], wide)
             m2, cost2 = ms[np.argmin(cs)], float(cs.min())
             if cost2 < RETRY_GAIN * cost and np.hypot(*(m2[:2] - rel[:2])) < KEYFRAME_TRAVEL:
                 rival = m if _turn_apart(m, m2) > TURN_CHECK else rival
@@ -277,21 +285,21 @@ def scan_odometry(X, max_range: float | None = None,
         last = relative_pose(poses[t - 1], poses[t])
         rel = m
         if np.hypot(m[0], m[1]) >= KEYFRAME_TRAVEL or abs(m[2]) >= KEYFRAME_TURN:
-            older = (older + [(key, valid[key], normals, centres)])[-OLDER_KEYFRAMES:]
+            older = (older + [(key, *lines)])[-OLDER_KEYFRAMES:]
             key, rel = t, np.zeros(3)
-            normals, centres = _normals(points[t], valid[t], NORMAL_GAP_M, NORMAL_HALF)
+            lines = keyframe_lines(points[t], valid[t])
     return poses
 
 
 def averaged_pose(pose, cost: float, older, poses, q, qv) -> np.ndarray:
     """(3,) pose (x [m], y [m], heading [rad]) of a scan (points ``q``, valid ``qv``) that its
     keyframe puts at ``pose`` at ``cost``: the mean of ``pose`` and its registrations from
-    ``pose`` against the ``older`` keyframes (``(index, valid, normals, centres)``, poses in
-    ``poses``) that cost at most :data:`AVERAGE_COST` times ``cost`` and lie within
+    ``pose`` against the ``older`` keyframes (``(index, normals, centres, cache)``,
+    :func:`keyframe_lines`; poses in ``poses``) that cost at most :data:`AVERAGE_COST` times ``cost`` and lie within
     :data:`KEYFRAME_TRAVEL` and :data:`AVERAGE_TURN` of it."""
     found = [pose]
-    for j, valid, nj, cj in older:
-        m, _, c = _register_starts(cj, valid, nj, q, qv, relative_pose(poses[j], pose)[None])
+    for j, *lines in older:
+        m, _, c = _register_starts(*lines, q, qv, relative_pose(poses[j], pose)[None])
         e = compose(poses[j], m[0])
         if (c[0] <= AVERAGE_COST * cost and np.hypot(*(e[:2] - pose[:2])) < KEYFRAME_TRAVEL
                 and abs(S._wrap(e[2] - pose[2])) < AVERAGE_TURN):
