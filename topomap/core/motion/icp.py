@@ -5,16 +5,15 @@ line (valid, a nonzero normal), if nearer than a pair distance, again at every G
 iteration, while the scan's points move by millimetres.  :func:`_pair_points` searches every
 keyframe point where a scan point stands (its anchor) and keeps the :data:`NEAREST_KEPT`
 nearest: until the point has moved half the gap between the nearest and the next one after
-those from its anchor, the nearest is among those kept (the triangle inequality), or until it
-has moved the nearest's distance past the pair distance, none is near enough.  Every distance
-is the same float64 arithmetic as a search over every point (index order, a strict ``<``, the
-first of equally near ones), and a margin (:data:`SAFETY`) far beyond its rounding keeps a
-point left out strictly farther: the points paired, and so the registration's bits, are those
-of a search over every point.  A cache (:func:`pairing`) serves every registration of scans
-with the same number of beams on one keyframe.
+those from its anchor, the nearest is among those kept (the triangle inequality).  Every
+distance is the same float64 arithmetic as a search over every point (index order, a strict
+``<``, the first of equally near ones), and a margin (:data:`SAFETY`) far beyond its rounding
+keeps a point left out strictly farther: the points paired, and so the registration's bits,
+are those of a search over every point.  A cache (:func:`pairing`) serves every registration
+of scans with the same number of beams on one keyframe.
 
 Measured (``benchmarks/notes/robots.md``, 2026-12-03; 60 beams, 18,000-step walks): a full
-search in 9-10 % of the pairings (every point's first), against all 100 %.
+search in 9.5 % of the pairings within one registration (every point's first), against all.
 """
 
 from __future__ import annotations
@@ -53,7 +52,7 @@ def pairing(P, Pv, N, B):
 
 
 @njit(cache=True, inline="always")
-def _search(cache, i, qx, qy, max_pair):
+def _search(cache, i, qx, qy):
     """Scan point ``i`` anchored at ``(qx, qy)`` [m]: every point of ``cache`` searched, its
     :data:`NEAREST_KEPT` nearest kept and the squared move they are kept for."""
     keep, xs, ys, anchor, near, safe, td, ta = cache
@@ -73,8 +72,6 @@ def _search(cache, i, qx, qy, max_pair):
     anchor[i, 0], anchor[i, 1] = qx, qy
     # NaN (fewer points than kept, a point at infinity): never kept, always searched
     gap = 0.5 * (np.sqrt(td[K]) - np.sqrt(td[0])) - SAFETY * np.sqrt(td[K])
-    far = np.sqrt(td[0]) - max_pair - SAFETY * np.sqrt(td[0])
-    gap = max(gap, far)
     safe[i] = gap * gap if gap > 0.0 else -1.0
 
 
@@ -93,7 +90,7 @@ def _pair_points(P, cache, Q, Qv, x, y, th, max_pair, qs, js):
         qy = s * Q[i, 0] + c * Q[i, 1] + y
         qs[i, 0], qs[i, 1] = qx, qy
         if not (qx - anchor[i, 0]) ** 2 + (qy - anchor[i, 1]) ** 2 < safe[i]:   # NaN too
-            _search(cache, i, qx, qy, max_pair)
+            _search(cache, i, qx, qy)
         best = max_pair * max_pair
         for m in range(NEAREST_KEPT):
             k = near[i, m]

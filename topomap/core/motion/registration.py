@@ -30,6 +30,8 @@ step, 1 m plans): the displacement over 200 steps 0.019-0.023 m from the truth (
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spl
@@ -40,8 +42,8 @@ from .icp import icp, pairing
 from .reckoning import compose, forward_moves, reckon, relative_pose
 from .turn_rivals import TURN_CHECK, clearance_ahead, resolve_turns
 
-__all__ = ["scan_points", "keyframe_lines", "register", "register_each", "checked_turn", "resolve_turns",
-           "scan_odometry", "scan_poses", "retry_yardstick",
+__all__ = ["scan_points", "keyframe_lines", "register", "register_each", "checked_turn",
+           "resolve_turns", "scan_odometry", "scan_poses", "retry_yardstick",
            "KEYFRAME_TRAVEL", "KEYFRAME_TURN", "ICP_ITERATIONS", "CAUCHY_M", "MAX_PAIR_M",
            "RETRY_COST", "RETRY_GAIN", "RECENT", "SWEEP_BEAMS", "CLOSURE_COST", "CHAIN_SD_M",
            "CLOSURE_SD_M", "POSITION_GATE_M", "NORMAL_HALF", "NORMAL_GAP_M", "TURN_CHECK",
@@ -295,8 +297,8 @@ def averaged_pose(pose, cost: float, older, poses, q, qv) -> np.ndarray:
     """(3,) pose (x [m], y [m], heading [rad]) of a scan (points ``q``, valid ``qv``) that its
     keyframe puts at ``pose`` at ``cost``: the mean of ``pose`` and its registrations from
     ``pose`` against the ``older`` keyframes (``(index, normals, centres, cache)``,
-    :func:`keyframe_lines`; poses in ``poses``) that cost at most :data:`AVERAGE_COST` times ``cost`` and lie within
-    :data:`KEYFRAME_TRAVEL` and :data:`AVERAGE_TURN` of it."""
+    :func:`keyframe_lines`; poses in ``poses``) that cost at most :data:`AVERAGE_COST` times
+    ``cost`` and lie within :data:`KEYFRAME_TRAVEL` and :data:`AVERAGE_TURN` of it."""
     found = [pose]
     for j, *lines in older:
         m, _, c = _register_starts(*lines, q, qv, relative_pose(poses[j], pose)[None])
@@ -313,8 +315,13 @@ def averaged_pose(pose, cost: float, older, poses, q, qv) -> np.ndarray:
 def retry_yardstick(costs) -> float:
     """The cost a registration is weighed against for a retry (:data:`RETRY_COST`): the lesser
     of the median of the last :data:`RECENT` of ``costs`` (the walk's registrations so far, in
-    order) and the last one."""
-    return min(float(np.median(costs[-RECENT:])), float(costs[-1]))
+    order) and the last one (the median as ``np.median``'s, sorted in Python: 2x faster)."""
+    recent = sorted(costs[-RECENT:])
+    n = len(recent)
+    median = recent[n // 2] if n % 2 else (recent[n // 2 - 1] + recent[n // 2]) / 2
+    if any(map(math.isnan, recent)):  # sorted() leaves NaN anywhere; np.median gives NaN
+        median = np.nan
+    return min(float(median), float(costs[-1]))
 
 
 def _turn_apart(a, b) -> float:
