@@ -23,6 +23,9 @@ from numba import njit
 
 __all__ = ["icp", "pairing", "NEAREST_KEPT", "SAFETY"]
 
+# numba's cache of registration.py's kernels, which call these, is keyed by registration.py's
+# own file alone: after an edit here, clear topomap/core/motion/__pycache__/*.nb[ic]
+
 #: keyframe points kept by each scan point for its later pairings (1, 2, 3, 4, 6: a full search
 #: in 21, 13, 10.6, 9.5, 8.6 % of 30,000 registrations' pairings; speed alone, never the result)
 NEAREST_KEPT = 4
