@@ -184,27 +184,45 @@ def test_a_pose_off_by_a_centimetre_is_averaged_with_older_keyframes_that_see_it
     truth = np.array([0.9, 0.55, 0.2])
     off = truth + [0.01, 0.0, 0.03]
     keys = [np.array([0.8, 0.5, 0.1]), np.array([0.85, 0.52, 0.15])]
-    poses = np.zeros((10, 3))
-    poses[[2, 5]] = keys
-    older = [(j, *_keyframe(k)) for j, k in zip((2, 5), keys)]
+    older = R.older_keyframes(_keyframe(keys[0]))
+    for k in keys:
+        older = R.add_keyframe(older, k, _keyframe(k))
     Q, Qv = R.scan_points(_scan(*truth), MAX_RANGE - 1e-9)
-    got = R.averaged_pose(off, 100.0, older, poses, Q, Qv)
+    got = R.averaged_pose(off, 100.0, older, Q, Qv)
     np.testing.assert_allclose(got[:2], truth[:2] + [0.01 / 3, 0.0], atol=1.5e-3)
     assert got[2] == pytest.approx(truth[2] + 0.01, abs=2e-3)
     # no older keyframe: the pose as it was
-    np.testing.assert_array_equal(R.averaged_pose(off, 100.0, [], poses, Q, Qv), off)
+    none = R.older_keyframes(_keyframe(keys[0]))
+    np.testing.assert_array_equal(R.averaged_pose(off, 100.0, none, Q, Qv), off)
 
 
 def test_an_older_keyframe_costing_more_than_the_gate_allows_is_left_out():
     truth, key = np.array([0.9, 0.55, 0.2]), np.array([0.8, 0.5, 0.1])
     off = truth + [0.01, 0.0, 0.0]
-    poses = np.zeros((4, 3))
-    poses[1] = key
-    older = [(1, *_keyframe(key))]
+    older = R.add_keyframe(R.older_keyframes(_keyframe(key)), key, _keyframe(key))
     Q, Qv = R.scan_points(_scan(*truth), MAX_RANGE - 1e-9)
     _, _, cost = R.register_each(_scan(*key), _scan(*truth), MAX_RANGE - 1e-9,
                                  [relative_pose(key, off)])[0]
     limit = cost / R.AVERAGE_COST
-    np.testing.assert_array_equal(R.averaged_pose(off, 0.99 * limit, older, poses, Q, Qv), off)
-    got = R.averaged_pose(off, 1.01 * limit, older, poses, Q, Qv)
+    np.testing.assert_array_equal(R.averaged_pose(off, 0.99 * limit, older, Q, Qv), off)
+    got = R.averaged_pose(off, 1.01 * limit, older, Q, Qv)
     assert got[0] == pytest.approx(truth[0] + 0.005, abs=1.5e-3)
+
+
+def test_the_older_keyframes_registered_in_one_call_are_each_ones_registration_to_the_bit():
+    # nine keyframes added, the first two left out (OLDER_KEYFRAMES 7); each of the seven kept
+    # gives the pose and cost of its own registration from relative_pose's start, put back by
+    # compose (the per-keyframe route), bit for bit, in the order added
+    keys = [np.array([0.6 + 0.05 * k, 0.4 + 0.02 * k, 0.1 * k - 0.3]) for k in range(9)]
+    older = R.older_keyframes(_keyframe(keys[0]))
+    for k in keys:
+        older = R.add_keyframe(older, k, _keyframe(k))
+    assert len(older[0]) == len(older[1]) == R.OLDER_KEYFRAMES == 7
+    pose = np.array([0.93, 0.57, 0.21])
+    Q, Qv = R.scan_points(_scan(0.9, 0.55, 0.2), MAX_RANGE - 1e-9)
+    got, cost = R._register_older(*older, pose, Q, Qv)
+    for k, key in enumerate(keys[2:]):
+        m, _, c = R.register_each(_scan(*key), _scan(0.9, 0.55, 0.2), MAX_RANGE - 1e-9,
+                                  [relative_pose(key, pose)])[0]
+        np.testing.assert_array_equal(got[k], compose(key, m))
+        assert cost[k] == c

@@ -35,7 +35,8 @@ import math
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spl
-from numba import njit
+from numba import njit, typeof
+from numba.typed import List
 
 from . import scans as S
 from .icp import icp, pairing
@@ -47,7 +48,8 @@ __all__ = ["scan_points", "keyframe_lines", "register", "register_each", "checke
            "KEYFRAME_TRAVEL", "KEYFRAME_TURN", "ICP_ITERATIONS", "CAUCHY_M", "MAX_PAIR_M",
            "RETRY_COST", "RETRY_GAIN", "RECENT", "SWEEP_BEAMS", "CLOSURE_COST", "CHAIN_SD_M",
            "CLOSURE_SD_M", "POSITION_GATE_M", "NORMAL_HALF", "NORMAL_GAP_M", "TURN_CHECK",
-           "averaged_pose", "OLDER_KEYFRAMES", "AVERAGE_COST", "AVERAGE_TURN"]
+           "averaged_pose", "older_keyframes", "add_keyframe", "OLDER_KEYFRAMES", "AVERAGE_COST",
+           "AVERAGE_TURN"]
 
 #: m: a new keyframe once the scan lies this far from the last one (0.10 put robot_alike@0.3333
 #: seed 0 0.61 m off along the true headings, 0.05 0.55 m: no gain from fewer keyframes)
@@ -195,6 +197,24 @@ def _register_pairs(points, valid, i, j, starts):
     return out, cost
 
 
+@njit(cache=True)
+def _register_older(lines, frames, pose, Q, Qv):
+    """``(poses (K, 3), costs (K,))``: :func:`~.icp.icp` of points ``Q`` on each older
+    keyframe's lines (``lines[k]``, :func:`keyframe_lines`) from ``pose`` [m, m, rad] in its
+    frame (``frames[k]``, :func:`add_keyframe`'s; as :func:`~.reckoning.relative_pose`), the
+    result put back in the frame of ``pose`` (as :func:`~.reckoning.compose`)."""
+    out, cost, start = np.zeros((len(lines), 3)), np.zeros(len(lines)), np.zeros(3)
+    for k in range(len(lines)):
+        N, C, cache = lines[k]
+        x, y, th, c, s = frames[k]
+        dx, dy = pose[0] - x, pose[1] - y
+        start[0], start[1], start[2] = c * dx + s * dy, -s * dx + c * dy, pose[2] - th
+        m, _, cost[k] = icp(cache, C, N, Q, Qv, start, ICP_ITERATIONS, CAUCHY_M, MAX_PAIR_M)
+        out[k, 0], out[k, 1] = x + c * m[0] - s * m[1], y + s * m[0] + c * m[1]
+        out[k, 2] = th + m[2]
+    return out, cost
+
+
 def keyframe_lines(P, valid) -> tuple:
     """``(normals, centres, cache)`` of a keyframe's points ``P`` (B, 2) [m], ``valid`` (B,):
     :func:`_normals` and the nearest-point cache (:func:`~.icp.pairing`) every scan registered
@@ -249,21 +269,19 @@ def scan_odometry(X, max_range: float | None = None,
     RETRY_GAIN`` of the kept one's (or a retry's kept turn against the first): ``pose`` the
     rival's pose of step ``t`` (:func:`resolve_turns` chooses between them by the loops)."""
     X = np.asarray(X, dtype=np.float64)
-    T = len(X)
+    T, B = X.shape
     max_range = float(X.max()) - 1e-9 if max_range is None else float(max_range) - 1e-9
     Xd = S.despike(X)
     turns = np.r_[0.0, S.scan_turns(Xd[:-1], Xd[1:])]
-    B = X.shape[1]
     sweep = 2 * np.pi * np.arange(0, B, SWEEP_BEAMS) / B
-    poses = np.zeros((T, 3))
-    key = 0
+    poses, key = np.zeros((T, 3)), 0
     rel = np.zeros(3)      # the step before's pose in the keyframe's frame
     last = np.zeros(3)     # the step before's move in its own frame
     costs = []
     # every scan's points once, the keyframe's lines once a keyframe (as :func:`register`)
     points, valid = scan_points(X, max_range)
     lines = keyframe_lines(points[0], valid[0])
-    older = []             # the keyframes before ``key`` (:func:`averaged_pose`), oldest first
+    older = older_keyframes(lines)   # the keyframes before ``key`` (:func:`averaged_pose`)
     for t in range(1, T):
         starts = np.array([compose(rel, np.array([last[0], last[1], turns[t]])),
                            compose(rel, last), rel])
@@ -280,36 +298,60 @@ def scan_odometry(X, max_range: float | None = None,
                 rival = m if _turn_apart(m, m2) > TURN_CHECK else rival
                 m, cost = m2, cost2
         costs.append(cost)
-        poses[t] = averaged_pose(compose(poses[key], m), cost, older, poses, points[t], valid[t])
-        m = relative_pose(poses[key], poses[t]) if older else m
+        poses[t] = averaged_pose(compose(poses[key], m), cost, older, points[t], valid[t])
+        m = relative_pose(poses[key], poses[t]) if len(older[1]) else m
         if alternatives is not None and rival is not None:
             alternatives.append((t, compose(poses[key], rival)))
         last = relative_pose(poses[t - 1], poses[t])
         rel = m
         if np.hypot(m[0], m[1]) >= KEYFRAME_TRAVEL or abs(m[2]) >= KEYFRAME_TURN:
-            older = (older + [(key, *lines)])[-OLDER_KEYFRAMES:]
+            older = add_keyframe(older, poses[key], lines)
             key, rel = t, np.zeros(3)
             lines = keyframe_lines(points[t], valid[t])
     return poses
 
 
-def averaged_pose(pose, cost: float, older, poses, q, qv) -> np.ndarray:
+def averaged_pose(pose, cost: float, older, q, qv) -> np.ndarray:
     """(3,) pose (x [m], y [m], heading [rad]) of a scan (points ``q``, valid ``qv``) that its
     keyframe puts at ``pose`` at ``cost``: the mean of ``pose`` and its registrations from
-    ``pose`` against the ``older`` keyframes (``(index, normals, centres, cache)``,
-    :func:`keyframe_lines`; poses in ``poses``) that cost at most :data:`AVERAGE_COST` times
+    ``pose`` against the ``older`` keyframes (``(lines, frames)`` of :func:`older_keyframes`, in
+    one compiled call, :func:`_register_older`) that cost at most :data:`AVERAGE_COST` times
     ``cost`` and lie within :data:`KEYFRAME_TRAVEL` and :data:`AVERAGE_TURN` of it."""
-    found = [pose]
-    for j, *lines in older:
-        m, _, c = _register_starts(*lines, q, qv, relative_pose(poses[j], pose)[None])
-        e = compose(poses[j], m[0])
-        if (c[0] <= AVERAGE_COST * cost and np.hypot(*(e[:2] - pose[:2])) < KEYFRAME_TRAVEL
-                and abs(S._wrap(e[2] - pose[2])) < AVERAGE_TURN):
-            found.append(e)
-    if len(found) == 1:
+    if not len(older[1]):
         return pose
-    f = np.array(found)
-    return np.r_[f[:, :2].mean(axis=0), pose[2] + S._wrap(f[:, 2] - pose[2]).mean()]
+    e, c = _register_older(*older, pose, q, qv)
+    ok = ((c <= AVERAGE_COST * cost) & (np.hypot(e[:, 0] - pose[0], e[:, 1] - pose[1])
+                                         < KEYFRAME_TRAVEL)
+          & (np.abs(S._wrap(e[:, 2] - pose[2])) < AVERAGE_TURN))
+    if not ok.any():
+        return pose
+    f = np.concatenate((pose[None], e[ok]))
+    # np.mean's sums and division, without its Python wrapper
+    xy, turn = np.add.reduce(f[:, :2], axis=0) / len(f), np.add.reduce(S._wrap(f[:, 2] - pose[2]))
+    return np.array([xy[0], xy[1], pose[2] + turn / len(f)])
+
+
+def older_keyframes(like) -> tuple:
+    """No older keyframes (``(lines, frames)`` of :func:`averaged_pose`) whose lines are of the
+    type of ``like`` (a :func:`keyframe_lines`); :func:`add_keyframe` adds one."""
+    return List.empty_list(typeof(like)), np.zeros((0, 5))
+
+
+def add_keyframe(older, pose, lines) -> tuple:
+    """``older`` (:func:`older_keyframes`, changed in place) with the keyframe at ``pose`` (3,)
+    [m, m, rad] of :func:`keyframe_lines` ``lines`` last, the first left out past
+    :data:`OLDER_KEYFRAMES`."""
+    _push(older[0], lines, OLDER_KEYFRAMES)
+    frame = [pose[0], pose[1], pose[2], np.cos(pose[2]), np.sin(pose[2])]  # numpy's, as compose
+    return older[0], np.vstack((older[1], frame))[-OLDER_KEYFRAMES:]
+
+
+@njit(cache=True)
+def _push(items, item, most):
+    """``item`` appended to the typed list ``items``, its first left out beyond ``most``."""
+    items.append(item)
+    if len(items) > most:
+        items.pop(0)
 
 
 def retry_yardstick(costs) -> float:
