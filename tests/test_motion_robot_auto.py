@@ -12,8 +12,7 @@ import numpy as np
 import pytest
 
 from topomap import MapLearner
-from topomap.core.motion.unwalked import (FAR, MARGIN, MAX_UNWALKED_DEPTH, unwalked_floor,
-                                          unwalked_share)
+from topomap.core.motion.unwalked import FAR, MARGIN, MAX_UNWALKED_DEPTH, unwalked_floor
 from topomap.core.motion.learn import ContinuousFallbackWarning
 from topomap.core.motion.robot import RobotMap
 from topomap.core.motion.robot_check import (ROBOT_MARGIN_SE, check_reason, continued_poses,
@@ -42,7 +41,6 @@ def test_unwalked_share_and_depth_by_hand():
     assert unwalked_floor(_two_cells(1.5)) == (0.0, 0.0)
     assert unwalked_floor(_two_cells(10.0)) == pytest.approx((6 / 10, 21 / 10))
     assert unwalked_floor(_two_cells(6.0)) == pytest.approx((2 / 6, 3 / 6))
-    assert unwalked_share(_two_cells(10.0)) == pytest.approx(6 / 10)
 
 
 def test_continued_poses_go_on_from_the_start_pose():

@@ -31,6 +31,7 @@ step, 1 m plans): the displacement over 200 steps 0.019-0.023 m from the truth (
 from __future__ import annotations
 
 import math
+import statistics
 
 import numpy as np
 import scipy.sparse as sp
@@ -357,12 +358,10 @@ def _push(items, item, most):
 def retry_yardstick(costs) -> float:
     """The cost a registration is weighed against for a retry (:data:`RETRY_COST`): the lesser
     of the median of the last :data:`RECENT` of ``costs`` (the walk's registrations so far, in
-    order) and the last one (the median as ``np.median``'s, sorted in Python: 2x faster)."""
-    recent = sorted(costs[-RECENT:])
-    n = len(recent)
-    median = recent[n // 2] if n % 2 else (recent[n // 2 - 1] + recent[n // 2]) / 2
-    if any(map(math.isnan, recent)):  # sorted() leaves NaN anywhere; np.median gives NaN
-        median = np.nan
+    order) and the last one (the median as ``np.median``'s, NaN too, by :mod:`statistics`: 2x
+    faster on a hundred floats)."""
+    recent = costs[-RECENT:]
+    median = np.nan if any(map(math.isnan, recent)) else statistics.median(recent)
     return min(float(median), float(costs[-1]))
 
 

@@ -29,7 +29,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
-__all__ = ["unwalked_floor", "unwalked_share", "FAR", "MARGIN", "MAX_UNWALKED_DEPTH"]
+__all__ = ["unwalked_floor", "FAR", "MARGIN", "MAX_UNWALKED_DEPTH"]
 
 #: cell spacings: a point of seen floor farther than this from every cell was never walked (two:
 #: the cells' own spread, a spacing, and as much again)
@@ -72,8 +72,3 @@ def unwalked_floor(model) -> tuple[float, float]:
             beyond += float(np.clip(d / sp - FAR, 0.0, None).sum())
             seen += c.size
     return (far / seen, beyond / seen) if seen else (0.0, 0.0)
-
-
-def unwalked_share(model) -> float:
-    """The share of :func:`unwalked_floor` (0-1)."""
-    return unwalked_floor(model)[0]
