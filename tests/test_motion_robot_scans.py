@@ -5,7 +5,9 @@ scans."""
 
 from __future__ import annotations
 
+import time
 import warnings
+from contextlib import nullcontext
 from types import SimpleNamespace
 
 import numpy as np
@@ -16,8 +18,9 @@ from topomap.core.checks import ParameterError
 from topomap.core.motion.commands import MIN_TURN_SHARE
 from topomap.core.motion.learn import ContinuousFallbackWarning
 from topomap.core.motion.robot_fit import predict_robot
-from topomap.core.motion.robot_scans import (SOURCE, closed_odometry, is_scan_log, scan_turn_share,
-                                             walk_odometry)
+from topomap.core.motion.robot_scans import (SOURCE, ScanReading, closed_odometry,
+                                             early_scan_reading, is_scan_log, read_scans,
+                                             scan_turn_share, walk_odometry)
 from topomap.core.motion.settings import motion_settings
 from topomap.core.motion.unwalked import MAX_UNWALKED_DEPTH
 
@@ -73,6 +76,47 @@ def test_scans_that_turn_as_the_commands_say_are_a_robot_s_by_hand():
     assert not is_scan_log(compass, None, views)
     assert not is_scan_log(robot, None, {"odometry": True, "chosen": "places"})
     assert not is_scan_log(robot, np.zeros((400, 3)), views)        # odometry given
+
+
+def test_the_scans_are_read_beside_the_view_clusters_only_where_the_route_may_follow():
+    """A log whose scans turn as its commands say gets its scans' odometry read on a thread of
+    its own -- the same registration and closed poses as read in turn, to the bit; a compass
+    walker's scans (never turning), a log given odometry and the setting off get none."""
+    robot, compass = _turning_log(), _turning_log(turns=False)
+    on, off = motion_settings("auto"), motion_settings({"scan_odometry": False})
+    with early_scan_reading(on, robot, None) as reading:
+        assert isinstance(reading, ScanReading)
+        raw, poses = reading()
+    want_raw, want_poses = read_scans(robot.X)
+    np.testing.assert_array_equal(raw, want_raw)
+    np.testing.assert_array_equal(poses, want_poses)
+    for settings, log, odometry in ((on, compass, None), (on, robot, np.zeros((400, 3))),
+                                    (off, robot, None)):
+        with early_scan_reading(settings, log, odometry) as reading:
+            assert reading is None
+
+
+def test_a_reading_left_unused_is_stopped_and_its_error_raised_where_asked(monkeypatch):
+    """Leaving the reading's ``with`` block asks it to stop (a reading that waits for that
+    gives None); an error on its thread is raised where its result is asked for."""
+    import topomap.core.motion.robot_scans as robot_scans
+
+    def waiting(X, stop):
+        while not stop():
+            time.sleep(0.001)
+        return None
+
+    monkeypatch.setattr(robot_scans, "read_scans", waiting)
+    with ScanReading(np.ones((5, 4))) as reading:
+        pass
+    assert reading() is None
+
+    def failing(X, stop):
+        raise ValueError("a bad scan")
+
+    monkeypatch.setattr(robot_scans, "read_scans", failing)
+    with ScanReading(np.ones((5, 4))) as reading, pytest.raises(ValueError, match="a bad scan"):
+        reading()
 
 
 def test_the_setting_is_on_by_default_and_checked():
@@ -135,11 +179,22 @@ def test_where_the_guards_pass_the_route_is_taken_and_predict_reads_the_scans(mo
     monkeypatch.setattr(robot_fit, "unwalked_floor", lambda model: (0.5, MAX_UNWALKED_DEPTH))
     monkeypatch.setattr(robot_fit, "robot_check", lambda *a, **k: {
         "learned": 2250, "held_out": 750, "robot": 0.1, "views": 0.5, "gap": 0.4, "se": 0.05})
+    import topomap.core.motion.learn as learn
+
     _, walk, _ = _arena_robot(3000, 10)
+    readings = []
+    monkeypatch.setattr(learn, "early_scan_reading",
+                        lambda *a: readings.append(early_scan_reading(*a)) or readings[-1])
     learner = _fit(walk)
+    assert isinstance(readings[0], ScanReading)  # read beside the view clusters
     assert learner.motion_info_["chosen"] == "robot" and learner.robot_map_ is not None
     assert learner.motion_info_["unwalked"] == 0.5
     assert learner.motion_info_["odometry_from"] == SOURCE
+    # the scans read beside the view clusters: the same map as read after them
+    monkeypatch.setattr(learn, "early_scan_reading", lambda *a: nullcontext())
+    in_turn = _fit(walk)
+    np.testing.assert_array_equal(in_turn.labels_, learner.labels_)
+    np.testing.assert_array_equal(in_turn.robot_map_.centres, learner.robot_map_.centres)
     X = walk.observations[:1500]
     again = learner.predict(X, walk.actions[:1500])
     np.testing.assert_array_equal(again, predict_robot(learner.robot_map_, X, None,

@@ -72,6 +72,20 @@ def test_scan_odometry_follows_a_walk_and_a_sudden_half_turn():
     np.testing.assert_allclose(est[:, 2], truth[:, 2], atol=18 * 2e-3 / 0.6)
 
 
+def test_scan_odometry_stops_when_asked_and_otherwise_reads_the_same_poses():
+    """``stop`` is asked before each step: true at the fifth asking, no poses (None); never
+    true, the poses read without it, to the bit."""
+    poses = [np.array([0.5, 0.4, 0.0])]
+    for _ in range(20):
+        poses.append(compose(poses[-1], np.array([0.01, 0.0, 0.02])))
+    X = np.array([_scan(*p) for p in poses])
+    asked = []
+    assert R.scan_odometry(X, MAX_RANGE, stop=lambda: asked.append(1) or len(asked) == 5) is None
+    assert len(asked) == 5
+    np.testing.assert_array_equal(R.scan_odometry(X, MAX_RANGE, stop=lambda: False),
+                                  R.scan_odometry(X, MAX_RANGE))
+
+
 def test_scan_odometry_reads_the_largest_range_as_no_return():
     poses = [np.array([0.5, 0.4, 0.0])]
     for _ in range(20):

@@ -186,3 +186,18 @@ def test_concurrent_proposals_split_as_proposals_in_turn(n_threads):
     assert len(runs[0][0]) == 6 and runs[0][0] == runs[1][0]
     assert np.array_equal(runs[0][1], runs[1][1])
     assert (threading.get_ident() in Seen.threads) == (n_threads == 1)
+
+
+def test_rows_in_threads_gives_one_call_s_rows_in_order(n_threads):
+    """Rows cut into a piece a thread and joined again: each row's result where one call over
+    every row puts it, with the shared arguments handed to every piece (7 rows over 1-3
+    threads: pieces of 7, 4 + 3 and 3 + 2 + 2 rows)."""
+    def fn(scale, offset, a, b):  # each row apart: a row of each result per row
+        return a * scale + offset, a.sum(axis=1) - b
+
+    a, b = np.arange(21.0).reshape(7, 3), np.arange(7.0)
+    got = threads.rows_in_threads(fn, (2.0, 1.0), a, b)
+    want = (2 * a + 1, np.array([3 + 0, 12 - 1, 21 - 2, 30 - 3, 39 - 4, 48 - 5, 57 - 6.0]))
+    assert len(got) == 2
+    for g, w in zip(got, want):
+        np.testing.assert_array_equal(g, w)

@@ -25,7 +25,7 @@ from .crossfit import MARGIN_SE
 from .commands import turn_share
 from .places import log_view_clusters
 from .robot_fit import early_headings, fit_robot, is_robot_log
-from .robot_scans import fit_scan_robot, is_scan_log
+from .robot_scans import early_scan_reading, fit_scan_robot, is_scan_log
 from .settings import MotionSettings, is_continuous, mean_run
 
 __all__ = ["fit_places", "pooled_variances", "fallback_reason", "ContinuousFallbackWarning"]
@@ -120,6 +120,15 @@ def _fit_places(learner, data, settings: MotionSettings, metric, odometry=None) 
     if np.any(data.gds >= 0):
         raise ValueError("motion mode 'continuous' cuts places of plain steps: gds must be all -1")
     start = time.perf_counter()
+    with early_scan_reading(settings, data, odometry) as reading:  # beside the view clusters
+        return _continuous(learner, data, settings, metric, odometry, start, solving, reading)
+
+
+def _continuous(learner, data, settings, metric, odometry, start: float, solving,
+                reading) -> bool:
+    """:func:`fit_places` on a continuous log, from ``start`` (``time.perf_counter``);
+    ``solving``: its headings on their way (:func:`~.robot_fit.early_headings`), ``reading``:
+    its scans' odometry on its way (:func:`~.robot_scans.early_scan_reading`)."""
     Z = np.ascontiguousarray(metric.fit_transform(data.X), dtype=np.float64)
 
     def build(X, u, labels, lengths, pooled=False, **fields):
@@ -153,10 +162,10 @@ def _fit_places(learner, data, settings: MotionSettings, metric, odometry=None) 
                          fallback=(lambda: (labels, m, {}), info, build), start=start)
     if settings.scan_odometry and is_scan_log(data, odometry, info):  # odometry from the scans
         return fit_scan_robot(learner, data, settings, (lambda: (labels, m, {}), info, build),
-                              start=start)
+                              start=start, reading=reading)
     reason = fallback_reason(info)
     if reason is not None:
         info["reason"] = reason
         warnings.warn(f"continuous log: the map's states are the view clusters (K-means on the "
-                      f"views), not places: {reason}", ContinuousFallbackWarning, stacklevel=4)
+                      f"views), not places: {reason}", ContinuousFallbackWarning, stacklevel=5)
     return bind_places(learner, m, labels, info, settings, start)

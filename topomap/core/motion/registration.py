@@ -21,11 +21,11 @@ sets the drift, averages out).  A beam at the range's maximum (no return) carrie
 odometry's), then its positions by a linear least-squares graph whose closures are registered
 scan pairs that look alike (:func:`~.scans.loop_closures`).
 
-Measured (``benchmarks/notes/robots.md``, 2026-12-03; 60 beams, 2 cm range noise, 1 cm a
-step, 1 m plans): the displacement over 200 steps 0.019-0.023 m from the truth (median; 0.063-
-0.078 m against the current keyframe alone), the range noise's share (noise-free scans 0.027-
-0.042 m against one keyframe); closed by loops, ``robot_twin@0.3333`` seed 1's whole walk
-0.025 m from the truth after a rigid alignment (1.011 m against one keyframe).
+Measured (``benchmarks/notes/robots.md``, 2026-12-03; 60 beams, 2 cm range noise, 1 cm a step,
+1 m plans): the displacement over 200 steps 0.019-0.023 m from the truth (median; 0.063-0.078
+m against the current keyframe alone), the range noise's share (noise-free scans 0.027-0.042 m
+against one keyframe); closed by loops, ``robot_twin@0.3333`` seed 1's whole walk 0.025 m from
+the truth after a rigid alignment (1.011 m against one keyframe).
 """
 
 from __future__ import annotations
@@ -39,24 +39,23 @@ import scipy.sparse.linalg as spl
 from numba import njit, typeof
 from numba.typed import List
 
+from ..split.threads import rows_in_threads
 from . import scans as S
 from .icp import icp, pairing
 from .reckoning import compose, forward_moves, reckon, relative_pose
 from .turn_rivals import TURN_CHECK, clearance_ahead, resolve_turns
 
 __all__ = ["scan_points", "keyframe_lines", "register", "register_each", "checked_turn",
-           "resolve_turns", "scan_odometry", "scan_poses", "retry_yardstick",
-           "KEYFRAME_TRAVEL", "KEYFRAME_TURN", "ICP_ITERATIONS", "CAUCHY_M", "MAX_PAIR_M",
-           "RETRY_COST", "RETRY_GAIN", "RECENT", "SWEEP_BEAMS", "CLOSURE_COST", "CHAIN_SD_M",
-           "CLOSURE_SD_M", "POSITION_GATE_M", "NORMAL_HALF", "NORMAL_GAP_M", "TURN_CHECK",
-           "averaged_pose", "older_keyframes", "add_keyframe", "OLDER_KEYFRAMES", "AVERAGE_COST",
-           "AVERAGE_TURN"]
+           "resolve_turns", "scan_odometry", "scan_poses", "retry_yardstick", "KEYFRAME_TRAVEL",
+           "KEYFRAME_TURN", "ICP_ITERATIONS", "CAUCHY_M", "MAX_PAIR_M", "RETRY_COST", "RETRY_GAIN",
+           "RECENT", "SWEEP_BEAMS", "CLOSURE_COST", "CHAIN_SD_M", "CLOSURE_SD_M", "NORMAL_HALF",
+           "POSITION_GATE_M", "NORMAL_GAP_M", "TURN_CHECK", "averaged_pose", "older_keyframes",
+           "add_keyframe", "OLDER_KEYFRAMES", "AVERAGE_COST", "AVERAGE_TURN"]
 
 #: m: a new keyframe once the scan lies this far from the last one (0.10 put robot_alike@0.3333
 #: seed 0 0.61 m off along the true headings, 0.05 0.55 m: no gain from fewer keyframes)
 KEYFRAME_TRAVEL = 0.05
-#: rad: a new keyframe once the scan has turned this far from the last one (3.3 beams of 60;
-#: not tuned)
+#: rad: a new keyframe once the scan has turned this far from the last (3.3 beams of 60; not tuned)
 KEYFRAME_TURN = 0.35
 #: Gauss-Newton iterations of one registration (not tuned: from the true motion the steps shrink
 #: below 1e-6 m in a few)
@@ -164,7 +163,7 @@ def _icp(P, Pv, N, Q, Qv, x0, iters, cauchy, max_pair):
     return icp(pairing(P, Pv, N, Q.shape[0]), P, N, Q, Qv, x0, iters, cauchy, max_pair)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _register_starts(N, C, cache, Q, Qv, starts):
     """``(motions (S, 3), paired (S,), costs (S,))``: :func:`~.icp.icp` of points ``Q`` on the
     keyframe's lines (``N``, ``C``, ``cache`` of :func:`keyframe_lines`) from each of ``starts``
@@ -181,7 +180,7 @@ def _register_starts(N, C, cache, Q, Qv, starts):
     return out, used, cost
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _register_pairs(points, valid, i, j, starts):
     """``(motions (E, 3), costs (E,))``: scan ``j[e]`` registered against scan ``i[e]`` from
     ``starts[e]`` (:func:`register` with one start, every pair in one compiled loop);
@@ -198,7 +197,7 @@ def _register_pairs(points, valid, i, j, starts):
     return out, cost
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _register_older(lines, frames, pose, Q, Qv):
     """``(poses (K, 3), costs (K,))``: :func:`~.icp.icp` of points ``Q`` on each older
     keyframe's lines (``lines[k]``, :func:`keyframe_lines`) from ``pose`` [m, m, rad] in its
@@ -260,15 +259,16 @@ def checked_turn(results, before) -> tuple[np.ndarray, int, float]:
     return best if best[2] < RETRY_GAIN * other[2] else other
 
 
-def scan_odometry(X, max_range: float | None = None,
-                  alternatives: list | None = None) -> np.ndarray:
+def scan_odometry(X, max_range: float | None = None, alternatives: list | None = None,
+                  stop=None) -> np.ndarray | None:
     """(T, 3) poses (x [m], y [m], heading [rad]) of a walk of egocentric scans ``X`` (T, B) from
-    ``(0, 0, 0)``, every scan registered against its keyframe (module docstring);
-    ``max_range``: the range a beam with no return reads (None: the largest in ``X``).
+    ``(0, 0, 0)``, every scan registered against its keyframe (module docstring); ``max_range``:
+    the range a beam with no return reads (None: the largest in ``X``).
     ``alternatives``: a list that gets ``(t, pose)`` for every step ``t`` whose registration had
     a rival turning it more than :data:`TURN_CHECK` otherwise at a cost within ``1 /
     RETRY_GAIN`` of the kept one's (or a retry's kept turn against the first): ``pose`` the
-    rival's pose of step ``t`` (:func:`resolve_turns` chooses between them by the loops)."""
+    rival's pose of step ``t`` (:func:`resolve_turns` chooses between them by the loops). ``stop``:
+    a function without arguments asked before each step; None is returned once it is true."""
     X = np.asarray(X, dtype=np.float64)
     T, B = X.shape
     max_range = float(X.max()) - 1e-9 if max_range is None else float(max_range) - 1e-9
@@ -284,6 +284,8 @@ def scan_odometry(X, max_range: float | None = None,
     lines = keyframe_lines(points[0], valid[0])
     older = older_keyframes(lines)   # the keyframes before ``key`` (:func:`averaged_pose`)
     for t in range(1, T):
+        if stop is not None and stop():
+            return None
         starts = np.array([compose(rel, np.array([last[0], last[1], turns[t]])),
                            compose(rel, last), rel])
         ms, used, cs = _register_starts(*lines, points[t], valid[t], starts)
@@ -356,10 +358,9 @@ def _push(items, item, most):
 
 
 def retry_yardstick(costs) -> float:
-    """The cost a registration is weighed against for a retry (:data:`RETRY_COST`): the lesser
-    of the median of the last :data:`RECENT` of ``costs`` (the walk's registrations so far, in
-    order) and the last one (the median as ``np.median``'s, NaN too, by :mod:`statistics`: 2x
-    faster on a hundred floats)."""
+    """The cost a retry (:data:`RETRY_COST`) weighs a registration against: the lesser of the
+    median of the last :data:`RECENT` of ``costs`` (the walk's so far, in order; ``np.median``'s
+    value, NaN too, by :mod:`statistics`: 2x faster on a hundred floats) and the last one."""
     recent = costs[-RECENT:]
     median = np.nan if any(map(math.isnan, recent)) else statistics.median(recent)
     return min(float(median), float(costs[-1]))
@@ -428,7 +429,7 @@ def scan_poses(X, max_range: float | None = None, windows=S.WINDOWS,
     limit = CLOSURE_COST * float(np.median(chain_cost))
     ci, cj = np.asarray(ci, dtype=np.int64), np.asarray(cj, dtype=np.int64)
     turn = np.column_stack([np.zeros((len(ci), 2)), psi[cj] - psi[ci]])
-    m, cost = _register_pairs(points, valid, ci, cj, turn)
+    m, cost = rows_in_threads(_register_pairs, (points, valid), ci, cj, turn)
     ok = (cost <= limit) & (np.hypot(m[:, 0], m[:, 1]) < MAX_PAIR_M)
     if not ok.any():
         return P

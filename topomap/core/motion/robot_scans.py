@@ -26,7 +26,10 @@ the setting off (37.5 s for 18,000 steps, idle).
 
 from __future__ import annotations
 
+import threading
 import time
+from concurrent.futures import Future
+from contextlib import nullcontext
 
 import numpy as np
 
@@ -36,7 +39,7 @@ from .robot_fit import MIN_BEAMS, fit_robot
 from .scans import despike, scan_turns
 
 __all__ = ["is_scan_log", "scan_turn_share", "fit_scan_robot", "walk_odometry",
-           "closed_odometry", "SOURCE"]
+           "closed_odometry", "read_scans", "early_scan_reading", "ScanReading", "SOURCE"]
 
 #: ``motion_info_["odometry_from"]`` of a map whose odometry was read from its scans
 SOURCE = "scans"
@@ -60,23 +63,77 @@ def is_scan_log(data, odometry, info: dict) -> bool:
     (``info["chosen"]``) where its scans turn as its commands say (:func:`scan_turn_share` at
     least :data:`~.commands.MIN_TURN_SHARE`: a robot whose commands' displacements the
     continuous path read off one part of the log but not another)."""
-    if not (odometry is None and len(data.lengths) == 1 and not np.any(data.gds >= 0)
-            and data.X.shape[1] >= MIN_BEAMS and bool(np.all(data.X >= 0))):
+    if not _scan_shaped(data, odometry):
         return False
     if info.get("odometry") is False:
         return True
     return info.get("chosen") == "views" and scan_turn_share(data.X, data.u) >= MIN_TURN_SHARE
 
 
-def fit_scan_robot(learner, data, settings, fallback, start: float | None = None) -> bool:
+def _scan_shaped(data, odometry) -> bool:
+    """Whether ``data`` could be a robot's scans without odometry (:func:`is_scan_log`'s shape):
+    no odometry, one episode, no GDS, a ring of beams a row, non-negative readings."""
+    return (odometry is None and len(data.lengths) == 1 and not np.any(data.gds >= 0)
+            and data.X.shape[1] >= MIN_BEAMS and bool(np.all(data.X >= 0)))
+
+
+class ScanReading:
+    """The odometry of a walk's scans read on a thread of its own (:func:`read_scans`), so that
+    it runs beside what the continuous path does meanwhile; called: waits for ``(raw, poses)``.
+    Leaving its ``with`` block stops it where it has not finished (its result unused)."""
+
+    def __init__(self, X):
+        self._stop, self._done = threading.Event(), Future()
+        threading.Thread(target=self._read, args=(X,), name="topomap-scans", daemon=True).start()
+
+    def _read(self, X) -> None:
+        try:
+            self._done.set_result(read_scans(X, self._stop.is_set))
+        except BaseException as error:  # noqa: BLE001 -- raised again where the result is asked
+            self._done.set_exception(error)
+
+    def __call__(self) -> tuple[np.ndarray, np.ndarray]:
+        return self._done.result()
+
+    def __enter__(self) -> ScanReading:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self._stop.set()
+
+
+def early_scan_reading(settings, data, odometry):
+    """Where a continuous log may take the robot route on odometry read from its scans
+    (``settings.scan_odometry``, :func:`is_scan_log`'s shape, its scans turning as its commands
+    say: :func:`scan_turn_share` at least :data:`~.commands.MIN_TURN_SHARE`, 0.036 s on 18,000
+    scans of 60 beams), a :class:`ScanReading` of its scans started beside the view clusters;
+    else a ``with`` block that gives None.  The same poses as read in turn."""
+    if (settings.scan_odometry and _scan_shaped(data, odometry)
+            and scan_turn_share(data.X, data.u) >= MIN_TURN_SHARE):
+        return ScanReading(data.X)
+    return nullcontext()
+
+
+def read_scans(X, stop=None) -> tuple[np.ndarray, np.ndarray] | None:
+    """``(raw, poses)`` of one walk's scans ``X`` (T, B): its registration
+    (:func:`~.registration.scan_odometry`) and that closed by its loops
+    (:func:`~.registration.scan_poses`); None where ``stop()`` turned true on the way."""
+    alternatives: list = []
+    raw = scan_odometry(X, alternatives=alternatives, stop=stop)
+    if raw is None:
+        return None
+    return raw, scan_poses(X, odometry=raw, alternatives=alternatives)
+
+
+def fit_scan_robot(learner, data, settings, fallback, start: float | None = None,
+                   reading: ScanReading | None = None) -> bool:
     """:func:`~.robot_fit.fit_robot` with ``mode="auto"``'s guards on the log's odometry read
     from its scans (closed by loops; the held-out check places by the unclosed registration);
     ``fallback`` as there; ``motion_info_["odometry_from"]`` is :data:`SOURCE` (the seconds
-    go to ``timings_["places"]``, as the route's)."""
+    go to ``timings_["places"]``, as the route's); ``reading``: the scans read already
+    (:func:`early_scan_reading`; None: read here)."""
     start = time.perf_counter() if start is None else start
-    alternatives: list = []
-    raw = scan_odometry(data.X, alternatives=alternatives)
-    poses = scan_poses(data.X, odometry=raw, alternatives=alternatives)
+    raw, poses = read_scans(data.X) if reading is None else reading()
     views, info, build = fallback
     return fit_robot(learner, data, settings, poses, (views, {**info, "odometry_from": SOURCE},
                                                       build), start=start, place_odometry=raw,
@@ -91,9 +148,7 @@ def closed_odometry(X) -> np.ndarray:
     decoder, which follows the odometry's moves, then carries the walk into the alike room beside
     (``robot_three@0.3333`` seed 1: 31 % of the held-out walk in the wrong room by the unclosed
     registration, 9 % closed, as by the true poses)."""
-    alternatives: list = []
-    raw = scan_odometry(X, alternatives=alternatives)
-    return scan_poses(X, odometry=raw, alternatives=alternatives)
+    return read_scans(X)[1]
 
 
 def walk_odometry(X, lengths) -> np.ndarray:

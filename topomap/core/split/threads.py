@@ -13,8 +13,10 @@ import os
 from concurrent.futures import Future, ThreadPoolExecutor
 
 import numba
+import numpy as np
 
-__all__ = ["CHUNK", "THREAD_STEPS", "n_threads", "in_threads", "beside", "pieces"]
+__all__ = ["CHUNK", "THREAD_STEPS", "n_threads", "in_threads", "rows_in_threads", "beside",
+           "pieces"]
 
 #: steps per piece of a pass cut into pieces (a fixed size: the pieces are the same whatever the
 #: number of threads)
@@ -48,6 +50,16 @@ def in_threads(fn, items, steps: int | None = None) -> list:
     if n < 2 or (steps is not None and steps < THREAD_STEPS):
         return [fn(i) for i in items]
     return list(_pool(n).map(fn, items))
+
+
+def rows_in_threads(fn, shared: tuple, *arrays) -> tuple:
+    """``fn(*shared, *arrays)`` for an ``fn`` that treats each row of ``arrays`` apart and
+    returns a tuple of arrays a row each (compiled code that releases the GIL): the rows cut
+    into :func:`n_threads` pieces of consecutive rows, each piece's call on a thread
+    (:func:`in_threads`), the pieces' results joined -- the same arrays as one call."""
+    cuts = np.array_split(np.arange(len(arrays[0])), n_threads())
+    parts = in_threads(lambda rows: fn(*shared, *(a[rows] for a in arrays)), cuts)
+    return tuple(np.concatenate(piece) for piece in zip(*parts))
 
 
 def beside(fn, *args, steps: int | None = None):
