@@ -72,3 +72,31 @@ def test_a_rival_that_undoes_a_half_turn_is_still_taken_with_no_wall_ahead():
         out = R.resolve_turns(truth, [(50, other[50])], _closures(other), ahead=open_room)
         np.testing.assert_allclose(out, other if taken else truth, atol=1e-9)
 
+
+
+def _walk_turned(extra):
+    """(T, 3) poses of :func:`_walk_poses`' steps with ``extra[t]`` rad more turned at step t."""
+    poses = [np.zeros(3)]
+    for t in range(1, T):
+        poses.append(compose(poses[-1], np.array([0.01, 0.0, 0.01 + extra.get(t, 0.0)])))
+    return np.array(poses)
+
+
+def test_a_second_rival_is_weighed_on_the_walk_the_first_one_moved():
+    # the registration kept a wrong half turn at step 40 and another at step 80 (which undoes
+    # the first's heading, not its path); each step's rival is the true move from the step
+    # before, in the kept poses' frame.  Closures across step 40 alone and across step 80 alone
+    # state the truth's turns: the first rival is taken, which turns the walk after it by half a
+    # turn, so the second kept half turn now puts the walk half a turn off -- in that moved walk
+    # its rival undoes a half turn, and taken the poses are the truth again
+    truth = _walk_poses()
+    kept = _walk_turned({40: np.pi, 80: np.pi})
+    rivals = [(t, compose(kept[t - 1], np.array([0.01, 0.0, 0.01]))) for t in (40, 80)]
+    ci, cj = np.array([10, 20, 35, 60, 70, 115]), np.array([60, 70, 75, 100, 115, 65])
+    closures = (ci, cj, truth[cj, 2] - truth[ci, 2])
+    np.testing.assert_allclose(R.resolve_turns(kept, rivals, closures), truth, atol=1e-9)
+    # the first rival alone taken (no closure across step 80): the walk half a turn off after
+    # step 80, as the kept half turn there says
+    first = _walk_turned({80: np.pi})
+    out = R.resolve_turns(kept, rivals, (ci[:3], cj[:3], closures[2][:3]))
+    np.testing.assert_allclose(out, first, atol=1e-9)

@@ -16,6 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import scans as S
+from .reckoning import compose, relative_pose
 
 __all__ = ["resolve_turns", "clearance_ahead", "TURN_CHECK", "REVERSAL_CLEARANCE_M",
            "AHEAD_HALF_ANGLE"]
@@ -78,9 +79,13 @@ def resolve_turns(poses, alternatives, closures, window: int = S.WINDOWS[0],
     ``closures`` ``(i, j, turn)`` of at most ``window`` steps across it agree with the rival
     (within :data:`~.scans.CLOSURE_GATE` of the poses' turn from ``i`` to ``j``): the steps
     after it move with it, rigidly (a turn the scans could read either way, settled by the scans
-    seen before and after it).  ``ahead``: (T,) m, :func:`clearance_ahead` of the walk's scans;
-    a rival turning over :data:`TURN_CHECK` from the step before where the scan before saw
-    nothing within :data:`REVERSAL_CLEARANCE_M` is refused (None: none refused)."""
+    seen before and after it).  A rival is the move it makes from ``poses[t - 1]``, put on the
+    step before as settled so far: a rival taken earlier has moved it (weighed in ``poses``'
+    frame instead, ``robot_twin@0.3333`` seed 0's second rival turned 0.1 rad where it undid
+    a half turn, was left, and the closed headings stayed half a turn off for the last 8,200
+    steps).  ``ahead``: (T,) m, :func:`clearance_ahead` of the walk's scans; a rival turning
+    over :data:`TURN_CHECK` from the step before where the scan before saw nothing within
+    :data:`REVERSAL_CLEARANCE_M` is refused (None: none refused)."""
     raw = np.asarray(poses, dtype=np.float64)
     P = raw.copy()
     ci, cj, cr = (np.asarray(c) for c in closures)
@@ -90,6 +95,8 @@ def resolve_turns(poses, alternatives, closures, window: int = S.WINDOWS[0],
         sel = (lo < t) & (hi >= t) & (hi - lo <= window)
         if not sel.any() or _reversal_without_room(raw, t, alt, ahead):
             continue
+        if not np.array_equal(P[t - 1], raw[t - 1]):  # a rival taken before moved the walk
+            alt = compose(P[t - 1], relative_pose(raw[t - 1], alt))
         delta = (alt[2] - P[t, 2] + np.pi) % (2 * np.pi) - np.pi
         turn = P[cj[sel], 2] - P[ci[sel], 2]
         if _agree(turn + delta * sign[sel], cr[sel]) > _agree(turn, cr[sel]):
