@@ -19,8 +19,8 @@ own loops (:func:`walk_odometry`; the check's verdicts are the same placed eithe
 five walks that reach it, benchmarks/notes/robots.md).
 
 Measured (``benchmarks/notes/robots.md``, 2026-12-03; 12 walks of four 1 m plans and the three
-of ``robot_office@0.3333``): never above K-means on the views (the guards send 5 walks of 15
-back), 0.09-0.36x its error on the 10 where the route is taken; the fit 8-9x as long as with
+of ``robot_office@0.3333``): never above K-means on the views (the guards send 4 walks of 15
+back), 0.09-0.36x its error on the 11 where the route is taken; the fit 8-9x as long as with
 the setting off (37.5 s for 18,000 steps, idle).
 """
 
