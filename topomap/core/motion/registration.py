@@ -24,7 +24,7 @@ scan pairs that look alike (:func:`~.scans.loop_closures`).
 Measured (``benchmarks/notes/robots.md``, 2026-12-03; 60 beams, 2 cm range noise, 1 cm a step,
 1 m plans): the displacement over 200 steps 0.019-0.023 m from the truth (median; 0.063-0.078
 m against the current keyframe alone), the range noise's share (noise-free scans 0.027-0.042 m
-against one keyframe); closed by loops, ``robot_twin@0.3333`` seed 1's whole walk 0.025 m from
+against one keyframe); closed by loops, ``robot_twin@0.3333`` seed 1's whole walk 0.022 m from
 the truth after a rigid alignment (1.011 m against one keyframe).
 """
 
@@ -83,7 +83,7 @@ SWEEP_BEAMS = 2
 #: times the median cost of a registration of consecutive scans: a loop closure costing more
 #: is left out.  robot_alike@0.3333 / robot_twin@0.3333 seed 0, whole walk after a rigid
 #: alignment [m]: 1.2 0.167 / 1.111, 1.5 0.257 / 1.217, 2.0 0.279 / 1.087 (robot_twin's walk
-#: has a heading wrong by pi that no setting mends)
+#: had a heading wrong by pi then, mended since by resolve_turns)
 CLOSURE_COST = 1.2
 #: m: sd of one step's move in the positions' chain (0.002: 0.210 / 1.182 at a cost of 1.5,
 #: against 0.257 / 1.217)
