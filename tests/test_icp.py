@@ -2,6 +2,7 @@
 pairs, whatever the points, ties and moves."""
 
 import numpy as np
+import pytest
 from hypothesis import given, settings, strategies as st
 
 from topomap.core.motion import icp as I
@@ -104,6 +105,53 @@ def test_a_registration_through_a_shared_cache_equals_one_through_a_fresh_cache(
             warm = I.icp(shared, C, N, Q, Qv, x0, 12, 0.02, 0.15)
             np.testing.assert_array_equal(warm[0], fresh[0])
             assert warm[1:] == fresh[1:]
+
+
+def _loss_at(motion, C, Cv, N, Q, Qv, cauchy, max_pair):
+    """The Cauchy loss of points ``Q`` moved by ``motion`` on the lines through ``C``, each paired
+    by a search over every point, an unpaired one costing as one ``max_pair`` from its line."""
+    x, y, th = motion
+    c, s = np.cos(th), np.sin(th)
+    total = 0.0
+    for (qx0, qy0), ok in zip(Q, Qv):
+        if not ok:
+            continue
+        qx, qy = c * qx0 - s * qy0 + x, s * qx0 + c * qy0 + y
+        j = _brute(C, Cv, N, qx, qy, max_pair)
+        r = max_pair if j < 0 else N[j, 0] * (qx - C[j, 0]) + N[j, 1] * (qy - C[j, 1])
+        total += np.log(1.0 + (r / cauchy) ** 2)
+    return total
+
+
+@pytest.mark.parametrize("iters", [0, 1, 12])
+def test_the_cost_is_the_loss_where_the_registration_ends(iters):
+    # the cost and the points paired are those of the motion returned, after any iterations
+    key = _room_scan(0.8, 0.5, 0.1)
+    P, Pv = R.scan_points(key, 10.0)
+    N, C, cache = R.keyframe_lines(P, Pv)
+    ranges = _room_scan(0.85, 0.55, 0.2) + np.random.default_rng(5).normal(0, 0.01, 60)
+    ranges[1::10] -= 0.5         # points in the open room, far from any line: unpaired
+    Q, Qv = R.scan_points(ranges, 10.0)
+    Qv[::3] = False
+    m, used, cost = I.icp(cache, C, N, Q, Qv, np.zeros(3), iters, 0.02, 0.15)
+    assert cost == pytest.approx(_loss_at(m, C, Pv, N, Q, Qv, 0.02, 0.15), rel=1e-12)
+    assert 3 <= used <= Qv.sum() - 4   # 4 valid points moved off the lines
+    if iters:
+        assert cost < _loss_at(np.zeros(3), C, Pv, N, Q, Qv, 0.02, 0.15)
+
+
+def test_a_scan_with_too_few_points_stops_and_costs_where_it_stands():
+    # two usable points give no step: the start is returned with its loss
+    key = _room_scan(0.8, 0.5, 0.1)
+    P, Pv = R.scan_points(key, 10.0)
+    N, C, cache = R.keyframe_lines(P, Pv)
+    Q, Qv = R.scan_points(_room_scan(0.8, 0.5, 0.1), 10.0)
+    Qv[2:] = False
+    x0 = np.array([0.01, -0.02, 0.03])
+    m, used, cost = I.icp(cache, C, N, Q, Qv, x0, 12, 0.02, 0.15)
+    np.testing.assert_array_equal(m, x0)
+    assert used <= 2
+    assert cost == pytest.approx(_loss_at(x0, C, Pv, N, Q, Qv, 0.02, 0.15), rel=1e-12)
 
 
 @settings(max_examples=200, deadline=None)
