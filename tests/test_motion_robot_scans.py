@@ -263,3 +263,29 @@ def test_a_new_walk_s_odometry_is_each_episode_closed_by_its_own_loops():
     np.testing.assert_array_equal(both[:80], closed_odometry(X[:80]))
     np.testing.assert_array_equal(both[80:], closed_odometry(X[80:]))
     np.testing.assert_array_equal(walk_odometry(X[:1], [1]), np.zeros((1, 3)))
+
+
+def test_the_view_clusters_leave_the_second_core_to_a_reading_of_the_scans(monkeypatch):
+    """While the scans are read on a thread of their own, the continuous path's choice (the view
+    clusters' K-means among it) runs on one OpenMP thread; without a reading, on as many as
+    outside the fit.  Each fit's labels are the same either way."""
+    from threadpoolctl import threadpool_info, threadpool_limits
+
+    import topomap.core.motion.learn as learn
+    from test_motion_robot import _arena_robot
+
+    def openmp():
+        return [p["num_threads"] for p in threadpool_info() if p["user_api"] == "openmp"]
+
+    seen, choose = [], learn.choose_places
+    monkeypatch.setattr(learn, "choose_places", lambda *a, **k: seen.append(openmp()) or
+                        choose(*a, **k))
+    _, walk, _ = _arena_robot(3000, 10)
+    with threadpool_limits(limits=2, user_api="openmp"):  # two, whatever the machine's cores
+        outside = openmp()
+        read = _fit(walk)
+        assert outside and seen[-1] == [1] * len(outside)
+        monkeypatch.setattr(learn, "early_scan_reading", lambda *a: nullcontext())
+        in_turn = _fit(walk)
+        assert seen[-1] == outside == [2] * len(outside)
+    np.testing.assert_array_equal(read.labels_, in_turn.labels_)

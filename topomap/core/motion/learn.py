@@ -13,12 +13,13 @@ from __future__ import annotations
 
 import time
 import warnings
+from contextlib import nullcontext
 from dataclasses import replace
 
 import numpy as np
 
 from ..map.model import TopologicalMap
-from ..phase1.clustering import one_blas_thread
+from ..phase1.clustering import one_blas_thread, one_thread
 from .check import choose_places
 from .bind import bind_places
 from .crossfit import MARGIN_SE
@@ -152,10 +153,13 @@ def _continuous(learner, data, settings, metric, odometry, start: float, solving
         info = {"turn_share": round(turn_share(odometry, data.u), 4)}
         return fit_robot(learner, data, settings, odometry, fallback=(views, info, build),
                          start=start, solving=solving)
-    labels, info = choose_places(settings, data.X, Z, data.u, data.lengths,
-                                 learner.map_split_.n_states, data.n_actions, build,
-                                 n_init=learner.n_init, random_state=learner.random_state,
-                                 method=learner.phase1)
+    # while the scans are read on a thread of their own, one OpenMP thread here: the second
+    # core is the reading's (scikit-learn's Lloyd iterations on two threads wait on it)
+    with nullcontext() if reading is None else one_thread():
+        labels, info = choose_places(settings, data.X, Z, data.u, data.lengths,
+                                     learner.map_split_.n_states, data.n_actions, build,
+                                     n_init=learner.n_init, random_state=learner.random_state,
+                                     method=learner.phase1)
     m = build(data.X, data.u, labels, data.lengths, pooled=info["chosen"] == "views", **names)
     if is_robot_log(data, odometry, info):  # no odometry learned from the actions: the route
         return fit_robot(learner, data, settings, odometry,
