@@ -69,6 +69,22 @@ def test_one_closure_spreads_a_loops_drift_as_least_squares_says():
     np.testing.assert_allclose(psi, np.arange(n + 1) * b / shrink, rtol=1e-3, atol=1e-12)
 
 
+@pytest.mark.parametrize("large", [False, True])
+def test_a_large_graph_is_solved_with_its_own_ordering_to_the_same_headings(monkeypatch, large):
+    # the drift spread by one closure (the case above, solved by hand) is the same whichever
+    # ordering SuperLU uses: minimum degree up to LARGE_GRAPH steps, COLAMD above
+    n, b = 99, 1e-5
+    monkeypatch.setattr(S, "LARGE_GRAPH", n if large else n + 1)
+    used, solve = [], S.spl.spsolve
+    monkeypatch.setattr(S.spl, "spsolve", lambda N, r, permc_spec: used.append(permc_spec) or
+                        solve(N, r, permc_spec=permc_spec))
+    turns = np.r_[0.0, np.full(n, b)]
+    psi = S.heading_graph(turns, (np.array([0]), np.array([n]), np.array([0.0])), windows=(n,))
+    shrink = 1 + n * S.TURN_SD ** 2 / S.CLOSURE_SD ** 2
+    np.testing.assert_allclose(psi, np.arange(n + 1) * b / shrink, rtol=1e-3, atol=1e-12)
+    assert set(used) == {S.LARGE_ORDERING if large else S.ORDERING}
+
+
 def test_closures_remove_a_gyro_bias_from_a_wandering_walk():
     rng = np.random.default_rng(2)
     T = 3000

@@ -390,7 +390,7 @@ def _solve_positions(T, i, j, d, sd, P, iters: int = 5):
         res = np.linalg.norm(P[j] - P[i] - d, axis=1)
         w = 1.0 / (1.0 + (res / sd / S.CAUCHY_SCALE) ** 2) / sd ** 2
         N = (A.T @ sp.diags(w) @ A + 1e6 * anchor).tocsc()
-        lu = spl.splu(N, permc_spec=S.ORDERING)
+        lu = spl.splu(N, permc_spec=S.ordering(T))
         for c in range(2):
             b = A.T @ (w * d[:, c])
             b[0] += 1e6 * P[0, c]

@@ -15,7 +15,7 @@ alike once the rotation is taken out (:func:`loop_closures`: nearest neighbours 
 of the scans' Fourier coefficients, which a rotation leaves unchanged), each stating the turn
 between them.  Closures are admitted in growing windows of time, each only if it agrees within
 ``CLOSURE_GATE`` with the headings solved so far, and weighted by a Cauchy loss (iteratively
-reweighted, ``scipy.sparse.linalg.spsolve`` with the fill-reducing ordering :data:`ORDERING`).  Measured (``benchmarks/robot_slam.py``): wheel
+reweighted, ``scipy.sparse.linalg.spsolve`` with the fill-reducing ordering of :func:`ordering`).  Measured (``benchmarks/robot_slam.py``): wheel
 odometry calibrated against the scans and closed this way is 0.025 rad from the true heading on
 1 m alike rooms (0.78 rad before); positions dead-reckoned along it 0.083 m (0.64 m).
 """
@@ -36,13 +36,30 @@ CLOSURE_GATE = 0.4     # rad: a closure disagreeing more with the headings so fa
 CAUCHY_SCALE = 3.0     # residuals in sds where the Cauchy loss halves an edge's weight
 WINDOWS = (600, 1200, 2400, 4800, 9600)  # steps: closures admitted up to this gap, in turn
 DESCRIPTORS = 16       # Fourier magnitudes describing a scan without its rotation
-#: SuperLU's column ordering for the heading graph's normal equations (symmetric: a chain plus
-#: closures): minimum degree on ``N + N.T`` solves the 18,000-step graph of a 30-minute walk in
-#: 0.055 s of CPU where SuperLU's default (COLAMD) takes 0.17 s (25 solves a fit); the headings
-#: agree within 5e-11 rad
+#: SuperLU's column ordering for the normal equations of graphs of up to :data:`LARGE_GRAPH`
+#: steps (symmetric: a chain plus closures): minimum degree on ``N + N.T`` solves the
+#: 18,000-step graph of a 30-minute walk in 0.055 s of CPU where SuperLU's default (COLAMD)
+#: takes 0.17 s (25 solves a fit); the headings agree within 5e-11 rad
 ORDERING = "MMD_AT_PLUS_A"
+#: ... and of larger graphs: on a 2-hour walk (73,000 steps, wheel odometry) the heading graph's
+#: 25 solves take 8.2 s with COLAMD against 37.3 s with :data:`ORDERING` (its factors have a
+#: third of COLAMD's non-zeros, but SuperLU takes 5-7x longer to factor them); the headings
+#: agree within 3e-8 rad (``benchmarks/notes/robots.md``)
+LARGE_ORDERING = "COLAMD"
+#: steps: the graphs solved with :data:`LARGE_ORDERING` are those of more steps than this (the
+#: heading graph's 25 solves with the two orderings, the first steps of that walk, 2026-12-04:
+#: 1.4 / 3.6 s at 18,000 steps, 4.8 / 6.8 s at 36,000, 8.0 / 5.3 s at 45,000, 31.7 / 8.2 s at
+#: 63,000; ``scan_poses`` on its scans: 2.9 / 4.6 s at 18,000, 17.4 / 11.8 s at 45,000)
+LARGE_GRAPH = 40_000
+
 MIN_GAP = 100          # steps: closures nearer in time are left to the chain; of six walks
                        # two ended 0.67 and 1.06 rad off with 300, 0.013 and 0.099 with 100
+
+
+def ordering(n: int) -> str:
+    """SuperLU's column ordering (``permc_spec``) for the normal equations of a graph of ``n``
+    steps: :data:`ORDERING`, or :data:`LARGE_ORDERING` above :data:`LARGE_GRAPH` steps."""
+    return ORDERING if n <= LARGE_GRAPH else LARGE_ORDERING
 
 
 def despike(X) -> np.ndarray:
@@ -126,7 +143,7 @@ def _solve(T, i, j, d, sd, psi, iters: int = 5):
         N = (A.T @ sp.diags(w) @ A + 1e6 * anchor).tocsc()
         b = A.T @ (w * target)
         b[0] += 1e6 * psi[0]
-        psi = spl.spsolve(N, b, permc_spec=ORDERING)
+        psi = spl.spsolve(N, b, permc_spec=ordering(T))
     return psi
 
 
