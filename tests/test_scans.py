@@ -85,6 +85,35 @@ def test_a_large_graph_is_solved_with_its_own_ordering_to_the_same_headings(monk
     assert set(used) == {S.LARGE_ORDERING if large else S.ORDERING}
 
 
+def _ring_graph(n, seed):
+    """Normal equations of a chain of ``n`` steps with random weights and closures, the first
+    step anchored (as :func:`~topomap.core.motion.scans.heading_graph` builds them)."""
+    rng = np.random.default_rng(seed)
+    i = np.r_[np.arange(n - 1), rng.integers(0, n // 2, 40)]
+    j = np.r_[np.arange(1, n), rng.integers(n // 2, n, 40)]
+    m = len(i)
+    A = S.sp.csr_matrix((np.r_[-np.ones(m), np.ones(m)], (np.r_[np.arange(m), np.arange(m)],
+                                                          np.r_[i, j])), shape=(m, n))
+    anchor = S.sp.csr_matrix(([1e6], ([0], [0])), shape=(n, n))
+    return lambda w: (A.T @ S.sp.diags(w) @ A + anchor).tocsc(), A, m, rng
+
+
+@pytest.mark.parametrize("most", [100, 1])
+def test_a_large_graph_reweighted_is_solved_from_its_earlier_factor(monkeypatch, most):
+    # conjugate gradients preconditioned by the factor of the same graph under other weights
+    # reach the direct solution; where they cannot in CG_ITERATIONS, a new factor is made
+    monkeypatch.setattr(S, "LARGE_GRAPH", 100)
+    monkeypatch.setattr(S, "CG_ITERATIONS", most)
+    normal, A, m, rng = _ring_graph(500, 4)
+    w0 = rng.uniform(1, 100, m)
+    w1 = w0 * rng.uniform(0.5, 2, m)   # reweighted, as a Cauchy loss does between passes
+    b = A.T @ (w1 * rng.normal(size=m))
+    _, before = S.solve_normal(normal(w0), b)
+    x, factor = S.solve_normal(normal(w1), b, before, np.zeros(500))
+    np.testing.assert_allclose(x, S.spl.spsolve(normal(w1), b), rtol=0, atol=1e-9)
+    assert (factor is before) == (most == 100)
+
+
 def test_closures_remove_a_gyro_bias_from_a_wandering_walk():
     rng = np.random.default_rng(2)
     T = 3000
