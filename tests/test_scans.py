@@ -75,9 +75,11 @@ def test_a_large_graph_is_solved_with_its_own_ordering_to_the_same_headings(monk
     # ordering SuperLU uses: minimum degree up to LARGE_GRAPH steps, COLAMD above
     n, b = 99, 1e-5
     monkeypatch.setattr(S, "LARGE_GRAPH", n if large else n + 1)
-    used, solve = [], S.spl.spsolve
+    used, solve, factor = [], S.spl.spsolve, S.spl.splu
     monkeypatch.setattr(S.spl, "spsolve", lambda N, r, permc_spec: used.append(permc_spec) or
                         solve(N, r, permc_spec=permc_spec))
+    monkeypatch.setattr(S.spl, "splu", lambda N, permc_spec: used.append(permc_spec) or
+                        factor(N, permc_spec=permc_spec))
     turns = np.r_[0.0, np.full(n, b)]
     psi = S.heading_graph(turns, (np.array([0]), np.array([n]), np.array([0.0])), windows=(n,))
     shrink = 1 + n * S.TURN_SD ** 2 / S.CLOSURE_SD ** 2
