@@ -110,10 +110,13 @@ def test_a_large_graph_reweighted_is_solved_from_its_earlier_factor(monkeypatch,
     w0 = rng.uniform(1, 100, m)
     w1 = w0 * rng.uniform(0.5, 2, m)   # reweighted, as a Cauchy loss does between passes
     b = A.T @ (w1 * rng.normal(size=m))
-    _, before = S.solve_normal(normal(w0), b)
-    x, factor = S.solve_normal(normal(w1), b, before, np.zeros(500))
+    equations = S.NormalEquations(500)
+    equations.reweight(normal(w0))
+    before = equations.factor
+    equations.reweight(normal(w1))
+    x = equations.solve(b, np.zeros(500))
     np.testing.assert_allclose(x, S.spl.spsolve(normal(w1), b), rtol=0, atol=1e-9)
-    assert (factor is before) == (most == 100)
+    assert (equations.factor is before) == (most == 100)
 
 
 def test_closures_remove_a_gyro_bias_from_a_wandering_walk():

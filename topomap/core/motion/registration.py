@@ -35,7 +35,6 @@ import statistics
 
 import numpy as np
 import scipy.sparse as sp
-import scipy.sparse.linalg as spl
 from numba import njit, typeof
 from numba.typed import List
 
@@ -335,7 +334,8 @@ def averaged_pose(pose, cost: float, older, q, qv) -> np.ndarray:
 
 
 def older_keyframes(like) -> tuple:
-    """No older keyframes (``(lines, frames)``, :func:`averaged_pose`) typed as ``like``'s lines."""
+    """No older keyframes (``(lines, frames)`` of :func:`averaged_pose`) whose lines are of the
+    type of ``like`` (a :func:`keyframe_lines`); :func:`add_keyframe` adds one."""
     return List.empty_list(typeof(like)), np.zeros((0, 5))
 
 
@@ -384,17 +384,15 @@ def _solve_positions(T, i, j, d, sd, P, iters: int = 5):
     A = sp.csr_matrix((np.r_[-np.ones(m), np.ones(m)], (np.r_[np.arange(m), np.arange(m)],
                                                         np.r_[i, j])), shape=(m, T))
     anchor = sp.csr_matrix(([1.0], ([0], [0])), shape=(T, T))
-    P, lu = P.copy(), None
+    P, normal = P.copy(), S.NormalEquations(T)
     for _ in range(iters):
         res = np.linalg.norm(P[j] - P[i] - d, axis=1)
         w = 1.0 / (1.0 + (res / sd / S.CAUCHY_SCALE) ** 2) / sd ** 2
-        N = (A.T @ sp.diags(w) @ A + 1e6 * anchor).tocsc()
-        small = T <= S.LARGE_GRAPH  # a factor a pass; a large graph's kept (S.solve_normal)
-        lu = spl.splu(N, permc_spec=S.ORDERING) if small else lu
+        normal.reweight((A.T @ sp.diags(w) @ A + 1e6 * anchor).tocsc())
         for c in range(2):
             b = A.T @ (w * d[:, c])
             b[0] += 1e6 * P[0, c]
-            P[:, c], lu = (lu.solve(b), lu) if small else S.solve_normal(N, b, lu, P[:, c])
+            P[:, c] = normal.solve(b, P[:, c])
     return P
 
 

@@ -15,7 +15,7 @@ alike once the rotation is taken out (:func:`loop_closures`: nearest neighbours 
 of the scans' Fourier coefficients, which a rotation leaves unchanged), each stating the turn
 between them.  Closures are admitted in growing windows of time, each only if it agrees within
 ``CLOSURE_GATE`` with the headings solved so far, and weighted by a Cauchy loss (iteratively
-reweighted, ``scipy.sparse.linalg.spsolve`` with the fill-reducing ordering of :func:`ordering`).  Measured (``benchmarks/robot_slam.py``): wheel
+reweighted, SuperLU with the fill-reducing ordering of :func:`ordering`, :class:`NormalEquations`).  Measured (``benchmarks/robot_slam.py``): wheel
 odometry calibrated against the scans and closed this way is 0.025 rad from the true heading on
 1 m alike rooms (0.78 rad before); positions dead-reckoned along it 0.083 m (0.64 m).
 """
@@ -51,7 +51,7 @@ LARGE_ORDERING = "COLAMD"
 #: 1.4 / 3.6 s at 18,000 steps, 4.8 / 6.8 s at 36,000, 8.0 / 5.3 s at 45,000, 31.7 / 8.2 s at
 #: 63,000; ``scan_poses`` on its scans: 2.9 / 4.6 s at 18,000, 17.4 / 11.8 s at 45,000)
 LARGE_GRAPH = 40_000
-#: relative residual the conjugate gradients of :func:`solve_normal` stop at (not tuned: near
+#: relative residual the conjugate gradients of :class:`NormalEquations` stop at (not tuned: near
 #: float64's limit on these systems; the headings agree with a direct solve within 1e-9 rad)
 CG_TOLERANCE = 1e-12
 #: most iterations of those conjugate gradients before a new factor is made instead
@@ -67,21 +67,34 @@ def ordering(n: int) -> str:
     return ORDERING if n <= LARGE_GRAPH else LARGE_ORDERING
 
 
-def solve_normal(N, b, previous=None, x0=None):
-    """``(x, factor)``: the solution of the normal equations ``N x = b`` (sparse, symmetric
-    positive definite) and the SuperLU factor it used.  On a graph of more than
-    :data:`LARGE_GRAPH` steps given ``previous``, the factor of the same graph under earlier
-    weights, conjugate gradients preconditioned by it from ``x0`` (scipy's ``cg``, to a relative
-    residual of :data:`CG_TOLERANCE`; a new factor where they do not get there in
-    :data:`CG_ITERATIONS`); else a new factor (:func:`ordering`)."""
-    n = N.shape[0]
-    if previous is not None and n > LARGE_GRAPH:
-        M = spl.LinearOperator(N.shape, matvec=previous.solve, dtype=np.float64)
-        x, info = spl.cg(N, b, x0=x0, rtol=CG_TOLERANCE, atol=0.0, maxiter=CG_ITERATIONS, M=M)
-        if info == 0:
-            return x, previous
-    factor = spl.splu(N, permc_spec=ordering(n))
-    return factor.solve(b), factor
+class NormalEquations:
+    """The normal equations (sparse, symmetric positive definite) of one graph of ``n`` steps,
+    solved pass after pass of an iterative reweighting: :meth:`reweight` with each pass's
+    matrix, then :meth:`solve` for each right-hand side.  Up to :data:`LARGE_GRAPH` steps every
+    pass gets a new SuperLU factor (:data:`ORDERING`); on a larger graph only the first does
+    (:data:`LARGE_ORDERING`), and the later passes are solved by conjugate gradients
+    preconditioned by it (scipy's ``cg``, to a relative residual of :data:`CG_TOLERANCE`; a new
+    factor where they do not get there in :data:`CG_ITERATIONS`)."""
+
+    def __init__(self, n: int):
+        self.large, self.factor, self.fresh, self.N = n > LARGE_GRAPH, None, False, None
+
+    def reweight(self, N) -> None:
+        """The matrix ``N`` of this pass (CSC)."""
+        self.N, self.fresh = N, not self.large or self.factor is None
+        if self.fresh:
+            self.factor = spl.splu(N, permc_spec=ordering(N.shape[0]))
+
+    def solve(self, b, x0=None) -> np.ndarray:
+        """``x`` with ``N x = b`` for this pass's ``N``; ``x0``: where the gradients start."""
+        if not self.fresh:
+            M = spl.LinearOperator(self.N.shape, matvec=self.factor.solve, dtype=np.float64)
+            x, info = spl.cg(self.N, b, x0=x0, rtol=CG_TOLERANCE, atol=0.0,
+                             maxiter=CG_ITERATIONS, M=M)
+            if info == 0:
+                return x
+            self.factor, self.fresh = spl.splu(self.N, permc_spec=LARGE_ORDERING), True
+        return self.factor.solve(b)
 
 
 def despike(X) -> np.ndarray:
@@ -158,7 +171,7 @@ def _solve(T, i, j, d, sd, psi, iters: int = 5):
     A = sp.csr_matrix((np.r_[-np.ones(m), np.ones(m)], (np.r_[np.arange(m), np.arange(m)],
                                                         np.r_[i, j])), shape=(m, T))
     anchor = sp.csr_matrix(([1.0], ([0], [0])), shape=(T, T))
-    factor = None  # a large graph's factor, kept for the later reweighted solves
+    normal = NormalEquations(T)
     for _ in range(iters):
         pred = psi[j] - psi[i]
         target = d + 2 * np.pi * np.round((pred - d) / (2 * np.pi))
@@ -166,10 +179,8 @@ def _solve(T, i, j, d, sd, psi, iters: int = 5):
         N = (A.T @ sp.diags(w) @ A + 1e6 * anchor).tocsc()
         b = A.T @ (w * target)
         b[0] += 1e6 * psi[0]
-        if T <= LARGE_GRAPH:
-            psi = spl.spsolve(N, b, permc_spec=ORDERING)
-        else:
-            psi, factor = solve_normal(N, b, factor, psi)
+        normal.reweight(N)
+        psi = normal.solve(b, psi)
     return psi
 
 
