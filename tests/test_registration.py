@@ -86,6 +86,46 @@ def test_scan_odometry_stops_when_asked_and_otherwise_reads_the_same_poses():
                                   R.scan_odometry(X, MAX_RANGE))
 
 
+def test_a_walk_longer_than_halves_is_registered_as_two_halves_joined_at_the_middle_scan(
+        monkeypatch):
+    # the walk of the sudden half turn above, 91 scans, registered in halves from HALVES = 40
+    # scans on: the first half (scans 0-45) as alone, the second (45-90) from scan 45 put in
+    # the first half's pose of scan 45 -- and, as one run, within the chained keyframes'
+    # error of the truth (18 of 2 mm above, one more for the keyframe the join starts)
+    poses = [np.array([0.5, 0.4, 0.2])]
+    for t in range(90):
+        poses.append(compose(poses[-1], np.array([0.01, 0.0, 2.0 if t == 60 else 0.02])))
+    X = np.array([_scan(*p) for p in poses])
+    first, second = R.scan_odometry(X[:46], MAX_RANGE), R.scan_odometry(X[45:], MAX_RANGE)
+    monkeypatch.setattr(R, "HALVES", 40)
+    est = R.scan_odometry(X, MAX_RANGE)
+    np.testing.assert_array_equal(est[:46], first)
+    np.testing.assert_array_equal(est[45:], [compose(first[45], p) for p in second])
+    truth = np.array([relative_pose(poses[0], p) for p in poses])
+    np.testing.assert_allclose(est[:, :2], truth[:, :2], atol=19 * 2e-3)
+    np.testing.assert_allclose(est[:, 2], truth[:, 2], atol=19 * 2e-3 / 0.6)
+    # stopped in either half: no poses
+    asked = []
+    assert R.scan_odometry(X, MAX_RANGE, stop=lambda: asked.append(1) or len(asked) > 60) is None
+
+
+def test_the_halves_rivals_are_numbered_and_placed_in_the_whole_walk(monkeypatch):
+    # each half's registration (faked: 1 m forward a step from its first scan, a rival pose
+    # at its second step) is put in the walk: the second half's steps and poses after the
+    # first half's pose of the scan they share (step 5 of 10, at (5, 0))
+    def halve(X, max_range, alternatives, stop):
+        alternatives.append((1, np.array([1.0, 1.0, 0.5])))
+        return np.column_stack([np.arange(len(X), dtype=float), np.zeros((len(X), 2))])
+
+    monkeypatch.setattr(R, "HALVES", 8)
+    monkeypatch.setattr(R, "_registered", halve)
+    rivals = []
+    est = R.scan_odometry(np.ones((10, 4)), 2.0, alternatives=rivals)
+    np.testing.assert_array_equal(est[:, 0], np.arange(10))
+    assert [t for t, _ in rivals] == [1, 6]
+    np.testing.assert_array_equal(rivals[1][1], [6.0, 1.0, 0.5])
+
+
 def test_scan_odometry_reads_the_largest_range_as_no_return():
     poses = [np.array([0.5, 0.4, 0.0])]
     for _ in range(20):

@@ -38,7 +38,7 @@ import scipy.sparse as sp
 from numba import njit, typeof
 from numba.typed import List
 
-from ..split.threads import rows_in_threads
+from ..split.threads import in_threads, rows_in_threads
 from . import scans as S
 from .icp import icp, pairing
 from .reckoning import compose, forward_moves, reckon, relative_pose
@@ -49,7 +49,7 @@ __all__ = ["scan_points", "keyframe_lines", "register", "register_each", "checke
            "KEYFRAME_TURN", "ICP_ITERATIONS", "CAUCHY_M", "MAX_PAIR_M", "RETRY_COST", "RETRY_GAIN",
            "RECENT", "SWEEP_BEAMS", "CLOSURE_COST", "CHAIN_SD_M", "CLOSURE_SD_M", "NORMAL_HALF",
            "POSITION_GATE_M", "NORMAL_GAP_M", "TURN_CHECK", "averaged_pose", "older_keyframes",
-           "add_keyframe", "OLDER_KEYFRAMES", "AVERAGE_COST", "AVERAGE_TURN"]
+           "add_keyframe", "OLDER_KEYFRAMES", "AVERAGE_COST", "AVERAGE_TURN", "HALVES"]
 
 #: m: a new keyframe once the scan lies this far from the last one (0.10 put robot_alike@0.3333
 #: seed 0 0.61 m off along the true headings, 0.05 0.55 m: no gain from fewer keyframes)
@@ -108,6 +108,12 @@ OLDER_KEYFRAMES = 7
 AVERAGE_COST = 2.0
 #: rad: ... and turns within this of the current one's answer (not tuned; a median turn 0.12 rad)
 AVERAGE_TURN = 0.2
+#: scans: a longer walk is registered as two halves at once (:func:`scan_odometry`), each on a
+#: thread.  A registration waits for the one before, 0.4 ms a scan: on a 2-hour walk (73,000
+#: scans, ``robot_alike@0.3333`` seed 0, idle) 30 s in one run, 17.3 s (31.9 s of CPU) in
+#: halves; closed by loops (:func:`scan_poses`) its poses lie 0.730 m from the truth after a
+#: rigid alignment either way (0.728 m in one run).  Walks up to it keep the bits of one run.
+HALVES = 40_000
 
 
 def scan_points(scan, max_range: float) -> tuple[np.ndarray, np.ndarray]:
@@ -267,10 +273,28 @@ def scan_odometry(X, max_range: float | None = None, alternatives: list | None =
     a rival turning it more than :data:`TURN_CHECK` otherwise at a cost within ``1 /
     RETRY_GAIN`` of the kept one's (or a retry's kept turn against the first): ``pose`` the
     rival's pose of step ``t`` (:func:`resolve_turns` chooses between them by the loops). ``stop``:
-    a function without arguments asked before each step; None is returned once it is true."""
+    a function without arguments asked before each step; None is returned once it is true.
+    A walk of more than :data:`HALVES` scans is registered as two halves at once, on two
+    threads, the second from the scan the first ends on (its poses put in that scan's pose)."""
     X = np.asarray(X, dtype=np.float64)
+    max_range = float(X.max()) if max_range is None else float(max_range)
+    h = len(X) // 2
+    if len(X) <= HALVES:
+        return _registered(X, max_range, alternatives, stop)
+    rivals: tuple[list, list] = ([], [])
+    first, second = in_threads(lambda k: _registered((X[:h + 1], X[h:])[k], max_range,
+                                                     rivals[k], stop), (0, 1))
+    if first is None or second is None:
+        return None
+    if alternatives is not None:
+        alternatives += rivals[0] + [(t + h, compose(first[h], p)) for t, p in rivals[1]]
+    return np.concatenate((first, [compose(first[h], p) for p in second[1:]]))
+
+
+def _registered(X, max_range: float, alternatives: list | None, stop) -> np.ndarray | None:
+    """:func:`scan_odometry` of one run of scans ``X`` (T, B), float64, step after step."""
     T, B = X.shape
-    max_range = float(X.max()) - 1e-9 if max_range is None else float(max_range) - 1e-9
+    max_range -= 1e-9
     Xd = S.despike(X)
     turns = np.r_[0.0, S.scan_turns(Xd[:-1], Xd[1:])]
     sweep = 2 * np.pi * np.arange(0, B, SWEEP_BEAMS) / B
@@ -392,7 +416,7 @@ def _solve_positions(T, i, j, d, sd, P, iters: int = 5):
         for c in range(2):
             b = A.T @ (w * d[:, c])
             b[0] += 1e6 * P[0, c]
-            P[:, c] = normal.solve(b, P[:, c])
+            P[:, c] = normal.solve(b)
     return P
 
 

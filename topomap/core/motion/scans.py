@@ -15,7 +15,7 @@ alike once the rotation is taken out (:func:`loop_closures`: nearest neighbours 
 of the scans' Fourier coefficients, which a rotation leaves unchanged), each stating the turn
 between them.  Closures are admitted in growing windows of time, each only if it agrees within
 ``CLOSURE_GATE`` with the headings solved so far, and weighted by a Cauchy loss (iteratively
-reweighted, SuperLU with the fill-reducing ordering of :func:`ordering`, :class:`NormalEquations`).  Measured (``benchmarks/robot_slam.py``): wheel
+reweighted, :class:`NormalEquations`).  Measured (``benchmarks/robot_slam.py``): wheel
 odometry calibrated against the scans and closed this way is 0.025 rad from the true heading on
 1 m alike rooms (0.78 rad before); positions dead-reckoned along it 0.083 m (0.64 m).
 """
@@ -23,6 +23,7 @@ odometry calibrated against the scans and closed this way is 0.025 rad from the 
 from __future__ import annotations
 
 import numpy as np
+import qdldl
 import scipy.sparse as sp
 import scipy.sparse.linalg as spl
 from sklearn.neighbors import NearestNeighbors
@@ -41,59 +42,43 @@ DESCRIPTORS = 16       # Fourier magnitudes describing a scan without its rotati
 #: 18,000-step graph of a 30-minute walk in 0.055 s of CPU where SuperLU's default (COLAMD)
 #: takes 0.17 s (25 solves a fit); the headings agree within 5e-11 rad
 ORDERING = "MMD_AT_PLUS_A"
-#: ... and of larger graphs: on a 2-hour walk (73,000 steps, wheel odometry) the heading graph's
-#: 25 solves take 8.2 s with COLAMD against 37.3 s with :data:`ORDERING` (its factors have a
-#: third of COLAMD's non-zeros, but SuperLU takes 5-7x longer to factor them); the headings
-#: agree within 3e-8 rad (``benchmarks/notes/robots.md``)
-LARGE_ORDERING = "COLAMD"
-#: steps: the graphs solved with :data:`LARGE_ORDERING` are those of more steps than this (the
-#: heading graph's 25 solves with the two orderings, the first steps of that walk, 2026-12-04:
-#: 1.4 / 3.6 s at 18,000 steps, 4.8 / 6.8 s at 36,000, 8.0 / 5.3 s at 45,000, 31.7 / 8.2 s at
-#: 63,000; ``scan_poses`` on its scans: 2.9 / 4.6 s at 18,000, 17.4 / 11.8 s at 45,000)
+#: steps: graphs of more steps than this are solved by a sparse LDL^T factor (qdldl, its
+#: approximate minimum degree ordering found once a graph and kept through the reweighted
+#: passes), whose time grows with the steps where SuperLU's with :data:`ORDERING` grows faster
+#: (the heading graph's 25 solves on a 2-hour walk's first steps: 1.4 s at 18,000 steps, 8.0 s
+#: at 45,000, 31.7 s at 63,000).  On that walk's 73,000 scans ``scan_poses`` takes 9.6 s
+#: against 27.8 s with SuperLU (COLAMD, its factor kept as conjugate gradients' preconditioner),
+#: the headings within 2e-9 rad (``benchmarks/notes/robots.md``).  Graphs up to it keep
+#: SuperLU's bits and the maps made with them (qdldl is faster there too, ``scan_poses`` on
+#: 18,000 scans 1.7 s against 3.2-3.6 s, but its positions differ by up to 0.6 mm, which can
+#: move a closure across its gate).
 LARGE_GRAPH = 40_000
-#: relative residual the conjugate gradients of :class:`NormalEquations` stop at (not tuned: near
-#: float64's limit on these systems; the headings agree with a direct solve within 1e-9 rad)
-CG_TOLERANCE = 1e-12
-#: most iterations of those conjugate gradients before a new factor is made instead
-CG_ITERATIONS = 100
 
 MIN_GAP = 100          # steps: closures nearer in time are left to the chain; of six walks
                        # two ended 0.67 and 1.06 rad off with 300, 0.013 and 0.099 with 100
 
 
-def ordering(n: int) -> str:
-    """SuperLU's column ordering (``permc_spec``) for the normal equations of a graph of ``n``
-    steps: :data:`ORDERING`, or :data:`LARGE_ORDERING` above :data:`LARGE_GRAPH` steps."""
-    return ORDERING if n <= LARGE_GRAPH else LARGE_ORDERING
-
-
 class NormalEquations:
     """The normal equations (sparse, symmetric positive definite) of one graph of ``n`` steps,
     solved pass after pass of an iterative reweighting: :meth:`reweight` with each pass's
-    matrix, then :meth:`solve` for each right-hand side.  Up to :data:`LARGE_GRAPH` steps every
-    pass gets a new SuperLU factor (:data:`ORDERING`); on a larger graph only the first does
-    (:data:`LARGE_ORDERING`), and the later passes are solved by conjugate gradients
-    preconditioned by it (scipy's ``cg``, to a relative residual of :data:`CG_TOLERANCE`; a new
-    factor where they do not get there in :data:`CG_ITERATIONS`)."""
+    matrix, then :meth:`solve` for each right-hand side.  Up to :data:`LARGE_GRAPH` steps each
+    pass gets a SuperLU factor (:data:`ORDERING`); a larger graph an LDL^T factor (qdldl) whose
+    ordering the later passes of the same graph reuse."""
 
     def __init__(self, n: int):
-        self.large, self.factor, self.fresh, self.N = n > LARGE_GRAPH, None, False, None
+        self.large, self.factor = n > LARGE_GRAPH, None
 
     def reweight(self, N) -> None:
-        """The matrix ``N`` of this pass (CSC)."""
-        self.N, self.fresh = N, not self.large or self.factor is None
-        if self.fresh:
-            self.factor = spl.splu(N, permc_spec=ordering(N.shape[0]))
+        """The matrix ``N`` of this pass (CSC, the pattern of the graph's earlier passes)."""
+        if not self.large:
+            self.factor = spl.splu(N, permc_spec=ORDERING)
+        elif self.factor is None:
+            self.factor = qdldl.Solver(N)
+        else:
+            self.factor.update(N)
 
-    def solve(self, b, x0=None) -> np.ndarray:
-        """``x`` with ``N x = b`` for this pass's ``N``; ``x0``: where the gradients start."""
-        if not self.fresh:
-            M = spl.LinearOperator(self.N.shape, matvec=self.factor.solve, dtype=np.float64)
-            x, info = spl.cg(self.N, b, x0=x0, rtol=CG_TOLERANCE, atol=0.0,
-                             maxiter=CG_ITERATIONS, M=M)
-            if info == 0:
-                return x
-            self.factor, self.fresh = spl.splu(self.N, permc_spec=LARGE_ORDERING), True
+    def solve(self, b) -> np.ndarray:
+        """``x`` with ``N x = b`` for this pass's ``N``."""
         return self.factor.solve(b)
 
 
@@ -180,7 +165,7 @@ def _solve(T, i, j, d, sd, psi, iters: int = 5):
         b = A.T @ (w * target)
         b[0] += 1e6 * psi[0]
         normal.reweight(N)
-        psi = normal.solve(b, psi)
+        psi = normal.solve(b)
     return psi
 
 
