@@ -9,7 +9,7 @@ the step before's pose in the keyframe's frame, that plus the step before's own 
 constant velocity), and the same with the turn read from the scans' circular cross-correlation
 (:func:`~.scans.scan_turns`) -- and the least-cost result kept, unless it turns the scan by
 over ``TURN_CHECK`` in one step at a cost near a result's that turns less (scans that look
-alike turned round: that one kept, :func:`checked_turn`); one costing over ``RETRY_COST``
+alike turned round: that one kept, :func:`~.turn_rivals.checked_turn`); one costing over ``RETRY_COST``
 times the lesser of the recent median and the step before's is tried again from every
 ``SWEEP_BEAMS``-th rotation (a sudden turn).  A new keyframe is taken once the scan has moved
 ``KEYFRAME_TRAVEL`` or turned ``KEYFRAME_TURN`` from the last, so the drift grows with
@@ -42,7 +42,8 @@ from ..split.threads import in_threads, rows_in_threads
 from . import scans as S
 from .icp import icp, pairing
 from .reckoning import compose, forward_moves, reckon, relative_pose
-from .turn_rivals import TURN_CHECK, clearance_ahead, resolve_turns
+from .turn_rivals import (RETRY_GAIN, TURN_CHECK, checked_turn, clearance_ahead,
+                          resolve_turns, rival_of, turn_apart)
 
 __all__ = ["scan_points", "keyframe_lines", "register", "register_each", "checked_turn",
            "resolve_turns", "scan_odometry", "scan_poses", "retry_yardstick", "KEYFRAME_TRAVEL",
@@ -71,10 +72,6 @@ MAX_PAIR_M = 0.15
 #: off a wall turns up to 2 rad in a step; with the median alone robot_twin@0.3333 seed 1 read a
 #: turn of 1.47 rad as 0.11 and its closed headings lay 0.5 rad off, with the step before's 0.02)
 RETRY_COST = 2.0
-#: a retry's motion is kept where its cost is below this share of the first one's and it has
-#: moved less than ``KEYFRAME_TRAVEL`` from the step before (a wrong match of a wide sweep moved
-#: 0.47 m in one step at a cost 5 % below the right one's)
-RETRY_GAIN = 0.8
 #: registrations whose costs set the retry's yardstick
 RECENT = 100
 #: beams between the rotations a retry starts from
@@ -249,21 +246,6 @@ def register(ref, scan, max_range: float, starts=((0.0, 0.0, 0.0),),
     return min(register_each(ref, scan, max_range, starts, iters), key=lambda r: r[2])
 
 
-def checked_turn(results, before) -> tuple[np.ndarray, int, float]:
-    """The registration of ``results`` (``(motion, paired, cost)`` of one scan from several
-    starts, :func:`register_each`) a walk keeps, given ``before``, the step before's pose in
-    the same keyframe's frame: the least-cost one, unless it turns more than
-    :data:`TURN_CHECK` from ``before`` and costs at least ``RETRY_GAIN`` of the least-cost
-    result that turns less -- then that one (a scan that looks alike turned round)."""
-    best = min(results, key=lambda r: r[2])
-    turn = lambda r: abs((r[0][2] - before[2] + np.pi) % (2 * np.pi) - np.pi)  # noqa: E731
-    near = [r for r in results if turn(r) <= TURN_CHECK]
-    if turn(best) <= TURN_CHECK or not near:
-        return best
-    other = min(near, key=lambda r: r[2])
-    return best if best[2] < RETRY_GAIN * other[2] else other
-
-
 def scan_odometry(X, max_range: float | None = None, alternatives: list | None = None,
                   stop=None) -> np.ndarray | None:
     """(T, 3) poses (x [m], y [m], heading [rad]) of a walk of egocentric scans ``X`` (T, B) from
@@ -314,14 +296,14 @@ def _registered(X, max_range: float, alternatives: list | None, stop) -> np.ndar
         ms, used, cs = _register_starts(*lines, points[t], valid[t], starts)
         results = [(ms[k], int(used[k]), float(cs[k])) for k in range(len(cs))]
         m, _, cost = checked_turn(results, rel)
-        rival = _rival(results, m, cost)
+        rival = rival_of(results, m, cost)
         if len(costs) >= 10 and cost > RETRY_COST * retry_yardstick(costs):
             wide = np.column_stack([np.full(len(sweep), rel[0]), np.full(len(sweep), rel[1]),
                                     rel[2] + sweep])
             ms, _, cs = _register_starts(*lines, points[t], valid[t], wide)
             m2, cost2 = ms[np.argmin(cs)], float(cs.min())
             if cost2 < RETRY_GAIN * cost and np.hypot(*(m2[:2] - rel[:2])) < KEYFRAME_TRAVEL:
-                rival = m if _turn_apart(m, m2) > TURN_CHECK else rival
+                rival = m if turn_apart(m, m2) > TURN_CHECK else rival
                 m, cost = m2, cost2
         costs.append(cost)
         poses[t] = averaged_pose(compose(poses[key], m), cost, older, points[t], valid[t])
@@ -387,18 +369,6 @@ def retry_yardstick(costs) -> float:
     recent = costs[-RECENT:]
     median = np.nan if any(map(math.isnan, recent)) else statistics.median(recent)
     return min(float(median), float(costs[-1]))
-
-
-def _turn_apart(a, b) -> float:
-    """rad: how far the turns of motions ``a`` and ``b`` lie apart (wrapped, 0 to pi)."""
-    return abs((a[2] - b[2] + np.pi) % (2 * np.pi) - np.pi)
-
-
-def _rival(results, m, cost):
-    """The motion of the least-cost result of ``results`` turning more than :data:`TURN_CHECK`
-    from the kept motion ``m`` at a cost below ``cost / RETRY_GAIN``; None where there is none."""
-    far = [r for r in results if _turn_apart(r[0], m) > TURN_CHECK and r[2] * RETRY_GAIN < cost]
-    return min(far, key=lambda r: r[2])[0] if far else None
 
 
 def _solve_positions(T, i, j, d, sd, P, iters: int = 5):

@@ -18,8 +18,8 @@ import numpy as np
 from . import scans as S
 from .reckoning import compose, relative_pose
 
-__all__ = ["resolve_turns", "clearance_ahead", "TURN_CHECK", "REVERSAL_CLEARANCE_M",
-           "AHEAD_HALF_ANGLE"]
+__all__ = ["resolve_turns", "clearance_ahead", "checked_turn", "rival_of", "turn_apart",
+           "TURN_CHECK", "RETRY_GAIN", "REVERSAL_CLEARANCE_M", "AHEAD_HALF_ANGLE"]
 
 #: rad: a registration turning the scan more than this in one step (from the step before's pose)
 #: is kept only where it costs under ``RETRY_GAIN`` of the least-cost one that turns less, as a
@@ -30,6 +30,10 @@ __all__ = ["resolve_turns", "clearance_ahead", "TURN_CHECK", "REVERSAL_CLEARANCE
 #: walk's first 6,000 steps); a quarter turn is far beyond a step's ordinary turn (median 0.12
 #: rad on a turn command)
 TURN_CHECK = np.pi / 2
+#: a retry's motion is kept where its cost is below this share of the first one's and it has
+#: moved less than :data:`~.registration.KEYFRAME_TRAVEL` from the step before (a wrong match of a wide sweep moved
+#: 0.47 m in one step at a cost 5 % below the right one's)
+RETRY_GAIN = 0.8
 #: rad: the beams within this of the heading are the robot's view ahead (10 beams either side of
 #: 60: the nearest return there lay within 0.096 m before every one of the 1,772 true one-step
 #: turns of over 2 rad on the 15 benchmark walks and their held-out walks; 5 beams either side
@@ -106,3 +110,30 @@ def resolve_turns(poses, alternatives, closures, window: int = S.WINDOWS[0],
                                                    s * d[:, 0] + c * d[:, 1]])
             P[t:, 2] += alt[2] - P[t, 2]
     return P
+
+
+def checked_turn(results, before) -> tuple[np.ndarray, int, float]:
+    """The registration of ``results`` (``(motion, paired, cost)`` of one scan from several
+    starts, :func:`~.registration.register_each`) a walk keeps, given ``before``, the step before's pose in
+    the same keyframe's frame: the least-cost one, unless it turns more than
+    :data:`TURN_CHECK` from ``before`` and costs at least ``RETRY_GAIN`` of the least-cost
+    result that turns less -- then that one (a scan that looks alike turned round)."""
+    best = min(results, key=lambda r: r[2])
+    turn = lambda r: abs((r[0][2] - before[2] + np.pi) % (2 * np.pi) - np.pi)  # noqa: E731
+    near = [r for r in results if turn(r) <= TURN_CHECK]
+    if turn(best) <= TURN_CHECK or not near:
+        return best
+    other = min(near, key=lambda r: r[2])
+    return best if best[2] < RETRY_GAIN * other[2] else other
+
+
+def turn_apart(a, b) -> float:
+    """rad: how far the turns of motions ``a`` and ``b`` lie apart (wrapped, 0 to pi)."""
+    return abs((a[2] - b[2] + np.pi) % (2 * np.pi) - np.pi)
+
+
+def rival_of(results, m, cost):
+    """The motion of the least-cost result of ``results`` turning more than :data:`TURN_CHECK`
+    from the kept motion ``m`` at a cost below ``cost / RETRY_GAIN``; None where there is none."""
+    far = [r for r in results if turn_apart(r[0], m) > TURN_CHECK and r[2] * RETRY_GAIN < cost]
+    return min(far, key=lambda r: r[2])[0] if far else None
