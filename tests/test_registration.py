@@ -72,18 +72,25 @@ def test_scan_odometry_follows_a_walk_and_a_sudden_half_turn():
     np.testing.assert_allclose(est[:, 2], truth[:, 2], atol=18 * 2e-3 / 0.6)
 
 
-def test_scan_odometry_stops_when_asked_and_otherwise_reads_the_same_poses():
-    """``stop`` is asked before each step: true at the fifth asking, no poses (None); never
-    true, the poses read without it, to the bit."""
+def test_scan_odometry_stops_when_asked_and_otherwise_reads_the_same_poses(monkeypatch):
+    """``stop`` is asked before each run of ``STOP_EVERY`` steps (20 steps in runs of 3: 7
+    asks): true at the fifth asking, no poses (None); never true, the poses read without it, to
+    the bit; in runs of 3 or of 1 step, the same poses as in one run."""
     poses = [np.array([0.5, 0.4, 0.0])]
     for _ in range(20):
         poses.append(compose(poses[-1], np.array([0.01, 0.0, 0.02])))
     X = np.array([_scan(*p) for p in poses])
+    whole = R.scan_odometry(X, MAX_RANGE)
+    monkeypatch.setattr(R, "STOP_EVERY", 3)
     asked = []
     assert R.scan_odometry(X, MAX_RANGE, stop=lambda: asked.append(1) or len(asked) == 5) is None
     assert len(asked) == 5
-    np.testing.assert_array_equal(R.scan_odometry(X, MAX_RANGE, stop=lambda: False),
-                                  R.scan_odometry(X, MAX_RANGE))
+    asked = []
+    np.testing.assert_array_equal(R.scan_odometry(X, MAX_RANGE, stop=lambda: asked.append(1)),
+                                  whole)
+    assert len(asked) == 7
+    monkeypatch.setattr(R, "STOP_EVERY", 1)
+    np.testing.assert_array_equal(R.scan_odometry(X, MAX_RANGE, stop=lambda: False), whole)
 
 
 def test_a_walk_longer_than_halves_is_registered_as_two_halves_joined_at_the_middle_scan(
@@ -98,6 +105,7 @@ def test_a_walk_longer_than_halves_is_registered_as_two_halves_joined_at_the_mid
     X = np.array([_scan(*p) for p in poses])
     first, second = R.scan_odometry(X[:46], MAX_RANGE), R.scan_odometry(X[45:], MAX_RANGE)
     monkeypatch.setattr(R, "HALVES", 40)
+    monkeypatch.setattr(R, "STOP_EVERY", 1)
     est = R.scan_odometry(X, MAX_RANGE)
     np.testing.assert_array_equal(est[:46], first)
     np.testing.assert_array_equal(est[45:], [compose(first[45], p) for p in second])

@@ -13,6 +13,7 @@ spacing of 0.1-0.2 m.
 from __future__ import annotations
 
 import numpy as np
+from numba.extending import register_jitable
 
 from . import scans as S
 from .inputs import odometry_moves
@@ -70,12 +71,14 @@ def keyframes(poses, delta: float, max_steps: int = KEYFRAME_MAX_STEPS) -> np.nd
     return np.array(ks, dtype=np.int64)
 
 
+@register_jitable
 def compose(a, b) -> np.ndarray:
     """The pose ``b`` (x, y, heading), given in the frame of pose ``a``, in ``a``'s frame's."""
     c, s = np.cos(a[2]), np.sin(a[2])
     return np.array([a[0] + c * b[0] - s * b[1], a[1] + s * b[0] + c * b[1], a[2] + b[2]])
 
 
+@register_jitable
 def relative_pose(a, b) -> np.ndarray:
     """Pose ``b`` in the frame of pose ``a``."""
     c, s, dx, dy = np.cos(a[2]), np.sin(a[2]), b[0] - a[0], b[1] - a[1]

@@ -30,9 +30,6 @@ the truth after a rigid alignment (1.011 m against one keyframe).
 
 from __future__ import annotations
 
-import math
-import statistics
-
 import numpy as np
 import scipy.sparse as sp
 from numba import njit, typeof
@@ -40,33 +37,25 @@ from numba.typed import List
 
 from ..split.threads import in_threads, rows_in_threads
 from . import scans as S
-from .icp import icp, pairing
+from .icp import (CAUCHY_M, ICP_ITERATIONS, MAX_PAIR_M, NORMAL_GAP_M, NORMAL_HALF, _register_pairs,
+                  _register_starts, icp, keyframe_lines, register, register_each, scan_points)
 from .reckoning import compose, forward_moves, reckon, relative_pose
-from .turn_rivals import (RETRY_GAIN, TURN_CHECK, checked_turn, clearance_ahead,
-                          resolve_turns, rival_of, turn_apart)
+from .turn_rivals import (RETRY_GAIN, TURN_CHECK, checked_index, checked_turn, clearance_ahead,
+                          resolve_turns, rival_index, rival_of, turn_apart)
 
 __all__ = ["scan_points", "keyframe_lines", "register", "register_each", "checked_turn",
            "resolve_turns", "scan_odometry", "scan_poses", "retry_yardstick", "KEYFRAME_TRAVEL",
            "KEYFRAME_TURN", "ICP_ITERATIONS", "CAUCHY_M", "MAX_PAIR_M", "RETRY_COST", "RETRY_GAIN",
            "RECENT", "SWEEP_BEAMS", "CLOSURE_COST", "CHAIN_SD_M", "CLOSURE_SD_M", "NORMAL_HALF",
            "POSITION_GATE_M", "NORMAL_GAP_M", "TURN_CHECK", "averaged_pose", "older_keyframes",
-           "add_keyframe", "OLDER_KEYFRAMES", "AVERAGE_COST", "AVERAGE_TURN", "HALVES"]
+           "add_keyframe", "OLDER_KEYFRAMES", "AVERAGE_COST", "AVERAGE_TURN", "HALVES",
+           "STOP_EVERY", "turn_apart", "rival_of"]
 
 #: m: a new keyframe once the scan lies this far from the last one (0.10 put robot_alike@0.3333
 #: seed 0 0.61 m off along the true headings, 0.05 0.55 m: no gain from fewer keyframes)
 KEYFRAME_TRAVEL = 0.05
 #: rad: a new keyframe once the scan has turned this far from the last (3.3 beams of 60; not tuned)
 KEYFRAME_TURN = 0.35
-#: Gauss-Newton iterations of one registration (not tuned: from the true motion the steps shrink
-#: below 1e-6 m in a few)
-ICP_ITERATIONS = 12
-#: m: the Cauchy loss's scale of a point's distance from its line: the harness's range noise sd
-#: (0.01 and 0.05 gave 7.5 and 6.9 mm from the true motion, 0.02 7.1, with lines through two
-#: neighbours: it hardly matters)
-CAUCHY_M = 0.02
-#: m: a point farther than this from its nearest keyframe point has no pair (the spacing of 6-
-#: degree beams at 1.4 m; not tuned)
-MAX_PAIR_M = 0.15
 #: times the lesser of the recent median cost (``RECENT`` registrations) and the step before's:
 #: above it a registration is tried again from every ``SWEEP_BEAMS``-th rotation (a robot bounced
 #: off a wall turns up to 2 rad in a step; with the median alone robot_twin@0.3333 seed 1 read a
@@ -89,11 +78,6 @@ CLOSURE_SD_M = 0.01
 #: m: a closure disagreeing more with the positions so far is left out (0.2: 0.224 / 1.015,
 #: the same comparison; not combined with the cost of 1.2)
 POSITION_GATE_M = 0.1
-#: beams either side whose points fit the line through a keyframe point (1, 2, 3: 6.5, 6.9,
-#: 8.5 mm and 0.009, 0.010, 0.011 rad from the true motion)
-NORMAL_HALF = 1
-#: m: neighbours farther than this from the point are not on its line (not tuned)
-NORMAL_GAP_M = 0.25
 #: keyframes before the current one a scan is registered against too (:func:`averaged_pose`).
 #: 200-step displacement error, median / 90th percentile [m], robot_twin@0.3333 s1 / robot_three
 #: s2, steps 0-6,000: none 0.066 / 0.141, 0.077 / 0.164; 2 0.034 / 0.067, 0.043 / 0.090; 5 0.020
@@ -111,92 +95,9 @@ AVERAGE_TURN = 0.2
 #: halves; closed by loops (:func:`scan_poses`) its poses lie 0.730 m from the truth after a
 #: rigid alignment either way (0.728 m in one run).  Walks up to it keep the bits of one run.
 HALVES = 40_000
-
-
-def scan_points(scan, max_range: float) -> tuple[np.ndarray, np.ndarray]:
-    """``(points (B, 2), valid (B,))`` of one scan (B,) in the robot's frame [m]: beam ``k`` at
-    ``2 pi k / B`` anticlockwise from the heading; a beam at ``max_range`` or more is no point.
-    Scans (T, B): ``(points (T, B, 2), valid (T, B))``, each row as alone."""
-    scan = np.asarray(scan, dtype=np.float64)
-    B = scan.shape[-1]
-    a = 2 * np.pi * np.arange(B) / B
-    return np.stack([scan * np.cos(a), scan * np.sin(a)], axis=-1), scan < max_range
-
-
-@njit(cache=True)
-def _normals(P, valid, max_gap, half):
-    """``(normals (B, 2), centres (B, 2))`` of the keyframe's points: the least-squares line
-    through each point and its valid neighbours within ``half`` beams either side that lie
-    within ``max_gap`` of it, its unit normal (0 where fewer than two points) and the point
-    moved onto it (the range noise along the normal averaged over the neighbours)."""
-    B = P.shape[0]
-    N = np.zeros((B, 2))
-    C = P.copy()
-    for k in range(B):
-        if not valid[k]:
-            continue
-        n, sx, sy, sxx, sxy, syy = 0, 0.0, 0.0, 0.0, 0.0, 0.0
-        for o in range(-half, half + 1):
-            j = (k + o) % B
-            if valid[j] and (P[j, 0] - P[k, 0]) ** 2 + (P[j, 1] - P[k, 1]) ** 2 < max_gap ** 2:
-                x, y = P[j, 0], P[j, 1]
-                n += 1
-                sx += x
-                sy += y
-                sxx += x * x
-                sxy += x * y
-                syy += y * y
-        if n < 2:
-            continue
-        cxx, cxy, cyy = sxx / n - (sx / n) ** 2, sxy / n - sx * sy / n ** 2, syy / n - (sy / n) ** 2
-        # the direction of least spread: the normal
-        ang = 0.5 * np.arctan2(2 * cxy, cxx - cyy)  # the direction of most spread
-        nx, ny = -np.sin(ang), np.cos(ang)
-        N[k, 0], N[k, 1] = nx, ny
-        off = nx * (P[k, 0] - sx / n) + ny * (P[k, 1] - sy / n)
-        C[k, 0], C[k, 1] = P[k, 0] - off * nx, P[k, 1] - off * ny
-    return N, C
-
-
-@njit(cache=True)
-def _icp(P, Pv, N, Q, Qv, x0, iters, cauchy, max_pair):
-    """:func:`~.icp.icp` of points ``Q`` on the lines through ``P`` (valid ``Pv``, normals
-    ``N``) from ``x0``, with a cache of its own: ``(motion, paired, cost)``."""
-    return icp(pairing(P, Pv, N, Q.shape[0]), P, N, Q, Qv, x0, iters, cauchy, max_pair)
-
-
-@njit(cache=True, nogil=True)
-def _register_starts(N, C, cache, Q, Qv, starts):
-    """``(motions (S, 3), paired (S,), costs (S,))``: :func:`~.icp.icp` of points ``Q`` on the
-    keyframe's lines (``N``, ``C``, ``cache`` of :func:`keyframe_lines`) from each of ``starts``
-    (S, 3)."""
-    n = len(starts)
-    out = np.zeros((n, 3))
-    used = np.zeros(n, dtype=np.int64)
-    cost = np.zeros(n)
-    for k in range(n):
-        m, u, c = icp(cache, C, N, Q, Qv, starts[k], ICP_ITERATIONS, CAUCHY_M, MAX_PAIR_M)
-        out[k] = m
-        used[k] = u
-        cost[k] = c
-    return out, used, cost
-
-
-@njit(cache=True, nogil=True)
-def _register_pairs(points, valid, i, j, starts):
-    """``(motions (E, 3), costs (E,))``: scan ``j[e]`` registered against scan ``i[e]`` from
-    ``starts[e]`` (:func:`register` with one start, every pair in one compiled loop);
-    ``points``, ``valid``: :func:`scan_points` of all the scans."""
-    n = len(i)
-    out = np.zeros((n, 3))
-    cost = np.zeros(n)
-    for e in range(n):
-        N, C = _normals(points[i[e]], valid[i[e]], NORMAL_GAP_M, NORMAL_HALF)
-        m, _, c = _icp(C, valid[i[e]], N, points[j[e]], valid[j[e]], starts[e],
-                       ICP_ITERATIONS, CAUCHY_M, MAX_PAIR_M)
-        out[e] = m
-        cost[e] = c
-    return out, cost
+#: scans registered in one compiled call between two asks of :func:`scan_odometry`'s ``stop``
+#: (0.3 s at the 0.3 ms a scan of a 60-beam walk; speed alone, never the result)
+STOP_EVERY = 1000
 
 
 @njit(cache=True, nogil=True)
@@ -215,35 +116,6 @@ def _register_older(lines, frames, pose, Q, Qv):
         out[k, 0], out[k, 1] = x + c * m[0] - s * m[1], y + s * m[0] + c * m[1]
         out[k, 2] = th + m[2]
     return out, cost
-
-
-def keyframe_lines(P, valid) -> tuple:
-    """``(normals, centres, cache)`` of a keyframe's points ``P`` (B, 2) [m], ``valid`` (B,):
-    :func:`_normals` and the nearest-point cache (:func:`~.icp.pairing`) every scan registered
-    on it shares (each scan point's search kept where it stood; the same pairs as without)."""
-    N, C = _normals(P, valid, NORMAL_GAP_M, NORMAL_HALF)
-    return N, C, pairing(C, valid, N, len(P))
-
-
-def register_each(ref, scan, max_range: float, starts=((0.0, 0.0, 0.0),),
-                  iters: int = ICP_ITERATIONS) -> list[tuple[np.ndarray, int, float]]:
-    """``[(motion, paired, cost)]`` of every one of ``starts`` (rows of x, y, turn): the pose
-    ``(x [m], y [m], turn [rad])`` of ``scan`` in the frame of ``ref`` (both (B,) ranges) by
-    point-to-line ICP from that start (:func:`_icp`), the points it paired and its cost."""
-    P, Pv = scan_points(ref, max_range)
-    Q, Qv = scan_points(scan, max_range)
-    N, C = _normals(P, Pv, NORMAL_GAP_M, NORMAL_HALF)
-    runs = (_icp(C, Pv, N, Q, Qv, start, iters, CAUCHY_M, MAX_PAIR_M)
-            for start in np.atleast_2d(np.asarray(starts, dtype=np.float64)))
-    return [(m, int(used), float(cost)) for m, used, cost in runs]
-
-
-def register(ref, scan, max_range: float, starts=((0.0, 0.0, 0.0),),
-             iters: int = ICP_ITERATIONS) -> tuple[np.ndarray, int, float]:
-    """``(motion, paired, cost)``: the pose ``(x [m], y [m], turn [rad])`` of ``scan`` in the
-    frame of ``ref`` (both (B,) ranges) by point-to-line ICP from each of ``starts`` (rows of
-    x, y, turn), the one of least cost (:func:`_icp`), the points it paired and its cost."""
-    return min(register_each(ref, scan, max_range, starts, iters), key=lambda r: r[2])
 
 
 def scan_odometry(X, max_range: float | None = None, alternatives: list | None = None,
@@ -274,49 +146,72 @@ def scan_odometry(X, max_range: float | None = None, alternatives: list | None =
 
 
 def _registered(X, max_range: float, alternatives: list | None, stop) -> np.ndarray | None:
-    """:func:`scan_odometry` of one run of scans ``X`` (T, B), float64, step after step."""
+    """:func:`scan_odometry` of one run of scans ``X`` (T, B), float64, step after step: the
+    compiled :func:`_steps` over :data:`STOP_EVERY` scans at a time, ``stop`` asked before each."""
     T, B = X.shape
     max_range -= 1e-9
     Xd = S.despike(X)
     turns = np.r_[0.0, S.scan_turns(Xd[:-1], Xd[1:])]
     sweep = 2 * np.pi * np.arange(0, B, SWEEP_BEAMS) / B
-    poses, key = np.zeros((T, 3)), 0
-    rel = np.zeros(3)      # the step before's pose in the keyframe's frame
-    last = np.zeros(3)     # the step before's move in its own frame
-    costs = []
     # every scan's points once, the keyframe's lines once a keyframe (as :func:`register`)
     points, valid = scan_points(X, max_range)
     lines = keyframe_lines(points[0], valid[0])
-    older = older_keyframes(lines)   # the keyframes before ``key`` (:func:`averaged_pose`)
-    for t in range(1, T):
+    older, frames = older_keyframes(lines)
+    poses, costs, rivals = np.zeros((T, 3)), np.zeros(T), np.zeros((T, 4))
+    walk = (poses, costs, rivals, np.zeros(2, dtype=np.int64), np.zeros(3), np.zeros(3))
+    for t in range(1, T, STOP_EVERY):
         if stop is not None and stop():
             return None
-        starts = np.array([compose(rel, np.array([last[0], last[1], turns[t]])),
-                           compose(rel, last), rel])
-        ms, used, cs = _register_starts(*lines, points[t], valid[t], starts)
-        results = [(ms[k], int(used[k]), float(cs[k])) for k in range(len(cs))]
-        m, _, cost = checked_turn(results, rel)
-        rival = rival_of(results, m, cost)
-        if len(costs) >= 10 and cost > RETRY_COST * retry_yardstick(costs):
-            wide = np.column_stack([np.full(len(sweep), rel[0]), np.full(len(sweep), rel[1]),
-                                    rel[2] + sweep])
-            ms, _, cs = _register_starts(*lines, points[t], valid[t], wide)
-            m2, cost2 = ms[np.argmin(cs)], float(cs.min())
-            if cost2 < RETRY_GAIN * cost and np.hypot(*(m2[:2] - rel[:2])) < KEYFRAME_TRAVEL:
-                rival = m if turn_apart(m, m2) > TURN_CHECK else rival
-                m, cost = m2, cost2
-        costs.append(cost)
-        poses[t] = averaged_pose(compose(poses[key], m), cost, older, points[t], valid[t])
-        m = relative_pose(poses[key], poses[t]) if len(older[1]) else m
-        if alternatives is not None and rival is not None:
-            alternatives.append((t, compose(poses[key], rival)))
-        last = relative_pose(poses[t - 1], poses[t])
-        rel = m
-        if np.hypot(m[0], m[1]) >= KEYFRAME_TRAVEL or abs(m[2]) >= KEYFRAME_TURN:
-            older = add_keyframe(older, poses[key], lines)
-            key, rel = t, np.zeros(3)
-            lines = keyframe_lines(points[t], valid[t])
+        lines, frames = _steps(points, valid, turns, sweep, walk, lines, older, frames,
+                               t, min(T, t + STOP_EVERY))
+    if alternatives is not None:
+        alternatives += [(int(r[0]), r[1:].copy()) for r in rivals[:walk[3][1]]]
     return poses
+
+
+@njit(cache=True, nogil=True)
+def _steps(points, valid, turns, sweep, walk, lines, older, frames, t0, t1):
+    """Steps ``t0`` to ``t1 - 1`` of :func:`_registered` in one compiled call: ``walk`` =
+    ``(poses (T, 3), costs (T,), rivals (T, 4): t, pose, (key, rivals), rel, last)`` changed in
+    place (``rel``: the step before's pose in the keyframe's frame; ``last``: the step before's
+    move in its own frame), ``older`` too; the keyframe's ``lines`` and ``frames`` returned."""
+    poses, costs, rivals, count, rel, last = walk
+    starts, wide = np.zeros((3, 3)), np.zeros((len(sweep), 3))
+    for t in range(t0, t1):
+        starts[0] = compose(rel, np.array([last[0], last[1], turns[t]]))
+        starts[1] = compose(rel, last)
+        starts[2] = rel
+        ms, _, cs = _register_starts(lines[0], lines[1], lines[2], points[t], valid[t], starts)
+        k = checked_index(ms, cs, rel)
+        m, cost = ms[k].copy(), cs[k]
+        r = rival_index(ms, cs, m, cost)
+        rival = ms[r].copy() if r >= 0 else None
+        if t > 10 and cost > RETRY_COST * _yardstick(costs, t - 1):
+            for j in range(len(sweep)):
+                wide[j, 0], wide[j, 1], wide[j, 2] = rel[0], rel[1], rel[2] + sweep[j]
+            ms, _, cs = _register_starts(lines[0], lines[1], lines[2], points[t], valid[t], wide)
+            j = np.argmin(cs)  # NaN first in line, as numpy's
+            if cs[j] < RETRY_GAIN * cost and np.hypot(ms[j, 0] - rel[0],
+                                                      ms[j, 1] - rel[1]) < KEYFRAME_TRAVEL:
+                rival = m if turn_apart(m, ms[j]) > TURN_CHECK else rival
+                m, cost = ms[j].copy(), cs[j]
+        costs[t - 1] = cost
+        key = count[0]
+        poses[t] = _averaged(compose(poses[key], m), cost, older, frames, points[t], valid[t])
+        if len(frames):
+            m = relative_pose(poses[key], poses[t])
+        if rival is not None:
+            rivals[count[1], 0] = t
+            rivals[count[1], 1:] = compose(poses[key], rival)
+            count[1] += 1
+        last[:] = relative_pose(poses[t - 1], poses[t])
+        rel[:] = m
+        if np.hypot(m[0], m[1]) >= KEYFRAME_TRAVEL or abs(m[2]) >= KEYFRAME_TURN:
+            frames = _add_keyframe(older, frames, poses[key], lines)
+            count[0] = t
+            rel[:] = 0.0
+            lines = keyframe_lines(points[t], valid[t])
+    return lines, frames
 
 
 def averaged_pose(pose, cost: float, older, q, qv) -> np.ndarray:
@@ -325,18 +220,25 @@ def averaged_pose(pose, cost: float, older, q, qv) -> np.ndarray:
     ``pose`` against the ``older`` keyframes (``(lines, frames)`` of :func:`older_keyframes`, in
     one compiled call, :func:`_register_older`) that cost at most :data:`AVERAGE_COST` times
     ``cost`` and lie within :data:`KEYFRAME_TRAVEL` and :data:`AVERAGE_TURN` of it."""
-    if not len(older[1]):
+    return _averaged(np.asarray(pose, dtype=np.float64), float(cost), older[0], older[1], q, qv)
+
+
+@njit(cache=True)
+def _averaged(pose, cost, lines, frames, q, qv):
+    """:func:`averaged_pose`, compiled; its sums in the order of ``np.add.reduce``'s: the x and y
+    row after row, the turns from ``pose``'s each after the first (then added to it)."""
+    if not len(frames):
         return pose
-    e, c = _register_older(*older, pose, q, qv)
-    ok = ((c <= AVERAGE_COST * cost) & (np.hypot(e[:, 0] - pose[0], e[:, 1] - pose[1])
-                                         < KEYFRAME_TRAVEL)
-          & (np.abs(S._wrap(e[:, 2] - pose[2])) < AVERAGE_TURN))
-    if not ok.any():
+    e, c = _register_older(lines, frames, pose, q, qv)
+    n, x, y, turn = 1, pose[0], pose[1], 0.0
+    for k in range(len(c)):
+        d = (e[k, 2] - pose[2] + np.pi) % (2 * np.pi) - np.pi
+        if (c[k] <= AVERAGE_COST * cost and abs(d) < AVERAGE_TURN
+                and np.hypot(e[k, 0] - pose[0], e[k, 1] - pose[1]) < KEYFRAME_TRAVEL):
+            n, x, y, turn = n + 1, x + e[k, 0], y + e[k, 1], turn + d
+    if n == 1:
         return pose
-    f = np.concatenate((pose[None], e[ok]))
-    # np.mean's sums and division, without its Python wrapper
-    xy, turn = np.add.reduce(f[:, :2], axis=0) / len(f), np.add.reduce(S._wrap(f[:, 2] - pose[2]))
-    return np.array([xy[0], xy[1], pose[2] + turn / len(f)])
+    return np.array([x / n, y / n, pose[2] + turn / n])
 
 
 def older_keyframes(like) -> tuple:
@@ -349,26 +251,38 @@ def add_keyframe(older, pose, lines) -> tuple:
     """``older`` (:func:`older_keyframes`, changed in place) with the keyframe at ``pose`` (3,)
     [m, m, rad] of :func:`keyframe_lines` ``lines`` last, the first left out past
     :data:`OLDER_KEYFRAMES`."""
-    _push(older[0], lines, OLDER_KEYFRAMES)
-    frame = [pose[0], pose[1], pose[2], np.cos(pose[2]), np.sin(pose[2])]  # numpy's, as compose
-    return older[0], np.vstack((older[1], frame))[-OLDER_KEYFRAMES:]
+    return older[0], _add_keyframe(older[0], older[1], np.asarray(pose, dtype=np.float64), lines)
 
 
 @njit(cache=True)
-def _push(items, item, most):
-    """``item`` appended to the typed list ``items``, its first left out beyond ``most``."""
-    items.append(item)
-    if len(items) > most:
-        items.pop(0)
+def _add_keyframe(older, frames, pose, lines):
+    """:func:`add_keyframe` of the typed list ``older`` (changed in place) and its ``frames``
+    (K, 5): x, y, heading, its cosine and sine; the new frames returned."""
+    older.append(lines)
+    if len(older) > OLDER_KEYFRAMES:
+        older.pop(0)
+    out = np.zeros((len(frames) + 1, 5))
+    out[:-1] = frames
+    out[-1] = np.array([pose[0], pose[1], pose[2], np.cos(pose[2]), np.sin(pose[2])])
+    return out[-OLDER_KEYFRAMES:].copy()
 
 
 def retry_yardstick(costs) -> float:
     """The cost a retry (:data:`RETRY_COST`) weighs a registration against: the lesser of the
     median of the last :data:`RECENT` of ``costs`` (the walk's so far, in order; ``np.median``'s
-    value, NaN too, by :mod:`statistics`: 2x faster on a hundred floats) and the last one."""
-    recent = costs[-RECENT:]
-    median = np.nan if any(map(math.isnan, recent)) else statistics.median(recent)
-    return min(float(median), float(costs[-1]))
+    value, NaN too) and the last one."""
+    return float(_yardstick(np.asarray(costs, dtype=np.float64), len(costs)))
+
+
+@njit(cache=True)
+def _yardstick(costs, n):
+    """:func:`retry_yardstick` of the first ``n`` of ``costs``, compiled."""
+    recent = np.sort(costs[max(0, n - RECENT):n])
+    if np.isnan(recent[-1]):  # sorted last
+        return np.nan
+    k = len(recent)
+    median = recent[k // 2] if k % 2 else (recent[k // 2 - 1] + recent[k // 2]) / 2
+    return costs[n - 1] if costs[n - 1] < median else median
 
 
 def _solve_positions(T, i, j, d, sd, P, iters: int = 5):

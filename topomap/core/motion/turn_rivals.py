@@ -14,11 +14,13 @@ with the half turn are a place matching its own reflection.
 from __future__ import annotations
 
 import numpy as np
+from numba.extending import register_jitable
 
 from . import scans as S
 from .reckoning import compose, relative_pose
 
 __all__ = ["resolve_turns", "clearance_ahead", "checked_turn", "rival_of", "turn_apart",
+           "checked_index", "rival_index",
            "TURN_CHECK", "RETRY_GAIN", "REVERSAL_CLEARANCE_M", "AHEAD_HALF_ANGLE"]
 
 #: rad: a registration turning the scan more than this in one step (from the step before's pose)
@@ -114,26 +116,60 @@ def resolve_turns(poses, alternatives, closures, window: int = S.WINDOWS[0],
 
 def checked_turn(results, before) -> tuple[np.ndarray, int, float]:
     """The registration of ``results`` (``(motion, paired, cost)`` of one scan from several
-    starts, :func:`~.registration.register_each`) a walk keeps, given ``before``, the step before's pose in
-    the same keyframe's frame: the least-cost one, unless it turns more than
+    starts, :func:`~.icp.register_each`) a walk keeps, given ``before``, the step before's
+    pose in the same keyframe's frame: the least-cost one, unless it turns more than
     :data:`TURN_CHECK` from ``before`` and costs at least ``RETRY_GAIN`` of the least-cost
     result that turns less -- then that one (a scan that looks alike turned round)."""
-    best = min(results, key=lambda r: r[2])
-    turn = lambda r: abs((r[0][2] - before[2] + np.pi) % (2 * np.pi) - np.pi)  # noqa: E731
-    near = [r for r in results if turn(r) <= TURN_CHECK]
-    if turn(best) <= TURN_CHECK or not near:
-        return best
-    other = min(near, key=lambda r: r[2])
-    return best if best[2] < RETRY_GAIN * other[2] else other
-
-
-def turn_apart(a, b) -> float:
-    """rad: how far the turns of motions ``a`` and ``b`` lie apart (wrapped, 0 to pi)."""
-    return abs((a[2] - b[2] + np.pi) % (2 * np.pi) - np.pi)
+    motions, costs = _motions_costs(results)
+    return results[checked_index(motions, costs, np.asarray(before, dtype=np.float64))]
 
 
 def rival_of(results, m, cost):
     """The motion of the least-cost result of ``results`` turning more than :data:`TURN_CHECK`
     from the kept motion ``m`` at a cost below ``cost / RETRY_GAIN``; None where there is none."""
-    far = [r for r in results if turn_apart(r[0], m) > TURN_CHECK and r[2] * RETRY_GAIN < cost]
-    return min(far, key=lambda r: r[2])[0] if far else None
+    motions, costs = _motions_costs(results)
+    k = rival_index(motions, costs, np.asarray(m, dtype=np.float64), float(cost))
+    return None if k < 0 else results[k][0]
+
+
+def _motions_costs(results) -> tuple[np.ndarray, np.ndarray]:
+    """``(motions (S, 3), costs (S,))`` of ``results`` (``(motion, paired, cost)``)."""
+    return (np.array([r[0] for r in results], dtype=np.float64).reshape(-1, 3),
+            np.array([r[2] for r in results], dtype=np.float64))
+
+
+@register_jitable
+def turn_apart(a, b) -> float:
+    """rad: how far the turns of motions ``a`` and ``b`` lie apart (wrapped, 0 to pi)."""
+    return abs((a[2] - b[2] + np.pi) % (2 * np.pi) - np.pi)
+
+
+@register_jitable
+def _least(costs, take) -> int:
+    """The index of the least of ``costs`` among those ``take`` (bool) marks, the first of
+    equal ones and a NaN first in line kept (as Python's ``min``); -1 where none is taken."""
+    k = -1
+    for i in range(len(costs)):
+        if take[i] and (k < 0 or costs[i] < costs[k]):
+            k = i
+    return k
+
+
+@register_jitable
+def checked_index(motions, costs, before) -> int:
+    """The row of ``motions`` (S, 3) at ``costs`` (S,) :func:`checked_turn` keeps."""
+    near = np.array([turn_apart(m, before) <= TURN_CHECK for m in motions])
+    best = _least(costs, np.ones(len(costs), dtype=np.bool_))
+    other = _least(costs, near)
+    if near[best] or other < 0:
+        return best
+    return best if costs[best] < RETRY_GAIN * costs[other] else other
+
+
+@register_jitable
+def rival_index(motions, costs, m, cost) -> int:
+    """The row of ``motions`` (S, 3) at ``costs`` (S,) that is :func:`rival_of` the kept
+    motion ``m`` at ``cost``; -1 where none is."""
+    far = np.array([turn_apart(motions[k], m) > TURN_CHECK and costs[k] * RETRY_GAIN < cost
+                    for k in range(len(costs))])
+    return _least(costs, far)
