@@ -1,5 +1,7 @@
 """Heading from egocentric scans: turns read from scans, and loop closures that remove drift."""
 
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 
@@ -115,6 +117,31 @@ def test_a_large_graph_reweighted_is_solved_by_its_factor_updated():
     assert equations.factor is before
     np.testing.assert_allclose(x, S.spl.spsolve(normal(w1), b), rtol=0, atol=1e-9)
     assert np.abs(x - S.spl.spsolve(normal(w0), b)).max() > 1e-3
+
+
+def test_a_large_graph_reweighted_from_the_pass_before_is_solved_by_preconditioned_gradients(
+        monkeypatch):
+    # given the pass before's solution, a later pass is solved by conjugate gradients
+    # preconditioned by the first pass's factor, which stays as it was: the reweighted
+    # equations' solution to their tolerance; gradients that do not get there in
+    # CG_ITERATIONS give way to the factor brought up to the pass (the direct solution)
+    normal, A, m, rng = _ring_graph(500, 4)
+    w0 = rng.uniform(1, 100, m)
+    w1 = w0 * rng.uniform(0.5, 2, m)
+    b = A.T @ (w1 * rng.normal(size=m))
+    want = S.spl.spsolve(normal(w1), b)
+    for most, updated in ((S.CG_ITERATIONS, False), (1, True)):
+        monkeypatch.setattr(S, "CG_ITERATIONS", most)
+        equations = S.NormalEquations(S.LARGE_GRAPH + 1)
+        equations.reweight(normal(w0))
+        start = equations.solve(A.T @ (w0 * rng.normal(size=m)))
+        calls, factor = [], equations.factor
+        equations.factor = SimpleNamespace(solve=factor.solve,
+                                           update=lambda N: calls.append(1) or factor.update(N))
+        equations.reweight(normal(w1))
+        x = equations.solve(b, start)
+        assert bool(calls) is updated
+        np.testing.assert_allclose(x, want, rtol=0, atol=1e-9 * np.abs(want).max())
 
 
 def test_closures_remove_a_gyro_bias_from_a_wandering_walk():
