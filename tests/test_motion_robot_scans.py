@@ -17,6 +17,7 @@ from topomap import MapLearner
 from topomap.core.checks import ParameterError
 from topomap.core.motion.commands import MIN_TURN_SHARE
 from topomap.core.motion.learn import ContinuousFallbackWarning
+from topomap.core.motion.registration import scan_odometry, scan_poses
 from topomap.core.motion.robot_fit import predict_robot
 from topomap.core.motion.robot_scans import (SOURCE, ScanReading, closed_odometry,
                                              early_scan_reading, is_scan_log, read_scans,
@@ -90,6 +91,11 @@ def test_the_scans_are_read_beside_the_view_clusters_only_where_the_route_may_fo
     want_raw, want_poses = read_scans(robot.X)
     np.testing.assert_array_equal(raw, want_raw)
     np.testing.assert_array_equal(poses, want_poses)
+    # the candidate closures searched beside the registration: the poses closed in turn
+    alternatives = []
+    np.testing.assert_array_equal(scan_odometry(robot.X, alternatives=alternatives), raw)
+    np.testing.assert_array_equal(scan_poses(robot.X, odometry=raw, alternatives=alternatives),
+                                  poses)
     for settings, log, odometry in ((on, compass, None), (on, robot, np.zeros((400, 3))),
                                     (off, robot, None)):
         with early_scan_reading(settings, log, odometry) as reading:

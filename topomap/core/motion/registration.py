@@ -305,7 +305,7 @@ def _solve_positions(T, i, j, d, sd, P, iters: int = 5):
 
 
 def scan_poses(X, max_range: float | None = None, windows=S.WINDOWS,
-               odometry=None, alternatives=None) -> np.ndarray:
+               odometry=None, alternatives=None, closures=None) -> np.ndarray:
     """(T, 3) poses (x [m], y [m], heading [rad]) of a walk of egocentric scans ``X`` (T, B)
     alone: :func:`scan_odometry`, its heading closed by loops (:func:`~.scans.scan_headings`),
     then its positions closed by loops: each candidate closure of
@@ -316,12 +316,15 @@ def scan_poses(X, max_range: float | None = None, windows=S.WINDOWS,
     within ``POSITION_GATE_M`` of the positions so far.
     ``odometry``: :func:`scan_odometry`'s poses of ``X`` with the same ``max_range`` and its
     ``alternatives``, each turn the scans read either way settled first by the loops and the
-    room ahead (:func:`resolve_turns`; None: computed here)."""
+    room ahead (:func:`resolve_turns`; None: computed here).  ``closures``: the candidate
+    closures of ``X`` (:func:`~.scans.loop_closures` of its :func:`~.scans.despike`; None:
+    found here)."""
     X = np.asarray(X, dtype=np.float64)
     T, max_range = len(X), float(X.max()) if max_range is None else float(max_range)
     if odometry is None:
         odometry = scan_odometry(X, max_range, alternatives := [])
-    closures = S.loop_closures(S.despike(X))
+    if closures is None:
+        closures = S.loop_closures(S.despike(X))
     O = resolve_turns(odometry, alternatives or [], closures, ahead=clearance_ahead(X))
     psi = S.scan_headings(X, O[:, 2], windows, closures)
     P = reckon(forward_moves(O), psi)
