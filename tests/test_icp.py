@@ -161,3 +161,19 @@ def test_the_retry_yardstick_is_the_lesser_of_numpy_s_median_and_the_last_cost(c
     want = min(float(np.median(costs[-R.RECENT:])), float(costs[-1]))
     got = R.retry_yardstick(costs)
     assert got == want or (np.isnan(got) and np.isnan(want))
+
+
+def test_the_gauss_newton_solve_is_numpys_to_the_bit_and_refuses_what_numpy_refuses():
+    # LAPACK's dgesv called by name gives np.linalg.solve's answer bit for bit on symmetric
+    # positive definite 3 x 3 systems (a registration's normal equations), and raises as it
+    # does on a NaN and on a singular matrix
+    rng = np.random.default_rng(5)
+    lu, ints = np.zeros((3, 3)), np.array([3, 1, 3, 3, 0, 0, 0, 0], dtype=np.int32)
+    for _ in range(200):
+        J = rng.normal(size=(60, 3)) * rng.uniform(0.01, 10, 3)
+        H, g = J.T @ J + 1e-9 * np.eye(3), rng.normal(size=3)
+        np.testing.assert_array_equal(I._solve3(H, g.copy(), lu, ints), np.linalg.solve(H, g))
+    with pytest.raises(np.linalg.LinAlgError, match="infs or NaNs"):
+        I._solve3(np.where(np.eye(3) > 0, np.nan, 0.0), np.ones(3), lu, ints)
+    with pytest.raises(np.linalg.LinAlgError, match="singular"):
+        I._solve3(np.zeros((3, 3)), np.ones(3), lu, ints)
