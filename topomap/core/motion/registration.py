@@ -90,9 +90,9 @@ AVERAGE_COST = 2.0
 #: rad: ... and turns within this of the current one's answer (not tuned; a median turn 0.12 rad)
 AVERAGE_TURN = 0.2
 #: scans: a longer walk is registered as two halves at once (:func:`scan_odometry`), each on a
-#: thread.  A registration waits for the one before, 0.4 ms a scan: on a 2-hour walk (73,000
-#: scans, ``robot_alike@0.3333`` seed 0, idle) 30 s in one run, 17.3 s (31.9 s of CPU) in
-#: halves; closed by loops (:func:`scan_poses`) its poses lie 0.730 m from the truth after a
+#: thread.  A registration waits for the one before, 0.3 ms a scan: on a 2-hour walk (73,000
+#: scans, ``robot_alike@0.3333`` seed 0, idle) 30 s in one run, 11.7-13.5 s (23-26 s of CPU)
+#: in halves; closed by loops (:func:`scan_poses`) its poses lie 0.730 m from the truth after a
 #: rigid alignment either way (0.728 m in one run).  Walks up to it keep the bits of one run.
 HALVES = 40_000
 #: scans registered in one compiled call between two asks of :func:`scan_odometry`'s ``stop``
