@@ -16,6 +16,8 @@ times the lesser of the recent median and the step before's is tried again from 
 keyframes, not steps; each scan is registered against ``OLDER_KEYFRAMES`` keyframes before it
 too, its pose the mean (:func:`averaged_pose`: the range noise of the keyframes' lines, which
 sets the drift, averages out).  A beam at the range's maximum (no return) carries no point.
+The steps run compiled, :data:`STOP_EVERY` scans a call (:func:`_steps`, which releases the
+GIL), and a walk of more than :data:`HALVES` scans as two halves on two threads.
 
 :func:`scan_poses` closes it by loops: its headings by :func:`~.scans.scan_headings` (as a wheel
 odometry's), then its positions by a linear least-squares graph whose closures are registered
