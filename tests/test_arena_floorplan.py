@@ -164,3 +164,43 @@ def test_overlapping_regions_are_refused_naming_both(tmp_path):
 def test_every_benchmark_floor_plan_is_walkable(plan):
     """The benchmarks' own plans pass the checks every user's plan passes."""
     load_floorplan(str(plan))
+
+
+def test_alike_rooms_is_the_benchmarks_robot_floor_at_a_third_of_its_size():
+    """The built-in ``alike_rooms`` is ``benchmarks/floorplans/robot_alike.yaml`` (3 m rooms)
+    with every coordinate times ``ALIKE_SCALE``: the robot benchmark's plan, at 1 m rooms."""
+    from topomap.worlds.arena import builtin_layout
+    from topomap.worlds.arena.layouts import ALIKE_SCALE
+
+    small = builtin_layout("alike_rooms")
+    full = load_floorplan(Path(__file__).resolve().parents[1] / "benchmarks" / "floorplans"
+                          / "robot_alike.yaml")
+    np.testing.assert_allclose(small.boundary, full.boundary * ALIKE_SCALE)
+    np.testing.assert_allclose(small.walls, full.walls * ALIKE_SCALE)
+    assert len(small.holes) == len(full.holes) == 7
+    for a, b in zip(small.holes, full.holes):
+        np.testing.assert_allclose(a, b * ALIKE_SCALE)
+    assert [n for n, _ in small.regions] == [n for n, _ in full.regions]
+    for (_, a), (_, b) in zip(small.regions, full.regions):
+        np.testing.assert_allclose(a, b * ALIKE_SCALE)
+
+
+def test_alike_rooms_is_3_by_1_4_metres_and_not_its_own_point_reflection():
+    """The floor spans 3 x 1.4 m with the corridor along its south side (y < 0.4 m); turned by
+    180 degrees about the floor's centre (1.5, 0.7) the corridor's middle (1.5, 0.2) would land at
+    (1.5, 1.2), north of the corridor between the two rooms, outside it -- so odometry can tell a
+    walk from its point reflection."""
+    from topomap.worlds.arena import builtin_layout
+
+    plan = builtin_layout("alike_rooms")
+    np.testing.assert_allclose(plan.boundary.min(0), [0, 0])
+    np.testing.assert_allclose(plan.boundary.max(0), [3, 1.4])
+    names = plan.region_names
+    corridor = names.index("corridor")
+    assert plan.region_of(np.array([[1.5, 0.2]]))[0] == corridor
+    turned = 2 * np.array([1.5, 0.7]) - np.array([[1.5, 0.2]])
+    assert plan.region_of(turned)[0] != corridor
+    # the west room's table turned about the centre would stand where no furniture stands
+    west_table = plan.holes[0].mean(0)
+    turned_table = 2 * np.array([1.5, 0.7]) - west_table
+    assert min(np.linalg.norm(h.mean(0) - turned_table) for h in plan.holes) > 0.1

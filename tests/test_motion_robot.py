@@ -394,3 +394,23 @@ def test_headings_solved_early_are_those_solved_in_turn():
     assert early_headings(auto, data, still) is None and early_headings(robot, data, still)
     two = check_fit_data(X, u, None, [150, 150], None, None, None)
     assert early_headings(robot, two, odo) is None  # one episode only: the route refuses it
+
+
+def test_learner_scores_place_a_robot_map_s_walk_by_its_own_odometry():
+    """``learner_map_scores`` (what ``topomap`` and ``docs/examples/robot_bag.py`` report) places
+    a held-out walk on a robot route's map by ``predict`` with the walk's own odometry, and
+    decodes it on ``map_`` for any other map; ``learner_scores`` adds both yardsticks."""
+    from topomap.evaluation.metres import (learner_map_scores, learner_scores, map_scores,
+                                           score_units)
+
+    plan, walk, held = _arena_robot(3000, 300)
+    robot = MapLearner(8, 16, motion="robot", random_state=0).fit_trajectory(walk)
+    placed = robot.predict(held.observations, held.actions, odometry=held.odometry)
+    pair = (plan.region_of(walk.positions), plan.region_of(held.positions))
+    assert learner_map_scores(robot, walk, held, plan.region_of) == score_units(
+        robot.labels_, walk.positions, placed, held.positions, 16, pair)
+    split = MapLearner(8, 16, motion="discrete", random_state=0).fit_trajectory(walk)
+    assert learner_map_scores(split, walk, held, plan.region_of) == map_scores(
+        split.map_, split.labels_, walk, held, plan.region_of)
+    assert set(learner_scores(robot, walk, held, plan.region_of)) == {"map", "ceiling",
+                                                                      "kmeans_views"}

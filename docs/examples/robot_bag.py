@@ -1,11 +1,12 @@
 """Simulate a robot in the arena, record its log as ROS bags, learn a map from the bags.
 
-The robot: ratinabox's random motion in two alike rooms joined by a corridor (the arena world), a
-12-beam range finder fixed to the robot (``sensor.frame=egocentric``: beam 0 straight ahead, with
-N(0, 0.02^2) m noise), turn / forward / stop commands read off its motion (``actions=turns``) and
-its wheel odometry (``odometry=wheel``, :class:`~topomap.worlds.arena.WheelOdometry` with its
-defaults: 2 % speed noise, 5 % turn-rate noise, a gyro bias of 0.01 rad/s at most, slips),
-integrated from the robot's own start pose.
+The robot of ``topomap experiment=arena_robot``: ratinabox's random motion with a small robot's
+speeds (:data:`ROBOT_MOTION`) in two alike furnished rooms off a corridor (the arena's
+``alike_rooms``), a 60-beam range finder fixed to the robot (``sensor.frame=egocentric``: beam 0
+straight ahead, with N(0, 0.02^2) m noise), turn / forward / stop commands read off its motion
+(``actions=turns``) and its wheel odometry (``odometry=wheel``,
+:class:`~topomap.worlds.arena.WheelOdometry`: 2 % speed noise, 5 % turn-rate noise, a gyro bias of
+0.01 rad/s at most, slips of up to 0.03 m and rad), integrated from the robot's own start pose.
 
 Each bag holds what a robot records, one message per topic at every step (10 Hz): ``/scan``
 (``sensor_msgs/LaserScan``), ``/cmd_vel`` (``geometry_msgs/Twist``), ``/odom``
@@ -30,11 +31,18 @@ from pathlib import Path
 import numpy as np
 
 from topomap import MapLearner, Trajectory, read_rosbag, write_rosbag
-from topomap.evaluation.metres import position_scores
+from topomap.evaluation.metres import learner_scores
 from topomap.worlds.arena import ArenaWorld, Motion, RangeFinder, TurnActions, WheelOdometry
 
 #: metres of N(0, s^2) noise on every range reading
 SCAN_NOISE = 0.02
+#: ratinabox's random motion with a small robot's speeds (m/s, s, rad/s, s, -, m), as
+#: ``conf/experiment/arena_robot.yaml``'s ``env``
+ROBOT_MOTION = dict(speed_mean=0.1, speed_coherence_time=1.0, rotational_velocity_std=1.0,
+                    rotational_velocity_coherence_time=0.5, thigmotaxis=0.2,
+                    wall_repel_distance=0.1)
+#: metres and radians a wheel slip adds at most (the preset's ``odometry.slip_size``)
+SLIP_SIZE = 0.03
 
 
 def true_odometry(positions: np.ndarray, dt: float) -> np.ndarray:
@@ -68,9 +76,9 @@ def parse_args(argv=None) -> argparse.Namespace:
 
 def write_bags(args) -> tuple[Path, Path, ArenaWorld]:
     """Simulate the two walks and write them as bags; returns their paths and the world."""
-    world = ArenaWorld("two_rooms", sensor=RangeFinder(n_beams=12, max_range=3.0,
-                                                       frame="egocentric"),
-                       actions=TurnActions(), odometry="wheel")
+    world = ArenaWorld("alike_rooms", sensor=RangeFinder(n_beams=60, frame="egocentric"),
+                       actions=TurnActions(), odometry=WheelOdometry(slip_size=SLIP_SIZE),
+                       **ROBOT_MOTION)
     rng_train, rng_held = (np.random.default_rng(s)
                            for s in np.random.SeedSequence(args.seed).spawn(2))
     held = args.out.with_name(args.out.stem + "_heldout" + args.out.suffix)
@@ -96,7 +104,7 @@ def main(argv=None) -> dict:
     print(f"the odometry drifted {drift:.2f} m from the truth over {len(train) * world.dt:.0f} s")
     learner = MapLearner(n_clusters=args.clusters, n_states=args.states, random_state=0)
     learner.fit_trajectory(train)
-    scores = position_scores(learner.map_, learner.labels_, train, heldout, world.region_of)
+    scores = learner_scores(learner, train, heldout, world.region_of)
     for name, s in scores.items():
         print(f"{name:>12}: median error {s['median_error']:.3f} m, "
               f"wrong region {s['wrong_region']:.1%}")

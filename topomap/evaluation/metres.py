@@ -37,8 +37,8 @@ from ..core.phase1.clustering import view_clusters
 from ..core.stats import label_means
 
 __all__ = ["placement_scores", "score_units", "map_scores", "true_places", "split_places",
-           "ceiling_scores", "kmeans_view_scores", "position_scores", "region_coverage",
-           "VIEW_STARTS"]
+           "ceiling_scores", "kmeans_view_scores", "position_scores", "learner_map_scores",
+           "learner_scores", "region_coverage", "VIEW_STARTS"]
 
 #: k-means++ starts of the yardstick's view clusters: those of the view clusters a continuous
 #: log's map falls back to (``MotionSettings().places.n_init``)
@@ -220,4 +220,28 @@ def position_scores(tmap: TopologicalMap, train_labels, train, heldout, regions=
     return {"map": map_scores(tmap, train_labels, train, heldout, regions),
             "ceiling": ceiling_scores(tmap, train_labels, train, heldout, regions, random_state),
             "kmeans_views": kmeans_view_scores(tmap.n_states, train, heldout, regions,
+                                               random_state)}
+
+
+def learner_map_scores(learner, train, heldout, regions=None) -> dict:
+    """Scores of a fitted :class:`~topomap.MapLearner`'s map on the held-out walk, as
+    ``topomap`` scores it: decoded on ``learner.map_`` (:func:`map_scores`), or -- a map of the
+    robot route (``learner.robot_map_``) -- placed by :meth:`~topomap.MapLearner.predict` with
+    the held-out walk's own odometry (``heldout.odometry``)."""
+    if getattr(learner, "robot_map_", None) is None:
+        return map_scores(learner.map_, learner.labels_, train, heldout, regions)
+    placed = learner.predict(heldout.observations, heldout.actions, lengths=heldout.lengths,
+                             odometry=heldout.odometry)
+    return score_units(learner.labels_, _positions(train, "training"), placed,
+                       _positions(heldout, "held-out"), learner.map_.n_states,
+                       _region_pair(regions, train, heldout))
+
+
+def learner_scores(learner, train, heldout, regions=None, random_state=0) -> dict:
+    """:func:`position_scores` of a fitted :class:`~topomap.MapLearner` learned from ``train``,
+    its map scored by :func:`learner_map_scores`."""
+    m = learner.map_
+    return {"map": learner_map_scores(learner, train, heldout, regions),
+            "ceiling": ceiling_scores(m, learner.labels_, train, heldout, regions, random_state),
+            "kmeans_views": kmeans_view_scores(m.n_states, train, heldout, regions,
                                                random_state)}

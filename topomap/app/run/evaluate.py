@@ -132,19 +132,6 @@ def coverage_entry(names, region_of, traj: Trajectory, heldout: Trajectory) -> d
     return cover
 
 
-def _map_scores(learner: MapLearner, traj: Trajectory, heldout: Trajectory, region_of) -> dict:
-    """The map's scores of the held-out walk: decoded on ``map_``, or -- a map learned with
-    ``motion="robot"`` -- placed by :meth:`MapLearner.predict` with the walk's own odometry."""
-    if getattr(learner, "robot_map_", None) is None:
-        return positions.map_scores(learner.map_, learner.labels_, traj, heldout, region_of)
-    placed = learner.predict(heldout.observations, heldout.actions, lengths=heldout.lengths,
-                             odometry=heldout.odometry)
-    pair = (None, None) if region_of is None else (region_of(traj.positions),
-                                                   region_of(heldout.positions))
-    return positions.score_units(learner.labels_, traj.positions, placed, heldout.positions,
-                                 learner.map_.n_states, pair)
-
-
 def position_entry(learner: MapLearner, traj: Trajectory, heldout: Trajectory | None,
                    env=None, held: str = "the held-out recording") -> dict | None:
     """Scores in metres of the held-out walk (:mod:`topomap.evaluation.metres`: the map's,
@@ -167,7 +154,7 @@ def position_entry(learner: MapLearner, traj: Trajectory, heldout: Trajectory | 
     out = {"heldout": (heldout.meta or {}).get("heldout", held),
            "heldout_steps": len(heldout), "regions": names, "ceiling_note": None,
            "coverage": coverage_entry(names, region_of, traj, heldout),
-           "map": _map_scores(learner, traj, heldout, region_of)}
+           "map": positions.learner_map_scores(learner, traj, heldout, region_of)}
     report("scores in metres", 1, 3)
     out["kmeans_views"] = positions.kmeans_view_scores(m.n_states, traj, heldout, region_of, seed)
     report("scores in metres", 2, 3)

@@ -1,6 +1,6 @@
 """Floor plans of the arena: a boundary polygon, walls, holes, objects and named regions.
 
-Four are built in (metres; every door and corridor 0.3 m wide):
+Five are built in (metres; every door 0.3 m wide):
 
 ``open``
     a 1 x 1 m box (ratinabox's default); its regions are its four quadrants.
@@ -14,6 +14,10 @@ Four are built in (metres; every door and corridor 0.3 m wide):
 ``corridor``
     a corridor 2 x 0.4 m with two 1 x 1 m rooms off each side, each through a door in the middle
     of its wall (2 x 2.4 m in all); regions the four rooms and ``corridor``.
+``alike_rooms``
+    two alike furnished 1 x 1 m rooms north of a corridor 3 x 0.4 m, their furniture set out a
+    little differently (3 x 1.4 m in all; a robot's floor at a third of its size, not its own
+    point reflection); regions ``corridor``, ``west``, ``east``.
 
 A user's floor plan is read from a file by :func:`topomap.worlds.arena.floorplan.load_floorplan`.
 The regions are what the wrong-region score counts (:mod:`topomap.evaluation.metres`).
@@ -27,7 +31,7 @@ import numpy as np
 
 from .geometry import inside_polygon, nearest_on_segments, polygon_edges, segment_distances
 
-__all__ = ["Layout", "LAYOUTS", "builtin_layout", "open_box", "DOOR"]
+__all__ = ["Layout", "LAYOUTS", "builtin_layout", "open_box", "DOOR", "ALIKE_SCALE"]
 
 #: width of every door and corridor of the built-in layouts (metres)
 DOOR = 0.3
@@ -214,9 +218,41 @@ def _corridor() -> Layout:
     return Layout("corridor", _box(0, 0, 2, 2.4), walls=walls, regions=regions)
 
 
+#: :func:`_alike_rooms` against the robot's floor it is drawn from (3 m rooms off a 9 m corridor,
+#: ``benchmarks/floorplans/robot_alike.yaml``): 1 m rooms, as the other built-in layouts, which a
+#: robot at 0.1 m/s covers in 30 minutes (at full size 30 minutes leave a new walk 30 % of its
+#: steps in the wrong room even by K-means on the true positions, ``benchmarks/notes/robots.md``)
+ALIKE_SCALE = 1 / 3
+
+
+def _alike_rooms() -> Layout:
+    """Two alike furnished rooms (1 x 1 m, a 0.3 m door each) north of a 3 x 0.4 m corridor, the
+    same table, shelf and bin in each set out a little differently -- the east room's table 0.13
+    m farther east, its bin in the other corner, its door 0.1 m farther west -- and a cabinet at
+    the corridor's east end.  A scan in the robot's own frame tells the rooms apart only where it
+    sees those differences; the plan is not its own point reflection, so odometry can."""
+    full = {
+        "boundary": [[0, 0], [9, 0], [9, 1.2], [8, 1.2], [8, 4.2], [5, 4.2], [5, 1.2], [3.5, 1.2],
+                     [3.5, 4.2], [0.5, 4.2], [0.5, 1.2], [0, 1.2]],
+        "walls": [[[0.5, 1.2], [1.6, 1.2]], [[2.5, 1.2], [3.5, 1.2]], [[5.0, 1.2], [5.8, 1.2]],
+                  [[6.7, 1.2], [8.0, 1.2]]],
+        "holes": [_box(1.0, 2.6, 2.0, 3.2), _box(3.0, 2.0, 3.3, 3.6),    # west: table, shelf,
+                  _box(1.4, 3.7, 1.7, 4.0),                               # bin
+                  _box(5.9, 2.6, 6.9, 3.2), _box(7.5, 2.0, 7.8, 3.6),    # east: table, shelf,
+                  _box(5.2, 3.7, 5.5, 4.0),                               # bin
+                  _box(8.2, 0.15, 8.7, 0.45)],                            # corridor: cabinet
+        "regions": [("corridor", _box(0, 0, 9, 1.2)), ("west", _box(0.5, 1.2, 3.5, 4.2)),
+                    ("east", _box(5, 1.2, 8, 4.2))]}
+    k = ALIKE_SCALE
+    return Layout("alike_rooms", np.asarray(full["boundary"], float) * k,
+                  walls=np.asarray(full["walls"], float) * k,
+                  holes=tuple(np.asarray(h, float) * k for h in full["holes"]),
+                  regions=tuple((n, np.asarray(p, float) * k) for n, p in full["regions"]))
+
+
 #: the built-in layouts by name
 LAYOUTS = {"open": open_box, "two_rooms": _two_rooms, "four_rooms": _four_rooms,
-           "corridor": _corridor}
+           "corridor": _corridor, "alike_rooms": _alike_rooms}
 
 
 def builtin_layout(name: str) -> Layout:

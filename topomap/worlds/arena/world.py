@@ -147,7 +147,8 @@ class ArenaWorld:
     Parameters
     ----------
     layout : str, Layout or ratinabox Environment
-        A built-in layout (``open``, ``two_rooms``, ``four_rooms``, ``corridor``), a floor-plan
+        A built-in layout (``open``, ``two_rooms``, ``four_rooms``, ``corridor``,
+        ``alike_rooms``), a floor-plan
         file (``.yaml``, ``.yml``, ``.json``), a :class:`Layout`, ``"auto"``: the box of a
         shipped recording, else ``two_rooms``; or a ratinabox ``Environment`` (2-D, solid),
         walked as it is (its floor plan :meth:`Layout.from_environment`, without regions).  A
