@@ -53,7 +53,8 @@ def test_env_arena_runs_end_to_end_and_scores_in_metres(tmp_path, make_cfg):
     assert position["regions"] == ["west", "corridor", "east"]
     assert position["heldout"].startswith("another random walk")
     assert position["heldout_steps"] == 150
-    for scores in (position["map"], position["ceiling"], position["kmeans_views"]):
+    for scores in (position["map"], position["ceiling"], position["kmeans_views"],
+                   position["kmeans_positions"]):
         assert scores["steps"] == 150 and scores["unplaced"] == 0
         assert 0 <= scores["median_error"] <= scores["p90_error"] <= np.hypot(2.5, 1.0)
         assert 0 <= scores["wrong_region"] <= 1

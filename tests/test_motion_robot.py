@@ -412,5 +412,5 @@ def test_learner_scores_place_a_robot_map_s_walk_by_its_own_odometry():
     split = MapLearner(8, 16, motion="discrete", random_state=0).fit_trajectory(walk)
     assert learner_map_scores(split, walk, held, plan.region_of) == map_scores(
         split.map_, split.labels_, walk, held, plan.region_of)
-    assert set(learner_scores(robot, walk, held, plan.region_of)) == {"map", "ceiling",
-                                                                      "kmeans_views"}
+    assert set(learner_scores(robot, walk, held, plan.region_of)) == {
+        "map", "ceiling", "kmeans_views", "kmeans_positions"}

@@ -9,8 +9,9 @@ import pytest
 from topomap import TopologicalMap, Trajectory
 from topomap.core.phase1.clustering import view_clusters
 from topomap.core.stats import label_means, majority_share
-from topomap.evaluation.metres import (ceiling_scores, kmeans_view_scores, map_scores,
-                                       placement_scores, split_places, true_places)
+from topomap.evaluation.metres import (ceiling_scores, kmeans_position_scores,
+                                       kmeans_view_scores, map_scores, placement_scores,
+                                       split_places, true_places)
 from topomap.metrics import purity
 
 
@@ -100,6 +101,19 @@ def test_map_and_kmeans_on_views_by_hand():
     k2 = kmeans_view_scores(4, train, held, regions=(room_of(train.positions),
                                                      1 - room_of(held.positions)))
     assert k2["wrong_region"] == 1.0  # labels given as a pair are used as given
+
+
+def test_kmeans_on_true_positions_by_hand():
+    """Two cells on all positions are {0.1} and {0.9, 1.1, 1.7} (the cut of least inertia, as
+    for the ceiling without regions): each held-out step goes to the cell nearest its true
+    position, 0.1 -> 0.1 (0 m off), 0.9 -> 3.7 / 3 (1/3), 1.1 (2/15), 1.7 (7/15): median 7/30.
+    The second cell's steps lie mostly east of x = 1, so the 0.9 steps, a quarter, are placed in
+    the wrong room.  Four cells are the four points: every step exactly placed."""
+    train, held = line_walk(20, 0), line_walk(5, 1)
+    s = kmeans_position_scores(2, train, held, regions=room_of)
+    assert s["median_error"] == pytest.approx(7 / 30) and s["wrong_region"] == pytest.approx(0.25)
+    exact = kmeans_position_scores(4, train, held, regions=room_of)
+    assert exact["median_error"] == pytest.approx(0.0) and exact["wrong_region"] == 0.0
 
 
 def test_scores_need_positions():

@@ -198,7 +198,7 @@ def test_the_example_simulates_records_and_learns(tmp_path, make_cfg, capsys):
 
     scores = example()["main"]([str(tmp_path / "robot.bag"), "--steps", "800",
                                 "--heldout-steps", "300", "--clusters", "6", "--states", "8"])
-    assert set(scores) == {"map", "ceiling", "kmeans_views"}
+    assert set(scores) == {"map", "ceiling", "kmeans_views", "kmeans_positions"}
     assert scores["map"]["steps"] == 300
     out = capsys.readouterr().out
     assert "the odometry drifted" in out

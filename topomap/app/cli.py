@@ -106,7 +106,8 @@ def _summary(results: dict, out) -> str:
 
 def _metres(position: dict) -> str:
     """The held-out localisation error (median / 90th percentile, wrong-region share) of the map,
-    the ceiling and K-means on the views, as the summary line says it."""
+    the ceiling, K-means on the views and K-means on the true positions, as the summary line
+    says it."""
     def said(s):
         if s is None or s["median_error"] is None:
             return "-"
@@ -114,7 +115,8 @@ def _metres(position: dict) -> str:
         return f"{s['median_error']:.2f} / {s['p90_error']:.2f} m{wrong}"
 
     return (f"localisation error (median / p90) {said(position['map'])} (ceiling "
-            f"{said(position.get('ceiling'))}; K-means on views {said(position['kmeans_views'])})")
+            f"{said(position.get('ceiling'))}; K-means on views {said(position['kmeans_views'])}"
+            f"; K-means on true positions {said(position.get('kmeans_positions'))})")
 
 
 def optimising(sweeper) -> bool:

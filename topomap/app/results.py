@@ -170,6 +170,8 @@ COLUMNS = (
            "median error of K-means on the views [m]"),
     Column("views_wrong_region", "position.kmeans_views.wrong_region",
            "wrong-region share of K-means on the views"),
+    Column("positions_error", "position.kmeans_positions.median_error",
+           "median error of K-means on the true positions [m]"),
     Column("nav_success", "navigation.success_rate", "navigation success rate", "max"),
     Column("nav_path_ratio", "navigation.path_ratio", "navigation path length / shortest", "min"),
     Column("fit_time", ("timings.phase1", "timings.phase2"), "fit time [s]", "min"),

@@ -37,7 +37,8 @@ from ..core.phase1.clustering import view_clusters
 from ..core.stats import label_means
 
 __all__ = ["placement_scores", "score_units", "map_scores", "true_places", "split_places",
-           "ceiling_scores", "kmeans_view_scores", "position_scores", "learner_map_scores",
+           "ceiling_scores", "kmeans_view_scores", "kmeans_position_scores", "position_scores",
+           "learner_map_scores",
            "learner_scores", "region_coverage", "VIEW_STARTS"]
 
 #: k-means++ starts of the yardstick's view clusters: those of the view clusters a continuous
@@ -196,20 +197,37 @@ def ceiling_scores(tmap: TopologicalMap, train_labels, train, heldout, regions=N
     return score_units(places, train.positions, decoded, _positions(heldout, "held-out"), S, pair)
 
 
+def _cluster_scores(train_X, heldout_X, n_clusters: int, train, heldout, regions,
+                    random_state, n_init: int) -> dict:
+    """Scores of K-means on ``train_X`` (rows of the training steps), each held-out step (its
+    row of ``heldout_X``) taking the cluster whose mean training row is nearest."""
+    from sklearn.metrics import pairwise_distances_argmin
+
+    clusters = view_clusters(train_X, n_clusters, n_init, random_state)
+    centres = label_means(clusters, train_X, n_clusters)
+    kept = np.flatnonzero(np.isfinite(centres).all(axis=1))  # clusters that hold a step
+    nearest = kept[pairwise_distances_argmin(heldout_X, centres[kept])]
+    return score_units(clusters, _positions(train, "training"), nearest,
+                       _positions(heldout, "held-out"), n_clusters,
+                       _region_pair(regions, train, heldout))
+
+
 def kmeans_view_scores(n_clusters: int, train, heldout, regions=None, random_state=0,
                        n_init: int = VIEW_STARTS) -> dict:
     """Scores of K-means on the training observations with ``n_clusters`` clusters
     (:func:`~topomap.core.phase1.clustering.view_clusters`, ``n_init`` starts), each held-out
     step taking the cluster whose mean training observation is nearest."""
-    from sklearn.metrics import pairwise_distances_argmin
+    return _cluster_scores(train.observations, heldout.observations, n_clusters, train, heldout,
+                           regions, random_state, n_init)
 
-    views = view_clusters(train.observations, n_clusters, n_init, random_state)
-    centres = label_means(views, train.observations, n_clusters)
-    kept = np.flatnonzero(np.isfinite(centres).all(axis=1))  # clusters that hold a step
-    nearest = kept[pairwise_distances_argmin(heldout.observations, centres[kept])]
-    return score_units(views, _positions(train, "training"), nearest,
-                       _positions(heldout, "held-out"), n_clusters,
-                       _region_pair(regions, train, heldout))
+
+def kmeans_position_scores(n_cells: int, train, heldout, regions=None, random_state=0,
+                           n_init: int = VIEW_STARTS) -> dict:
+    """Scores of K-means on the TRUE training positions with ``n_cells`` cells, each held-out
+    step taking the cell nearest its TRUE position: where a map of as many states would place
+    the walk if it knew where every step is (the "ideal" of ``docs/robot-logs.md``)."""
+    return _cluster_scores(_positions(train, "training"), _positions(heldout, "held-out"),
+                           n_cells, train, heldout, regions, random_state, n_init)
 
 
 def position_scores(tmap: TopologicalMap, train_labels, train, heldout, regions=None,
@@ -239,9 +257,12 @@ def learner_map_scores(learner, train, heldout, regions=None) -> dict:
 
 def learner_scores(learner, train, heldout, regions=None, random_state=0) -> dict:
     """:func:`position_scores` of a fitted :class:`~topomap.MapLearner` learned from ``train``,
-    its map scored by :func:`learner_map_scores`."""
+    its map scored by :func:`learner_map_scores`, and K-means on the true positions
+    (:func:`kmeans_position_scores`, ``"kmeans_positions"``) beside the two yardsticks."""
     m = learner.map_
     return {"map": learner_map_scores(learner, train, heldout, regions),
             "ceiling": ceiling_scores(m, learner.labels_, train, heldout, regions, random_state),
             "kmeans_views": kmeans_view_scores(m.n_states, train, heldout, regions,
-                                               random_state)}
+                                               random_state),
+            "kmeans_positions": kmeans_position_scores(m.n_states, train, heldout, regions,
+                                                       random_state)}

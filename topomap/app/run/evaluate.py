@@ -150,14 +150,17 @@ def position_entry(learner: MapLearner, traj: Trajectory, heldout: Trajectory | 
                          f"learned from {dims[0]}; scores in metres need the same")
     names, region_of = _regions(env)
     m, labels, seed = learner.map_, learner.labels_, learner.random_state
-    report("scores in metres", 0, 3)
+    report("scores in metres", 0, 4)
     out = {"heldout": (heldout.meta or {}).get("heldout", held),
            "heldout_steps": len(heldout), "regions": names, "ceiling_note": None,
            "coverage": coverage_entry(names, region_of, traj, heldout),
            "map": positions.learner_map_scores(learner, traj, heldout, region_of)}
-    report("scores in metres", 1, 3)
+    report("scores in metres", 1, 4)
     out["kmeans_views"] = positions.kmeans_view_scores(m.n_states, traj, heldout, region_of, seed)
-    report("scores in metres", 2, 3)
+    report("scores in metres", 2, 4)
+    out["kmeans_positions"] = positions.kmeans_position_scores(m.n_states, traj, heldout,
+                                                               region_of, seed)
+    report("scores in metres", 3, 4)
     held_regions = 1 if region_of is None else np.unique(region_of(traj.positions)).size
     if m.n_states >= held_regions:
         out["ceiling"] = positions.ceiling_scores(m, labels, traj, heldout, region_of, seed)
@@ -165,5 +168,5 @@ def position_entry(learner: MapLearner, traj: Trajectory, heldout: Trajectory | 
         out["ceiling"] = None
         out["ceiling_note"] = (f"the map's {m.n_states} states are fewer than the "
                                f"{held_regions} regions the walk entered")
-    report("scores in metres", 3, 3)
+    report("scores in metres", 4, 4)
     return out
