@@ -38,8 +38,7 @@ from ..core.stats import label_means
 
 __all__ = ["placement_scores", "score_units", "map_scores", "true_places", "split_places",
            "ceiling_scores", "kmeans_view_scores", "kmeans_position_scores", "position_scores",
-           "learner_map_scores",
-           "learner_scores", "region_coverage", "VIEW_STARTS"]
+           "learner_map_scores", "learner_scores", "region_coverage", "VIEW_STARTS"]
 
 #: k-means++ starts of the yardstick's view clusters: those of the view clusters a continuous
 #: log's map falls back to (``MotionSettings().places.n_init``)
@@ -236,7 +235,13 @@ def position_scores(tmap: TopologicalMap, train_labels, train, heldout, regions=
     yardsticks' (each a :func:`placement_scores` dict), as many places and clusters as the map
     has states."""
     return {"map": map_scores(tmap, train_labels, train, heldout, regions),
-            "ceiling": ceiling_scores(tmap, train_labels, train, heldout, regions, random_state),
+            **_yardsticks(tmap, train_labels, train, heldout, regions, random_state)}
+
+
+def _yardsticks(tmap: TopologicalMap, train_labels, train, heldout, regions,
+                random_state) -> dict:
+    """``{"ceiling": ..., "kmeans_views": ...}`` of a map of ``tmap.n_states`` states."""
+    return {"ceiling": ceiling_scores(tmap, train_labels, train, heldout, regions, random_state),
             "kmeans_views": kmeans_view_scores(tmap.n_states, train, heldout, regions,
                                                random_state)}
 
@@ -261,8 +266,6 @@ def learner_scores(learner, train, heldout, regions=None, random_state=0) -> dic
     (:func:`kmeans_position_scores`, ``"kmeans_positions"``) beside the two yardsticks."""
     m = learner.map_
     return {"map": learner_map_scores(learner, train, heldout, regions),
-            "ceiling": ceiling_scores(m, learner.labels_, train, heldout, regions, random_state),
-            "kmeans_views": kmeans_view_scores(m.n_states, train, heldout, regions,
-                                               random_state),
+            **_yardsticks(m, learner.labels_, train, heldout, regions, random_state),
             "kmeans_positions": kmeans_position_scores(m.n_states, train, heldout, regions,
                                                        random_state)}

@@ -148,11 +148,11 @@ class ArenaWorld:
     ----------
     layout : str, Layout or ratinabox Environment
         A built-in layout (``open``, ``two_rooms``, ``four_rooms``, ``corridor``,
-        ``alike_rooms``), a floor-plan
-        file (``.yaml``, ``.yml``, ``.json``), a :class:`Layout`, ``"auto"``: the box of a
-        shipped recording, else ``two_rooms``; or a ratinabox ``Environment`` (2-D, solid),
-        walked as it is (its floor plan :meth:`Layout.from_environment`, without regions).  A
-        ratinabox ``Agent``'s world is :meth:`from_agent`.
+        ``alike_rooms``), a floor-plan file (``.yaml``, ``.yml``, ``.json``), a
+        :class:`Layout`, ``"auto"``: the box of a shipped recording, else ``two_rooms``; or a
+        ratinabox ``Environment`` (2-D, solid), walked as it is (its floor plan
+        :meth:`Layout.from_environment`, without regions).  A ratinabox ``Agent``'s world is
+        :meth:`from_agent`.
     floorplan : str or None
         A floor-plan file (``.yaml``, ``.yml``, ``.json``; :func:`.floorplan.load_floorplan`),
         the layout instead of ``layout`` (which must then be ``"auto"``).
