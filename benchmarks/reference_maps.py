@@ -16,10 +16,13 @@ from __future__ import annotations
 
 import argparse
 import filecmp
+import json
 import subprocess
 import sys
 import time
 from pathlib import Path
+
+import numpy as np
 
 #: the files of a run that hold the map and the data it was learned from (metrics.json holds
 #: timings, so it is not compared)
@@ -63,6 +66,52 @@ def run(out: Path, names) -> int:
     return 1 if failed else 0
 
 
+def _leaves(obj, path=""):
+    """``(path, value)`` of every leaf of a JSON value; lists of numbers as one array leaf."""
+    if isinstance(obj, dict):
+        for key, value in obj.items():
+            yield from _leaves(value, f"{path}/{key}")
+    elif isinstance(obj, list) and obj and all(isinstance(v, (int, float)) for v in obj):
+        yield path, np.asarray(obj)
+    elif isinstance(obj, list):
+        for i, value in enumerate(obj):
+            yield from _leaves(value, f"{path}[{i}]")
+    else:
+        yield path, obj
+
+
+def _arrays_differ(pairs) -> str:
+    """"floats only ..." where every pair has one shape and kind and only floats differ, else
+    the first pair that does not."""
+    largest, count = 0.0, 0
+    for where, x, y in pairs:
+        x, y = np.asarray(x), np.asarray(y)
+        if x.shape != y.shape or x.dtype.kind != y.dtype.kind or (
+                x.dtype.kind not in "fc" and not np.array_equal(x, y)):
+            return f"structure or integers differ at {where}"
+        if x.dtype.kind in "fc" and not np.array_equal(x, y, equal_nan=True):
+            diff = np.abs(x - y) / np.maximum(np.maximum(np.abs(x), np.abs(y)), 1e-300)
+            largest, count = max(largest, float(np.nanmax(diff))), count + int((x != y).sum())
+    return f"floats only: {count} values, largest relative difference {largest:.1e}"
+
+
+def how_they_differ(fa: Path, fb: Path) -> str:
+    """Whether two map files differ in their structure (states, arcs, labels, any integer or
+    text) or only in the last bits of their floats, as maps of one config do on two CPUs whose
+    vector instructions round sums differently (``docs/file-formats.md``)."""
+    if fa.suffix == ".json":
+        a, b = (dict(_leaves(json.loads(f.read_text()))) for f in (fa, fb))
+        if a.keys() != b.keys():
+            return f"fields differ: {sorted(a.keys() ^ b.keys())[:3]}"
+        return _arrays_differ((k, a[k], b[k]) for k in a)
+    if fa.suffix == ".npz":
+        with np.load(fa, allow_pickle=False) as x, np.load(fb, allow_pickle=False) as y:
+            if set(x.files) != set(y.files):
+                return "arrays differ"
+            return _arrays_differ((k, x[k], y[k]) for k in x.files)
+    return "text differs"
+
+
 def compare(a: Path, b: Path) -> int:
     differ = 0
     for name in CONFIGS:
@@ -74,7 +123,7 @@ def compare(a: Path, b: Path) -> int:
                 print(f"{name}/{file}: missing in {a if not fa.exists() else b}")
                 differ += 1
             elif not filecmp.cmp(fa, fb, shallow=False):
-                print(f"{name}/{file}: differs")
+                print(f"{name}/{file}: differs ({how_they_differ(fa, fb)})")
                 differ += 1
     print("every map the same bytes" if not differ else f"{differ} files differ or are missing")
     return 1 if differ else 0

@@ -1,19 +1,27 @@
 """A short fingerprint of what a simulated benchmark walk depends on, for its cache file's name.
 
 The walks of ``bench_continuous.py`` and ``robot_harness.py`` are cached as npz files keyed by
-case, settings and seed; a walk cached by other arena code, another floor plan file or another
-ratinabox or numpy release is not the walk the same key gives today (measured: `corridor` seed 2
-was placed 0.929 m off from a walk cached earlier and 0.113 m off from one simulated afresh).
-:func:`walk_stamp` hashes the arena's sources, the benchmark floor plans and those two releases, so
-such a cache file is simply not found and the walk is simulated again.
+case, settings and seed; a walk cached by other arena code, another floor plan file, another
+ratinabox or numpy release, or on a machine whose numeric kernels round otherwise is not the walk
+the same key gives here. The kernels matter most: ratinabox's motion calls BLAS (a 2 x 2 rotation,
+dot products) and numpy's vector loops, and carries a last-bit difference to metres within
+1,800-10,500 steps (all 24 walks of ``bench_continuous.py``'s eight base plans, seeds 0-2, with
+OpenBLAS's Haswell kernels against its SkylakeX ones; `corridor` seed 2's views clusters place
+the held-out walk 0.357 against 0.714 m off). :func:`walk_stamp` hashes the arena's sources, the
+benchmark floor plans, those two releases and
+:func:`topomap.app.run.outputs.numeric_kernels`, so such a cache file is simply not found and the
+walk is simulated again.
 """
 
 from __future__ import annotations
 
 import hashlib
+import json
 from functools import lru_cache
 from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
+
+from topomap.app.run.outputs import numeric_kernels
 
 HERE = Path(__file__).resolve().parent
 
@@ -32,8 +40,8 @@ def _release(package: str) -> str:
 @lru_cache(maxsize=1)
 def walk_stamp() -> str:
     """:data:`STAMP_DIGITS` hex digits of a SHA-1 over the sources of ``topomap.worlds.arena``,
-    ``benchmarks/floorplans/*.yaml``, this folder's walk code and the ratinabox and numpy
-    releases."""
+    ``benchmarks/floorplans/*.yaml``, this folder's walk code, the ratinabox and numpy
+    releases and the machine's numeric kernels."""
     import topomap.worlds.arena as arena
 
     files = sorted(Path(arena.__file__).parent.rglob("*.py")) + sorted(
@@ -44,4 +52,5 @@ def walk_stamp() -> str:
         h.update(f.read_bytes())
     for package in ("ratinabox", "numpy"):
         h.update(f"{package}={_release(package)}".encode())
+    h.update(json.dumps(numeric_kernels(), sort_keys=True).encode())
     return h.hexdigest()[:STAMP_DIGITS]

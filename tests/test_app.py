@@ -2,6 +2,7 @@
 
 import dataclasses
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -15,6 +16,7 @@ from omegaconf.errors import ValidationError
 
 from topomap import TopologicalMap, load_trajectory
 from topomap.app.run.experiment import run
+from topomap.app.run.outputs import numeric_kernels
 from topomap.app.results import FIGURE_FILES, OUTPUT_FILES
 from topomap.app.compose.registry import Registry
 
@@ -181,6 +183,7 @@ def test_run_in_process_writes_every_output(tmp_path, make_cfg):
         assert set(metrics["entropies"][stage]) >= {"H_o", "H_u", "H_x"}
     assert len(metrics["split_history"]) == 2 and metrics["config"]["clusters"]["ns"] == 8
     assert metrics["versions"]["numpy"] == np.__version__
+    assert metrics["versions"]["numeric_kernels"] == numeric_kernels()
     G = nx.read_graphml(tmp_path / "map.graphml")
     assert G.number_of_nodes() == 12
     for png in FIGURE_FILES:
@@ -282,3 +285,25 @@ def test_the_rosbag_data_options_are_read_rosbags_own():
     assert {k: v for k, v in fields.items() if k in wanted} == wanted
     assert set(fields) == {"component", "path", "heldout_path", "observation_topic",
                            "action_topic", *wanted}
+
+
+def _kernels_with(**env) -> dict:
+    code = ("import json; from topomap.app.run.outputs import numeric_kernels; "
+            "print(json.dumps(numeric_kernels()))")
+    out = subprocess.run([sys.executable, "-c", code], env={**os.environ, **env},
+                         capture_output=True, text=True, check=True).stdout
+    return json.loads(out)
+
+
+def test_numeric_kernels_name_what_numpy_and_blas_dispatch_to():
+    """The record follows the libraries' own dispatch: a vector extension switched off by
+    numpy's variable is missing from ``numpy_simd``, and OpenBLAS told to run its Haswell
+    kernels names them -- the two switches that give another machine's continuous walks."""
+    kernels = numeric_kernels()
+    found, blas = kernels["numpy_simd"], kernels["blas"]
+    assert isinstance(found, list) and all(isinstance(f, str) for f in found)
+    assert blas and all(isinstance(b, str) for b in blas)
+    if found:
+        assert _kernels_with(NPY_DISABLE_CPU_FEATURES=found[-1])["numpy_simd"] == found[:-1]
+    if blas[0].startswith("openblas"):
+        assert _kernels_with(OPENBLAS_CORETYPE="Haswell")["blas"][0].endswith("Haswell")

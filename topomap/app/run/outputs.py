@@ -21,8 +21,8 @@ from ..results import (FIGURE_FILES, LOCALIZE_FILES, MAPPING_FIGURES, METRICS_FI
                        PATH_FIGURES, ROBOT_FILES, STATUS_FILE)
 from .interrupts import held_signals, stop_if_interrupted
 
-__all__ = ["write_outputs", "write_localization", "versions", "write_json", "staged",
-           "own_files", "claim_output_dir", "locked_output_dir", "remove_new_folder",
+__all__ = ["write_outputs", "write_localization", "versions", "numeric_kernels", "write_json",
+           "staged", "own_files", "claim_output_dir", "locked_output_dir", "remove_new_folder",
            "OutputDirInUse", "LOCK_FILE"]
 
 #: where a run stages its files before they move into its folder (hidden, removed afterwards)
@@ -145,7 +145,8 @@ def staged(out):
 
 
 def versions() -> dict:
-    """Python's and every relevant package's version, for the record."""
+    """Python's and every relevant package's version, and the machine's numeric kernels
+    (``numeric_kernels``: :func:`numeric_kernels`), for the record."""
     out = {"python": sys.version.split()[0]}
     for pkg in ("topomap", "numpy", "scikit-learn", "networkx", "hydra-core", "omegaconf",
                 "pluggy", "matplotlib", "plotly"):
@@ -153,7 +154,27 @@ def versions() -> dict:
             out[pkg] = version(pkg)
         except PackageNotFoundError:
             out[pkg] = None
+    out["numeric_kernels"] = numeric_kernels()
     return out
+
+
+def numeric_kernels() -> dict:
+    """The vector instructions numpy's loops use on this CPU (``numpy_simd``, e.g. ``["X86_V3",
+    "X86_V4", "AVX512_ICL"]``) and the BLAS build and kernel set (``blas``, e.g. ``"openblas
+    0.3.31 SkylakeX"``).  Sums and transcendental functions round their last bit by these, so
+    two machines that differ here give maps whose floats differ in the last bits, and continuous
+    walks that part after a few thousand steps (``docs/file-formats.md``)."""
+    from threadpoolctl import threadpool_info
+
+    try:  # numpy's own record of its dispatch, as np.show_runtime() prints it (numpy 2)
+        from numpy._core._multiarray_umath import __cpu_dispatch__, __cpu_features__
+    except ImportError:  # pragma: no cover - numpy 1.26
+        from numpy.core._multiarray_umath import __cpu_dispatch__, __cpu_features__
+    simd = [f for f in __cpu_dispatch__ if __cpu_features__.get(f)]
+    blas = [" ".join(str(p) for p in (i.get("internal_api"), i.get("version"),
+                                      i.get("architecture")) if p)
+            for i in threadpool_info() if i.get("user_api") == "blas"]
+    return {"numpy_simd": simd, "blas": blas}
 
 
 def _json_default(obj):
