@@ -73,7 +73,7 @@ from pathlib import Path
 import numpy as np
 
 from topomap import MapLearner, Trajectory
-from walk_stamp import walk_stamp
+from walk_stamp import walk_stamp, warn_mixed_walks
 from topomap.core.map.model import TopologicalMap
 from topomap.evaluation.metres import (ceiling_scores, kmeans_view_scores, map_scores,
                                           score_units)
@@ -284,7 +284,8 @@ def _done(log: Path) -> set:
     if not log.exists():
         return set()
     rows = [json.loads(line) for line in log.read_text().splitlines() if line.strip()]
-    return {(r["case"], r["setting"], r["seed"], r["train"], r["route"]) for r in rows}
+    return {(r["case"], r["setting"], r["seed"], r["train"], r["route"]) for r in rows
+            if r.get("walks", walk_stamp()) == walk_stamp()}  # rows of these walks only
 
 
 def logged_triples(log: Path) -> set:
@@ -309,7 +310,7 @@ def run(cases, routes, seeds, settings, steps, log: Path, cache: Path) -> None:
                     for r in todo:
                         row = {"case": case, "setting": setting_name(s), "seed": seed,
                                "train": len(train) if case.startswith("tanni") else n,
-                               "route": r,
+                               "route": r, "walks": walk_stamp(),
                                **route(r, train, held, ns, S, world.region_of, seed),
                                "rss_mib": _peak_rss_mib()}
                         with open(log, "a") as fh:
@@ -323,6 +324,7 @@ def run(cases, routes, seeds, settings, steps, log: Path, cache: Path) -> None:
 def table(log: Path, train: int | None = None) -> list[dict]:
     """Medians over seeds of every (case, setting, training steps, route) in ``log``."""
     rows = [json.loads(line) for line in log.read_text().splitlines() if line.strip()]
+    warn_mixed_walks(rows)
     groups: dict = {}
     for r in rows:
         if train is None or r["train"] == train or r["case"].startswith("tanni"):

@@ -44,6 +44,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import robot_harness as H  # noqa: E402
 import robot_routes as RR  # noqa: E402
 import robot_slam as RS  # noqa: E402
+from walk_stamp import walk_stamp, warn_mixed_walks  # noqa: E402
 
 from topomap import MapLearner  # noqa: E402
 from topomap.evaluation.metres import (ceiling_scores, kmeans_view_scores,  # noqa: E402
@@ -124,7 +125,8 @@ def _done(log: Path) -> set:
     if not log.exists():
         return set()
     return {(r["plan"], r["robot"], r["seed"], r["route"])
-            for r in map(json.loads, log.read_text().splitlines()) if r}
+            for r in map(json.loads, log.read_text().splitlines())
+            if r and r.get("walks", walk_stamp()) == walk_stamp()}  # rows of these walks only
 
 
 def run(plans, seeds, routes, robot, log: Path, cache: Path) -> None:
@@ -138,7 +140,7 @@ def run(plans, seeds, routes, robot, log: Path, cache: Path) -> None:
             regions = H.region_of(plan)
             for r in todo:
                 row = {"plan": plan, "robot": robot.name(), "seed": seed, "route": r,
-                       **route(r, tw, hw, regions, seed)}
+                       "walks": walk_stamp(), **route(r, tw, hw, regions, seed)}
                 with open(log, "a") as fh:
                     fh.write(json.dumps(row) + "\n")
                 print(f"{plan:13s} {robot.name():12s} seed {seed} {r:16s} median "
@@ -148,6 +150,7 @@ def run(plans, seeds, routes, robot, log: Path, cache: Path) -> None:
 
 def table(log: Path, plans=None, routes=None) -> list[dict]:
     rows = [json.loads(x) for x in log.read_text().splitlines() if x.strip()]
+    warn_mixed_walks(rows)
     groups: dict = {}
     for r in rows:
         if (plans is None or r["plan"] in plans) and (routes is None or r["route"] in routes):

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import sys
 from functools import lru_cache
 from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
@@ -54,3 +55,14 @@ def walk_stamp() -> str:
         h.update(f"{package}={_release(package)}".encode())
     h.update(json.dumps(numeric_kernels(), sort_keys=True).encode())
     return h.hexdigest()[:STAMP_DIGITS]
+
+
+def warn_mixed_walks(rows) -> None:
+    """Say on stderr when a benchmark log's rows (their ``"walks"`` field: :func:`walk_stamp`)
+    come from more than one set of walks -- other arena code, releases or numeric kernels --
+    whose medians a table would mix."""
+    stamps = {r["walks"] for r in rows if "walks" in r}
+    if len(stamps) > 1:
+        print(f"note: this log holds rows of {len(stamps)} sets of walks "
+              f"({', '.join(sorted(stamps))}: other arena code, releases or numeric kernels); "
+              "their medians mix them", file=sys.stderr)
