@@ -162,8 +162,8 @@ def numeric_kernels() -> dict:
     """The vector instructions numpy's loops use on this CPU (``numpy_simd``, e.g. ``["X86_V3",
     "X86_V4", "AVX512_ICL"]``) and the BLAS build and kernel set (``blas``, e.g. ``"openblas
     0.3.31 SkylakeX"``).  Sums and transcendental functions round their last bit by these, so
-    two machines that differ here give maps whose floats differ in the last bits, and continuous
-    walks that part after a few thousand steps (``docs/file-formats.md``)."""
+    two machines that differ here can give maps whose floats differ in the last bits, and
+    continuous walks that part after a few thousand steps (``docs/file-formats.md``)."""
     from threadpoolctl import threadpool_info
 
     try:  # numpy's own record of its dispatch, as np.show_runtime() prints it (numpy 2)
