@@ -73,7 +73,7 @@ from pathlib import Path
 import numpy as np
 
 from topomap import MapLearner, Trajectory
-from walk_stamp import walk_stamp, warn_mixed_walks
+from walk_stamp import of_these_walks, walk_stamp, warn_mixed_walks
 from topomap.core.map.model import TopologicalMap
 from topomap.evaluation.metres import (ceiling_scores, kmeans_view_scores, map_scores,
                                           score_units)
@@ -285,7 +285,7 @@ def _done(log: Path) -> set:
         return set()
     rows = [json.loads(line) for line in log.read_text().splitlines() if line.strip()]
     return {(r["case"], r["setting"], r["seed"], r["train"], r["route"]) for r in rows
-            if r.get("walks", walk_stamp()) == walk_stamp()}  # rows of these walks only
+            if of_these_walks(r)}
 
 
 def logged_triples(log: Path) -> set:

@@ -44,7 +44,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import robot_harness as H  # noqa: E402
 import robot_routes as RR  # noqa: E402
 import robot_slam as RS  # noqa: E402
-from walk_stamp import walk_stamp, warn_mixed_walks  # noqa: E402
+from walk_stamp import of_these_walks, walk_stamp, warn_mixed_walks  # noqa: E402
 
 from topomap import MapLearner  # noqa: E402
 from topomap.evaluation.metres import (ceiling_scores, kmeans_view_scores,  # noqa: E402
@@ -126,7 +126,7 @@ def _done(log: Path) -> set:
         return set()
     return {(r["plan"], r["robot"], r["seed"], r["route"])
             for r in map(json.loads, log.read_text().splitlines())
-            if r and r.get("walks", walk_stamp()) == walk_stamp()}  # rows of these walks only
+            if r and of_these_walks(r)}
 
 
 def run(plans, seeds, routes, robot, log: Path, cache: Path) -> None:

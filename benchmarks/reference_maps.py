@@ -67,7 +67,8 @@ def run(out: Path, names) -> int:
 
 
 def _leaves(obj, path=""):
-    """``(path, value)`` of every leaf of a JSON value; lists of numbers as one array leaf."""
+    """``(path, value)`` of every leaf of a JSON value; a list of numbers is one array leaf
+    (float where any of them is, so a changed integer among floats counts as a float)."""
     if isinstance(obj, dict):
         for key, value in obj.items():
             yield from _leaves(value, f"{path}/{key}")
@@ -81,8 +82,8 @@ def _leaves(obj, path=""):
 
 
 def _arrays_differ(pairs) -> str:
-    """"floats only ..." where every pair has one shape and kind and only floats differ, else
-    the first pair that does not."""
+    """``"floats only ..."`` where every ``(where, x, y)`` of ``pairs`` has one shape and kind
+    and only floats differ, else the first ``where`` that does not."""
     largest, count = 0.0, 0
     for where, x, y in pairs:
         x, y = np.asarray(x), np.asarray(y)

@@ -6,7 +6,7 @@ ratinabox or numpy release, or on a machine whose numeric kernels round otherwis
 the same key gives here. The kernels matter most: ratinabox's motion calls BLAS (a 2 x 2 rotation,
 dot products) and numpy's vector loops, and carries a last-bit difference to metres within
 1,800-10,500 steps (all 24 walks of ``bench_continuous.py``'s eight base plans, seeds 0-2, with
-OpenBLAS's Haswell kernels against its SkylakeX ones; `corridor` seed 2's views clusters place
+OpenBLAS's Haswell kernels against its SkylakeX ones; `corridor` seed 2's view clusters place
 the held-out walk 0.357 against 0.714 m off). :func:`walk_stamp` hashes the arena's sources, the
 benchmark floor plans, those two releases and
 :func:`topomap.app.run.outputs.numeric_kernels`, so such a cache file is simply not found and the
@@ -55,6 +55,12 @@ def walk_stamp() -> str:
         h.update(f"{package}={_release(package)}".encode())
     h.update(json.dumps(numeric_kernels(), sort_keys=True).encode())
     return h.hexdigest()[:STAMP_DIGITS]
+
+
+def of_these_walks(row: dict) -> bool:
+    """Whether a benchmark log's row was measured on the walks :func:`walk_stamp` names here (a
+    row without a ``"walks"`` field is taken to be)."""
+    return row.get("walks", walk_stamp()) == walk_stamp()
 
 
 def warn_mixed_walks(rows) -> None:
