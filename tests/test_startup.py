@@ -124,6 +124,18 @@ def test_a_lazy_name_is_imported_on_first_use_and_kept(monkeypatch):
         package.OTHER
 
 
+@pytest.mark.parametrize("name", ["topomap", "topomap.core", "topomap.worlds"])
+def test_dir_lists_a_packages_public_names_before_they_are_imported(name, tmp_path):
+    """``dir()`` of a package (what an editor completes) lists every public name, in a fresh
+    interpreter where none of them has been imported yet."""
+    code = (f"import importlib, sys; p = importlib.import_module({name!r}); "
+            "missing = sorted(set(p.__all__) - set(dir(p))); "
+            "print(missing, 'sklearn' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         cwd=tmp_path, timeout=120, check=True).stdout
+    assert out.strip() == "[] False"
+
+
 @pytest.mark.slow
 def test_a_kept_help_is_the_composed_one_and_imports_no_hydra(tmp_path):
     """The second bare ``--help`` prints the first one's text from the kept file, without Hydra

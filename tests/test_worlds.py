@@ -242,6 +242,8 @@ def test_simulate_rejects_bad_input():
 
         with pytest.raises(ValueError, match="not executable"):
             w.simulate(5, Bad(), np.random.default_rng(0))
+        with pytest.raises(ValueError, match="got NoneType; topomap.worlds.RandomExplorer"):
+            w.simulate(5, None, np.random.default_rng(0))
 
 
 # ------------------------------------------------------------------ minigrid

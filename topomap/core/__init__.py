@@ -35,7 +35,7 @@ module              its one job
 
 from typing import TYPE_CHECKING
 
-from .lazy import lazy_getattr
+from .lazy import lazy_dir, lazy_getattr
 
 if TYPE_CHECKING:  # what the names below are, for readers and documentation tools
     from .data.trajectory import (Trajectory, check_sequences, load_trajectory,
@@ -54,3 +54,4 @@ _PUBLIC = {"MapLearner": ".learner", "TopologicalMap": ".map.model",
 
 
 __getattr__ = lazy_getattr(__name__, _PUBLIC)
+__dir__ = lazy_dir(__name__, _PUBLIC)

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import importlib
 
-__all__ = ["lazy_getattr"]
+__all__ = ["lazy_getattr", "lazy_dir"]
 
 
 def lazy_getattr(package: str, public: dict[str, str]):
@@ -22,3 +22,14 @@ def lazy_getattr(package: str, public: dict[str, str]):
         raise AttributeError(f"module {package!r} has no attribute {name!r}")
 
     return __getattr__
+
+
+def lazy_dir(package: str, public: dict[str, str]):
+    """The module ``__dir__`` of ``package``: its own names and those of ``public``, imported or
+    not yet, so that ``dir()`` and an editor's completion list what the package offers."""
+    namespace = vars(importlib.import_module(package))
+
+    def __dir__():
+        return sorted(set(namespace) | set(public))
+
+    return __dir__

@@ -19,7 +19,7 @@ module              its one job
 
 from typing import TYPE_CHECKING
 
-from ..core.lazy import lazy_getattr
+from ..core.lazy import lazy_dir, lazy_getattr
 
 if TYPE_CHECKING:  # what the names below are, for readers and documentation tools
     from .explorers import HistoryExplorer, PlanExplorer, RandomExplorer, View, active_explorer
@@ -44,3 +44,4 @@ __all__ = ["DropoutNoise", "GaussianNoise", "GridRoom", "MiniGridWorld", "Multip
 
 
 __getattr__ = lazy_getattr(__name__, _PUBLIC)
+__dir__ = lazy_dir(__name__, _PUBLIC)

@@ -22,7 +22,9 @@ def check_simulate_args(n_steps, explorer) -> int:
     """Validate the arguments of ``simulate`` and return ``n_steps`` as an int."""
     n_steps = check_count(n_steps, "n_steps")
     if not callable(getattr(explorer, "choose", None)):
-        raise ValueError("explorer must have a choose(executable_mask, rng) method")
+        raise ValueError(f"explorer must have a choose(executable_mask, rng) method, got "
+                         f"{type(explorer).__name__}; topomap.worlds.RandomExplorer() walks at "
+                         f"random")
     return n_steps
 
 
