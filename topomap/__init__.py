@@ -20,7 +20,7 @@ with scikit-learn and numba, the plugin marker with pluggy), so the ``topomap`` 
 import importlib
 from typing import TYPE_CHECKING
 
-from .core.lazy import lazy_getattr
+from .core.lazy import lazy_dir, lazy_getattr
 
 if TYPE_CHECKING:  # what the names below are, for readers and documentation tools
     from . import metrics
@@ -58,5 +58,4 @@ def __getattr__(name):
     return _public(name)
 
 
-def __dir__():
-    return sorted(set(globals()) | set(__all__))
+__dir__ = lazy_dir(__name__, __all__)

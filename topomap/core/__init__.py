@@ -54,4 +54,4 @@ _PUBLIC = {"MapLearner": ".learner", "TopologicalMap": ".map.model",
 
 
 __getattr__ = lazy_getattr(__name__, _PUBLIC)
-__dir__ = lazy_dir(__name__, _PUBLIC)
+__dir__ = lazy_dir(__name__, __all__)

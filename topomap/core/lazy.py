@@ -24,12 +24,13 @@ def lazy_getattr(package: str, public: dict[str, str]):
     return __getattr__
 
 
-def lazy_dir(package: str, public: dict[str, str]):
-    """The module ``__dir__`` of ``package``: its own names and those of ``public``, imported or
-    not yet, so that ``dir()`` and an editor's completion list what the package offers."""
-    namespace = vars(importlib.import_module(package))
+def lazy_dir(package: str, public):
+    """The module ``__dir__`` of ``package``: its own names and the names ``public`` (its
+    ``__all__``), imported or not yet, so that ``dir()`` and an editor's completion list what the
+    package offers."""
+    namespace, public = vars(importlib.import_module(package)), frozenset(public)
 
     def __dir__():
-        return sorted(set(namespace) | set(public))
+        return sorted(set(namespace) | public)
 
     return __dir__

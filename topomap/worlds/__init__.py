@@ -44,4 +44,4 @@ __all__ = ["DropoutNoise", "GaussianNoise", "GridRoom", "MiniGridWorld", "Multip
 
 
 __getattr__ = lazy_getattr(__name__, _PUBLIC)
-__dir__ = lazy_dir(__name__, _PUBLIC)
+__dir__ = lazy_dir(__name__, __all__)
